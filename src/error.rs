@@ -1,0 +1,38 @@
+//! One error type for the crate: every message names the field (or cell) at fault.
+
+use thiserror::Error;
+
+/// What can go wrong between reading a scene and writing the last output.
+#[derive(Debug, Error)]
+pub enum Error {
+    /// A scene value is missing, unknown or out of its allowed range; `field` is the JSON path.
+    #[error("scene: `{field}`: {message}")]
+    Scene { field: String, message: String },
+    /// A mesh cell is degenerate, clockwise, overlapping or non-conforming.
+    #[error("mesh `{body}`: cell {cell}: {message}")]
+    Mesh { body: String, cell: usize, message: String },
+    /// The scene could not be parsed as JSON of the expected shape.
+    #[error("scene {path}: {message}")]
+    Parse { path: String, message: String },
+    /// Reading or writing a file failed.
+    #[error("{path}: {source}")]
+    Io { path: String, #[source] source: std::io::Error },
+}
+
+impl Error {
+    /// A scene error for `field` with an explanation of the allowed values.
+    pub fn scene(field: impl Into<String>, message: impl Into<String>) -> Self {
+        Error::Scene { field: field.into(), message: message.into() }
+    }
+    /// A mesh error that names the body and the cell.
+    pub fn mesh(body: &str, cell: usize, message: impl Into<String>) -> Self {
+        Error::Mesh { body: body.to_string(), cell, message: message.into() }
+    }
+    /// An I/O error that names the path.
+    pub fn io(path: impl AsRef<std::path::Path>, source: std::io::Error) -> Self {
+        Error::Io { path: path.as_ref().display().to_string(), source }
+    }
+}
+
+/// The crate's result type.
+pub type Result<T> = std::result::Result<T, Error>;

@@ -1,0 +1,104 @@
+//! Centroidal Voronoi cells clipped to a rectangle: seeded random sites, then Lloyd iterations
+//! that move each site to the area centroid of its cell. The Voronoi step itself is the
+//! `voronoice` crate (Delaunay by `delaunator`, dual cells clipped to the box).
+
+use super::{Checks, Mesh};
+use crate::error::{Error, Result};
+use crate::geometry::{area_properties, Vec2};
+use rand::{Rng, SeedableRng};
+use std::collections::HashMap;
+use voronoice::{BoundingBox, Point, VoronoiBuilder};
+
+/// `sites` cells in the rectangle `origin .. origin + size`, after `lloyd` centroid iterations;
+/// the same `seed` gives the same mesh on every machine (ChaCha8 generator).
+pub fn voronoi(body: &str, origin: Vec2, size: Vec2, sites: usize, seed: u64, lloyd: usize) -> Result<Mesh> {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let mut pts: Vec<Vec2> =
+        (0..sites).map(|_| origin + Vec2::new(rng.random::<f64>() * size.x, rng.random::<f64>() * size.y)).collect();
+    let mut cells = clipped_cells(body, origin, size, &pts)?;
+    for _ in 0..lloyd {
+        pts = cells.iter().map(|c| area_properties(c).centroid).collect();
+        cells = clipped_cells(body, origin, size, &pts)?;
+    }
+    weld(body, origin, size, &cells)
+}
+
+/// The Voronoi cells of `sites`, clipped to the rectangle, as coordinate lists.
+fn clipped_cells(body: &str, origin: Vec2, size: Vec2, sites: &[Vec2]) -> Result<Vec<Vec<Vec2>>> {
+    let centre = origin + 0.5 * size;
+    let diagram = VoronoiBuilder::default()
+        .set_sites(sites.iter().map(|p| Point { x: p.x, y: p.y }).collect())
+        .set_bounding_box(BoundingBox::new(Point { x: centre.x, y: centre.y }, size.x, size.y))
+        .build()
+        .ok_or_else(|| Error::mesh(body, 0, "the Voronoi diagram could not be built (too few or coincident sites)"))?;
+    if diagram.sites().len() != sites.len() {
+        return Err(Error::mesh(body, 0, "some Voronoi sites fell outside the rectangle"));
+    }
+    let v = diagram.vertices();
+    Ok(diagram.cells().iter().map(|c| c.iter().map(|&i| Vec2::new(v[i].x, v[i].y)).collect()).collect())
+}
+
+/// Merges coincident vertices (within 1e-10 of the rectangle's size) so that neighbouring cells
+/// share vertex indices, drops the zero-length edges that merging leaves, and orients every
+/// cell counter-clockwise.
+fn weld(body: &str, origin: Vec2, size: Vec2, cells: &[Vec<Vec2>]) -> Result<Mesh> {
+    let tol = 1e-10 * size.norm();
+    let key = |p: Vec2| (((p.x - origin.x) / tol).round() as i64, ((p.y - origin.y) / tol).round() as i64);
+    let mut index: HashMap<(i64, i64), u32> = HashMap::new();
+    let mut vertices: Vec<Vec2> = Vec::new();
+    let mut out = Vec::with_capacity(cells.len());
+    for cell in cells {
+        let mut ids: Vec<u32> = Vec::with_capacity(cell.len());
+        for &p in cell {
+            let (kx, ky) = key(p);
+            // A point near a rounding boundary may have its twin in a neighbouring bucket.
+            let found = (-1..=1)
+                .flat_map(|dx| (-1..=1).map(move |dy| (kx + dx, ky + dy)))
+                .find_map(|k| index.get(&k).copied())
+                .filter(|&i| (vertices[i as usize] - p).norm() <= tol);
+            let id = found.unwrap_or_else(|| {
+                vertices.push(p);
+                index.insert((kx, ky), vertices.len() as u32 - 1);
+                vertices.len() as u32 - 1
+            });
+            if ids.last() != Some(&id) {
+                ids.push(id);
+            }
+        }
+        if ids.len() > 1 && ids.first() == ids.last() {
+            ids.pop();
+        }
+        // voronoice lists cell vertices clockwise; elements are counter-clockwise.
+        if area_properties(cell).area < 0.0 {
+            ids.reverse();
+        }
+        out.push(ids);
+    }
+    Mesh::build(body, vertices, &out, Checks::Generated)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cells_tile_the_rectangle() {
+        let (o, s) = (Vec2::new(1.0, 2.0), Vec2::new(2.0, 1.0));
+        let m = voronoi("b", o, s, 60, 7, 5).unwrap();
+        assert_eq!(m.n_cells(), 60);
+        let total: f64 = (0..60).map(|c| area_properties(&m.cell_points(c)).area).sum();
+        assert!((total - 2.0).abs() < 1e-12, "{total}");
+        // Every boundary edge lies on the rectangle: the cells conform inside.
+        assert!(m.boundary.iter().all(|e| e.side.is_some()));
+        // Euler's formula for a planar subdivision: V - E + F = 1.
+        let e = m.shared.len() + m.boundary.len();
+        assert_eq!(m.vertices.len() as i64 - e as i64 + 60, 1);
+    }
+
+    #[test]
+    fn same_seed_same_mesh() {
+        let a = voronoi("b", Vec2::zeros(), Vec2::new(1.0, 1.0), 30, 3, 2).unwrap();
+        let b = voronoi("b", Vec2::zeros(), Vec2::new(1.0, 1.0), 30, 3, 2).unwrap();
+        assert_eq!(a.vertices, b.vertices);
+    }
+}
