@@ -1,3 +1,12 @@
 pub mod error;
+pub mod evaluator;
+pub mod formulation;
 pub mod geometry;
+pub mod integrator;
+pub mod loads;
+pub mod mass;
 pub mod mesh;
+pub mod model;
+pub mod parallel;
+pub mod scene;
+pub mod stability;

@@ -1,0 +1,32 @@
+//! Evaluators: `U ↦ f_int(U)`, the internal forces of the model (DESIGN.md §5).
+//!
+//! Two implementations of one contract, which the integrator cannot tell apart:
+//! [`Assembled`] multiplies by the global stiffness `K` of eq. 7; [`ElementWise`] sums, per
+//! element, the tractions on its own boundary (eq. 15) with no global matrix.
+
+mod assembled;
+mod element_wise;
+
+pub use assembled::{interface_stiffness, Assembled, BlockCsr};
+pub use element_wise::ElementWise;
+
+use crate::formulation::{Formulation, Rigid};
+use crate::model::Model;
+use crate::scene::EvaluatorKind;
+
+/// Internal forces of a model in a given state.
+pub trait Evaluator: Send + Sync {
+    /// Which evaluator this is.
+    fn kind(&self) -> EvaluatorKind;
+    /// `f = f_int(u)`; both slices hold `ndof` entries per element, element after element.
+    /// Allocation-free; parallel over elements; the result does not depend on the thread count.
+    fn internal_force(&self, u: &[f64], f: &mut [f64]);
+}
+
+/// The evaluator `kind` for the model's formulation.
+pub fn build(model: &Model, kind: EvaluatorKind) -> Box<dyn Evaluator> {
+    match (model.formulation, kind) {
+        (Formulation::Rigid, EvaluatorKind::Assembled) => Box::new(Assembled::<Rigid, 3>::new(model)),
+        (Formulation::Rigid, EvaluatorKind::ElementWise) => Box::new(ElementWise::<Rigid, 3>::new(model)),
+    }
+}

@@ -1,0 +1,429 @@
+//! The scene file (DESIGN.md §9): one JSON document, key names fixed, unknown keys refused.
+//!
+//! Parsing names the JSON path of an unknown or mistyped key (`bodies[0].mesh.cels`);
+//! [`Scene::validate`] then checks every value against its allowed range.
+
+use crate::error::{Error, Result};
+use crate::mesh::{grid::Cell, Side};
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// A whole scene.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Scene {
+    pub name: String,
+    #[serde(default)]
+    pub plane: Plane,
+    /// Out-of-plane thickness `t` (m).
+    pub thickness: f64,
+    pub formulation: FormulationSpec,
+    #[serde(default)]
+    pub evaluator: EvaluatorKind,
+    /// Gravitational acceleration (m/s²), global components.
+    #[serde(default)]
+    pub gravity: Option<[f64; 2]>,
+    /// Mass-proportional damping coefficient `α` (1/s): `C = α M`. Optional, default none.
+    #[serde(default)]
+    pub damping: Option<f64>,
+    pub materials: BTreeMap<String, MaterialSpec>,
+    pub bodies: Vec<BodySpec>,
+    #[serde(default)]
+    pub ground: Vec<GroundSpec>,
+    #[serde(default)]
+    pub contact: Option<ContactSpec>,
+    pub time: TimeSpec,
+    #[serde(default)]
+    pub output: OutputSpec,
+}
+
+/// Plane stress or plane strain (eq. 12 and its plane-strain form).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Plane {
+    #[default]
+    Stress,
+    Strain,
+}
+
+/// Which displacement field an element carries.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "lowercase", deny_unknown_fields)]
+pub enum FormulationSpec {
+    /// Plain RBSM: `(u, v, θ)` per element (eq. 10).
+    Rigid,
+    /// Rigid plus constant strain (eqs. 5, 8), springs `penalty` times eq. 12.
+    Hybrid { penalty: f64 },
+}
+
+/// Which evaluator computes the internal forces (DESIGN.md §5).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "kebab-case")]
+pub enum EvaluatorKind {
+    /// Global sparse `K`, `f = K U` (eqs. 7–13).
+    #[default]
+    Assembled,
+    /// Per element, the resultant of the tractions on its boundary (eqs. 15–16).
+    ElementWise,
+}
+
+impl EvaluatorKind {
+    /// The name used in scenes and outputs.
+    pub fn name(self) -> &'static str {
+        match self {
+            EvaluatorKind::Assembled => "assembled",
+            EvaluatorKind::ElementWise => "element-wise",
+        }
+    }
+}
+
+/// An isotropic linear-elastic material.
+#[derive(Debug, Clone, Copy, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MaterialSpec {
+    /// Young's modulus (Pa).
+    #[serde(rename = "E")]
+    pub e: f64,
+    /// Poisson's ratio.
+    pub nu: f64,
+    /// Density (kg/m³).
+    pub rho: f64,
+}
+
+/// One body: a meshed region of one material.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BodySpec {
+    pub name: String,
+    pub material: String,
+    pub mesh: MeshSpec,
+    #[serde(default)]
+    pub supports: Vec<SupportSpec>,
+    #[serde(default)]
+    pub loads: Vec<LoadSpec>,
+    #[serde(default)]
+    pub initial: InitialSpec,
+}
+
+/// How a body is cut into elements.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "lowercase", deny_unknown_fields)]
+pub enum MeshSpec {
+    /// `cells = [nx, ny]` rectangles (or twice as many triangles) over `origin .. origin + size`.
+    Grid {
+        origin: [f64; 2],
+        size: [f64; 2],
+        cells: [usize; 2],
+        #[serde(default = "default_cell")]
+        cell: Cell,
+    },
+    /// `sites` centroidal Voronoi cells clipped to the rectangle, `lloyd` iterations.
+    Voronoi {
+        origin: [f64; 2],
+        size: [f64; 2],
+        sites: usize,
+        #[serde(default)]
+        seed: u64,
+        #[serde(default)]
+        lloyd: usize,
+    },
+    /// Explicit polygons, vertex lists counter-clockwise.
+    Polygons { vertices: Vec<[f64; 2]>, cells: Vec<Vec<usize>> },
+}
+
+fn default_cell() -> Cell {
+    Cell::Rect
+}
+
+/// A support on a side of the body's bounding box.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(tag = "kind", deny_unknown_fields)]
+pub enum SupportSpec {
+    /// The edges tied to fixed ground by springs with `h_b = 0`.
+    #[serde(rename = "ground-spring")]
+    GroundSpring {
+        edge: Side,
+        #[serde(default = "both_components")]
+        components: Vec<Component>,
+    },
+    /// The listed DOFs of the elements with an edge on that side are fixed.
+    #[serde(rename = "clamp")]
+    Clamp {
+        edge: Side,
+        #[serde(default)]
+        dofs: Option<Vec<String>>,
+    },
+}
+
+fn both_components() -> Vec<Component> {
+    vec![Component::N, Component::S]
+}
+
+/// A spring component of a ground support: normal or shear.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Component {
+    N,
+    S,
+}
+
+/// A load on a body.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "lowercase", deny_unknown_fields)]
+pub enum LoadSpec {
+    /// Uniform traction (N/m², global components) on the edges of one side.
+    Traction {
+        edge: Side,
+        value: [f64; 2],
+        #[serde(default)]
+        amplitude: Option<Vec<[f64; 2]>>,
+    },
+    /// `[F_x, F_y, M]` (N, N, N·m) on one element of the body (index within the body).
+    Force {
+        element: usize,
+        value: [f64; 3],
+        #[serde(default)]
+        amplitude: Option<Vec<[f64; 2]>>,
+    },
+}
+
+/// Initial placement and motion of a body.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InitialSpec {
+    /// Velocity of the body's centroid (m/s).
+    #[serde(default)]
+    pub velocity: [f64; 2],
+    /// Angular velocity about the body's centroid (rad/s).
+    #[serde(default)]
+    pub angular_velocity: f64,
+    /// Rotation of the body about its centroid, counter-clockwise (degrees).
+    #[serde(default)]
+    pub rotation_deg: f64,
+}
+
+/// A rigid ground segment (for contact).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GroundSpec {
+    pub from: [f64; 2],
+    pub to: [f64; 2],
+}
+
+/// Contact between bodies (DESIGN.md §6).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ContactSpec {
+    pub model: String,
+    #[serde(default)]
+    pub friction: Option<f64>,
+}
+
+/// Time step and duration; exactly one of `dt`, `dt_factor` and one of `end`, `steps`.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TimeSpec {
+    #[serde(default)]
+    pub dt: Option<f64>,
+    #[serde(default)]
+    pub dt_factor: Option<f64>,
+    #[serde(default)]
+    pub end: Option<f64>,
+    #[serde(default)]
+    pub steps: Option<u64>,
+}
+
+/// What a run writes.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OutputSpec {
+    /// A history row (and a VTK frame) every this many steps.
+    #[serde(default = "default_every")]
+    pub every: u64,
+    /// ParaView output: legacy `.vtk` frames and a `.pvd` series.
+    #[serde(default)]
+    pub vtk: bool,
+    /// Extra history columns: one DOF of one element each.
+    #[serde(default)]
+    pub probes: Vec<ProbeSpec>,
+}
+
+impl Default for OutputSpec {
+    fn default() -> Self {
+        OutputSpec { every: default_every(), vtk: false, probes: Vec::new() }
+    }
+}
+
+fn default_every() -> u64 {
+    100
+}
+
+/// A history column: DOF `dof` (`u`, `v`, `theta`, ...) of element `element` (global index).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ProbeSpec {
+    #[serde(default)]
+    pub name: Option<String>,
+    pub element: usize,
+    pub dof: String,
+}
+
+impl Scene {
+    /// Reads and validates a scene file.
+    pub fn from_file(path: impl AsRef<Path>) -> Result<Scene> {
+        let path = path.as_ref();
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        Scene::from_json(&text).map_err(|e| match e {
+            Error::Parse { message, .. } => Error::Parse { path: path.display().to_string(), message },
+            other => other,
+        })
+    }
+
+    /// Parses and validates a scene from JSON text.
+    pub fn from_json(text: &str) -> Result<Scene> {
+        let de = &mut serde_json::Deserializer::from_str(text);
+        let scene: Scene = serde_path_to_error::deserialize(de).map_err(|e| {
+            let path = e.path().to_string();
+            let inner = e.into_inner();
+            let message = if path == "." { inner.to_string() } else { format!("at `{path}`: {inner}") };
+            Error::Parse { path: "<json>".into(), message }
+        })?;
+        scene.validate()?;
+        Ok(scene)
+    }
+
+    /// Checks every value against its allowed range; the error names the field.
+    pub fn validate(&self) -> Result<()> {
+        positive("thickness", self.thickness)?;
+        if let FormulationSpec::Hybrid { penalty } = self.formulation {
+            positive("formulation.penalty", penalty)?;
+        }
+        if let Some(g) = self.gravity {
+            finite_all("gravity", &g)?;
+        }
+        if let Some(alpha) = self.damping {
+            if !(alpha >= 0.0 && alpha.is_finite()) {
+                return Err(Error::scene("damping", format!("must be a finite number ≥ 0 (1/s), got {alpha}")));
+            }
+        }
+        if self.materials.is_empty() {
+            return Err(Error::scene("materials", "at least one material is needed"));
+        }
+        for (name, m) in &self.materials {
+            positive(&format!("materials.{name}.E"), m.e)?;
+            positive(&format!("materials.{name}.rho"), m.rho)?;
+            if !(m.nu > -1.0 && m.nu < 0.5) {
+                return Err(Error::scene(format!("materials.{name}.nu"), format!("must lie in (-1, 0.5), got {}", m.nu)));
+            }
+        }
+        if self.bodies.is_empty() {
+            return Err(Error::scene("bodies", "at least one body is needed"));
+        }
+        for (i, b) in self.bodies.iter().enumerate() {
+            self.validate_body(i, b)?;
+        }
+        for (i, g) in self.ground.iter().enumerate() {
+            finite_all(&format!("ground[{i}].from"), &g.from)?;
+            finite_all(&format!("ground[{i}].to"), &g.to)?;
+        }
+        if let Some(c) = &self.contact {
+            if c.model != "edge-to-edge" && c.model != "point" {
+                return Err(Error::scene("contact.model", format!("must be `edge-to-edge` or `point`, got `{}`", c.model)));
+            }
+            if let Some(mu) = c.friction {
+                if !(mu >= 0.0 && mu.is_finite()) {
+                    return Err(Error::scene("contact.friction", format!("must be null or a finite μ ≥ 0, got {mu}")));
+                }
+            }
+        }
+        match (self.time.dt, self.time.dt_factor) {
+            (Some(dt), None) => positive("time.dt", dt)?,
+            (None, Some(f)) => positive("time.dt_factor", f)?,
+            _ => return Err(Error::scene("time.dt", "give exactly one of `dt` (s, > 0) and `dt_factor` (fraction of Δt_crit, > 0)")),
+        }
+        match (self.time.end, self.time.steps) {
+            (Some(end), None) => positive("time.end", end)?,
+            (None, Some(0)) => return Err(Error::scene("time.steps", "must be ≥ 1")),
+            (None, Some(_)) => {}
+            _ => return Err(Error::scene("time.end", "give exactly one of `end` (s, > 0) and `steps` (≥ 1)")),
+        }
+        if self.output.every == 0 {
+            return Err(Error::scene("output.every", "must be ≥ 1 (steps between history rows)"));
+        }
+        Ok(())
+    }
+
+    fn validate_body(&self, i: usize, b: &BodySpec) -> Result<()> {
+        let at = |k: &str| format!("bodies[{i}].{k}");
+        if !self.materials.contains_key(&b.material) {
+            let known: Vec<_> = self.materials.keys().map(String::as_str).collect();
+            return Err(Error::scene(at("material"), format!("unknown material `{}`; defined: {}", b.material, known.join(", "))));
+        }
+        match &b.mesh {
+            MeshSpec::Grid { origin, size, cells, .. } => {
+                finite_all(&at("mesh.origin"), origin)?;
+                positive(&at("mesh.size[0]"), size[0])?;
+                positive(&at("mesh.size[1]"), size[1])?;
+                if cells[0] == 0 || cells[1] == 0 {
+                    return Err(Error::scene(at("mesh.cells"), format!("both counts must be ≥ 1, got {cells:?}")));
+                }
+            }
+            MeshSpec::Voronoi { origin, size, sites, lloyd, .. } => {
+                finite_all(&at("mesh.origin"), origin)?;
+                positive(&at("mesh.size[0]"), size[0])?;
+                positive(&at("mesh.size[1]"), size[1])?;
+                if *sites < 2 {
+                    return Err(Error::scene(at("mesh.sites"), format!("must be ≥ 2, got {sites}")));
+                }
+                if *lloyd > 10_000 {
+                    return Err(Error::scene(at("mesh.lloyd"), format!("must lie in 0..=10000, got {lloyd}")));
+                }
+            }
+            MeshSpec::Polygons { vertices, cells } => {
+                if vertices.len() < 3 || cells.is_empty() {
+                    return Err(Error::scene(at("mesh"), "needs at least 3 vertices and 1 cell"));
+                }
+            }
+        }
+        for (k, s) in b.supports.iter().enumerate() {
+            if let SupportSpec::GroundSpring { components, .. } = s {
+                if components.is_empty() {
+                    return Err(Error::scene(at(&format!("supports[{k}].components")), "must list `n`, `s` or both"));
+                }
+            }
+        }
+        for (k, l) in b.loads.iter().enumerate() {
+            let (value, amplitude): (&[f64], _) = match l {
+                LoadSpec::Traction { value, amplitude, .. } => (value, amplitude),
+                LoadSpec::Force { value, amplitude, .. } => (value, amplitude),
+            };
+            finite_all(&at(&format!("loads[{k}].value")), value)?;
+            if let Some(a) = amplitude {
+                let field = at(&format!("loads[{k}].amplitude"));
+                if a.is_empty() || a.windows(2).any(|w| !(w[1][0] > w[0][0])) || a.iter().any(|p| !p[0].is_finite() || !p[1].is_finite()) {
+                    return Err(Error::scene(field, "must be a non-empty list of [t, factor] with strictly increasing t"));
+                }
+            }
+        }
+        finite_all(&at("initial.velocity"), &b.initial.velocity)?;
+        finite_all(&at("initial.angular_velocity"), &[b.initial.angular_velocity])?;
+        finite_all(&at("initial.rotation_deg"), &[b.initial.rotation_deg])?;
+        Ok(())
+    }
+}
+
+fn positive(field: &str, x: f64) -> Result<()> {
+    if x > 0.0 && x.is_finite() {
+        Ok(())
+    } else {
+        Err(Error::scene(field, format!("must be a finite number > 0, got {x}")))
+    }
+}
+
+fn finite_all(field: &str, xs: &[f64]) -> Result<()> {
+    match xs.iter().position(|x| !x.is_finite()) {
+        None => Ok(()),
+        Some(k) => Err(Error::scene(format!("{field}[{k}]"), "must be a finite number")),
+    }
+}

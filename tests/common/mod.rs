@@ -1,0 +1,47 @@
+//! Scenes built in code for the tests.
+#![allow(dead_code)]
+
+use rbsm::model::Model;
+use rbsm::scene::Scene;
+
+/// A one-body scene around `mesh` (a JSON object) with `supports` (a JSON array).
+pub fn scene_json(mesh: &str, supports: &str) -> String {
+    format!(
+        r#"{{
+        "name": "test", "plane": "stress", "thickness": 0.1,
+        "formulation": {{"kind": "rigid"}},
+        "materials": {{"m": {{"E": 2.0e10, "nu": 0.2, "rho": 2400.0}}}},
+        "bodies": [{{"name": "b", "material": "m", "mesh": {mesh}, "supports": {supports}}}],
+        "time": {{"dt": 1e-6, "steps": 10}}
+    }}"#
+    )
+}
+
+pub fn model(mesh: &str, supports: &str) -> Model {
+    let scene = Scene::from_json(&scene_json(mesh, supports)).expect("valid test scene");
+    Model::build(&scene).expect("model builds")
+}
+
+pub const RECT: &str = r#"{"kind": "grid", "origin": [0.0, 0.0], "size": [1.0, 0.4], "cells": [10, 4], "cell": "rect"}"#;
+pub const TRI: &str = r#"{"kind": "grid", "origin": [0.2, -0.1], "size": [1.0, 0.4], "cells": [6, 3], "cell": "tri"}"#;
+pub const VORONOI: &str = r#"{"kind": "voronoi", "origin": [0.0, 0.0], "size": [1.0, 0.5], "sites": 80, "seed": 11, "lloyd": 10}"#;
+pub const SUPPORTS: &str = r#"[{"edge": "left", "kind": "ground-spring"}, {"edge": "bottom", "kind": "ground-spring", "components": ["n"]}]"#;
+
+/// Seeded pseudo-random numbers in (-1, 1) (a small LCG, enough for test vectors).
+pub fn random_vector(n: usize, seed: u64) -> Vec<f64> {
+    let mut s = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+    (0..n)
+        .map(|_| {
+            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            ((s >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
+        })
+        .collect()
+}
+
+pub fn norm(x: &[f64]) -> f64 {
+    x.iter().map(|v| v * v).sum::<f64>().sqrt()
+}
+
+pub fn max_abs_diff(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max)
+}
