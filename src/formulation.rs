@@ -94,6 +94,13 @@ impl Formulation {
         }
     }
 
+    /// `N_e(d) U_e`: the displacement at offset `d` of an element with DOFs `u`.
+    pub fn displacement(self, u: &[f64], d: Vec2) -> Vec2 {
+        match self {
+            Formulation::Rigid => Rigid::displacement(u.try_into().expect("3 DOFs per rigid element"), d),
+        }
+    }
+
     /// The element mass block, row-major `ndof × ndof`.
     pub fn mass(self, props: &AreaProperties, rho_t: f64) -> Vec<f64> {
         match self {

@@ -71,6 +71,7 @@ pub struct CentralDifference<'a> {
     external_work: f64,
     initial_total: Option<f64>,
     energy_in_max: f64,
+    /// Largest `|total − total(0)|` so far (J).
     max_drift: f64,
     energy_scale: f64,
     good: (u64, f64, Vec<f64>, Vec<f64>),
@@ -120,19 +121,32 @@ impl<'a> CentralDifference<'a> {
         elastic
     }
 
-    /// Largest `|total − total(0)| / scale` so far, `scale` the largest energy seen.
+    /// Whole-step velocities `v^n` of the last state handed to the observer (or restored by
+    /// the guard).
+    pub fn velocity(&self) -> &[f64] {
+        &self.scratch
+    }
+
+    /// Largest `|total − total(0)|` so far divided by the largest energy seen in the run
+    /// (`kinetic + elastic + |potential| + |external_work|`); 0 while nothing has moved.
     pub fn max_relative_drift(&self) -> f64 {
-        self.max_drift
+        if self.energy_scale > 0.0 {
+            self.max_drift / self.energy_scale
+        } else {
+            0.0
+        }
     }
 
     /// Runs `steps` steps; calls `observer` with the state and energies at every `every`-th step
-    /// and at the last one. Stops early, with the reason, when the guard finds a NaN or
-    /// runaway energy; the state is then rolled back to the last one that passed the guard.
+    /// and at the last one, and `progress` with the step number at every guard check. Stops
+    /// early, with the reason, when the guard finds a NaN or runaway energy; the state is then
+    /// rolled back to the last one that passed the guard.
     pub fn run(
         &mut self,
         steps: u64,
         every: u64,
         mut observer: impl FnMut(&Snapshot, &Energy) -> Result<()>,
+        mut progress: impl FnMut(u64),
     ) -> Result<Status> {
         let check_every = every.min(CHECK_EVERY);
         let dt = self.dt;
@@ -165,6 +179,7 @@ impl<'a> CentralDifference<'a> {
                     (self.step, self.t, self.u, self.scratch) = (gs, gt, gu, gv);
                     return Ok(Status::Diverged { step, t, reason });
                 }
+                progress(self.step);
                 if record {
                     observer(&Snapshot { step: self.step, t: self.t, u: &self.u, v: &self.scratch }, &energy)?;
                 }
@@ -197,9 +212,7 @@ impl<'a> CentralDifference<'a> {
         let initial = *self.initial_total.get_or_insert(total);
         self.energy_in_max = self.energy_in_max.max(initial + external_work - potential);
         self.energy_scale = self.energy_scale.max(kinetic + elastic + potential.abs() + external_work.abs());
-        if self.energy_scale > 0.0 {
-            self.max_drift = self.max_drift.max((total - initial).abs() / self.energy_scale);
-        }
+        self.max_drift = self.max_drift.max((total - initial).abs());
         Energy { t: self.t, kinetic, elastic, contact: 0.0, potential, external_work, total }
     }
 

@@ -1,0 +1,121 @@
+//! What a run writes (DESIGN.md §9): `summary.json`, `history.csv` and `final_state.json`.
+//! The history is flushed row by row, so that a run that stops early leaves a valid file.
+
+use crate::error::{Error, Result};
+use crate::integrator::{Energy, Snapshot};
+use crate::model::Model;
+use serde::Serialize;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// `summary.json`.
+#[derive(Debug, Clone, Serialize)]
+pub struct Summary {
+    pub scene: String,
+    pub formulation: String,
+    pub evaluator: String,
+    pub elements: usize,
+    pub interfaces: usize,
+    /// Free DOFs (fixed ones excluded).
+    pub dofs: usize,
+    pub dt: f64,
+    pub dt_crit: f64,
+    /// Steps completed.
+    pub steps: u64,
+    pub t_end: f64,
+    /// `ok` or `diverged`.
+    pub status: String,
+    /// Why a run diverged, with the step and the time; `null` for `ok`.
+    pub reason: Option<String>,
+    pub wall_time_s: f64,
+    /// The time-stepping loop alone.
+    pub step_time_s: f64,
+    pub threads: usize,
+    pub energy: EnergySummary,
+}
+
+/// The energy figures of `summary.json` (J).
+#[derive(Debug, Clone, Serialize)]
+pub struct EnergySummary {
+    pub initial: f64,
+    #[serde(rename = "final")]
+    pub final_: f64,
+    /// Largest `|total − initial|` divided by the largest energy seen in the run.
+    pub max_relative_drift: f64,
+}
+
+/// One history column beyond the energies: DOF `dof` of element `element`.
+#[derive(Debug, Clone)]
+pub struct Probe {
+    pub name: String,
+    pub dof: usize,
+}
+
+/// `history.csv`, written as the run goes.
+pub struct History {
+    file: std::io::BufWriter<std::fs::File>,
+    path: PathBuf,
+    probes: Vec<Probe>,
+}
+
+impl History {
+    /// Creates the file and writes the header.
+    pub fn create(dir: &Path, probes: Vec<Probe>) -> Result<History> {
+        let path = dir.join("history.csv");
+        let file = std::fs::File::create(&path).map_err(|e| Error::io(&path, e))?;
+        let mut h = History { file: std::io::BufWriter::new(file), path, probes };
+        let mut header = String::from("t,kinetic,elastic,contact,potential,external_work,total");
+        for p in &h.probes {
+            header.push(',');
+            header.push_str(&p.name);
+        }
+        writeln!(h.file, "{header}").map_err(|e| Error::io(&h.path, e))?;
+        Ok(h)
+    }
+
+    /// Appends the row of one recorded step and flushes it.
+    pub fn write(&mut self, s: &Snapshot, e: &Energy) -> Result<()> {
+        let mut row = format!(
+            "{:e},{:e},{:e},{:e},{:e},{:e},{:e}",
+            e.t, e.kinetic, e.elastic, e.contact, e.potential, e.external_work, e.total
+        );
+        for p in &self.probes {
+            row.push_str(&format!(",{:e}", s.u[p.dof]));
+        }
+        writeln!(self.file, "{row}").and_then(|_| self.file.flush()).map_err(|e| Error::io(&self.path, e))
+    }
+}
+
+/// One element of `final_state.json`.
+#[derive(Serialize)]
+struct ElementState<'a> {
+    centroid: [f64; 2],
+    #[serde(rename = "U")]
+    u: &'a [f64],
+    #[serde(rename = "V")]
+    v: &'a [f64],
+}
+
+/// Writes `final_state.json`: per element its reference centroid, `U` and `V`.
+pub fn write_final_state(dir: &Path, model: &Model, t: f64, u: &[f64], v: &[f64]) -> Result<()> {
+    let nd = model.formulation.ndof();
+    let elements: Vec<ElementState> = model
+        .elements
+        .iter()
+        .enumerate()
+        .map(|(e, el)| ElementState {
+            centroid: [el.props.centroid.x, el.props.centroid.y],
+            u: &u[e * nd..(e + 1) * nd],
+            v: &v[e * nd..(e + 1) * nd],
+        })
+        .collect();
+    write_json(&dir.join("final_state.json"), &serde_json::json!({ "t": t, "elements": elements }))
+}
+
+/// Writes any serialisable value as pretty JSON.
+pub fn write_json(path: &Path, value: &impl Serialize) -> Result<()> {
+    let file = std::fs::File::create(path).map_err(|e| Error::io(path, e))?;
+    let mut w = std::io::BufWriter::new(file);
+    serde_json::to_writer_pretty(&mut w, value).map_err(|e| Error::io(path, e.into()))?;
+    writeln!(w).and_then(|_| w.flush()).map_err(|e| Error::io(path, e))
+}

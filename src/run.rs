@@ -1,0 +1,165 @@
+//! A whole explicit run, from a scene to its outputs: model, evaluator, `Δt_crit`, the time
+//! loop and the files of DESIGN.md §9. The command line and the tests call this one function.
+
+use crate::error::{Error, Result};
+use crate::evaluator::{self, Evaluator};
+use crate::integrator::{CentralDifference, Status};
+use crate::loads::Loads;
+use crate::mass::Mass;
+use crate::model::{dof_index, Model};
+use crate::output::{self, EnergySummary, History, Probe, Summary};
+use crate::scene::{EvaluatorKind, Scene};
+use crate::stability;
+use crate::vtk::VtkSeries;
+use std::path::Path;
+use std::time::Instant;
+
+/// Command-line overrides of the scene.
+#[derive(Debug, Clone, Default)]
+pub struct RunOptions {
+    pub evaluator: Option<EvaluatorKind>,
+    /// Time step (s), replacing the scene's `dt` or `dt_factor`.
+    pub dt: Option<f64>,
+    /// Number of steps, replacing the scene's `end` or `steps`.
+    pub steps: Option<u64>,
+}
+
+/// A model ready to step: evaluator, mass, loads and the time step.
+pub struct Prepared {
+    pub model: Model,
+    pub evaluator: Box<dyn Evaluator>,
+    pub mass: Mass,
+    pub loads: Loads,
+    /// Largest circular frequency (rad/s), by Lanczos (converged from below).
+    pub omega_max: f64,
+    pub dt_crit: f64,
+    pub dt: f64,
+    pub steps: u64,
+}
+
+/// Lanczos iterations for the `Δt_crit` estimate at the start of a run.
+const LANCZOS_ITERATIONS: usize = 300;
+
+impl Prepared {
+    /// Builds everything a run of `scene` needs.
+    pub fn new(scene: &Scene, opts: &RunOptions) -> Result<Prepared> {
+        let model = Model::build(scene)?;
+        let evaluator = evaluator::build(&model, opts.evaluator.unwrap_or(scene.evaluator));
+        let mass = Mass::new(&model);
+        let loads = Loads::new(&model);
+        let omega_max = stability::omega_max(evaluator.as_ref(), &mass, model.n_dofs(), LANCZOS_ITERATIONS);
+        let dt_crit = stability::critical_time_step(omega_max);
+        let dt = match (opts.dt, scene.time.dt, scene.time.dt_factor) {
+            (Some(dt), _, _) if dt > 0.0 && dt.is_finite() => dt,
+            (Some(dt), _, _) => return Err(Error::scene("--dt", format!("must be a finite number > 0, got {dt}"))),
+            (None, Some(dt), _) => dt,
+            (None, None, Some(f)) if dt_crit.is_finite() => f * dt_crit,
+            (None, None, _) => return Err(Error::scene("time.dt_factor", "Δt_crit is infinite (no spring is loaded): give `time.dt` instead")),
+        };
+        let steps = match (opts.steps, scene.time.steps, scene.time.end) {
+            (Some(n), _, _) => n,
+            (None, Some(n), _) => n,
+            (None, None, Some(end)) => (end / dt - 1e-9).ceil().max(1.0) as u64,
+            (None, None, None) => unreachable!("validated: the scene has `end` or `steps`"),
+        };
+        Ok(Prepared { model, evaluator, mass, loads, omega_max, dt_crit, dt, steps })
+    }
+}
+
+/// What the caller sees of a run while it goes: a line of text, and the step reached.
+pub trait Monitor {
+    /// Information before the run starts (model size, time step, warnings).
+    fn info(&mut self, line: &str);
+    /// The step reached, called often; `total` steps in all.
+    fn progress(&mut self, step: u64, total: u64);
+}
+
+/// A monitor that shows nothing.
+pub struct Silent;
+
+impl Monitor for Silent {
+    fn info(&mut self, _: &str) {}
+    fn progress(&mut self, _: u64, _: u64) {}
+}
+
+/// Runs `scene` and writes its outputs into `out`; returns the summary (also written).
+pub fn run(scene: &Scene, opts: &RunOptions, out: &Path, monitor: &mut dyn Monitor) -> Result<Summary> {
+    let wall = Instant::now();
+    let p = Prepared::new(scene, opts)?;
+    let model = &p.model;
+    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    monitor.info(&format!(
+        "{}: {} elements, {} interfaces, {} free DOFs ({} formulation, {} evaluator, {} threads)",
+        model.name,
+        model.elements.len(),
+        model.interfaces.len(),
+        model.n_free_dofs(),
+        model.formulation.name(),
+        p.evaluator.kind().name(),
+        rayon::current_num_threads()
+    ));
+    let ratio = p.dt / p.dt_crit;
+    monitor.info(&format!("dt = {:.6e} s, Δt_crit ≈ {:.6e} s (Lanczos), dt/Δt_crit = {ratio:.4}, {} steps", p.dt, p.dt_crit, p.steps));
+    if ratio > 1.0 {
+        monitor.info(&format!("warning: dt is {ratio:.4} × Δt_crit: central difference is unstable above 1; expect divergence"));
+    }
+    let nd = model.formulation.ndof();
+    let probes = scene
+        .output
+        .probes
+        .iter()
+        .enumerate()
+        .map(|(k, pr)| {
+            let d = dof_index(&pr.dof, model.formulation, &format!("output.probes[{k}].dof"))?;
+            let name = pr.name.clone().unwrap_or_else(|| format!("e{}_{}", pr.element, pr.dof));
+            Ok(Probe { name, dof: pr.element * nd + d })
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let mut history = History::create(out, probes)?;
+    let mut vtk = if scene.output.vtk { Some(VtkSeries::create(out)?) } else { None };
+    let mut cd = CentralDifference::new(model, p.evaluator.as_ref(), &p.mass, &p.loads, p.dt);
+    let (mut first, mut last) = (None, None);
+    let start = Instant::now();
+    let status = cd.run(
+        p.steps,
+        scene.output.every,
+        |s, e| {
+            first.get_or_insert(*e);
+            last = Some(*e);
+            history.write(s, e)?;
+            if let Some(v) = vtk.as_mut() {
+                v.write(model, s)?;
+            }
+            Ok(())
+        },
+        |step| monitor.progress(step, p.steps),
+    )?;
+    let step_time = start.elapsed().as_secs_f64();
+    let reason = match &status {
+        Status::Ok => None,
+        Status::Diverged { step, t, reason } => Some(format!("step {step}, t = {t:e} s: {reason}")),
+    };
+    // After a divergence the integrator has rolled back to its last good state.
+    output::write_final_state(out, model, cd.t, &cd.u, cd.velocity())?;
+    let (first, last) = (first.unwrap_or_default(), last.unwrap_or_default());
+    let summary = Summary {
+        scene: scene.name.clone(),
+        formulation: model.formulation.name().into(),
+        evaluator: p.evaluator.kind().name().into(),
+        elements: model.elements.len(),
+        interfaces: model.interfaces.len(),
+        dofs: model.n_free_dofs(),
+        dt: p.dt,
+        dt_crit: p.dt_crit,
+        steps: cd.step,
+        t_end: cd.t,
+        status: if reason.is_none() { "ok".into() } else { "diverged".into() },
+        reason,
+        wall_time_s: wall.elapsed().as_secs_f64(),
+        step_time_s: step_time,
+        threads: rayon::current_num_threads(),
+        energy: EnergySummary { initial: first.total, final_: last.total, max_relative_drift: cd.max_relative_drift() },
+    };
+    output::write_json(&out.join("summary.json"), &summary)?;
+    Ok(summary)
+}
