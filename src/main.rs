@@ -105,20 +105,24 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
             }
             if cli.json {
                 println!("{}", serde_json::to_string_pretty(&summary).expect("summary serialises"));
+            } else if let Some(reason) = &summary.reason {
+                println!("{}: diverged at {reason}", summary.scene);
+                println!(
+                    "  the outputs in {} hold the run up to the last state that passed the guard: step {} (t = {:.6e} s)",
+                    out.display(),
+                    summary.steps,
+                    summary.t_end
+                );
             } else {
                 println!(
-                    "{}: {} after {} steps (t = {:.6e} s) in {:.3} s; energy drift {:.3e}; outputs in {}",
+                    "{}: ok, {} steps (t = {:.6e} s) in {:.3} s; energy drift {:.3e} of the largest energy; outputs in {}",
                     summary.scene,
-                    summary.status,
                     summary.steps,
                     summary.t_end,
                     summary.wall_time_s,
                     summary.energy.max_relative_drift,
                     out.display()
                 );
-                if let Some(reason) = &summary.reason {
-                    println!("  reason: {reason}");
-                }
             }
             // A diverged run kept its outputs; the exit code tells scripts that it diverged.
             Ok(if summary.status == "ok" { ExitCode::SUCCESS } else { ExitCode::from(3) })

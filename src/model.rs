@@ -5,7 +5,10 @@ use crate::error::{Error, Result};
 use crate::formulation::Formulation;
 use crate::geometry::{area_properties, AreaProperties, Vec2};
 use crate::mesh::{grid, voronoi, Mesh, Side};
-use crate::scene::{Component, LoadSpec, MaterialSpec, MeshSpec, Plane, Scene, SupportSpec};
+use crate::scene::{
+    ClampSpec, Component, ForceSpec, GridSpec, GroundSpringSpec, LoadSpec, MaterialSpec, MeshSpec, Plane, PolygonsSpec, Scene,
+    SupportSpec, TractionSpec, VoronoiSpec,
+};
 
 /// Marks the `b` side of an interface tied to fixed ground (`U_b = 0`, `h_b = 0`).
 pub const GROUND: u32 = u32::MAX;
@@ -191,7 +194,7 @@ impl Model {
             for (k, s) in spec.supports.iter().enumerate() {
                 let field = at(&format!("supports[{k}].edge"));
                 match s {
-                    SupportSpec::GroundSpring { edge, components } => {
+                    SupportSpec::GroundSpring(GroundSpringSpec { edge, components }) => {
                         for e in side_edges(&mesh, *edge, &field)? {
                             let mut iface = model.interface(first + e.cell as usize, None, &mesh, e.v1, e.v2, &material)
                                 .map_err(|m| Error::mesh(&spec.name, e.cell as usize, m))?;
@@ -204,7 +207,7 @@ impl Model {
                             model.interfaces.push(iface);
                         }
                     }
-                    SupportSpec::Clamp { edge, dofs } => {
+                    SupportSpec::Clamp(ClampSpec { edge, dofs }) => {
                         let which: Vec<usize> = match dofs {
                             None => (0..nd).collect(),
                             Some(names) => names.iter().map(|n| dof_index(n, formulation, &at(&format!("supports[{k}].dofs")))).collect::<Result<_>>()?,
@@ -218,7 +221,7 @@ impl Model {
             }
             for (k, l) in spec.loads.iter().enumerate() {
                 match l {
-                    LoadSpec::Traction { edge, value, amplitude } => {
+                    LoadSpec::Traction(TractionSpec { edge, value, amplitude }) => {
                         let q = Vec2::new(value[0], value[1]);
                         for e in side_edges(&mesh, *edge, &at(&format!("loads[{k}].edge")))? {
                             let (p, r) = (mesh.vertices[e.v1 as usize], mesh.vertices[e.v2 as usize]);
@@ -232,7 +235,7 @@ impl Model {
                             });
                         }
                     }
-                    LoadSpec::Force { element, value, amplitude } => {
+                    LoadSpec::Force(ForceSpec { element, value, amplitude }) => {
                         if *element >= mesh.n_cells() {
                             return Err(Error::scene(at(&format!("loads[{k}].element")), format!(
                                 "must lie in 0..{} (elements of body `{}`), got {element}", mesh.n_cells(), spec.name)));
@@ -304,9 +307,9 @@ pub fn dof_index(name: &str, formulation: Formulation, field: &str) -> Result<us
 fn build_mesh(body: &str, spec: &MeshSpec) -> Result<Mesh> {
     let v = |p: &[f64; 2]| Vec2::new(p[0], p[1]);
     match spec {
-        MeshSpec::Grid { origin, size, cells, cell } => grid::grid(body, v(origin), v(size), cells[0], cells[1], *cell),
-        MeshSpec::Voronoi { origin, size, sites, seed, lloyd } => voronoi::voronoi(body, v(origin), v(size), *sites, *seed, *lloyd),
-        MeshSpec::Polygons { vertices, cells } => Mesh::from_polygons(body, vertices.iter().map(v).collect(), cells),
+        MeshSpec::Grid(GridSpec { origin, size, cells, cell }) => grid::grid(body, v(origin), v(size), cells[0], cells[1], *cell),
+        MeshSpec::Voronoi(VoronoiSpec { origin, size, sites, seed, lloyd }) => voronoi::voronoi(body, v(origin), v(size), *sites, *seed, *lloyd),
+        MeshSpec::Polygons(PolygonsSpec { vertices, cells }) => Mesh::from_polygons(body, vertices.iter().map(v).collect(), cells),
     }
 }
 

@@ -48,6 +48,10 @@ impl Prepared {
         let mass = Mass::new(&model);
         let loads = Loads::new(&model);
         let omega_max = stability::omega_max(evaluator.as_ref(), &mass, model.n_dofs(), LANCZOS_ITERATIONS);
+        if !omega_max.is_finite() {
+            return Err(Error::scene("materials", format!(
+                "the stiffness or mass of the model overflows (ω_max = {omega_max}); check E, rho, thickness and the mesh size")));
+        }
         let dt_crit = stability::critical_time_step(omega_max);
         let dt = match (opts.dt, scene.time.dt, scene.time.dt_factor) {
             (Some(dt), _, _) if dt > 0.0 && dt.is_finite() => dt,

@@ -10,7 +10,7 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 /// A whole scene.
-#[derive(Debug, Clone, Serialize, Deserialize)]
+#[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Scene {
     pub name: String,
@@ -92,7 +92,7 @@ pub struct MaterialSpec {
 }
 
 /// One body: a meshed region of one material.
-#[derive(Debug, Clone, Serialize, Deserialize)]
+#[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct BodySpec {
     pub name: String,
@@ -106,54 +106,100 @@ pub struct BodySpec {
     pub initial: InitialSpec,
 }
 
-/// How a body is cut into elements.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(tag = "kind", rename_all = "lowercase", deny_unknown_fields)]
+/// How a body is cut into elements (`kind`: `grid`, `voronoi` or `polygons`).
+#[derive(Debug, Clone)]
 pub enum MeshSpec {
-    /// `cells = [nx, ny]` rectangles (or twice as many triangles) over `origin .. origin + size`.
-    Grid {
-        origin: [f64; 2],
-        size: [f64; 2],
-        cells: [usize; 2],
-        #[serde(default = "default_cell")]
-        cell: Cell,
-    },
-    /// `sites` centroidal Voronoi cells clipped to the rectangle, `lloyd` iterations.
-    Voronoi {
-        origin: [f64; 2],
-        size: [f64; 2],
-        sites: usize,
-        #[serde(default)]
-        seed: u64,
-        #[serde(default)]
-        lloyd: usize,
-    },
-    /// Explicit polygons, vertex lists counter-clockwise.
-    Polygons { vertices: Vec<[f64; 2]>, cells: Vec<Vec<usize>> },
+    Grid(GridSpec),
+    Voronoi(VoronoiSpec),
+    Polygons(PolygonsSpec),
 }
+
+/// `cells = [nx, ny]` rectangles (or twice as many triangles) over `origin .. origin + size`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GridSpec {
+    pub origin: [f64; 2],
+    pub size: [f64; 2],
+    pub cells: [usize; 2],
+    #[serde(default = "default_cell")]
+    pub cell: Cell,
+}
+
+/// `sites` centroidal Voronoi cells clipped to the rectangle, after `lloyd` iterations.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct VoronoiSpec {
+    pub origin: [f64; 2],
+    pub size: [f64; 2],
+    pub sites: usize,
+    #[serde(default)]
+    pub seed: u64,
+    #[serde(default)]
+    pub lloyd: usize,
+}
+
+/// Explicit polygons, vertex lists counter-clockwise.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PolygonsSpec {
+    pub vertices: Vec<[f64; 2]>,
+    pub cells: Vec<Vec<usize>>,
+}
+
+impl<'de> Deserialize<'de> for MeshSpec {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        let (kind, rest) = split_kind(d)?;
+        match kind.as_str() {
+            "grid" => variant(rest).map(MeshSpec::Grid),
+            "voronoi" => variant(rest).map(MeshSpec::Voronoi),
+            "polygons" => variant(rest).map(MeshSpec::Polygons),
+            other => Err(unknown_kind(other, &["grid", "voronoi", "polygons"])),
+        }
+    }
+}
+
+/// The most cells one mesh may have (about 10 GB of model at ~500 bytes per element).
+pub const MAX_CELLS: usize = 20_000_000;
 
 fn default_cell() -> Cell {
     Cell::Rect
 }
 
-/// A support on a side of the body's bounding box.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(tag = "kind", deny_unknown_fields)]
+/// A support on a side of the body's bounding box (`kind`: `ground-spring` or `clamp`).
+#[derive(Debug, Clone)]
 pub enum SupportSpec {
-    /// The edges tied to fixed ground by springs with `h_b = 0`.
-    #[serde(rename = "ground-spring")]
-    GroundSpring {
-        edge: Side,
-        #[serde(default = "both_components")]
-        components: Vec<Component>,
-    },
-    /// The listed DOFs of the elements with an edge on that side are fixed.
-    #[serde(rename = "clamp")]
-    Clamp {
-        edge: Side,
-        #[serde(default)]
-        dofs: Option<Vec<String>>,
-    },
+    GroundSpring(GroundSpringSpec),
+    Clamp(ClampSpec),
+}
+
+/// The edges of a side tied to fixed ground by springs with `h_b = 0`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GroundSpringSpec {
+    pub edge: Side,
+    /// `["n", "s"]` by default; `["n"]` is a roller.
+    #[serde(default = "both_components")]
+    pub components: Vec<Component>,
+}
+
+/// The listed DOFs (default all) of the elements with an edge on that side are fixed.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ClampSpec {
+    pub edge: Side,
+    #[serde(default)]
+    pub dofs: Option<Vec<String>>,
+}
+
+impl<'de> Deserialize<'de> for SupportSpec {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        let (kind, rest) = split_kind(d)?;
+        match kind.as_str() {
+            "ground-spring" => variant(rest).map(SupportSpec::GroundSpring),
+            "clamp" => variant(rest).map(SupportSpec::Clamp),
+            other => Err(unknown_kind(other, &["ground-spring", "clamp"])),
+        }
+    }
 }
 
 fn both_components() -> Vec<Component> {
@@ -168,24 +214,70 @@ pub enum Component {
     S,
 }
 
-/// A load on a body.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(tag = "kind", rename_all = "lowercase", deny_unknown_fields)]
+/// A load on a body (`kind`: `traction` or `force`).
+#[derive(Debug, Clone)]
 pub enum LoadSpec {
-    /// Uniform traction (N/m², global components) on the edges of one side.
-    Traction {
-        edge: Side,
-        value: [f64; 2],
-        #[serde(default)]
-        amplitude: Option<Vec<[f64; 2]>>,
-    },
-    /// `[F_x, F_y, M]` (N, N, N·m) on one element of the body (index within the body).
-    Force {
-        element: usize,
-        value: [f64; 3],
-        #[serde(default)]
-        amplitude: Option<Vec<[f64; 2]>>,
-    },
+    Traction(TractionSpec),
+    Force(ForceSpec),
+}
+
+/// Uniform traction (N/m², global components) on the edges of one side.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TractionSpec {
+    pub edge: Side,
+    pub value: [f64; 2],
+    /// Piecewise-linear factor in time, `[[t, factor], ...]`; constant 1 when absent.
+    #[serde(default)]
+    pub amplitude: Option<Vec<[f64; 2]>>,
+}
+
+/// `[F_x, F_y, M]` (N, N, N·m) at the centroid of one element of the body (index within
+/// the body).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ForceSpec {
+    pub element: usize,
+    pub value: [f64; 3],
+    #[serde(default)]
+    pub amplitude: Option<Vec<[f64; 2]>>,
+}
+
+impl<'de> Deserialize<'de> for LoadSpec {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        let (kind, rest) = split_kind(d)?;
+        match kind.as_str() {
+            "traction" => variant(rest).map(LoadSpec::Traction),
+            "force" => variant(rest).map(LoadSpec::Force),
+            other => Err(unknown_kind(other, &["traction", "force"])),
+        }
+    }
+}
+
+/// Splits an object with a `kind` key into the kind and the other keys. Dispatching by hand,
+/// rather than with serde's internally tagged enums, keeps the path of an error inside the
+/// variant (`bodies[0].mesh.cells`), which serde's buffering would lose.
+fn split_kind<'de, D: serde::Deserializer<'de>>(d: D) -> std::result::Result<(String, serde_json::Value), D::Error> {
+    use serde::de::Error as _;
+    let mut value = serde_json::Value::deserialize(d)?;
+    let map = value.as_object_mut().ok_or_else(|| D::Error::custom("expected an object with a `kind` key"))?;
+    match map.remove("kind") {
+        Some(serde_json::Value::String(kind)) => Ok((kind, value)),
+        Some(other) => Err(D::Error::custom(format!("`kind` must be a string, got {other}"))),
+        None => Err(D::Error::missing_field("kind")),
+    }
+}
+
+/// Deserialises the keys of one variant; an error names the key path within the variant.
+fn variant<T: serde::de::DeserializeOwned, E: serde::de::Error>(rest: serde_json::Value) -> std::result::Result<T, E> {
+    serde_path_to_error::deserialize(rest).map_err(|e| {
+        let path = e.path().to_string();
+        E::custom(if path == "." { e.into_inner().to_string() } else { format!("`{path}`: {}", e.into_inner()) })
+    })
+}
+
+fn unknown_kind<E: serde::de::Error>(kind: &str, allowed: &[&str]) -> E {
+    E::custom(format!("unknown kind `{kind}`, expected one of: {}", allowed.join(", ")))
 }
 
 /// Initial placement and motion of a body.
@@ -284,9 +376,14 @@ impl Scene {
     pub fn from_json(text: &str) -> Result<Scene> {
         let de = &mut serde_json::Deserializer::from_str(text);
         let scene: Scene = serde_path_to_error::deserialize(de).map_err(|e| {
-            let path = e.path().to_string();
-            let inner = e.into_inner();
-            let message = if path == "." { inner.to_string() } else { format!("at `{path}`: {inner}") };
+            let mut path = e.path().to_string();
+            let mut inner = e.into_inner().to_string();
+            // A variant's own path (see `variant`) continues the outer one.
+            if let Some((sub, rest)) = inner.strip_prefix('`').and_then(|r| r.split_once("`: ")) {
+                path = if path == "." { sub.to_string() } else { format!("{path}.{sub}") };
+                inner = rest.to_string();
+            }
+            let message = if path == "." { inner } else { format!("at `{path}`: {inner}") };
             Error::Parse { path: "<json>".into(), message }
         })?;
         scene.validate()?;
@@ -361,33 +458,33 @@ impl Scene {
             return Err(Error::scene(at("material"), format!("unknown material `{}`; defined: {}", b.material, known.join(", "))));
         }
         match &b.mesh {
-            MeshSpec::Grid { origin, size, cells, .. } => {
+            MeshSpec::Grid(GridSpec { origin, size, cells, .. }) => {
                 finite_all(&at("mesh.origin"), origin)?;
                 positive(&at("mesh.size[0]"), size[0])?;
                 positive(&at("mesh.size[1]"), size[1])?;
-                if cells[0] == 0 || cells[1] == 0 {
-                    return Err(Error::scene(at("mesh.cells"), format!("both counts must be ≥ 1, got {cells:?}")));
+                if cells[0] == 0 || cells[1] == 0 || cells[0].saturating_mul(cells[1]) > MAX_CELLS {
+                    return Err(Error::scene(at("mesh.cells"), format!("both counts must be ≥ 1 and their product ≤ {MAX_CELLS}, got {cells:?}")));
                 }
             }
-            MeshSpec::Voronoi { origin, size, sites, lloyd, .. } => {
+            MeshSpec::Voronoi(VoronoiSpec { origin, size, sites, lloyd, .. }) => {
                 finite_all(&at("mesh.origin"), origin)?;
                 positive(&at("mesh.size[0]"), size[0])?;
                 positive(&at("mesh.size[1]"), size[1])?;
-                if *sites < 2 {
-                    return Err(Error::scene(at("mesh.sites"), format!("must be ≥ 2, got {sites}")));
+                if *sites < 2 || *sites > MAX_CELLS {
+                    return Err(Error::scene(at("mesh.sites"), format!("must lie in 2..={MAX_CELLS}, got {sites}")));
                 }
                 if *lloyd > 10_000 {
                     return Err(Error::scene(at("mesh.lloyd"), format!("must lie in 0..=10000, got {lloyd}")));
                 }
             }
-            MeshSpec::Polygons { vertices, cells } => {
+            MeshSpec::Polygons(PolygonsSpec { vertices, cells }) => {
                 if vertices.len() < 3 || cells.is_empty() {
                     return Err(Error::scene(at("mesh"), "needs at least 3 vertices and 1 cell"));
                 }
             }
         }
         for (k, s) in b.supports.iter().enumerate() {
-            if let SupportSpec::GroundSpring { components, .. } = s {
+            if let SupportSpec::GroundSpring(GroundSpringSpec { components, .. }) = s {
                 if components.is_empty() {
                     return Err(Error::scene(at(&format!("supports[{k}].components")), "must list `n`, `s` or both"));
                 }
@@ -395,8 +492,8 @@ impl Scene {
         }
         for (k, l) in b.loads.iter().enumerate() {
             let (value, amplitude): (&[f64], _) = match l {
-                LoadSpec::Traction { value, amplitude, .. } => (value, amplitude),
-                LoadSpec::Force { value, amplitude, .. } => (value, amplitude),
+                LoadSpec::Traction(TractionSpec { value, amplitude, .. }) => (value, amplitude),
+                LoadSpec::Force(ForceSpec { value, amplitude, .. }) => (value, amplitude),
             };
             finite_all(&at(&format!("loads[{k}].value")), value)?;
             if let Some(a) = amplitude {

@@ -35,7 +35,11 @@ fn clipped_cells(body: &str, origin: Vec2, size: Vec2, sites: &[Vec2]) -> Result
         return Err(Error::mesh(body, 0, "some Voronoi sites fell outside the rectangle"));
     }
     let v = diagram.vertices();
-    Ok(diagram.cells().iter().map(|c| c.iter().map(|&i| Vec2::new(v[i].x, v[i].y)).collect()).collect())
+    let cells: Vec<Vec<Vec2>> = diagram.cells().iter().map(|c| c.iter().map(|&i| Vec2::new(v[i].x, v[i].y)).collect()).collect();
+    match cells.iter().position(|c| c.len() < 3) {
+        Some(c) => Err(Error::mesh(body, c, "the Voronoi cell is degenerate (coincident sites, or an extreme rectangle)")),
+        None => Ok(cells),
+    }
 }
 
 /// Merges coincident vertices (within 1e-10 of the rectangle's size) so that neighbouring cells

@@ -1,0 +1,181 @@
+//! Bad input: every class of bad scene is an error that names the key (or the cell), never a
+//! panic and never a silent NaN.
+
+mod common;
+use common::scene_json;
+use rbsm::model::Model;
+use rbsm::run::{Prepared, RunOptions};
+use rbsm::scene::Scene;
+use serde_json::Value;
+
+fn base() -> Value {
+    serde_json::from_str(&scene_json(common::RECT, common::SUPPORTS)).unwrap()
+}
+
+/// The error of the whole pipeline (parse, validate, model, time step) for a scene.
+fn error_of(v: &Value) -> String {
+    let result = Scene::from_json(&v.to_string()).and_then(|s| Prepared::new(&s, &RunOptions::default()).map(|_| ()));
+    match result {
+        Ok(()) => panic!("scene was accepted: {v}"),
+        Err(e) => e.to_string(),
+    }
+}
+
+fn with(edit: impl FnOnce(&mut Value)) -> String {
+    let mut v = base();
+    edit(&mut v);
+    error_of(&v)
+}
+
+fn expect(msg: &str, parts: &[&str]) {
+    for p in parts {
+        assert!(msg.contains(p), "error `{msg}` lacks `{p}`");
+    }
+}
+
+#[test]
+fn unknown_keys_are_named_with_their_path() {
+    expect(&with(|v| v["colour"] = "red".into()), &["colour"]);
+    expect(&with(|v| v["bodies"][0]["mesh"]["cels"] = 3.into()), &["bodies[0].mesh", "cels"]);
+    expect(&with(|v| v["materials"]["m"]["youngs"] = 3.into()), &["materials.m", "youngs"]);
+    expect(&with(|v| v["time"]["tend"] = 3.into()), &["time", "tend"]);
+}
+
+#[test]
+fn material_values_out_of_range_name_field_and_range() {
+    expect(&with(|v| v["materials"]["m"]["E"] = 0.0.into()), &["materials.m.E", "> 0"]);
+    expect(&with(|v| v["materials"]["m"]["E"] = (-2e9).into()), &["materials.m.E", "> 0"]);
+    expect(&with(|v| v["materials"]["m"]["nu"] = 0.5.into()), &["materials.m.nu", "(-1, 0.5)"]);
+    expect(&with(|v| v["materials"]["m"]["nu"] = (-1.0).into()), &["materials.m.nu", "(-1, 0.5)"]);
+    expect(&with(|v| v["materials"]["m"]["rho"] = 0.0.into()), &["materials.m.rho", "> 0"]);
+}
+
+#[test]
+fn thickness_and_time_out_of_range() {
+    expect(&with(|v| v["thickness"] = 0.0.into()), &["thickness", "> 0"]);
+    expect(&with(|v| v["time"]["dt"] = (-1e-6).into()), &["time.dt", "> 0"]);
+    expect(&with(|v| v["time"]["dt"] = 0.0.into()), &["time.dt", "> 0"]);
+    expect(&with(|v| v["time"]["dt_factor"] = 0.5.into()), &["time.dt", "exactly one"]);
+    expect(&with(|v| v["time"]["steps"] = 0.into()), &["time.steps", "≥ 1"]);
+    expect(&with(|v| v["output"] = serde_json::json!({"every": 0})), &["output.every", "≥ 1"]);
+}
+
+#[test]
+fn unknown_names_are_errors() {
+    expect(&with(|v| v["bodies"][0]["material"] = "steel".into()), &["bodies[0].material", "unknown material `steel`", "m"]);
+    expect(&with(|v| v["bodies"][0]["supports"][0]["edge"] = "middle".into()), &["bodies[0].supports[0].edge", "middle"]);
+    expect(&with(|v| v["bodies"][0]["supports"][0]["kind"] = "glue".into()), &["bodies[0].supports[0]", "glue"]);
+    expect(&with(|v| v["plane"] = "shell".into()), &["plane", "shell"]);
+    expect(&with(|v| v["evaluator"] = "magic".into()), &["evaluator", "magic"]);
+    expect(&with(|v| v["bodies"][0]["supports"][0] = serde_json::json!({"edge": "left", "kind": "clamp", "dofs": ["w"]})),
+        &["bodies[0].supports[0].dofs", "unknown DOF `w`", "u, v, theta"]);
+}
+
+#[test]
+fn wrong_types_and_malformed_json_are_named() {
+    expect(&with(|v| v["thickness"] = "thick".into()), &["thickness", "invalid type"]);
+    expect(&with(|v| v["bodies"][0]["mesh"]["cells"] = serde_json::json!([10])), &["bodies[0].mesh.cells"]);
+    let err = Scene::from_json("{\"name\": \"x\",").unwrap_err().to_string();
+    expect(&err, &["line 1"]);
+    let err = Scene::from_file("/nonexistent/scene.json").unwrap_err().to_string();
+    expect(&err, &["/nonexistent/scene.json"]);
+}
+
+#[test]
+fn references_out_of_range() {
+    expect(&with(|v| v["bodies"][0]["loads"] = serde_json::json!([{"kind": "force", "element": 40, "value": [1, 0, 0]}])),
+        &["bodies[0].loads[0].element", "0..40"]);
+    expect(&with(|v| v["output"] = serde_json::json!({"probes": [{"element": 999, "dof": "u"}]})), &["output.probes[0].element", "0..40"]);
+    expect(&with(|v| v["bodies"][0]["mesh"]["cells"] = serde_json::json!([100000, 100000])), &["bodies[0].mesh.cells", "≤ 20000000"]);
+}
+
+#[test]
+fn bad_meshes_name_the_cell() {
+    let poly = |cells: Value| serde_json::json!({"kind": "polygons", "vertices": [[0, 0], [1, 0], [1, 1], [0, 1]], "cells": cells});
+    expect(&with(|v| v["bodies"][0]["mesh"] = poly(serde_json::json!([[0, 3, 2, 1]]))), &["cell 0", "clockwise"]);
+    expect(&with(|v| v["bodies"][0]["mesh"] = poly(serde_json::json!([[0, 1, 2, 3], [0, 1, 7]]))), &["cell 1", "out of range"]);
+    // A triangle has no edge on the left side of its bounding box.
+    expect(&with(|v| {
+        v["bodies"][0]["mesh"] = poly(serde_json::json!([[0, 1, 2]]));
+        v["bodies"][0]["supports"] = serde_json::json!([{"edge": "left", "kind": "ground-spring"}]);
+    }), &["bodies[0].supports[0].edge", "no boundary edge"]);
+}
+
+#[test]
+fn features_not_built_yet_are_refused_clearly() {
+    expect(&with(|v| v["formulation"] = serde_json::json!({"kind": "hybrid", "penalty": 100.0})), &["formulation.kind", "hybrid"]);
+    expect(&with(|v| v["contact"] = serde_json::json!({"model": "point"})), &["contact"]);
+}
+
+/// Every number of every shipped scene pushed to an extreme, every key deleted, every string
+/// replaced: the pipeline answers with `Ok` or an error, never a panic, and never a NaN time step.
+#[test]
+fn no_panic_on_mutated_scenes() {
+    let dir = format!("{}/examples/scenes", env!("CARGO_MANIFEST_DIR"));
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let path = entry.unwrap().path();
+        let original: Value = serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+        let mut mutants = Vec::new();
+        mutate(&original, &mut Vec::new(), &original, &mut mutants);
+        assert!(mutants.len() > 50, "{}: only {} mutants", path.display(), mutants.len());
+        for m in mutants {
+            let text = m.to_string();
+            let outcome = std::panic::catch_unwind(|| {
+                let scene = Scene::from_json(&text)?;
+                Model::build(&scene)?;
+                let p = Prepared::new(&scene, &RunOptions::default())?;
+                assert!(p.dt.is_finite() && p.dt > 0.0, "time step {} for {text}", p.dt);
+                Ok::<(), rbsm::error::Error>(())
+            });
+            assert!(outcome.is_ok(), "panic on {text}");
+        }
+    }
+}
+
+/// Collects the mutants of `root`: for the node at `path`, extremes for numbers, a bogus
+/// string, deletion of each object key.
+fn mutate(node: &Value, path: &mut Vec<Value>, root: &Value, out: &mut Vec<Value>) {
+    let replace = |new: Value, out: &mut Vec<Value>| {
+        let mut m = root.clone();
+        *pointer(&mut m, path) = new;
+        out.push(m);
+    };
+    match node {
+        Value::Number(_) => {
+            for x in [0.0, -1.0, 1e-300, 1e300, 0.49999, 3.0] {
+                replace(x.into(), out);
+            }
+            for x in [0u64, 1, 7, 1_000_000_000] {
+                replace(x.into(), out);
+            }
+        }
+        Value::String(_) => replace("bogus".into(), out),
+        Value::Array(items) => {
+            replace(Value::Array(Vec::new()), out);
+            for (i, item) in items.iter().enumerate() {
+                path.push(i.into());
+                mutate(item, path, root, out);
+                path.pop();
+            }
+        }
+        Value::Object(map) => {
+            for (k, item) in map {
+                let mut m = root.clone();
+                pointer(&mut m, path).as_object_mut().unwrap().remove(k);
+                out.push(m);
+                path.push(k.clone().into());
+                mutate(item, path, root, out);
+                path.pop();
+            }
+        }
+        _ => {}
+    }
+}
+
+fn pointer<'v>(v: &'v mut Value, path: &[Value]) -> &'v mut Value {
+    path.iter().fold(v, |v, k| match k {
+        Value::String(s) => &mut v[s.as_str()],
+        Value::Number(n) => &mut v[n.as_u64().unwrap() as usize],
+        _ => unreachable!(),
+    })
+}
