@@ -58,7 +58,8 @@ pub struct CentralDifference<'a> {
     evaluator: &'a dyn Evaluator,
     mass: &'a Mass,
     loads: &'a Loads,
-    damping: f64,
+    /// Mass-proportional damping `α` (1/s).
+    pub damping: f64,
     pub dt: f64,
     pub t: f64,
     pub step: u64,
@@ -78,13 +79,18 @@ pub struct CentralDifference<'a> {
 }
 
 impl<'a> CentralDifference<'a> {
-    /// Starts at `t = 0` from rest in the reference configuration with the model's initial
-    /// velocities: `v^{−½} = v^0 − ½ Δt a^0`.
+    /// Starts at `t = 0` in the reference configuration with the model's initial velocities.
     pub fn new(model: &Model, evaluator: &'a dyn Evaluator, mass: &'a Mass, loads: &'a Loads, dt: f64) -> Self {
+        Self::from_state(model, evaluator, mass, loads, dt, vec![0.0; model.n_dofs()], model.initial_velocity.clone())
+    }
+
+    /// Starts at `t = 0` from displacements `u0` and velocities `v0` (fixed DOFs are zeroed):
+    /// `v^{−½} = v^0 − ½ Δt a^0`.
+    pub fn from_state(model: &Model, evaluator: &'a dyn Evaluator, mass: &'a Mass, loads: &'a Loads, dt: f64, mut u0: Vec<f64>, mut v0: Vec<f64>) -> Self {
         let n = model.n_dofs();
-        let mut v = model.initial_velocity.clone();
         for &d in &model.fixed {
-            v[d] = 0.0;
+            u0[d] = 0.0;
+            v0[d] = 0.0;
         }
         let mut s = CentralDifference {
             evaluator,
@@ -94,8 +100,8 @@ impl<'a> CentralDifference<'a> {
             dt,
             t: 0.0,
             step: 0,
-            u: vec![0.0; n],
-            v,
+            u: u0,
+            v: v0,
             force: vec![0.0; n],
             scratch: vec![0.0; n],
             external_work: 0.0,

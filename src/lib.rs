@@ -13,3 +13,8 @@ pub mod run;
 pub mod scene;
 pub mod stability;
 pub mod vtk;
+pub mod rigid_modes;
+pub mod statics;
+pub mod system;
+pub mod eigen;
+pub mod report;

@@ -45,6 +45,25 @@ impl Loads {
         Loads { nd, weight, entries, amplitudes }
     }
 
+    /// The load vector `P` over all DOFs with every load at its full value (amplitudes are
+    /// time histories; a static analysis applies the loads as given).
+    pub fn static_vector(&self, n: usize) -> Vec<f64> {
+        let mut p = vec![0.0; n];
+        for (e, w) in self.weight.iter().enumerate() {
+            p[e * self.nd] += w.x;
+            p[e * self.nd + 1] += w.y;
+        }
+        for &(d, v, _) in &self.entries {
+            p[d] += v;
+        }
+        p
+    }
+
+    /// No loads and no gravity (free vibration).
+    pub fn none(model: &Model) -> Loads {
+        Loads { nd: model.formulation.ndof(), weight: Vec::new(), entries: Vec::new(), amplitudes: Vec::new() }
+    }
+
     fn factor(&self, amp: usize, t: f64) -> f64 {
         if amp == usize::MAX {
             1.0

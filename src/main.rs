@@ -45,6 +45,36 @@ enum Command {
         #[arg(long)]
         steps: Option<u64>,
     },
+    /// Static solution K_ff U_f = P_f (sparse Cholesky); loads at their full value.
+    Static {
+        scene: PathBuf,
+    },
+    /// Lowest modes and ω_max of K φ = ω² M φ.
+    Eigen {
+        scene: PathBuf,
+        /// Number of lowest modes.
+        #[arg(long, default_value_t = 10)]
+        modes: usize,
+        /// Dense (all modes) or sparse (Krylov–Schur) solver.
+        #[arg(long, value_enum, default_value = "auto")]
+        method: rbsm::eigen::Method,
+        /// Write the mode shapes as VTK into this directory.
+        #[arg(long)]
+        vtk: Option<PathBuf>,
+    },
+    /// Exact Δt_crit, cheap bounds, the empirical limit and runs at fractions of Δt_crit.
+    Stability {
+        scene: PathBuf,
+        /// Fractions of Δt_crit to run at.
+        #[arg(long, value_delimiter = ',', default_value = "0.9,0.99,1.01")]
+        fractions: Vec<f64>,
+        /// Steps of each run (bisection and fractions).
+        #[arg(long, default_value_t = 2000)]
+        steps: u64,
+        /// Write the energy history of each fraction run as CSV into this directory.
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
 }
 
 /// Information lines and a progress bar on standard error; the bar appears only on a terminal,
@@ -93,8 +123,60 @@ fn main() -> ExitCode {
     }
 }
 
+/// Prints a report as JSON, or as the text `text` gives.
+fn print(json: bool, value: &impl serde::Serialize, text: impl FnOnce() -> String) {
+    if json {
+        println!("{}", serde_json::to_string_pretty(value).expect("reports serialise"));
+    } else {
+        println!("{}", text());
+    }
+}
+
 fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
     match &cli.command {
+        Command::Static { scene } => {
+            let r = rbsm::report::static_report(&Scene::from_file(scene)?)?;
+            print(cli.json, &r, || {
+                let max = r.elements.iter().map(|e| e.u[0].hypot(e.u[1])).fold(0.0, f64::max);
+                format!("{} elements, {} interfaces; strain energy {:.6e} J; largest displacement {:.6e} m", r.elements.len(), r.interfaces.len(), r.energy, max)
+            });
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::Eigen { scene, modes, method, vtk } => {
+            let (r, model, shapes) = rbsm::report::eigen_report(&Scene::from_file(scene)?, *modes, *method)?;
+            if let Some(dir) = vtk {
+                rbsm::vtk::write_mode_shapes(dir, &model, &shapes)?;
+            }
+            print(cli.json, &r, || {
+                let mut t = format!("{} free DOFs ({} solver); ω_max = {:.6e} rad/s, Δt_crit = {:.6e} s\n", r.dofs, r.method, r.omega_max, r.dt_crit);
+                for (i, f) in r.frequencies_hz.iter().enumerate() {
+                    t.push_str(&format!("  mode {:>3}: {:.6e} Hz\n", i + 1, f));
+                }
+                t.trim_end().to_string()
+            });
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::Stability { scene, fractions, steps, out } => {
+            if let Some(f) = fractions.iter().find(|f| !(**f > 0.0 && f.is_finite())) {
+                return Err(rbsm::error::Error::scene("--fractions", format!("each fraction must be > 0, got {f}")));
+            }
+            let r = rbsm::report::stability_report(&Scene::from_file(scene)?, fractions, *steps)?;
+            if let Some(dir) = out {
+                rbsm::output::write_fraction_histories(dir, &r.fractions)?;
+            }
+            print(cli.json, &r, || {
+                let mut t = format!("ω_max = {:.6e} rad/s, Δt_crit = {:.6e} s\n", r.omega_max, r.dt_crit);
+                for b in &r.bounds {
+                    t.push_str(&format!("  {:<15} Δt = {:.6e} s  ratio {:.4}  {}\n", b.name, b.dt, b.ratio, if b.safe { "safe" } else { "UNSAFE" }));
+                }
+                t.push_str(&format!("  empirical       Δt = {:.6e} s  ratio {:.4}\n", r.empirical.dt, r.empirical.ratio));
+                for f in &r.fractions {
+                    t.push_str(&format!("  run at {:.3} Δt_crit: {} after {} steps, energy drift {:.3e}\n", f.fraction, f.status, f.steps, f.max_relative_drift));
+                }
+                t.trim_end().to_string()
+            });
+            Ok(ExitCode::SUCCESS)
+        }
         Command::Run { scene, out, evaluator, dt, steps } => {
             let scene = Scene::from_file(scene)?;
             let opts = RunOptions { evaluator: *evaluator, dt: *dt, steps: *steps };

@@ -30,6 +30,13 @@ impl Mass {
         Mass::Diagonal { m, inv, inv_sqrt }
     }
 
+    /// The diagonal of `M` (lumped, so the whole matrix).
+    pub fn diagonal(&self) -> &[f64] {
+        match self {
+            Mass::Diagonal { m, .. } => m,
+        }
+    }
+
     /// `a = −M⁻¹ f` in place (the acceleration of a net internal-minus-external force `f`).
     pub fn accelerate(&self, f: &mut [f64]) {
         match self {

@@ -119,3 +119,17 @@ pub fn write_json(path: &Path, value: &impl Serialize) -> Result<()> {
     serde_json::to_writer_pretty(&mut w, value).map_err(|e| Error::io(path, e.into()))?;
     writeln!(w).and_then(|_| w.flush()).map_err(|e| Error::io(path, e))
 }
+
+/// Writes `fraction_F.csv` (`t,total`) for each run of a stability analysis.
+pub fn write_fraction_histories(dir: &Path, runs: &[crate::stability::FractionRun]) -> Result<()> {
+    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    for r in runs {
+        let path = dir.join(format!("fraction_{}.csv", r.fraction));
+        let mut text = String::from("t,total\n");
+        for (t, e) in &r.history {
+            text.push_str(&format!("{t:e},{e:e}\n"));
+        }
+        std::fs::write(&path, text).map_err(|e| Error::io(&path, e))?;
+    }
+    Ok(())
+}

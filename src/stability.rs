@@ -1,115 +1,200 @@
-//! The critical time step of central difference, `Δt_crit = 2 / ω_max` (DESIGN.md §7), with
-//! `ω_max²` the largest eigenvalue of `K φ = ω² M φ`, found by Lanczos on the operator
-//! `M^{−½} K M^{−½}` applied through the evaluator (no matrix needed).
+//! The stability limit of central difference (DESIGN.md §7, §8): `Δt_crit = 2 / ω_max`, the cheap
+//! bounds that codes use instead of `ω_max`, each with its ratio to the exact value, and the
+//! limit found empirically by running.
 
-use crate::evaluator::Evaluator;
+use crate::evaluator::{interface_stiffness, Evaluator};
+use crate::formulation::{Formulation, Rigid};
+use crate::integrator::{CentralDifference, Status};
+use crate::loads::Loads;
 use crate::mass::Mass;
+use crate::model::{Model, GROUND};
+use crate::system::FreeSystem;
+use nalgebra::{DMatrix, SMatrix};
 use rand::{Rng, SeedableRng};
-
-/// The largest `ω` (rad/s) of `K φ = ω² M φ` over the free DOFs, by Lanczos iteration without
-/// reorthogonalisation (which leaves the extreme Ritz value exact), stopped when the largest
-/// Ritz value changes by less than `1e-10` relative, or after `max_iter` iterations. The
-/// largest Ritz value never exceeds `ω_max²`, so the result converges from below.
-pub fn omega_max(evaluator: &dyn Evaluator, mass: &Mass, n: usize, max_iter: usize) -> f64 {
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
-    let mut q: Vec<f64> = (0..n).map(|_| rng.random::<f64>() - 0.5).collect();
-    // Project out the fixed DOFs (M^{−½} is zero there), then normalise.
-    let mut tmp = vec![0.0; n];
-    mass.inv_sqrt(&q, &mut tmp);
-    for (q, t) in q.iter_mut().zip(&tmp) {
-        if *t == 0.0 {
-            *q = 0.0;
-        }
-    }
-    let norm = q.iter().map(|x| x * x).sum::<f64>().sqrt();
-    if norm == 0.0 {
-        return 0.0;
-    }
-    q.iter_mut().for_each(|x| *x /= norm);
-    let (mut q_prev, mut w, mut ku) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
-    let (mut alpha, mut beta) = (Vec::new(), Vec::new());
-    let mut last = 0.0;
-    for j in 0..max_iter.min(n) {
-        mass.inv_sqrt(&q, &mut tmp);
-        evaluator.internal_force(&tmp, &mut ku);
-        mass.inv_sqrt(&ku, &mut w);
-        let b_prev = if j > 0 { beta[j - 1] } else { 0.0 };
-        let a: f64 = w.iter().zip(&q).map(|(w, q)| w * q).sum();
-        for i in 0..n {
-            w[i] -= a * q[i] + b_prev * q_prev[i];
-        }
-        alpha.push(a);
-        let b = w.iter().map(|x| x * x).sum::<f64>().sqrt();
-        let top = largest_tridiagonal_eigenvalue(&alpha, &beta);
-        if (j >= 8 && (top - last).abs() <= 1e-10 * top) || b <= 1e-14 * top.abs() {
-            return top.max(0.0).sqrt();
-        }
-        last = top;
-        beta.push(b);
-        std::mem::swap(&mut q_prev, &mut q);
-        for i in 0..n {
-            q[i] = w[i] / b;
-        }
-    }
-    last.max(0.0).sqrt()
-}
-
-/// The largest eigenvalue of the symmetric tridiagonal matrix with diagonal `a` and
-/// off-diagonal `b` (`b.len() ≥ a.len() − 1`), by Sturm-sequence bisection.
-fn largest_tridiagonal_eigenvalue(a: &[f64], b: &[f64]) -> f64 {
-    let n = a.len();
-    // Gershgorin interval.
-    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
-    for i in 0..n {
-        let r = if i > 0 { b[i - 1].abs() } else { 0.0 } + if i + 1 < n { b[i].abs() } else { 0.0 };
-        lo = lo.min(a[i] - r);
-        hi = hi.max(a[i] + r);
-    }
-    // Number of eigenvalues below x.
-    let count_below = |x: f64| {
-        let mut d = 1.0;
-        let mut count = 0;
-        for i in 0..n {
-            let off = if i > 0 { b[i - 1] * b[i - 1] } else { 0.0 };
-            d = a[i] - x - if i > 0 { off / d } else { 0.0 };
-            if d == 0.0 {
-                d = f64::EPSILON * (x.abs() + 1.0);
-            }
-            if d < 0.0 {
-                count += 1;
-            }
-        }
-        count
-    };
-    for _ in 0..200 {
-        let mid = 0.5 * (lo + hi);
-        if mid <= lo || mid >= hi {
-            break;
-        }
-        if count_below(mid) >= n {
-            hi = mid;
-        } else {
-            lo = mid;
-        }
-    }
-    hi
-}
+use serde::Serialize;
 
 /// `Δt_crit = 2 / ω_max` (s).
 pub fn critical_time_step(omega_max: f64) -> f64 {
     2.0 / omega_max
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
+/// A cheap estimate of `Δt_crit` and how it compares with the exact value.
+#[derive(Debug, Clone, Serialize)]
+pub struct Bound {
+    pub name: &'static str,
+    /// The estimate (s).
+    pub dt: f64,
+    /// `dt / Δt_crit`.
+    pub ratio: f64,
+    /// Whether stepping at `dt` is stable (`ratio ≤ 1`). Proven bounds are safe by theory; the
+    /// naive estimate is not.
+    pub safe: bool,
+}
 
-    #[test]
-    fn tridiagonal_top_eigenvalue_of_the_1d_laplacian() {
-        // Diagonal 2, off-diagonal -1: eigenvalues 2 - 2 cos(kπ/(n+1)).
-        let n = 50;
-        let top = largest_tridiagonal_eigenvalue(&vec![2.0; n], &vec![-1.0; n - 1]);
-        let exact = 2.0 - 2.0 * (n as f64 * std::f64::consts::PI / (n as f64 + 1.0)).cos();
-        assert!((top - exact).abs() < 1e-12, "{top} {exact}");
+/// The four cheap estimates of `Δt_crit`, each as `2/ω` with `ω²` from:
+/// - `gershgorin`: the largest absolute row sum of `M^{−½} K M^{−½}` (a proven upper bound on
+///   `ω_max²`, so a safe `Δt`);
+/// - `irons-treharne`: the largest `λ_max(K_s, M_s)` over interfaces `s`, each element's mass
+///   shared equally among its interfaces (`K = Σ K_s`, `M = Σ M_s`: a proven bound);
+/// - `per-body`: `2 max_e λ_max(K_ee, M_e)`, `K_ee` the diagonal block of element `e` (proven:
+///   `K ≤ 2 blockdiag(K)` because each interface's form stays positive when `U_b → −U_b`);
+/// - `single-body`: the naive DEM estimate `2 √(m/k)`, the smallest over elements and DOFs of
+///   `M_ii / K_ii` (not a bound: unsafe on a lattice, where neighbours move against each other).
+pub fn bounds(model: &Model, sys: &FreeSystem, dt_crit: f64) -> Vec<Bound> {
+    let mk = |name, omega2: f64, proven: bool| {
+        let dt = 2.0 / omega2.sqrt();
+        let ratio = dt / dt_crit;
+        Bound { name, dt, ratio, safe: if proven { true } else { ratio <= 1.0 } }
+    };
+    let n = sys.n();
+    // Gershgorin on the scaled matrix, and the diagonal ratio of the naive estimate.
+    let mut rows = vec![0.0; n];
+    let mut diag_ratio = 0.0f64;
+    for j in 0..n {
+        for (&i, &v) in sys.k.symbolic().row_idx_of_col_raw(j).iter().zip(sys.k.val_of_col(j)) {
+            rows[i] += v.abs() / (sys.mass[i] * sys.mass[j]).sqrt();
+            if i == j {
+                diag_ratio = diag_ratio.max(v / sys.mass[i]);
+            }
+        }
     }
+    let gershgorin = rows.iter().cloned().fold(0.0, f64::max);
+    let (it, per_body) = match model.formulation {
+        Formulation::Rigid => interface_and_body_bounds::<Rigid, 3>(model),
+    };
+    vec![
+        mk("gershgorin", gershgorin, true),
+        mk("irons-treharne", it, true),
+        mk("per-body", per_body, true),
+        mk("single-body", diag_ratio, false),
+    ]
+}
+
+/// `max_s λ_max(K_s, M_s)` and `2 max_e λ_max(K_ee, M_e)` over the free DOFs.
+fn interface_and_body_bounds<K: crate::formulation::Kinematics<N>, const N: usize>(model: &Model) -> (f64, f64) {
+    let ne = model.elements.len();
+    let mut fixed = vec![false; model.n_dofs()];
+    for &d in &model.fixed {
+        fixed[d] = true;
+    }
+    let mass: Vec<SMatrix<f64, N, N>> =
+        model.elements.iter().map(|e| K::mass(&e.props, e.rho * model.thickness)).collect();
+    let mut count = vec![0usize; ne];
+    for i in &model.interfaces {
+        count[i.a as usize] += 1;
+        if i.b != GROUND {
+            count[i.b as usize] += 1;
+        }
+    }
+    let mut k_diag = vec![SMatrix::<f64, N, N>::zeros(); ne];
+    let mut it = 0.0f64;
+    for i in &model.interfaces {
+        let xa = model.elements[i.a as usize].props.centroid;
+        let xb = if i.b == GROUND { i.midpoint() } else { model.elements[i.b as usize].props.centroid };
+        let [kaa, kab, kba, kbb] = interface_stiffness::<K, N>(i, xa, xb, model.thickness);
+        k_diag[i.a as usize] += kaa;
+        let mut elements = vec![i.a as usize];
+        if i.b != GROUND {
+            k_diag[i.b as usize] += kbb;
+            elements.push(i.b as usize);
+        }
+        let m = elements.len() * N;
+        let (mut ks, mut ms) = (DMatrix::<f64>::zeros(m, m), DMatrix::<f64>::zeros(m, m));
+        for (p, &e) in elements.iter().enumerate() {
+            ms.view_mut((p * N, p * N), (N, N)).copy_from(&(mass[e] / count[e] as f64));
+        }
+        ks.view_mut((0, 0), (N, N)).copy_from(&kaa);
+        if i.b != GROUND {
+            ks.view_mut((0, N), (N, N)).copy_from(&kab);
+            ks.view_mut((N, 0), (N, N)).copy_from(&kba);
+            ks.view_mut((N, N), (N, N)).copy_from(&kbb);
+        }
+        let dofs: Vec<usize> = elements.iter().flat_map(|&e| (0..N).map(move |d| e * N + d)).collect();
+        it = it.max(generalized_max(&ks, &ms, &dofs.iter().map(|&d| !fixed[d]).collect::<Vec<_>>()));
+    }
+    let mut body = 0.0f64;
+    for e in 0..ne {
+        let free: Vec<bool> = (0..N).map(|d| !fixed[e * N + d]).collect();
+        let (k, m) = (DMatrix::from_fn(N, N, |i, j| k_diag[e][(i, j)]), DMatrix::from_fn(N, N, |i, j| mass[e][(i, j)]));
+        body = body.max(generalized_max(&k, &m, &free));
+    }
+    (it, 2.0 * body)
+}
+
+/// `λ_max` of `K x = λ M x` restricted to the DOFs marked free (`M` positive definite there).
+fn generalized_max(k: &DMatrix<f64>, m: &DMatrix<f64>, free: &[bool]) -> f64 {
+    let idx: Vec<usize> = (0..free.len()).filter(|&i| free[i]).collect();
+    if idx.is_empty() {
+        return 0.0;
+    }
+    let kf = DMatrix::from_fn(idx.len(), idx.len(), |i, j| k[(idx[i], idx[j])]);
+    let mf = DMatrix::from_fn(idx.len(), idx.len(), |i, j| m[(idx[i], idx[j])]);
+    let l = mf.cholesky().expect("element mass blocks are positive definite").l();
+    let li = l.try_inverse().expect("a Cholesky factor is invertible");
+    let a = &li * kf * li.transpose();
+    let a = 0.5 * (&a + a.transpose());
+    a.symmetric_eigenvalues().max()
+}
+
+/// The outcome of an undamped run at `fraction · Δt_crit`.
+#[derive(Debug, Clone, Serialize)]
+pub struct FractionRun {
+    pub fraction: f64,
+    pub dt: f64,
+    pub steps: u64,
+    /// `ok` or `diverged`.
+    pub status: String,
+    pub max_relative_drift: f64,
+    /// `(t, total energy)` every `record_every` steps.
+    #[serde(skip)]
+    pub history: Vec<(f64, f64)>,
+}
+
+/// Runs the model undamped and unloaded for `steps` steps at `fraction · Δt_crit` from a
+/// seeded random displacement (which excites every mode, the highest included).
+pub fn run_at_fraction(model: &Model, evaluator: &dyn Evaluator, mass: &Mass, dt_crit: f64, fraction: f64, steps: u64) -> FractionRun {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+    let u0: Vec<f64> = (0..model.n_dofs()).map(|_| 1e-6 * (rng.random::<f64>() - 0.5)).collect();
+    let loads = Loads::none(model);
+    let dt = fraction * dt_crit;
+    let mut cd = CentralDifference::from_state(model, evaluator, mass, &loads, dt, u0, vec![0.0; model.n_dofs()]);
+    cd.damping = 0.0;
+    let every = (steps / 200).max(1);
+    let mut history = Vec::new();
+    let status = cd
+        .run(steps, every, |_, e| {
+            history.push((e.t, e.total));
+            Ok(())
+        }, |_| {})
+        .expect("the observer cannot fail");
+    FractionRun {
+        fraction,
+        dt,
+        steps: cd.step,
+        status: if status == Status::Ok { "ok".into() } else { "diverged".into() },
+        max_relative_drift: cd.max_relative_drift(),
+        history,
+    }
+}
+
+/// The empirical limit: bisection on `fraction` between a stable and an unstable run of
+/// `steps` steps each, to a relative width of `tol`. Returns `(dt, dt / Δt_crit)`.
+pub fn empirical_limit(model: &Model, evaluator: &dyn Evaluator, mass: &Mass, dt_crit: f64, steps: u64, tol: f64) -> (f64, f64) {
+    let stable = |f: f64| run_at_fraction(model, evaluator, mass, dt_crit, f, steps).status == "ok";
+    let (mut lo, mut hi) = (0.5, 2.0);
+    while !stable(lo) {
+        lo *= 0.5;
+    }
+    while stable(hi) {
+        hi *= 2.0;
+    }
+    while hi - lo > tol * lo {
+        let mid = 0.5 * (lo + hi);
+        if stable(mid) {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    (lo * dt_crit, lo)
 }

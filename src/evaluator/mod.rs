@@ -23,6 +23,13 @@ pub trait Evaluator: Send + Sync {
     fn internal_force(&self, u: &[f64], f: &mut [f64]);
 }
 
+/// The global stiffness `K` of eq. 7 as scalar triplets `(row, col, value)` over all DOFs.
+pub fn stiffness_triplets(model: &Model) -> Vec<(usize, usize, f64)> {
+    match model.formulation {
+        Formulation::Rigid => Assembled::<Rigid, 3>::new(model).stiffness.triplets(),
+    }
+}
+
 /// The evaluator `kind` for the model's formulation.
 pub fn build(model: &Model, kind: EvaluatorKind) -> Box<dyn Evaluator> {
     match (model.formulation, kind) {

@@ -1,0 +1,214 @@
+//! Eigen analysis (DESIGN.md §8): `K φ = ω² M φ` over the free DOFs.
+//!
+//! - **dense**: all modes from faer's `self_adjoint_eigen` of `M^{−½} K M^{−½}` (small models);
+//! - **sparse**: faer's matrix-free `partial_self_adjoint_eigen` (Krylov–Schur), for `ω_max`
+//!   applied to `M^{−½} K M^{−½}` through an evaluator (no matrix at all), and for the lowest
+//!   modes applied to the shift-inverted `M^{½} (K − σ M)^{−1} M^{½}` with a sparse Cholesky.
+
+use crate::error::{Error, Result};
+use crate::evaluator::Evaluator;
+use crate::mass::Mass;
+use crate::system::FreeSystem;
+use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
+use faer::linalg::solvers::Solve;
+use faer::matrix_free::eigen::{partial_self_adjoint_eigen, partial_self_adjoint_eigen_scratch, PartialEigenParams};
+use faer::matrix_free::LinOp;
+use faer::{Col, Mat, MatMut, MatRef, Par};
+use rand::{Rng, SeedableRng};
+
+/// Free DOFs up to which `Method::Auto` solves densely.
+pub const DENSE_LIMIT: usize = 2500;
+
+/// How to solve.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Method {
+    /// Dense up to `DENSE_LIMIT` free DOFs, sparse above.
+    Auto,
+    Dense,
+    Sparse,
+}
+
+/// The lowest modes and the top of the spectrum.
+#[derive(Debug, Clone)]
+pub struct Modes {
+    /// Circular frequencies `ω` (rad/s), ascending.
+    pub omega: Vec<f64>,
+    /// Mode shapes over all DOFs (zero on fixed DOFs), `M`-normalised, one per `omega`.
+    pub shapes: Vec<Vec<f64>>,
+    /// The largest circular frequency (rad/s).
+    pub omega_max: f64,
+    /// `dense` or `sparse`.
+    pub method: &'static str,
+}
+
+/// `n_modes` lowest modes and `ω_max` of a system.
+pub fn modes(sys: &FreeSystem, evaluator: &dyn Evaluator, mass: &Mass, n_modes: usize, method: Method) -> Result<Modes> {
+    let dense = match method {
+        Method::Auto => sys.n() <= DENSE_LIMIT,
+        Method::Dense => true,
+        Method::Sparse => false,
+    };
+    if dense {
+        dense_modes(sys, n_modes)
+    } else {
+        let omega_max = omega_max(evaluator, mass);
+        let (omega, shapes) = lowest_modes(sys, n_modes, omega_max)?;
+        Ok(Modes { omega, shapes, omega_max, method: "sparse" })
+    }
+}
+
+/// Every mode of `M^{−½} K_ff M^{−½}`, densely; returns the lowest `n_modes` and `ω_max`.
+pub fn dense_modes(sys: &FreeSystem, n_modes: usize) -> Result<Modes> {
+    let n = sys.n();
+    let s: Vec<f64> = sys.mass.iter().map(|m| 1.0 / m.sqrt()).collect();
+    let mut a = Mat::<f64>::zeros(n, n);
+    for j in 0..n {
+        let (rows, vals) = (sys.k.symbolic().row_idx_of_col_raw(j), sys.k.val_of_col(j));
+        for (&i, &v) in rows.iter().zip(vals) {
+            a[(i, j)] = s[i] * v * s[j];
+        }
+    }
+    let evd = a.self_adjoint_eigen(faer::Side::Lower).map_err(|e| Error::scene("eigen", format!("dense eigen solve failed: {e:?}")))?;
+    let lambda: Vec<f64> = (0..n).map(|i| evd.S()[i]).collect();
+    let omega_max = lambda.iter().cloned().fold(0.0, f64::max).sqrt();
+    let k = n_modes.min(n);
+    let omega = lambda[..k].iter().map(|l| l.max(0.0).sqrt()).collect();
+    let shapes = (0..k).map(|j| sys.scatter(&(0..n).map(|i| evd.U()[(i, j)] * s[i]).collect::<Vec<_>>())).collect();
+    Ok(Modes { omega, shapes, omega_max, method: "dense" })
+}
+
+/// `M^{−½} K M^{−½}` applied through an evaluator (fixed DOFs map to zero).
+struct ScaledStiffness<'a> {
+    evaluator: &'a dyn Evaluator,
+    mass: &'a Mass,
+    n: usize,
+}
+
+impl std::fmt::Debug for ScaledStiffness<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        write!(f, "M^-1/2 K M^-1/2 ({} DOFs)", self.n)
+    }
+}
+
+impl LinOp<f64> for ScaledStiffness<'_> {
+    fn apply_scratch(&self, _: usize, _: Par) -> StackReq {
+        StackReq::EMPTY
+    }
+    fn nrows(&self) -> usize {
+        self.n
+    }
+    fn ncols(&self) -> usize {
+        self.n
+    }
+    fn apply(&self, mut out: MatMut<'_, f64>, rhs: MatRef<'_, f64>, _: Par, _: &mut MemStack) {
+        let (mut x, mut y) = (vec![0.0; self.n], vec![0.0; self.n]);
+        for j in 0..rhs.ncols() {
+            let col: Vec<f64> = (0..self.n).map(|i| rhs[(i, j)]).collect();
+            self.mass.inv_sqrt(&col, &mut x);
+            self.evaluator.internal_force(&x, &mut y);
+            self.mass.inv_sqrt(&y, &mut x);
+            for i in 0..self.n {
+                out[(i, j)] = x[i];
+            }
+        }
+    }
+    fn conj_apply(&self, out: MatMut<'_, f64>, rhs: MatRef<'_, f64>, par: Par, stack: &mut MemStack) {
+        self.apply(out, rhs, par, stack)
+    }
+}
+
+/// The largest circular frequency `ω_max` (rad/s) of `K φ = ω² M φ` over the free DOFs, matrix
+/// free: faer's Krylov–Schur on `M^{−½} K M^{−½}` applied through the evaluator, converged to
+/// a residual of 1e-10 relative.
+pub fn omega_max(evaluator: &dyn Evaluator, mass: &Mass) -> f64 {
+    let n = mass.diagonal().len();
+    let op = ScaledStiffness { evaluator, mass, n };
+    let (values, _) = largest(&op, 1, 1e-10);
+    values[0].max(0.0).sqrt()
+}
+
+/// The `k` eigenvalues of largest magnitude of a symmetric operator, and their vectors.
+fn largest(op: &dyn LinOp<f64>, k: usize, tolerance: f64) -> (Vec<f64>, Mat<f64>) {
+    let n = op.nrows();
+    let k = k.min(n);
+    let params = PartialEigenParams { min_dim: (2 * k + 8).min(n), max_dim: (4 * k + 24).min(n), max_restarts: 2000, ..Default::default() };
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+    let mut v0 = Col::<f64>::from_fn(n, |_| rng.random::<f64>() - 0.5);
+    let norm = v0.norm_l2();
+    v0 /= norm;
+    let mut mem = MemBuffer::new(partial_self_adjoint_eigen_scratch(op, k, Par::Seq, params));
+    let mut vecs = Mat::<f64>::zeros(n, k);
+    let mut vals = vec![0.0; k];
+    partial_self_adjoint_eigen(vecs.as_mut(), &mut vals, op, v0.as_ref(), tolerance, Par::Seq, MemStack::new(&mut mem), params);
+    (vals, vecs)
+}
+
+/// `M^{½} (K − σ M)^{−1} M^{½}`: its largest eigenvalues `μ = 1/(ω² − σ)` are the lowest modes.
+struct ShiftInvert {
+    llt: faer::sparse::linalg::solvers::Llt<usize, f64>,
+    sqrt_m: Vec<f64>,
+}
+
+impl std::fmt::Debug for ShiftInvert {
+    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        write!(f, "shift-invert ({} DOFs)", self.sqrt_m.len())
+    }
+}
+
+impl LinOp<f64> for ShiftInvert {
+    fn apply_scratch(&self, _: usize, _: Par) -> StackReq {
+        StackReq::EMPTY
+    }
+    fn nrows(&self) -> usize {
+        self.sqrt_m.len()
+    }
+    fn ncols(&self) -> usize {
+        self.sqrt_m.len()
+    }
+    fn apply(&self, mut out: MatMut<'_, f64>, rhs: MatRef<'_, f64>, _: Par, _: &mut MemStack) {
+        let n = self.sqrt_m.len();
+        let mut x = Mat::<f64>::from_fn(n, rhs.ncols(), |i, j| self.sqrt_m[i] * rhs[(i, j)]);
+        self.llt.solve_in_place(x.as_mut());
+        for j in 0..rhs.ncols() {
+            for i in 0..n {
+                out[(i, j)] = self.sqrt_m[i] * x[(i, j)];
+            }
+        }
+    }
+    fn conj_apply(&self, out: MatMut<'_, f64>, rhs: MatRef<'_, f64>, par: Par, stack: &mut MemStack) {
+        self.apply(out, rhs, par, stack)
+    }
+}
+
+/// The `k` lowest modes by shift-invert. The shift `σ = −1e-8 ω_max²` keeps `K − σ M` positive
+/// definite when the model has free rigid modes (which then come out at `ω ≈ 0`) and barely
+/// changes the spectrum's spacing otherwise.
+pub fn lowest_modes(sys: &FreeSystem, k: usize, omega_max: f64) -> Result<(Vec<f64>, Vec<Vec<f64>>)> {
+    let sigma = -1e-8 * omega_max * omega_max;
+    let n = sys.n();
+    let mut shifted = sys.k.clone();
+    for j in 0..n {
+        let rows: Vec<usize> = sys.k.symbolic().row_idx_of_col_raw(j).to_vec();
+        let vals = shifted.val_of_col_mut(j);
+        if let Some(p) = rows.iter().position(|&i| i == j) {
+            vals[p] -= sigma * sys.mass[j];
+        }
+    }
+    let llt = shifted
+        .sp_cholesky(faer::Side::Lower)
+        .map_err(|e| Error::scene("eigen", format!("the shifted stiffness K − σM could not be factored: {e:?}")))?;
+    let sqrt_m: Vec<f64> = sys.mass.iter().map(|m| m.sqrt()).collect();
+    let op = ShiftInvert { llt, sqrt_m };
+    let (mu, vecs) = largest(&op, k, 1e-12);
+    let mut pairs: Vec<(f64, Vec<f64>)> = mu
+        .iter()
+        .enumerate()
+        .map(|(j, &m)| {
+            let omega2 = 1.0 / m + sigma;
+            let shape = sys.scatter(&(0..n).map(|i| vecs[(i, j)] / op.sqrt_m[i]).collect::<Vec<_>>());
+            (omega2.max(0.0).sqrt(), shape)
+        })
+        .collect();
+    pairs.sort_by(|a, b| a.0.total_cmp(&b.0));
+    Ok(pairs.into_iter().unzip())
+}
