@@ -131,11 +131,27 @@ pub fn omega_max(evaluator: &dyn Evaluator, mass: &Mass) -> f64 {
 fn largest(op: &dyn LinOp<f64>, k: usize, tolerance: f64) -> (Vec<f64>, Mat<f64>) {
     let n = op.nrows();
     let k = k.min(n);
-    let params = PartialEigenParams { min_dim: (2 * k + 8).min(n), max_dim: (4 * k + 24).min(n), max_restarts: 2000, ..Default::default() };
+    let params = PartialEigenParams { min_dim: 2 * k + 8, max_dim: 4 * k + 24, max_restarts: 2000, ..Default::default() };
+    if params.max_dim >= n {
+        // faer's Krylov–Schur needs a subspace smaller than the problem: solve small ones densely.
+        let mut a = Mat::<f64>::zeros(n, n);
+        op.apply(a.as_mut(), Mat::<f64>::identity(n, n).as_ref(), Par::Seq, MemStack::new(&mut MemBuffer::new(StackReq::EMPTY)));
+        let evd = a.self_adjoint_eigen(faer::Side::Lower).expect("a small symmetric eigenproblem converges");
+        let order: Vec<usize> = (0..n).rev().collect();
+        let vals = order[..k].iter().map(|&j| evd.S()[j]).collect();
+        let vecs = Mat::<f64>::from_fn(n, k, |i, j| evd.U()[(i, order[j])]);
+        return (vals, vecs);
+    }
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
     let mut v0 = Col::<f64>::from_fn(n, |_| rng.random::<f64>() - 0.5);
     let norm = v0.norm_l2();
     v0 /= norm;
+    // An operator that overflows would keep the Krylov–Schur restarts going on NaNs.
+    let mut probe = Mat::<f64>::zeros(n, 1);
+    op.apply(probe.as_mut(), v0.as_mat(), Par::Seq, MemStack::new(&mut MemBuffer::new(StackReq::EMPTY)));
+    if !(0..n).all(|i| probe[(i, 0)].is_finite()) {
+        return (vec![f64::NAN; k], Mat::zeros(n, k));
+    }
     let mut mem = MemBuffer::new(partial_self_adjoint_eigen_scratch(op, k, Par::Seq, params));
     let mut vecs = Mat::<f64>::zeros(n, k);
     let mut vals = vec![0.0; k];

@@ -253,6 +253,7 @@ impl Model {
             }
             model.bodies.push(Body { name: spec.name.clone(), mesh, first_element: first });
         }
+        model.check_finite()?;
         model.fixed.sort_unstable();
         model.fixed.dedup();
         for (k, p) in scene.output.probes.iter().enumerate() {
@@ -284,6 +285,26 @@ impl Model {
         }
         let (k_n, k_s) = spring_constants(m, self.plane, h_a + h_b);
         Ok(Interface { a: a as u32, b: b.map_or(GROUND, |b| b as u32), p1, p2, normal, tangent, length, h_a, h_b, k_n, k_s })
+    }
+
+    /// Masses and spring constants must be finite numbers: extreme inputs (a thickness of
+    /// 1e300, say) overflow, and the solvers would then compute with infinities.
+    fn check_finite(&self) -> Result<()> {
+        let t = self.thickness;
+        for (e, el) in self.elements.iter().enumerate() {
+            let m = el.rho * t * el.props.area;
+            if !(m.is_finite() && m > 0.0 && (m * el.props.polar()).is_finite()) {
+                return Err(Error::scene("thickness", format!(
+                    "the mass of element {e} ({m:e} kg) is not a finite positive number; check thickness, rho and the mesh size")));
+            }
+        }
+        for i in &self.interfaces {
+            if !((i.k_n + i.k_s) * t * i.length * (1.0 + i.length * i.length)).is_finite() {
+                return Err(Error::scene("materials", format!(
+                    "the springs between elements {} and {} overflow (k_n = {:e} Pa/m); check E, thickness and the mesh size", i.a, i.b, i.k_n)));
+            }
+        }
+        Ok(())
     }
 
     /// Number of DOFs, free and fixed.
