@@ -2,7 +2,9 @@
 //! combinations of its two translations and its rotation that no support restrains and no
 //! spring resists. A static solve refuses them by name; an eigen analysis expects them.
 
+use crate::eigen::symmetric_eigen;
 use crate::evaluator::Evaluator;
+use nalgebra::DMatrix;
 use crate::geometry::Vec2;
 use crate::model::{Model, GROUND};
 
@@ -91,10 +93,9 @@ pub fn free_modes(model: &Model, evaluator: &dyn Evaluator) -> Vec<FreeMode> {
     for j in 0..3 {
         evaluator.internal_force(&r[j], &mut kr[j]);
     }
-    let mut scale = 0.0f64;
-    for e in 0..model.elements.len() {
-        scale = scale.max(kr[0][e * nd]).max(kr[1][e * nd + 1]);
-    }
+    // The stiffest spring (N/m) sets the scale of Rᵀ K R (whose columns are displacements of
+    // order one): K R itself vanishes for exactly the motions we look for.
+    let scale = model.interfaces.iter().map(|i| (i.k_n + i.k_s) * model.thickness * i.length).fold(0.0, f64::max);
     let mut out = Vec::new();
     for (g, &(c, size)) in groups.iter().zip(&frames) {
         // Constraints C w = 0 from the fixed DOFs of the group.
@@ -117,15 +118,14 @@ pub fn free_modes(model: &Model, evaluator: &dyn Evaluator) -> Vec<FreeMode> {
             continue;
         }
         // Energy of the admissible motions: Zᵀ G Z, scaled.
-        let z = faer::Mat::<f64>::from_fn(3, basis.len(), |i, j| basis[j][i]);
-        let gmat = faer::Mat::<f64>::from_fn(3, 3, |i, j| 0.5 * (gram[i][j] + gram[j][i]) / scale.max(f64::MIN_POSITIVE));
-        let reduced = z.transpose() * &gmat * &z;
-        let evd = reduced.self_adjoint_eigen(faer::Side::Lower).expect("3 × 3 eigenproblem converges");
+        let z = DMatrix::<f64>::from_fn(3, basis.len(), |i, j| basis[j][i]);
+        let gmat = DMatrix::<f64>::from_fn(3, 3, |i, j| 0.5 * (gram[i][j] + gram[j][i]) / scale.max(f64::MIN_POSITIVE));
+        let (values, vectors) = symmetric_eigen(z.transpose() * &gmat * &z);
         for j in 0..basis.len() {
-            if evd.S()[j].abs() > 1e-10 {
+            if values[j].abs() > 1e-10 {
                 continue;
             }
-            let w = &z * evd.U().col(j);
+            let w = &z * vectors.column(j);
             let theta = w[2] / size;
             let what = describe(model, g);
             let motion = if theta.abs() < 1e-8 * (w[0].hypot(w[1])) {
@@ -146,7 +146,7 @@ fn null_space(cons: &[[f64; 3]]) -> Vec<[f64; 3]> {
         return vec![[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
     }
     // Eigenvectors of CᵀC with (relatively) zero eigenvalues.
-    let mut ctc = faer::Mat::<f64>::zeros(3, 3);
+    let mut ctc = DMatrix::<f64>::zeros(3, 3);
     for row in cons {
         for i in 0..3 {
             for j in 0..3 {
@@ -155,8 +155,8 @@ fn null_space(cons: &[[f64; 3]]) -> Vec<[f64; 3]> {
         }
     }
     let top = (0..3).map(|i| ctc[(i, i)]).fold(0.0, f64::max);
-    let evd = ctc.self_adjoint_eigen(faer::Side::Lower).expect("3 × 3 eigenproblem converges");
-    (0..3).filter(|&j| evd.S()[j] <= 1e-12 * top).map(|j| [evd.U()[(0, j)], evd.U()[(1, j)], evd.U()[(2, j)]]).collect()
+    let (values, vectors) = symmetric_eigen(ctc);
+    (0..3).filter(|&j| values[j] <= 1e-12 * top).map(|j| [vectors[(0, j)], vectors[(1, j)], vectors[(2, j)]]).collect()
 }
 
 fn describe(model: &Model, group: &[usize]) -> String {
