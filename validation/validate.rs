@@ -320,17 +320,20 @@ fn patch(r: &mut Report) {
     r.csv("patch.csv", "mesh,nu,tension_u,tension_t,shear_u,shear_t", &rows);
 }
 
+/// One small mesh of each kind, for the checks that must hold on every kind.
+const MESH_KINDS: [(&str, &str); 3] = [
+    ("rectangles 10 × 4", r#"{"kind": "grid", "origin": [0, 0], "size": [1, 0.4], "cells": [10, 4]}"#),
+    ("triangles 6 × 3 × 2", r#"{"kind": "grid", "origin": [0, 0], "size": [1, 0.4], "cells": [6, 3], "cell": "tri"}"#),
+    ("Voronoi 80 cells", r#"{"kind": "voronoi", "origin": [0, 0], "size": [1, 0.5], "sites": 80, "seed": 11, "lloyd": 10}"#),
+];
+
 /// 4. Free assemblies: exactly three zero frequencies.
 fn free_assembly(r: &mut Report) {
     r.line("## 4. Free assemblies: three zero frequencies\n");
     r.line("No supports; dense eigen solve. Check: exactly three `ω ≤ 1e-6 ω_max` on every mesh.\n");
     r.line("| mesh | free DOFs | ω₁/ω_max | ω₂/ω_max | ω₃/ω_max | ω₄/ω_max | zero modes |");
     r.line("|---|---|---|---|---|---|---|");
-    for (name, mesh) in [
-        ("rectangles 10 × 4", r#"{"kind": "grid", "origin": [0, 0], "size": [1, 0.4], "cells": [10, 4]}"#),
-        ("triangles 6 × 3 × 2", r#"{"kind": "grid", "origin": [0, 0], "size": [1, 0.4], "cells": [6, 3], "cell": "tri"}"#),
-        ("Voronoi 80 cells", r#"{"kind": "voronoi", "origin": [0, 0], "size": [1, 0.5], "sites": 80, "seed": 11, "lloyd": 10}"#),
-    ] {
+    for (name, mesh) in MESH_KINDS {
         let m = model(&body_scene(mesh, "[]", "[]", 2e10, 0.2, 2400.0, 0.1));
         let mass = Mass::new(&m);
         let sys = FreeSystem::new(&m, &mass);
@@ -414,11 +417,8 @@ fn parity(r: &mut Report) {
             after 10⁴ steps at 0.9 Δt_crit (check ≤ 1e-9; tests/dynamics.rs explains the round-off bound).\n");
     r.line("| case | relative difference |");
     r.line("|---|---|");
-    for (name, mesh) in [
-        ("forces, rectangles", r#"{"kind": "grid", "origin": [0, 0], "size": [1, 0.4], "cells": [10, 4]}"#),
-        ("forces, triangles", r#"{"kind": "grid", "origin": [0, 0], "size": [1, 0.4], "cells": [6, 3], "cell": "tri"}"#),
-        ("forces, Voronoi", r#"{"kind": "voronoi", "origin": [0, 0], "size": [1, 0.5], "sites": 80, "seed": 11, "lloyd": 10}"#),
-    ] {
+    for (mesh_name, mesh) in MESH_KINDS {
+        let name = format!("forces, {mesh_name}");
         let m = model(&body_scene(mesh, r#"[{"edge": "left", "kind": "ground-spring"}]"#, "[]", 2e10, 0.2, 2400.0, 0.1));
         let mut s = 12345u64;
         let u: Vec<f64> = (0..m.n_dofs()).map(|_| { s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407); (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5 }).collect();
