@@ -44,8 +44,11 @@ pub struct Modes {
     pub method: &'static str,
 }
 
-/// `n_modes` lowest modes and `ω_max` of a system.
+/// `n_modes` lowest modes and `ω_max` of a system (lumped mass only, for now).
 pub fn modes(sys: &FreeSystem, evaluator: &dyn Evaluator, mass: &Mass, n_modes: usize, method: Method) -> Result<Modes> {
+    if !mass.is_diagonal() {
+        return Err(Error::scene("formulation.kind", "eigen and stability analyses of the hybrid formulation (block mass) are not implemented yet"));
+    }
     let dense = match method {
         Method::Auto => sys.n() <= DENSE_LIMIT,
         Method::Dense => true,
@@ -92,7 +95,8 @@ pub fn symmetric_eigen(a: DMatrix<f64>) -> (Vec<f64>, DMatrix<f64>) {
 }
 
 /// The largest circular frequency `ω_max` (rad/s) of `K φ = ω² M φ` over the free DOFs, matrix
-/// free: Lanczos on `M^{−½} K M^{−½}` applied through the evaluator, three vectors of memory.
+/// free: Lanczos on `L⁻¹ K L⁻ᵀ` (`M = L Lᵀ`; `M^{−½} K M^{−½}` for a lumped mass) applied
+/// through the evaluator, three vectors of memory.
 ///
 /// Without reorthogonalisation Lanczos still gives the extreme eigenvalue exactly (lost
 /// orthogonality only adds copies of converged values). We stop when the largest Ritz value has
@@ -102,12 +106,12 @@ pub fn symmetric_eigen(a: DMatrix<f64>) -> (Vec<f64>, DMatrix<f64>) {
 /// square grid, whose top eigenvalues are clustered: 9.8 s against 1.0 s, 353 s at 10⁶ DOFs.)
 pub fn omega_max(evaluator: &dyn Evaluator, mass: &Mass) -> f64 {
     const MAX_ITER: usize = 20_000;
-    let n = mass.diagonal().len();
+    let n = mass.n();
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
     let mut q: Vec<f64> = (0..n).map(|_| rng.random::<f64>() - 0.5).collect();
     let mut tmp = vec![0.0; n];
-    // Start in the free DOFs only (M^{−½} is zero on the fixed ones).
-    mass.inv_sqrt(&q, &mut tmp);
+    // Start in the free DOFs only (L⁻ᵀ is zero on the fixed ones).
+    mass.inv_factor_t(&q, &mut tmp);
     for (q, t) in q.iter_mut().zip(&tmp) {
         if *t == 0.0 {
             *q = 0.0;
@@ -122,9 +126,9 @@ pub fn omega_max(evaluator: &dyn Evaluator, mass: &Mass) -> f64 {
     let (mut alpha, mut beta): (Vec<f64>, Vec<f64>) = (Vec::new(), Vec::new());
     let mut history: Vec<f64> = Vec::new();
     for j in 0..MAX_ITER.min(n) {
-        mass.inv_sqrt(&q, &mut tmp);
+        mass.inv_factor_t(&q, &mut tmp);
         evaluator.internal_force(&tmp, &mut kx);
-        mass.inv_sqrt(&kx, &mut w);
+        mass.inv_factor(&kx, &mut w);
         let a: f64 = w.iter().zip(&q).map(|(w, q)| w * q).sum();
         let b_prev = beta.last().copied().unwrap_or(0.0);
         for i in 0..n {

@@ -7,7 +7,7 @@
 
 use crate::geometry::{AreaProperties, Vec2};
 use crate::scene::FormulationSpec;
-use nalgebra::SMatrix;
+use nalgebra::{Matrix3, SMatrix};
 
 /// The displacement field of one element, `u(x) = N_e(x) U_e`, with `N` DOFs.
 pub trait Kinematics<const N: usize>: Send + Sync + 'static {
@@ -19,6 +19,11 @@ pub trait Kinematics<const N: usize>: Send + Sync + 'static {
     fn shape(d: Vec2) -> SMatrix<f64, 2, N>;
     /// Consistent mass `ρ t ∫ N_eᵀ N_e dA` of an element (eqs. 8, 9).
     fn mass(props: &AreaProperties, rho_t: f64) -> SMatrix<f64, N, N>;
+    /// Interior stiffness of the element's own strain energy `½ t A εᵀ D ε` (the `+D` of
+    /// eq. 8); zero for a rigid element.
+    fn interior_stiffness(props: &AreaProperties, d: &Matrix3<f64>, t: f64) -> SMatrix<f64, N, N>;
+    /// Whether `interior_stiffness` can be non-zero (evaluators skip it otherwise).
+    const HAS_INTERIOR: bool;
 }
 
 /// Plain RBSM (eq. 10): `U_e = (u, v, θ)`, `N_e = [[1, 0, −Δy], [0, 1, Δx]]`.
@@ -43,6 +48,74 @@ impl Kinematics<3> for Rigid {
     fn mass(props: &AreaProperties, rho_t: f64) -> SMatrix<f64, 3, 3> {
         SMatrix::<f64, 3, 3>::from_diagonal(&(nalgebra::Vector3::new(props.area, props.area, props.polar()) * rho_t))
     }
+    fn interior_stiffness(_: &AreaProperties, _: &Matrix3<f64>, _: f64) -> SMatrix<f64, 3, 3> {
+        SMatrix::zeros()
+    }
+    const HAS_INTERIOR: bool = false;
+}
+
+/// Rigid motion plus constant strain (eqs. 5, 8): `U_e = (u, v, θ, ε_x, ε_y, γ_xy)`,
+/// `N_e = [[1, 0, −Δy, Δx, 0, Δy/2], [0, 1, Δx, 0, Δy, Δx/2]]` (engineering shear strain).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Hybrid;
+
+impl Kinematics<6> for Hybrid {
+    #[inline(always)]
+    fn displacement(u: &[f64; 6], d: Vec2) -> Vec2 {
+        Vec2::new(
+            u[0] - u[2] * d.y + u[3] * d.x + 0.5 * u[5] * d.y,
+            u[1] + u[2] * d.x + u[4] * d.y + 0.5 * u[5] * d.x,
+        )
+    }
+    #[inline(always)]
+    fn add_force(f: &mut [f64; 6], d: Vec2, force: Vec2) {
+        f[0] += force.x;
+        f[1] += force.y;
+        f[2] += d.x * force.y - d.y * force.x;
+        f[3] += d.x * force.x;
+        f[4] += d.y * force.y;
+        f[5] += 0.5 * (d.y * force.x + d.x * force.y);
+    }
+    fn shape(d: Vec2) -> SMatrix<f64, 2, 6> {
+        SMatrix::<f64, 2, 6>::from_row_slice(&[1.0, 0.0, -d.y, d.x, 0.0, 0.5 * d.y, 0.0, 1.0, d.x, 0.0, d.y, 0.5 * d.x])
+    }
+    /// `ρ t ∫ Nᵀ N dA`: the translations decouple (`∫ Δx dA = ∫ Δy dA = 0` about the centroid);
+    /// `(θ, ε_x, ε_y, γ_xy)` couple through `I_xx = ∫ Δy²`, `I_yy = ∫ Δx²`, `I_xy = ∫ Δx Δy`.
+    fn mass(p: &AreaProperties, rho_t: f64) -> SMatrix<f64, 6, 6> {
+        let (ixx, iyy, ixy) = (p.i_xx, p.i_yy, p.i_xy);
+        let mut m = SMatrix::<f64, 6, 6>::zeros();
+        m[(0, 0)] = p.area;
+        m[(1, 1)] = p.area;
+        let block = [
+            [ixx + iyy, -ixy, ixy, 0.5 * (iyy - ixx)],
+            [-ixy, iyy, 0.0, 0.5 * ixy],
+            [ixy, 0.0, ixx, 0.5 * ixy],
+            [0.5 * (iyy - ixx), 0.5 * ixy, 0.5 * ixy, 0.25 * (ixx + iyy)],
+        ];
+        for i in 0..4 {
+            for j in 0..4 {
+                m[(i + 2, j + 2)] = block[i][j];
+            }
+        }
+        m * rho_t
+    }
+    /// `t A D` on the strain DOFs.
+    fn interior_stiffness(p: &AreaProperties, d: &Matrix3<f64>, t: f64) -> SMatrix<f64, 6, 6> {
+        let mut k = SMatrix::<f64, 6, 6>::zeros();
+        k.fixed_view_mut::<3, 3>(3, 3).copy_from(&(d * (t * p.area)));
+        k
+    }
+    const HAS_INTERIOR: bool = true;
+}
+
+/// The elasticity matrix `D` (Pa) for `ε = (ε_x, ε_y, γ_xy)`, plane stress or plane strain.
+pub fn elasticity(e: f64, nu: f64, plane: crate::scene::Plane) -> Matrix3<f64> {
+    match plane {
+        crate::scene::Plane::Stress => e / (1.0 - nu * nu) * Matrix3::new(1.0, nu, 0.0, nu, 1.0, 0.0, 0.0, 0.0, 0.5 * (1.0 - nu)),
+        crate::scene::Plane::Strain => {
+            e / ((1.0 + nu) * (1.0 - 2.0 * nu)) * Matrix3::new(1.0 - nu, nu, 0.0, nu, 1.0 - nu, 0.0, 0.0, 0.0, 0.5 - nu)
+        }
+    }
 }
 
 /// The formulation a scene asks for, chosen at run time.
@@ -50,6 +123,8 @@ impl Kinematics<3> for Rigid {
 pub enum Formulation {
     /// 3 DOF per element: `(u, v, θ)`.
     Rigid,
+    /// 6 DOF per element: `(u, v, θ, ε_x, ε_y, γ_xy)`; interface springs `penalty` × eq. 12.
+    Hybrid { penalty: f64 },
 }
 
 impl Formulation {
@@ -57,10 +132,7 @@ impl Formulation {
     pub fn from_spec(spec: FormulationSpec) -> crate::error::Result<Self> {
         match spec {
             FormulationSpec::Rigid => Ok(Formulation::Rigid),
-            FormulationSpec::Hybrid { .. } => Err(crate::error::Error::scene(
-                "formulation.kind",
-                "`hybrid` is not implemented yet; the available formulation is `rigid`",
-            )),
+            FormulationSpec::Hybrid { penalty } => Ok(Formulation::Hybrid { penalty }),
         }
     }
 
@@ -68,6 +140,7 @@ impl Formulation {
     pub fn ndof(self) -> usize {
         match self {
             Formulation::Rigid => 3,
+            Formulation::Hybrid { .. } => 6,
         }
     }
 
@@ -75,6 +148,7 @@ impl Formulation {
     pub fn name(self) -> &'static str {
         match self {
             Formulation::Rigid => "rigid",
+            Formulation::Hybrid { .. } => "hybrid",
         }
     }
 
@@ -91,6 +165,11 @@ impl Formulation {
                 Rigid::add_force(&mut f, d, force);
                 f.to_vec()
             }
+            Formulation::Hybrid { .. } => {
+                let mut f = [0.0, 0.0, moment, 0.0, 0.0, 0.0];
+                Hybrid::add_force(&mut f, d, force);
+                f.to_vec()
+            }
         }
     }
 
@@ -98,6 +177,7 @@ impl Formulation {
     pub fn displacement(self, u: &[f64], d: Vec2) -> Vec2 {
         match self {
             Formulation::Rigid => Rigid::displacement(u.try_into().expect("3 DOFs per rigid element"), d),
+            Formulation::Hybrid { .. } => Hybrid::displacement(u.try_into().expect("6 DOFs per hybrid element"), d),
         }
     }
 
@@ -105,6 +185,15 @@ impl Formulation {
     pub fn mass(self, props: &AreaProperties, rho_t: f64) -> Vec<f64> {
         match self {
             Formulation::Rigid => Rigid::mass(props, rho_t).transpose().as_slice().to_vec(),
+            Formulation::Hybrid { .. } => Hybrid::mass(props, rho_t).transpose().as_slice().to_vec(),
+        }
+    }
+
+    /// The factor on the springs of eq. 12: 1 for rigid, the penalty `p` for hybrid.
+    pub fn spring_factor(self) -> f64 {
+        match self {
+            Formulation::Rigid => 1.0,
+            Formulation::Hybrid { penalty } => penalty,
         }
     }
 }
@@ -115,6 +204,51 @@ pub const DOF_NAMES: [&str; 6] = ["u", "v", "theta", "ex", "ey", "gxy"];
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::geometry::area_properties;
+
+    /// `∫ f dA` over a polygon by splitting it into triangles from its centroid and using the
+    /// 3-point edge-midpoint rule on each (exact for quadratics).
+    fn integrate(pts: &[Vec2], f: impl Fn(Vec2) -> f64) -> f64 {
+        let c = area_properties(pts).centroid;
+        (0..pts.len())
+            .map(|i| {
+                let (a, b) = (pts[i], pts[(i + 1) % pts.len()]);
+                let area = 0.5 * (a - c).perp(&(b - c));
+                area / 3.0 * (f(0.5 * (a + b)) + f(0.5 * (b + c)) + f(0.5 * (c + a)))
+            })
+            .sum()
+    }
+
+    #[test]
+    fn hybrid_mass_is_the_integral_of_nt_n() {
+        let pts = [Vec2::new(0.1, 0.0), Vec2::new(1.3, 0.2), Vec2::new(1.1, 0.9), Vec2::new(0.4, 1.2), Vec2::new(-0.2, 0.5)];
+        let p = area_properties(&pts);
+        let m = Hybrid::mass(&p, 2.5);
+        for i in 0..6 {
+            for j in 0..6 {
+                let exact = 2.5 * integrate(&pts, |x| {
+                    let n = Hybrid::shape(x - p.centroid);
+                    n[(0, i)] * n[(0, j)] + n[(1, i)] * n[(1, j)]
+                });
+                assert!((m[(i, j)] - exact).abs() <= 1e-13 * m.norm(), "M[{i},{j}] = {} vs {exact}", m[(i, j)]);
+            }
+        }
+        assert!(m.cholesky().is_some(), "the consistent mass is positive definite");
+    }
+
+    #[test]
+    fn hybrid_fast_paths_match_the_shape_matrix() {
+        let u = [0.3, -0.2, 0.05, 1e-3, -2e-3, 3e-3];
+        let d = Vec2::new(0.7, -1.1);
+        let n = Hybrid::shape(d);
+        let via_n = n * nalgebra::SVector::<f64, 6>::from(u);
+        assert!((Hybrid::displacement(&u, d) - Vec2::new(via_n[0], via_n[1])).norm() < 1e-15);
+        let force = Vec2::new(2.0, 3.0);
+        let mut f = [0.0; 6];
+        Hybrid::add_force(&mut f, d, force);
+        let via_nt = n.transpose() * force;
+        assert!((0..6).all(|i| (f[i] - via_nt[i]).abs() < 1e-15));
+    }
 
     #[test]
     fn rigid_fast_paths_match_the_shape_matrix() {

@@ -10,16 +10,22 @@ use crate::model::Model;
 pub enum Mass {
     /// Lumped: `m[i]` per DOF, `inv[i] = 1/m[i]` (0 for a fixed DOF).
     Diagonal { m: Vec<f64>, inv: Vec<f64>, inv_sqrt: Vec<f64> },
+    /// One dense `nd × nd` block per element (row-major): `m`, the inverse `inv` of its free
+    /// part and the inverse `l_inv` of the Cholesky factor of its free part (zero rows and
+    /// columns on fixed DOFs).
+    Blocks { nd: usize, m: Vec<f64>, inv: Vec<f64>, l_inv: Vec<f64> },
 }
 
 impl Mass {
     /// The mass of every element from the formulation (eq. 9 for rigid).
     pub fn new(model: &Model) -> Mass {
         let nd = model.formulation.ndof();
+        let blocks: Vec<Vec<f64>> = model.elements.iter().map(|el| model.formulation.mass(&el.props, el.rho * model.thickness)).collect();
+        if blocks.iter().any(|b| (0..nd).any(|i| (0..nd).any(|j| i != j && b[i * nd + j] != 0.0))) {
+            return Mass::blocks(model, nd, blocks);
+        }
         let mut m = Vec::with_capacity(model.n_dofs());
-        for el in &model.elements {
-            let block = model.formulation.mass(&el.props, el.rho * model.thickness);
-            debug_assert!((0..nd).all(|i| (0..nd).all(|j| i == j || block[i * nd + j] == 0.0)));
+        for block in &blocks {
             m.extend((0..nd).map(|i| block[i * nd + i]));
         }
         let mut inv: Vec<f64> = m.iter().map(|x| 1.0 / x).collect();
@@ -30,10 +36,50 @@ impl Mass {
         Mass::Diagonal { m, inv, inv_sqrt }
     }
 
-    /// The diagonal of `M` (lumped, so the whole matrix).
-    pub fn diagonal(&self) -> &[f64] {
+    /// The consistent block mass of eq. 8, each block's free part inverted once.
+    fn blocks(model: &Model, nd: usize, blocks: Vec<Vec<f64>>) -> Mass {
+        let mut fixed = vec![false; model.n_dofs()];
+        for &d in &model.fixed {
+            fixed[d] = true;
+        }
+        let (mut m, mut inv, mut l_inv) = (Vec::new(), Vec::new(), Vec::new());
+        for (e, b) in blocks.iter().enumerate() {
+            let free: Vec<usize> = (0..nd).filter(|&i| !fixed[e * nd + i]).collect();
+            let sub = nalgebra::DMatrix::from_fn(free.len(), free.len(), |i, j| b[free[i] * nd + free[j]]);
+            let chol = sub.cholesky().expect("element mass blocks are positive definite");
+            let (si, sl) = (chol.inverse(), chol.l().try_inverse().expect("a Cholesky factor is invertible"));
+            let (mut bi, mut bl) = (vec![0.0; nd * nd], vec![0.0; nd * nd]);
+            for (i, &fi) in free.iter().enumerate() {
+                for (j, &fj) in free.iter().enumerate() {
+                    bi[fi * nd + fj] = si[(i, j)];
+                    bl[fi * nd + fj] = sl[(i, j)];
+                }
+            }
+            m.extend_from_slice(b);
+            inv.extend(bi);
+            l_inv.extend(bl);
+        }
+        Mass::Blocks { nd, m, inv, l_inv }
+    }
+
+    /// The diagonal of `M` (the whole matrix when lumped).
+    pub fn diagonal(&self) -> Vec<f64> {
         match self {
-            Mass::Diagonal { m, .. } => m,
+            Mass::Diagonal { m, .. } => m.clone(),
+            Mass::Blocks { nd, m, .. } => (0..m.len() / nd).map(|k| m[(k / nd) * nd * nd + (k % nd) * (nd + 1)]).collect(),
+        }
+    }
+
+    /// Whether `M` is diagonal (lumped).
+    pub fn is_diagonal(&self) -> bool {
+        matches!(self, Mass::Diagonal { .. })
+    }
+
+    /// Number of DOFs.
+    pub fn n(&self) -> usize {
+        match self {
+            Mass::Diagonal { m, .. } => m.len(),
+            Mass::Blocks { nd, m, .. } => m.len() / nd,
         }
     }
 
@@ -45,6 +91,16 @@ impl Mass {
                     *x = -*x * w;
                 }
             }
+            Mass::Blocks { nd, inv, .. } => {
+                let mut tmp = [0.0; 6];
+                for (e, fe) in f.chunks_exact_mut(*nd).enumerate() {
+                    let b = &inv[e * nd * nd..(e + 1) * nd * nd];
+                    for i in 0..*nd {
+                        tmp[i] = -(0..*nd).map(|j| b[i * nd + j] * fe[j]).sum::<f64>();
+                    }
+                    fe.copy_from_slice(&tmp[..*nd]);
+                }
+            }
         }
     }
 
@@ -52,16 +108,44 @@ impl Mass {
     pub fn kinetic_energy(&self, v: &[f64]) -> f64 {
         match self {
             Mass::Diagonal { m, .. } => 0.5 * v.iter().zip(m).map(|(v, m)| m * v * v).sum::<f64>(),
+            Mass::Blocks { nd, m, .. } => {
+                0.5 * v
+                    .chunks_exact(*nd)
+                    .enumerate()
+                    .map(|(e, ve)| {
+                        let b = &m[e * nd * nd..(e + 1) * nd * nd];
+                        (0..*nd).map(|i| ve[i] * (0..*nd).map(|j| b[i * nd + j] * ve[j]).sum::<f64>()).sum::<f64>()
+                    })
+                    .sum::<f64>()
+            }
         }
     }
 
-    /// `y = M^{−½} x` restricted to the free DOFs (0 on fixed DOFs): with it, `M^{−½} K M^{−½}`
-    /// has the squared frequencies `ω²` of `K φ = ω² M φ` as eigenvalues.
-    pub fn inv_sqrt(&self, x: &[f64], y: &mut [f64]) {
+    /// `y = L⁻ᵀ x` with `M = L Lᵀ` on the free DOFs (0 on fixed DOFs): `L⁻¹ K L⁻ᵀ` has the
+    /// squared frequencies `ω²` of `K φ = ω² M φ` as eigenvalues. For a lumped mass,
+    /// `L = M^{½}`.
+    pub fn inv_factor_t(&self, x: &[f64], y: &mut [f64]) {
+        self.apply_factor(x, y, true)
+    }
+
+    /// `y = L⁻¹ x` (see [`Mass::inv_factor_t`]).
+    pub fn inv_factor(&self, x: &[f64], y: &mut [f64]) {
+        self.apply_factor(x, y, false)
+    }
+
+    fn apply_factor(&self, x: &[f64], y: &mut [f64], transpose: bool) {
         match self {
             Mass::Diagonal { inv_sqrt, .. } => {
                 for ((y, x), s) in y.iter_mut().zip(x).zip(inv_sqrt) {
                     *y = x * s;
+                }
+            }
+            Mass::Blocks { nd, l_inv, .. } => {
+                for (e, (ye, xe)) in y.chunks_exact_mut(*nd).zip(x.chunks_exact(*nd)).enumerate() {
+                    let b = &l_inv[e * nd * nd..(e + 1) * nd * nd];
+                    for i in 0..*nd {
+                        ye[i] = (0..*nd).map(|j| if transpose { b[j * nd + i] } else { b[i * nd + j] } * xe[j]).sum();
+                    }
                 }
             }
         }

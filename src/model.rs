@@ -2,7 +2,7 @@
 //! motion. Built once from a scene, immutable afterwards; every analysis reads this one copy.
 
 use crate::error::{Error, Result};
-use crate::formulation::Formulation;
+use crate::formulation::{elasticity, Formulation};
 use crate::geometry::{area_properties, AreaProperties, Vec2};
 use crate::mesh::{grid, voronoi, Mesh, Side};
 use crate::scene::{
@@ -22,6 +22,8 @@ pub struct Element {
     pub props: AreaProperties,
     /// Density (kg/m³).
     pub rho: f64,
+    /// Elasticity matrix `D` (Pa) of its material, plane stress or strain (hybrid interior term).
+    pub d: nalgebra::Matrix3<f64>,
 }
 
 /// A shared edge carrying normal and shear penalty springs (eqs. 6, 11, 12).
@@ -41,7 +43,8 @@ pub struct Interface {
     /// Perpendicular distances from the centroids to the edge line (m).
     pub h_a: f64,
     pub h_b: f64,
-    /// Spring constants per unit edge length and thickness (Pa/m), eq. 12.
+    /// Spring constants per unit edge length and thickness (Pa/m): eq. 12, times the penalty
+    /// `p` for the hybrid formulation.
     pub k_n: f64,
     pub k_s: f64,
 }
@@ -177,7 +180,7 @@ impl Model {
             let v0 = Vec2::new(spec.initial.velocity[0], spec.initial.velocity[1]);
             for c in 0..mesh.n_cells() {
                 let p = area_properties(&mesh.cell_points(c));
-                model.elements.push(Element { body: bi as u32, props: p, rho: material.rho });
+                model.elements.push(Element { body: bi as u32, props: p, rho: material.rho, d: elasticity(material.e, material.nu, scene.plane) });
                 let r = p.centroid - body_centroid;
                 let mut v = vec![0.0; nd];
                 v[0] = v0.x - omega * r.y;
@@ -284,6 +287,7 @@ impl Model {
             return Err(format!("edge ({v1}, {v2}): the centroids lie on the edge line (h_a + h_b = 0)"));
         }
         let (k_n, k_s) = spring_constants(m, self.plane, h_a + h_b);
+        let (k_n, k_s) = (k_n * self.formulation.spring_factor(), k_s * self.formulation.spring_factor());
         Ok(Interface { a: a as u32, b: b.map_or(GROUND, |b| b as u32), p1, p2, normal, tangent, length, h_a, h_b, k_n, k_s })
     }
 

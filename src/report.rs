@@ -114,6 +114,9 @@ pub struct StabilityReport {
 pub fn stability_report(scene: &Scene, fractions: &[f64], steps: u64) -> Result<StabilityReport> {
     let model = Model::build(scene)?;
     let mass = Mass::new(&model);
+    if !mass.is_diagonal() {
+        return Err(crate::error::Error::scene("formulation.kind", "eigen and stability analyses of the hybrid formulation (block mass) are not implemented yet"));
+    }
     let sys = FreeSystem::new(&model, &mass);
     let ev = evaluator::build(&model, scene.evaluator);
     let omega_max = if sys.n() <= eigen::DENSE_LIMIT { eigen::dense_modes(&sys, 0)?.omega_max } else { eigen::omega_max(ev.as_ref(), &mass) };

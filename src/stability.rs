@@ -3,7 +3,7 @@
 //! limit found empirically by running.
 
 use crate::evaluator::{interface_stiffness, Evaluator};
-use crate::formulation::{Formulation, Rigid};
+use crate::formulation::{Formulation, Hybrid, Rigid};
 use crate::integrator::{CentralDifference, Status};
 use crate::loads::Loads;
 use crate::mass::Mass;
@@ -61,6 +61,7 @@ pub fn bounds(model: &Model, sys: &FreeSystem, dt_crit: f64) -> Vec<Bound> {
     let gershgorin = rows.iter().cloned().fold(0.0, f64::max);
     let (it, per_body) = match model.formulation {
         Formulation::Rigid => interface_and_body_bounds::<Rigid, 3>(model),
+        Formulation::Hybrid { .. } => interface_and_body_bounds::<Hybrid, 6>(model),
     };
     vec![
         mk("gershgorin", gershgorin, true),
@@ -79,7 +80,9 @@ fn interface_and_body_bounds<K: crate::formulation::Kinematics<N>, const N: usiz
     }
     let mass: Vec<SMatrix<f64, N, N>> =
         model.elements.iter().map(|e| K::mass(&e.props, e.rho * model.thickness)).collect();
-    let mut count = vec![0usize; ne];
+    // Each element's mass is shared equally among its interfaces and, for hybrid, its interior
+    // term, so that the shares add up to M (Irons–Treharne).
+    let mut count = vec![usize::from(K::HAS_INTERIOR); ne];
     for i in &model.interfaces {
         count[i.a as usize] += 1;
         if i.b != GROUND {
@@ -114,6 +117,14 @@ fn interface_and_body_bounds<K: crate::formulation::Kinematics<N>, const N: usiz
     }
     let mut body = 0.0f64;
     for e in 0..ne {
+        if K::HAS_INTERIOR {
+            let el = &model.elements[e];
+            let kint = K::interior_stiffness(&el.props, &el.d, model.thickness);
+            k_diag[e] += kint;
+            let (k, m) = (DMatrix::from_fn(N, N, |i, j| kint[(i, j)]), DMatrix::from_fn(N, N, |i, j| mass[e][(i, j)] / count[e] as f64));
+            let free: Vec<bool> = (0..N).map(|d| !fixed[e * N + d]).collect();
+            it = it.max(generalized_max(&k, &m, &free));
+        }
         let free: Vec<bool> = (0..N).map(|d| !fixed[e * N + d]).collect();
         let (k, m) = (DMatrix::from_fn(N, N, |i, j| k_diag[e][(i, j)]), DMatrix::from_fn(N, N, |i, j| mass[e][(i, j)]));
         body = body.max(generalized_max(&k, &m, &free));

@@ -50,10 +50,16 @@ pub fn write_frame(path: &Path, model: &Model, u: &[f64], v: &[f64], title: &str
     let nd = model.formulation.ndof();
     let (mut points, mut conn) = (Vec::new(), Vec::new());
     let (mut disp, mut vel, mut rot, mut body) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let (mut strain, mut stress): (Vec<f64>, Vec<f64>) = (Vec::new(), Vec::new());
     for b in &model.bodies {
         for c in 0..b.mesh.n_cells() {
             let e = b.first_element + c;
             let (ue, ve) = (&u[e * nd..(e + 1) * nd], &v[e * nd..(e + 1) * nd]);
+            if nd == 6 {
+                let eps = nalgebra::Vector3::new(ue[3], ue[4], ue[5]);
+                strain.extend(eps.iter());
+                stress.extend((model.elements[e].d * eps).iter());
+            }
             let xe = model.elements[e].props.centroid;
             let cell = b.mesh.cell(c);
             conn.push(cell.len() as u32);
@@ -70,6 +76,17 @@ pub fn write_frame(path: &Path, model: &Model, u: &[f64], v: &[f64], title: &str
         }
     }
     let n_cells = model.elements.len();
+    let mut cell = vec![
+        Attribute::vectors("displacement").with_data(disp),
+        Attribute::vectors("velocity").with_data(vel),
+        Attribute::scalars("rotation", 1).with_data(rot),
+        Attribute::scalars("body", 1).with_data(body),
+    ];
+    if nd == 6 {
+        // (ε_x, ε_y, γ_xy) and (σ_x, σ_y, τ_xy) = D ε of the hybrid formulation.
+        cell.push(Attribute::scalars("strain", 3).with_data(strain));
+        cell.push(Attribute::scalars("stress", 3).with_data(stress));
+    }
     let vtk = Vtk {
         version: Version::new((4, 2)),
         title: title.to_string(),
@@ -81,15 +98,7 @@ pub fn write_frame(path: &Path, model: &Model, u: &[f64], v: &[f64], title: &str
                 cell_verts: VertexNumbers::Legacy { num_cells: n_cells as u32, vertices: conn },
                 types: vec![CellType::Polygon; n_cells],
             },
-            data: Attributes {
-                point: Vec::new(),
-                cell: vec![
-                    Attribute::vectors("displacement").with_data(disp),
-                    Attribute::vectors("velocity").with_data(vel),
-                    Attribute::scalars("rotation", 1).with_data(rot),
-                    Attribute::scalars("body", 1).with_data(body),
-                ],
-            },
+            data: Attributes { point: Vec::new(), cell },
         }),
     };
     vtk.export_be(path).map_err(|e| Error::io(path, std::io::Error::other(e.to_string())))

@@ -103,7 +103,7 @@ fn bad_meshes_name_the_cell() {
 
 #[test]
 fn features_not_built_yet_are_refused_clearly() {
-    expect(&with(|v| v["formulation"] = serde_json::json!({"kind": "hybrid", "penalty": 100.0})), &["formulation.kind", "hybrid"]);
+    expect(&with(|v| v["formulation"] = serde_json::json!({"kind": "hybrid", "penalty": 0.0})), &["formulation.penalty", "> 0"]);
     expect(&with(|v| v["contact"] = serde_json::json!({"model": "point"})), &["contact"]);
 }
 

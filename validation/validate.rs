@@ -211,7 +211,7 @@ fn cantilever(r: &mut Report) {
         let sys = FreeSystem::new(&m, &mass);
         let ev = evaluator::build(&m, EvaluatorKind::Assembled);
         let modes = eigen::modes(&sys, ev.as_ref(), &mass, 10, Method::Sparse).unwrap();
-        let w = bending(&modes.omega, &modes.shapes, mass.diagonal(), 3);
+        let w = bending(&modes.omega, &modes.shapes, &mass.diagonal(), 3);
         let d_eb: Vec<f64> = (0..3).map(|j| (w[j] - eb(e1, j)) / eb(e1, j)).collect();
         let d_fem: Vec<f64> = (0..3).map(|j| (w[j] - fine[j]) / fine[j]).collect();
         for j in 0..3 {

@@ -151,8 +151,12 @@ impl<K: Kinematics<N>, const N: usize> Assembled<K, N> {
                 triplets.push((i.b, i.b, kbb));
             }
         }
-        // Every element gets a diagonal block, so that an unconnected element is still a row.
-        triplets.extend((0..model.elements.len() as u32).map(|e| (e, e, SMatrix::zeros())));
+        // Every element gets a diagonal block (its interior stiffness, the `+D` of eq. 8, or
+        // zero), so that an unconnected element is still a row.
+        triplets.extend(model.elements.iter().enumerate().map(|(e, el)| {
+            let k = if K::HAS_INTERIOR { K::interior_stiffness(&el.props, &el.d, model.thickness) } else { SMatrix::zeros() };
+            (e as u32, e as u32, k)
+        }));
         Assembled { stiffness: BlockCsr::from_triplets(model.elements.len(), triplets), kinematics: PhantomData }
     }
 }

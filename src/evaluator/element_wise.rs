@@ -31,6 +31,8 @@ pub struct ElementWise<K: Kinematics<N>, const N: usize> {
     /// `faces_of[face_start[e] .. face_start[e + 1]]` are the faces of element `e`.
     face_start: Vec<u32>,
     faces_of: Vec<u32>,
+    /// `t A D` per element, acting on the strains `U_e[3..6]` (hybrid only; empty for rigid).
+    interior: Vec<nalgebra::Matrix3<f64>>,
     kinematics: PhantomData<K>,
 }
 
@@ -69,10 +71,16 @@ impl<K: Kinematics<N>, const N: usize> ElementWise<K, N> {
             }
         }
         let centroids = model.elements.iter().map(|e| e.props.centroid).collect();
-        ElementWise { centroids, faces, face_start, faces_of, kinematics: PhantomData }
+        let interior = if K::HAS_INTERIOR {
+            model.elements.iter().map(|e| e.d * (model.thickness * e.props.area)).collect()
+        } else {
+            Vec::new()
+        };
+        ElementWise { centroids, faces, face_start, faces_of, interior, kinematics: PhantomData }
     }
 
-    /// The force on element `e`: `Σ_faces Σ_gauss N_e(x)ᵀ (±λ) t w` (eq. 15).
+    /// The force on element `e`: `Σ_faces Σ_gauss N_e(x)ᵀ (±λ) t w` (eq. 15), and for hybrid
+    /// elements the interior term `−t A D ε`.
     #[inline]
     fn element_force(&self, e: usize, u: &[[f64; N]], fe: &mut [f64; N]) {
         *fe = [0.0; N];
@@ -90,6 +98,14 @@ impl<K: Kinematics<N>, const N: usize> ElementWise<K, N> {
                 let delta = ga - K::displacement(ua, g - xa);
                 let traction = f.normal * (f.kn_tw * f.normal.dot(&delta)) + tangent * (f.ks_tw * tangent.dot(&delta));
                 K::add_force(fe, g - xe, sign * traction);
+            }
+        }
+        if K::HAS_INTERIOR {
+            // The element's own strain energy ½ t A εᵀ D ε pulls back on its strains (eq. 8).
+            let ue = &u[e];
+            let stress = self.interior[e] * nalgebra::Vector3::new(ue[3], ue[4], ue[5]);
+            for i in 0..3 {
+                fe[3 + i] -= stress[i];
             }
         }
     }

@@ -10,7 +10,7 @@ mod element_wise;
 pub use assembled::{interface_stiffness, Assembled, BlockCsr};
 pub use element_wise::ElementWise;
 
-use crate::formulation::{Formulation, Rigid};
+use crate::formulation::{Formulation, Hybrid, Rigid};
 use crate::model::Model;
 use crate::scene::EvaluatorKind;
 
@@ -27,6 +27,7 @@ pub trait Evaluator: Send + Sync {
 pub fn stiffness_triplets(model: &Model) -> Vec<(usize, usize, f64)> {
     match model.formulation {
         Formulation::Rigid => Assembled::<Rigid, 3>::new(model).stiffness.triplets(),
+        Formulation::Hybrid { .. } => Assembled::<Hybrid, 6>::new(model).stiffness.triplets(),
     }
 }
 
@@ -35,5 +36,7 @@ pub fn build(model: &Model, kind: EvaluatorKind) -> Box<dyn Evaluator> {
     match (model.formulation, kind) {
         (Formulation::Rigid, EvaluatorKind::Assembled) => Box::new(Assembled::<Rigid, 3>::new(model)),
         (Formulation::Rigid, EvaluatorKind::ElementWise) => Box::new(ElementWise::<Rigid, 3>::new(model)),
+        (Formulation::Hybrid { .. }, EvaluatorKind::Assembled) => Box::new(Assembled::<Hybrid, 6>::new(model)),
+        (Formulation::Hybrid { .. }, EvaluatorKind::ElementWise) => Box::new(ElementWise::<Hybrid, 6>::new(model)),
     }
 }
