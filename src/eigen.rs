@@ -44,40 +44,55 @@ pub struct Modes {
     pub method: &'static str,
 }
 
-/// `n_modes` lowest modes and `ω_max` of a system (lumped mass only, for now).
+/// `n_modes` lowest modes and `ω_max` of a system.
 pub fn modes(sys: &FreeSystem, evaluator: &dyn Evaluator, mass: &Mass, n_modes: usize, method: Method) -> Result<Modes> {
-    if !mass.is_diagonal() {
-        return Err(Error::scene("formulation.kind", "eigen and stability analyses of the hybrid formulation (block mass) are not implemented yet"));
-    }
     let dense = match method {
         Method::Auto => sys.n() <= DENSE_LIMIT,
         Method::Dense => true,
         Method::Sparse => false,
     };
     if dense {
-        dense_modes(sys, n_modes)
+        dense_modes(sys, mass, n_modes)
     } else {
         let omega_max = omega_max(evaluator, mass);
-        let (omega, shapes) = lowest_modes(sys, n_modes, omega_max)?;
+        let (omega, shapes) = lowest_modes(sys, mass, n_modes, omega_max)?;
         Ok(Modes { omega, shapes, omega_max, method: "sparse" })
     }
 }
 
-/// Every mode of `M^{−½} K_ff M^{−½}`, densely; returns the lowest `n_modes` and `ω_max`.
-pub fn dense_modes(sys: &FreeSystem, n_modes: usize) -> Result<Modes> {
+/// Every mode of `L⁻¹ K_ff L⁻ᵀ` (`M_ff = L Lᵀ`, element by element; `M^{−½} K M^{−½}` for a
+/// lumped mass), densely; returns the lowest `n_modes` and `ω_max`. Shapes are `φ = L⁻ᵀ y`,
+/// `M`-normalised.
+pub fn dense_modes(sys: &FreeSystem, mass: &Mass, n_modes: usize) -> Result<Modes> {
     let n = sys.n();
-    let s: Vec<f64> = sys.mass.iter().map(|m| 1.0 / m.sqrt()).collect();
-    let mut a = DMatrix::<f64>::zeros(n, n);
+    let mut k = DMatrix::<f64>::zeros(n, n);
     for j in 0..n {
         for (&i, &v) in sys.k.symbolic().row_idx_of_col_raw(j).iter().zip(sys.k.val_of_col(j)) {
-            a[(i, j)] = s[i] * v * s[j];
+            k[(i, j)] = v;
         }
     }
-    let (lambda, vectors) = symmetric_eigen(a);
+    // B = L⁻¹ K column by column, then A = L⁻¹ Bᵀ = L⁻¹ K L⁻ᵀ (K is symmetric).
+    let left = |m: &DMatrix<f64>| {
+        let mut out = DMatrix::<f64>::zeros(n, n);
+        let mut y = vec![0.0; n];
+        for j in 0..n {
+            sys.apply_free(m.column(j).as_slice(), &mut y, |x, y| mass.inv_factor(x, y));
+            out.column_mut(j).copy_from_slice(&y);
+        }
+        out
+    };
+    let a = left(&left(&k).transpose());
+    let (lambda, vectors) = symmetric_eigen(0.5 * (&a + a.transpose()));
     let omega_max = lambda.last().copied().unwrap_or(0.0).max(0.0).sqrt();
     let k = n_modes.min(n);
     let omega = lambda[..k].iter().map(|l| l.max(0.0).sqrt()).collect();
-    let shapes = (0..k).map(|j| sys.scatter(&(0..n).map(|i| vectors[(i, j)] * s[i]).collect::<Vec<_>>())).collect();
+    let shapes = (0..k)
+        .map(|j| {
+            let mut full = vec![0.0; sys.index.len()];
+            mass.inv_factor_t(&sys.scatter(vectors.column(j).as_slice()), &mut full);
+            full
+        })
+        .collect();
     Ok(Modes { omega, shapes, omega_max, method: "dense" })
 }
 
@@ -228,35 +243,51 @@ fn largest(op: &dyn LinOp<f64>, k: usize, tolerance: f64) -> (Vec<f64>, Mat<f64>
     (vals, vecs)
 }
 
-/// `M^{½} (K − σ M)^{−1} M^{½}`: its largest eigenvalues `μ = 1/(ω² − σ)` are the lowest modes.
-struct ShiftInvert {
+/// `Lᵀ (K − σ M)^{−1} L` on the free DOFs (`M = L Lᵀ`): its largest eigenvalues
+/// `μ = 1/(ω² − σ)` are the lowest modes.
+struct ShiftInvert<'a> {
     llt: faer::sparse::linalg::solvers::Llt<usize, f64>,
-    sqrt_m: Vec<f64>,
+    sys: &'a FreeSystem,
+    mass: &'a Mass,
 }
 
-impl std::fmt::Debug for ShiftInvert {
+impl std::fmt::Debug for ShiftInvert<'_> {
     fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
-        write!(f, "shift-invert ({} DOFs)", self.sqrt_m.len())
+        write!(f, "shift-invert ({} DOFs)", self.sys.n())
     }
 }
 
-impl LinOp<f64> for ShiftInvert {
+impl LinOp<f64> for ShiftInvert<'_> {
     fn apply_scratch(&self, _: usize, _: Par) -> StackReq {
         StackReq::EMPTY
     }
     fn nrows(&self) -> usize {
-        self.sqrt_m.len()
+        self.sys.n()
     }
     fn ncols(&self) -> usize {
-        self.sqrt_m.len()
+        self.sys.n()
     }
     fn apply(&self, mut out: MatMut<'_, f64>, rhs: MatRef<'_, f64>, _: Par, _: &mut MemStack) {
-        let n = self.sqrt_m.len();
-        let mut x = Mat::<f64>::from_fn(n, rhs.ncols(), |i, j| self.sqrt_m[i] * rhs[(i, j)]);
+        let n = self.sys.n();
+        let (mut col, mut y) = (vec![0.0; n], vec![0.0; n]);
+        let mut x = Mat::<f64>::zeros(n, rhs.ncols());
+        for j in 0..rhs.ncols() {
+            for i in 0..n {
+                col[i] = rhs[(i, j)];
+            }
+            self.sys.apply_free(&col, &mut y, |a, b| self.mass.factor(a, b));
+            for i in 0..n {
+                x[(i, j)] = y[i];
+            }
+        }
         self.llt.solve_in_place(x.as_mut());
         for j in 0..rhs.ncols() {
             for i in 0..n {
-                out[(i, j)] = self.sqrt_m[i] * x[(i, j)];
+                col[i] = x[(i, j)];
+            }
+            self.sys.apply_free(&col, &mut y, |a, b| self.mass.factor_t(a, b));
+            for i in 0..n {
+                out[(i, j)] = y[i];
             }
         }
     }
@@ -267,30 +298,23 @@ impl LinOp<f64> for ShiftInvert {
 
 /// The `k` lowest modes by shift-invert. The shift `σ = −1e-8 ω_max²` keeps `K − σ M` positive
 /// definite when the model has free rigid modes (which then come out at `ω ≈ 0`) and barely
-/// changes the spectrum's spacing otherwise.
-pub fn lowest_modes(sys: &FreeSystem, k: usize, omega_max: f64) -> Result<(Vec<f64>, Vec<Vec<f64>>)> {
+/// changes the spectrum's spacing otherwise. Shapes are `φ = L⁻ᵀ y`, `M`-normalised.
+pub fn lowest_modes(sys: &FreeSystem, mass: &Mass, k: usize, omega_max: f64) -> Result<(Vec<f64>, Vec<Vec<f64>>)> {
     let sigma = -1e-8 * omega_max * omega_max;
-    let n = sys.n();
-    let mut shifted = sys.k.clone();
-    for j in 0..n {
-        let rows: Vec<usize> = sys.k.symbolic().row_idx_of_col_raw(j).to_vec();
-        let vals = shifted.val_of_col_mut(j);
-        if let Some(p) = rows.iter().position(|&i| i == j) {
-            vals[p] -= sigma * sys.mass[j];
-        }
-    }
-    let llt = shifted
+    let llt = sys
+        .shifted(sigma)
         .sp_cholesky(faer::Side::Lower)
         .map_err(|e| Error::scene("eigen", format!("the shifted stiffness K − σM could not be factored: {e:?}")))?;
-    let sqrt_m: Vec<f64> = sys.mass.iter().map(|m| m.sqrt()).collect();
-    let op = ShiftInvert { llt, sqrt_m };
+    let op = ShiftInvert { llt, sys, mass };
     let (mu, vecs) = largest(&op, k, 1e-12);
     let mut pairs: Vec<(f64, Vec<f64>)> = mu
         .iter()
         .enumerate()
         .map(|(j, &m)| {
             let omega2 = 1.0 / m + sigma;
-            let shape = sys.scatter(&(0..n).map(|i| vecs[(i, j)] / op.sqrt_m[i]).collect::<Vec<_>>());
+            let y: Vec<f64> = (0..sys.n()).map(|i| vecs[(i, j)]).collect();
+            let mut shape = vec![0.0; sys.index.len()];
+            mass.inv_factor_t(&sys.scatter(&y), &mut shape);
             (omega2.max(0.0).sqrt(), shape)
         })
         .collect();

@@ -9,11 +9,11 @@ use crate::model::Model;
 #[derive(Debug, Clone)]
 pub enum Mass {
     /// Lumped: `m[i]` per DOF, `inv[i] = 1/m[i]` (0 for a fixed DOF).
-    Diagonal { m: Vec<f64>, inv: Vec<f64>, inv_sqrt: Vec<f64> },
+    Diagonal { m: Vec<f64>, inv: Vec<f64>, inv_sqrt: Vec<f64>, sqrt: Vec<f64> },
     /// One dense `nd × nd` block per element (row-major): `m`, the inverse `inv` of its free
-    /// part and the inverse `l_inv` of the Cholesky factor of its free part (zero rows and
+    /// part, the Cholesky factor `l` of its free part and its inverse `l_inv` (zero rows and
     /// columns on fixed DOFs).
-    Blocks { nd: usize, m: Vec<f64>, inv: Vec<f64>, l_inv: Vec<f64> },
+    Blocks { nd: usize, m: Vec<f64>, inv: Vec<f64>, l: Vec<f64>, l_inv: Vec<f64> },
 }
 
 impl Mass {
@@ -33,7 +33,8 @@ impl Mass {
             inv[d] = 0.0;
         }
         let inv_sqrt = inv.iter().map(|x| x.sqrt()).collect();
-        Mass::Diagonal { m, inv, inv_sqrt }
+        let sqrt = inv.iter().zip(&m).map(|(i, m)| if *i == 0.0 { 0.0 } else { m.sqrt() }).collect();
+        Mass::Diagonal { m, inv, inv_sqrt, sqrt }
     }
 
     /// The consistent block mass of eq. 8, each block's free part inverted once.
@@ -42,24 +43,27 @@ impl Mass {
         for &d in &model.fixed {
             fixed[d] = true;
         }
-        let (mut m, mut inv, mut l_inv) = (Vec::new(), Vec::new(), Vec::new());
+        let (mut m, mut inv, mut l, mut l_inv) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
         for (e, b) in blocks.iter().enumerate() {
             let free: Vec<usize> = (0..nd).filter(|&i| !fixed[e * nd + i]).collect();
             let sub = nalgebra::DMatrix::from_fn(free.len(), free.len(), |i, j| b[free[i] * nd + free[j]]);
             let chol = sub.cholesky().expect("element mass blocks are positive definite");
-            let (si, sl) = (chol.inverse(), chol.l().try_inverse().expect("a Cholesky factor is invertible"));
-            let (mut bi, mut bl) = (vec![0.0; nd * nd], vec![0.0; nd * nd]);
+            let (si, sf) = (chol.inverse(), chol.l());
+            let sl = sf.clone().try_inverse().expect("a Cholesky factor is invertible");
+            let (mut bi, mut bf, mut bl) = (vec![0.0; nd * nd], vec![0.0; nd * nd], vec![0.0; nd * nd]);
             for (i, &fi) in free.iter().enumerate() {
                 for (j, &fj) in free.iter().enumerate() {
                     bi[fi * nd + fj] = si[(i, j)];
+                    bf[fi * nd + fj] = sf[(i, j)];
                     bl[fi * nd + fj] = sl[(i, j)];
                 }
             }
             m.extend_from_slice(b);
             inv.extend(bi);
+            l.extend(bf);
             l_inv.extend(bl);
         }
-        Mass::Blocks { nd, m, inv, l_inv }
+        Mass::Blocks { nd, m, inv, l, l_inv }
     }
 
     /// The diagonal of `M` (the whole matrix when lumped).
@@ -73,6 +77,19 @@ impl Mass {
     /// Whether `M` is diagonal (lumped).
     pub fn is_diagonal(&self) -> bool {
         matches!(self, Mass::Diagonal { .. })
+    }
+
+    /// The entries of `M` as triplets `(row, col, value)` over all DOFs.
+    pub fn triplets(&self) -> Vec<(usize, usize, f64)> {
+        match self {
+            Mass::Diagonal { m, .. } => m.iter().enumerate().map(|(i, &v)| (i, i, v)).collect(),
+            Mass::Blocks { nd, m, .. } => (0..m.len())
+                .map(|k| {
+                    let (e, r) = (k / (nd * nd), k % (nd * nd));
+                    (e * nd + r / nd, e * nd + r % nd, m[k])
+                })
+                .collect(),
+        }
     }
 
     /// Number of DOFs.
@@ -133,16 +150,32 @@ impl Mass {
         self.apply_factor(x, y, false)
     }
 
+    /// `y = L x` on the free DOFs (the shift-invert operator `Lᵀ (K − σM)⁻¹ L` uses it).
+    pub fn factor(&self, x: &[f64], y: &mut [f64]) {
+        self.apply(x, y, false, false)
+    }
+
+    /// `y = Lᵀ x` on the free DOFs.
+    pub fn factor_t(&self, x: &[f64], y: &mut [f64]) {
+        self.apply(x, y, true, false)
+    }
+
     fn apply_factor(&self, x: &[f64], y: &mut [f64], transpose: bool) {
+        self.apply(x, y, transpose, true)
+    }
+
+    /// `L`, `Lᵀ`, `L⁻¹` or `L⁻ᵀ` applied element by element.
+    fn apply(&self, x: &[f64], y: &mut [f64], transpose: bool, inverse: bool) {
         match self {
-            Mass::Diagonal { inv_sqrt, .. } => {
-                for ((y, x), s) in y.iter_mut().zip(x).zip(inv_sqrt) {
+            Mass::Diagonal { inv_sqrt, sqrt, .. } => {
+                for ((y, x), s) in y.iter_mut().zip(x).zip(if inverse { inv_sqrt } else { sqrt }) {
                     *y = x * s;
                 }
             }
-            Mass::Blocks { nd, l_inv, .. } => {
+            Mass::Blocks { nd, l, l_inv, .. } => {
+                let factor = if inverse { l_inv } else { l };
                 for (e, (ye, xe)) in y.chunks_exact_mut(*nd).zip(x.chunks_exact(*nd)).enumerate() {
-                    let b = &l_inv[e * nd * nd..(e + 1) * nd * nd];
+                    let b = &factor[e * nd * nd..(e + 1) * nd * nd];
                     for i in 0..*nd {
                         ye[i] = (0..*nd).map(|j| if transpose { b[j * nd + i] } else { b[i * nd + j] } * xe[j]).sum();
                     }

@@ -114,14 +114,11 @@ pub struct StabilityReport {
 pub fn stability_report(scene: &Scene, fractions: &[f64], steps: u64) -> Result<StabilityReport> {
     let model = Model::build(scene)?;
     let mass = Mass::new(&model);
-    if !mass.is_diagonal() {
-        return Err(crate::error::Error::scene("formulation.kind", "eigen and stability analyses of the hybrid formulation (block mass) are not implemented yet"));
-    }
     let sys = FreeSystem::new(&model, &mass);
     let ev = evaluator::build(&model, scene.evaluator);
-    let omega_max = if sys.n() <= eigen::DENSE_LIMIT { eigen::dense_modes(&sys, 0)?.omega_max } else { eigen::omega_max(ev.as_ref(), &mass) };
+    let omega_max = if sys.n() <= eigen::DENSE_LIMIT { eigen::dense_modes(&sys, &mass, 0)?.omega_max } else { eigen::omega_max(ev.as_ref(), &mass) };
     let dt_crit = stability::critical_time_step(omega_max);
-    let bounds = stability::bounds(&model, &sys, dt_crit);
+    let bounds = stability::bounds(&model, &sys, &mass, dt_crit);
     let (dt, ratio) = stability::empirical_limit(&model, ev.as_ref(), &mass, dt_crit, steps, 1e-4);
     let fractions = fractions.iter().map(|&f| stability::run_at_fraction(&model, ev.as_ref(), &mass, dt_crit, f, steps)).collect();
     Ok(StabilityReport { omega_max, dt_crit, bounds, empirical: Empirical { dt, ratio }, fractions })

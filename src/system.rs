@@ -15,6 +15,8 @@ pub struct FreeSystem {
     pub index: Vec<usize>,
     /// `K_ff`, both triangles.
     pub k: SparseColMat<usize, f64>,
+    /// `M_ff`, both triangles (diagonal for a lumped mass, element blocks for hybrid).
+    pub m: SparseColMat<usize, f64>,
     /// Diagonal of `M_ff`.
     pub mass: Vec<f64>,
 }
@@ -40,9 +42,39 @@ impl FreeSystem {
             .map(|(r, c, v)| Triplet::new(index[r], index[c], v))
             .collect();
         let k = SparseColMat::try_new_from_triplets(free.len(), free.len(), &triplets).expect("indices lie within the free DOFs");
+        let m_triplets: Vec<Triplet<usize, usize, f64>> = mass
+            .triplets()
+            .into_iter()
+            .filter(|&(r, c, v)| v != 0.0 && index[r] != usize::MAX && index[c] != usize::MAX)
+            .map(|(r, c, v)| Triplet::new(index[r], index[c], v))
+            .collect();
+        let m = SparseColMat::try_new_from_triplets(free.len(), free.len(), &m_triplets).expect("indices lie within the free DOFs");
         let diag = mass.diagonal();
         let mass = free.iter().map(|&d| diag[d]).collect();
-        FreeSystem { free, index, k, mass }
+        FreeSystem { free, index, k, m, mass }
+    }
+
+    /// `K_ff − σ M_ff`.
+    pub fn shifted(&self, sigma: f64) -> SparseColMat<usize, f64> {
+        let mut t = Vec::with_capacity(self.k.compute_nnz() + self.m.compute_nnz());
+        for (mat, scale) in [(&self.k, 1.0), (&self.m, -sigma)] {
+            for j in 0..self.n() {
+                for (&i, &v) in mat.symbolic().row_idx_of_col_raw(j).iter().zip(mat.val_of_col(j)) {
+                    t.push(Triplet::new(i, j, scale * v));
+                }
+            }
+        }
+        SparseColMat::try_new_from_triplets(self.n(), self.n(), &t).expect("indices lie within the free DOFs")
+    }
+
+    /// Applies an operator on vectors over all DOFs to a vector over the free DOFs.
+    pub fn apply_free(&self, x: &[f64], y: &mut [f64], op: impl Fn(&[f64], &mut [f64])) {
+        let full = self.scatter(x);
+        let mut out = vec![0.0; full.len()];
+        op(&full, &mut out);
+        for (i, &d) in self.free.iter().enumerate() {
+            y[i] = out[d];
+        }
     }
 
     /// Number of free DOFs.

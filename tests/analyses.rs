@@ -42,7 +42,7 @@ fn column_frequencies_match_the_discrete_closed_form() {
         let mass = Mass::new(&model);
         let sys = FreeSystem::new(&model, &mass);
         assert_eq!(sys.n(), n);
-        let modes = eigen::dense_modes(&sys, n).unwrap();
+        let modes = eigen::dense_modes(&sys, &mass, n).unwrap();
         for j in 1..=n {
             let rel = (modes.omega[j - 1] - exact(j)).abs() / exact(j);
             assert!(rel <= 1e-10, "{supports}: mode {j}: {} vs {}: {rel:e}", modes.omega[j - 1], exact(j));
@@ -56,7 +56,7 @@ fn free_assembly_has_three_zero_frequencies() {
     for (name, mesh) in [("rect", common::RECT), ("tri", common::TRI), ("voronoi", common::VORONOI)] {
         let model = common::model(mesh, "[]");
         let mass = Mass::new(&model);
-        let modes = eigen::dense_modes(&FreeSystem::new(&model, &mass), 5).unwrap();
+        let modes = eigen::dense_modes(&FreeSystem::new(&model, &mass), &mass, 5).unwrap();
         let zero = modes.omega.iter().filter(|&&w| w <= 1e-6 * modes.omega_max).count();
         assert_eq!(zero, 3, "{name}: {:?}", &modes.omega);
         assert!(modes.omega[3] > 1e-3 * modes.omega_max, "{name}: fourth mode {:e}", modes.omega[3]);
@@ -172,9 +172,9 @@ fn bounds_and_empirical_limit_on_a_square_grid() {
     let mass = Mass::new(&model);
     let sys = FreeSystem::new(&model, &mass);
     let ev = evaluator::build(&model, EvaluatorKind::ElementWise);
-    let omega_max = eigen::dense_modes(&sys, 0).unwrap().omega_max;
+    let omega_max = eigen::dense_modes(&sys, &mass, 0).unwrap().omega_max;
     let dt_crit = 2.0 / omega_max;
-    let bounds = rbsm::stability::bounds(&model, &sys, dt_crit);
+    let bounds = rbsm::stability::bounds(&model, &sys, &mass, dt_crit);
     for b in &bounds {
         let proven = b.name != "single-body";
         assert_eq!(b.ratio <= 1.0 + 1e-12, proven, "{}: ratio {}", b.name, b.ratio);

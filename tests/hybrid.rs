@@ -136,3 +136,30 @@ fn hybrid_patch_error_falls_like_one_over_p() {
         assert!((7.0..=13.0).contains(&ratio), "error ratio per decade of p: {ratio} ({errors:?})");
     }
 }
+
+/// With the consistent block mass, the dense path (`L⁻¹ K L⁻ᵀ`) and the sparse one
+/// (Lanczos for `ω_max`, shift-invert `Lᵀ (K − σM)⁻¹ L` for the lowest modes) agree, and the
+/// shapes are `M`-orthonormal. Tolerances as in tests/analyses.rs (dense backward error).
+#[test]
+fn hybrid_eigen_dense_and_sparse_agree() {
+    use rbsm::{eigen, mass::Mass, system::FreeSystem};
+    let model = hybrid(TRI, r#"[{"edge": "left", "kind": "ground-spring"}]"#, 100.0);
+    let mass = Mass::new(&model);
+    assert!(!mass.is_diagonal());
+    let sys = FreeSystem::new(&model, &mass);
+    let ev = evaluator::build(&model, EvaluatorKind::ElementWise);
+    let dense = eigen::modes(&sys, ev.as_ref(), &mass, 6, eigen::Method::Dense).unwrap();
+    let sparse = eigen::modes(&sys, ev.as_ref(), &mass, 6, eigen::Method::Sparse).unwrap();
+    assert!((dense.omega_max - sparse.omega_max).abs() <= 1e-10 * dense.omega_max, "{} {}", dense.omega_max, sparse.omega_max);
+    for j in 0..6 {
+        let tol = sys.n() as f64 * f64::EPSILON * (dense.omega_max / dense.omega[j]).powi(2);
+        let rel = (dense.omega[j] - sparse.omega[j]).abs() / dense.omega[j];
+        assert!(rel <= tol, "mode {}: {rel:e} > {tol:e}", j + 1);
+    }
+    let m: Vec<(usize, usize, f64)> = mass.triplets();
+    let m_dot = |a: &[f64], b: &[f64]| m.iter().map(|&(r, c, v)| a[r] * v * b[c]).sum::<f64>();
+    for (i, j) in [(0, 0), (1, 1), (0, 1), (2, 4)] {
+        let expect = if i == j { 1.0 } else { 0.0 };
+        assert!((m_dot(&sparse.shapes[i], &sparse.shapes[j]) - expect).abs() < 1e-8, "φ{i}ᵀ M φ{j}");
+    }
+}

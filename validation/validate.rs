@@ -131,7 +131,7 @@ fn column(r: &mut Report) {
         let sup = r#"[{"edge": "top", "kind": "clamp", "dofs": ["v", "theta"]}, {"edge": "left", "kind": "ground-spring"}]"#;
         let m = model(&body_scene(&mesh, sup, "[]", e, nu, rho, t));
         let mass = Mass::new(&m);
-        let modes = eigen::dense_modes(&FreeSystem::new(&m, &mass), n).unwrap();
+        let modes = eigen::dense_modes(&FreeSystem::new(&m, &mass), &mass, n).unwrap();
         let (k, mm) = (e1 * t, rho * h * h * t);
         let err = (1..=n)
             .map(|j| {
@@ -337,7 +337,7 @@ fn free_assembly(r: &mut Report) {
         let m = model(&body_scene(mesh, "[]", "[]", 2e10, 0.2, 2400.0, 0.1));
         let mass = Mass::new(&m);
         let sys = FreeSystem::new(&m, &mass);
-        let modes = eigen::dense_modes(&sys, 4).unwrap();
+        let modes = eigen::dense_modes(&sys, &mass, 4).unwrap();
         let rel: Vec<f64> = modes.omega.iter().map(|w| w / modes.omega_max).collect();
         let zero = rel.iter().filter(|&&x| x <= 1e-6).count();
         r.line(&format!("| {name} | {} | {:.1e} | {:.1e} | {:.1e} | {:.2e} | {zero} |", sys.n(), rel[0], rel[1], rel[2], rel[3]));
@@ -370,7 +370,7 @@ fn critical_time_step(r: &mut Report) {
             let ev = evaluator::build(&m, EvaluatorKind::ElementWise);
             let dt = stability::critical_time_step(eigen::omega_max(ev.as_ref(), &mass));
             let closed = h / c * ((1.0 + nu) / 3.0).sqrt();
-            let b = stability::bounds(&m, &sys, dt);
+            let b = stability::bounds(&m, &sys, &mass, dt);
             r.line(&format!(
                 "| {n} | {} | {dt:.6e} | {:.5} | {:.4} | {:.4} | {:.4} | {:.4} |",
                 if si == 0 { "none" } else { "bottom" }, dt / closed, b[0].ratio, b[1].ratio, b[2].ratio, b[3].ratio
