@@ -296,15 +296,23 @@ impl LinOp<f64> for ShiftInvert<'_> {
     }
 }
 
-/// The `k` lowest modes by shift-invert. The shift `σ = −1e-8 ω_max²` keeps `K − σ M` positive
-/// definite when the model has free rigid modes (which then come out at `ω ≈ 0`) and barely
-/// changes the spectrum's spacing otherwise. Shapes are `φ = L⁻ᵀ y`, `M`-normalised.
+/// The `k` lowest modes by shift-invert, `σ = 0` when `K_ff` is positive definite (a supported
+/// model). A model with free rigid modes gets `σ = −1e-8 ω_max²`, which makes `K − σ M`
+/// positive definite (the rigid modes then come out at `ω ≈ 0`); a shift that large would
+/// crowd the lowest modes of a stiff supported model (large penalties), so it is used only
+/// there. Shapes are `φ = L⁻ᵀ y`, `M`-normalised.
 pub fn lowest_modes(sys: &FreeSystem, mass: &Mass, k: usize, omega_max: f64) -> Result<(Vec<f64>, Vec<Vec<f64>>)> {
-    let sigma = -1e-8 * omega_max * omega_max;
-    let llt = sys
-        .shifted(sigma)
-        .sp_cholesky(faer::Side::Lower)
-        .map_err(|e| Error::scene("eigen", format!("the shifted stiffness K − σM could not be factored: {e:?}")))?;
+    let (sigma, llt) = match sys.k.sp_cholesky(faer::Side::Lower) {
+        Ok(llt) => (0.0, llt),
+        Err(_) => {
+            let sigma = -1e-8 * omega_max * omega_max;
+            let llt = sys
+                .shifted(sigma)
+                .sp_cholesky(faer::Side::Lower)
+                .map_err(|e| Error::scene("eigen", format!("the shifted stiffness K − σM could not be factored: {e:?}")))?;
+            (sigma, llt)
+        }
+    };
     let op = ShiftInvert { llt, sys, mass };
     let (mu, vecs) = largest(&op, k, 1e-12);
     let mut pairs: Vec<(f64, Vec<f64>)> = mu

@@ -94,6 +94,17 @@ struct ElementState<'a> {
     u: &'a [f64],
     #[serde(rename = "V")]
     v: &'a [f64],
+    /// `(σ_x, σ_y, τ_xy) = D ε` (Pa), hybrid only.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    stress: Option<[f64; 3]>,
+}
+
+/// `(σ_x, σ_y, τ_xy) = D ε` of a hybrid element's DOFs `u`; `None` for a rigid one.
+pub fn element_stress(model: &Model, e: usize, u: &[f64]) -> Option<[f64; 3]> {
+    (u.len() == 6).then(|| {
+        let s = model.elements[e].d * nalgebra::Vector3::new(u[3], u[4], u[5]);
+        [s[0], s[1], s[2]]
+    })
 }
 
 /// Writes `final_state.json`: per element its reference centroid, `U` and `V`.
@@ -107,6 +118,7 @@ pub fn write_final_state(dir: &Path, model: &Model, t: f64, u: &[f64], v: &[f64]
             centroid: [el.props.centroid.x, el.props.centroid.y],
             u: &u[e * nd..(e + 1) * nd],
             v: &v[e * nd..(e + 1) * nd],
+            stress: element_stress(model, e, &u[e * nd..(e + 1) * nd]),
         })
         .collect();
     write_json(&dir.join("final_state.json"), &serde_json::json!({ "t": t, "elements": elements }))

@@ -16,6 +16,9 @@ pub struct StaticElement {
     pub centroid: [f64; 2],
     #[serde(rename = "U")]
     pub u: Vec<f64>,
+    /// `(σ_x, σ_y, τ_xy) = D ε` (Pa), hybrid only.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stress: Option<[f64; 3]>,
 }
 
 #[derive(Serialize)]
@@ -47,7 +50,10 @@ pub fn static_report(scene: &Scene) -> Result<StaticReport> {
         .elements
         .iter()
         .enumerate()
-        .map(|(e, el)| StaticElement { centroid: [el.props.centroid.x, el.props.centroid.y], u: sol.u[e * nd..(e + 1) * nd].to_vec() })
+        .map(|(e, el)| {
+            let u = &sol.u[e * nd..(e + 1) * nd];
+            StaticElement { centroid: [el.props.centroid.x, el.props.centroid.y], u: u.to_vec(), stress: crate::output::element_stress(&model, e, u) }
+        })
         .collect();
     let interfaces = model
         .interfaces

@@ -55,10 +55,9 @@ pub fn write_frame(path: &Path, model: &Model, u: &[f64], v: &[f64], title: &str
         for c in 0..b.mesh.n_cells() {
             let e = b.first_element + c;
             let (ue, ve) = (&u[e * nd..(e + 1) * nd], &v[e * nd..(e + 1) * nd]);
-            if nd == 6 {
-                let eps = nalgebra::Vector3::new(ue[3], ue[4], ue[5]);
-                strain.extend(eps.iter());
-                stress.extend((model.elements[e].d * eps).iter());
+            if let Some(s) = crate::output::element_stress(model, e, ue) {
+                strain.extend_from_slice(&ue[3..6]);
+                stress.extend(s);
             }
             let xe = model.elements[e].props.centroid;
             let cell = b.mesh.cell(c);

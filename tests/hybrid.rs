@@ -90,10 +90,12 @@ fn hybrid_free_assembly_has_three_zero_modes() {
 }
 
 /// Over 10⁴ steps with the consistent block mass, both evaluators stay within 1e-9 (the
-/// round-off argument of tests/dynamics.rs), and the energy drift stays below 1e-4.
+/// round-off argument of tests/dynamics.rs), and the energy drift stays below 1e-4, on every
+/// mesh kind.
 #[test]
 fn hybrid_trajectories_agree_and_keep_energy() {
-    let json = hybrid_json(RECT, r#"[{"edge": "left", "kind": "ground-spring"}]"#,
+    for mesh in [RECT, TRI, VORONOI] {
+    let json = hybrid_json(mesh, r#"[{"edge": "left", "kind": "ground-spring"}]"#,
         r#"[{"kind": "traction", "edge": "right", "value": [0, -1e6]}]"#, 100.0, 0.2);
     let scene = Scene::from_json(&json).unwrap();
     let run = |kind| {
@@ -108,6 +110,7 @@ fn hybrid_trajectories_agree_and_keep_energy() {
     eprintln!("hybrid: trajectory difference {diff:.2e}, energy drift {drift:.2e}");
     assert!(diff <= 1e-9, "{diff:e}");
     assert!(drift <= 1e-4, "{drift:e}");
+    }
 }
 
 /// The uniform-tension patch on triangles: the error against the continuum falls like `1/p`
