@@ -301,6 +301,13 @@ impl Model {
                 return Err(Error::scene("thickness", format!(
                     "the mass of element {e} ({m:e} kg) is not a finite positive number; check thickness, rho and the mesh size")));
             }
+            let nd = self.formulation.ndof();
+            let block = nalgebra::DMatrix::from_row_slice(nd, nd, &self.formulation.mass(&el.props, el.rho * t));
+            if block.cholesky().is_none() {
+                let body = &self.bodies[el.body as usize];
+                return Err(Error::mesh(&body.name, e - body.first_element, "its consistent mass is not positive definite in double precision: \
+                    the element is too elongated (extreme aspect ratio) for the hybrid formulation"));
+            }
         }
         for i in &self.interfaces {
             if !((i.k_n + i.k_s) * t * i.length * (1.0 + i.length * i.length)).is_finite() {
