@@ -24,14 +24,6 @@ fn hybrid(mesh: &str, supports: &str, penalty: f64) -> Model {
     Model::build(&Scene::from_json(&hybrid_json(mesh, supports, "[]", penalty, 0.2)).unwrap()).unwrap()
 }
 
-fn forces(model: &Model, u: &[f64]) -> (Vec<f64>, Vec<f64>) {
-    let n = model.n_dofs();
-    let (mut fa, mut fe) = (vec![0.0; n], vec![0.0; n]);
-    evaluator::build(model, EvaluatorKind::Assembled).internal_force(u, &mut fa);
-    evaluator::build(model, EvaluatorKind::ElementWise).internal_force(u, &mut fe);
-    (fa, fe)
-}
-
 /// `K U` and the element-wise resultant (tractions plus the interior term) agree to round-off.
 #[test]
 fn hybrid_operators_agree_on_every_mesh_kind() {

@@ -8,14 +8,6 @@ use rbsm::geometry::Vec2;
 use rbsm::model::{Interface, Model, GROUND};
 use rbsm::scene::EvaluatorKind;
 
-fn forces(model: &Model, u: &[f64]) -> (Vec<f64>, Vec<f64>) {
-    let n = model.n_dofs();
-    let (mut fa, mut fe) = (vec![0.0; n], vec![0.0; n]);
-    evaluator::build(model, EvaluatorKind::Assembled).internal_force(u, &mut fa);
-    evaluator::build(model, EvaluatorKind::ElementWise).internal_force(u, &mut fe);
-    (fa, fe)
-}
-
 /// `K U` and the element-wise resultant of eq. 15 agree to round-off on every mesh kind: both
 /// integrate the same tractions at the same Gauss points and differ only in summation order.
 #[test]

@@ -38,6 +38,15 @@ pub fn random_vector(n: usize, seed: u64) -> Vec<f64> {
         .collect()
 }
 
+/// `(K U, element-wise f(U))`: the internal forces of both evaluators.
+pub fn forces(model: &Model, u: &[f64]) -> (Vec<f64>, Vec<f64>) {
+    let n = model.n_dofs();
+    let (mut fa, mut fe) = (vec![0.0; n], vec![0.0; n]);
+    rbsm::evaluator::build(model, rbsm::scene::EvaluatorKind::Assembled).internal_force(u, &mut fa);
+    rbsm::evaluator::build(model, rbsm::scene::EvaluatorKind::ElementWise).internal_force(u, &mut fe);
+    (fa, fe)
+}
+
 pub fn norm(x: &[f64]) -> f64 {
     x.iter().map(|v| v * v).sum::<f64>().sqrt()
 }
