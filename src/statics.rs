@@ -2,7 +2,7 @@
 //! `U_p = 0` (supports fix DOFs at zero). A mechanism is refused with its free modes named.
 
 use crate::error::{Error, Result};
-use crate::evaluator::{self, Evaluator};
+use crate::evaluator;
 use crate::geometry::Vec2;
 use crate::loads::Loads;
 use crate::mass::Mass;
@@ -57,20 +57,4 @@ pub fn midpoint_traction(model: &Model, i: &crate::model::Interface, u: &[f64]) 
     };
     let delta = disp(i.b) - disp(i.a);
     [i.k_n * i.normal.dot(&delta), i.k_s * i.tangent.dot(&delta)]
-}
-
-/// Checks that a solution balances the loads: `‖K U − P‖ / ‖P‖`.
-pub fn residual(model: &Model, ev: &dyn Evaluator, u: &[f64]) -> f64 {
-    let p = Loads::new(model).static_vector(model.n_dofs());
-    let mut f = vec![0.0; u.len()];
-    ev.internal_force(u, &mut f);
-    let fixed: std::collections::HashSet<usize> = model.fixed.iter().copied().collect();
-    let (mut r2, mut p2) = (0.0, 0.0);
-    for d in 0..u.len() {
-        if !fixed.contains(&d) {
-            r2 += (f[d] - p[d]).powi(2);
-            p2 += p[d] * p[d];
-        }
-    }
-    (r2 / p2).sqrt()
 }

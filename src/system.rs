@@ -90,9 +90,4 @@ impl FreeSystem {
         }
         full
     }
-
-    /// The free part of a vector over all DOFs.
-    pub fn gather(&self, full: &[f64]) -> Vec<f64> {
-        self.free.iter().map(|&d| full[d]).collect()
-    }
 }
