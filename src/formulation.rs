@@ -173,6 +173,14 @@ impl Formulation {
         }
     }
 
+    /// `f += N_e(d)ᵀ F` on the `ndof` entries of one element (no allocation).
+    pub fn add_point_force(self, f: &mut [f64], d: Vec2, force: Vec2) {
+        match self {
+            Formulation::Rigid => Rigid::add_force(f.try_into().expect("3 DOFs per rigid element"), d, force),
+            Formulation::Hybrid { .. } => Hybrid::add_force(f.try_into().expect("6 DOFs per hybrid element"), d, force),
+        }
+    }
+
     /// `N_e(d) U_e`: the displacement at offset `d` of an element with DOFs `u`.
     pub fn displacement(self, u: &[f64], d: Vec2) -> Vec2 {
         match self {

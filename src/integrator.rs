@@ -1,10 +1,12 @@
 //! Explicit central difference in velocity form (DESIGN.md §7), with energy bookkeeping and a
 //! divergence guard:
 //!
-//! `v^{n+½} = v^{n−½} + Δt M⁻¹ (P(t_n) − f_int(U^n))`, `U^{n+1} = U^n + Δt v^{n+½}`,
+//! `v^{n+½} = v^{n−½} + Δt M⁻¹ (P(t_n) − f_int(U^n) + f_c^n)`, `U^{n+1} = U^n + Δt v^{n+½}`,
 //! started with `v^{−½} = v^0 − ½ Δt a^0`. With mass-proportional damping `C = α M` the velocity
-//! update is `v^{n+½} = ((1 − αΔt/2) v^{n−½} + Δt a^n) / (1 + αΔt/2)`.
+//! update is `v^{n+½} = ((1 − αΔt/2) v^{n−½} + Δt a^n) / (1 + αΔt/2)`. The contact forces
+//! `f_c^n` come from the [`Contact`] of the model, built only when its scene declares contact.
 
+use crate::contact::Contact;
 use crate::error::Result;
 use crate::evaluator::Evaluator;
 use crate::loads::Loads;
@@ -69,6 +71,10 @@ pub struct CentralDifference<'a> {
     pub v: Vec<f64>,
     force: Vec<f64>,
     scratch: Vec<f64>,
+    /// Contact state and forces; `None` for a scene without contact.
+    pub contact: Option<Contact>,
+    /// Contact energy at `t_n`: minus the work of the contact forces (`Contact::apply`).
+    contact_energy: f64,
     external_work: f64,
     initial_total: Option<f64>,
     energy_in_max: f64,
@@ -104,6 +110,8 @@ impl<'a> CentralDifference<'a> {
             v: v0,
             force: vec![0.0; n],
             scratch: vec![0.0; n],
+            contact: Contact::new(model),
+            contact_energy: 0.0,
             external_work: 0.0,
             initial_total: None,
             energy_in_max: 0.0,
@@ -118,10 +126,14 @@ impl<'a> CentralDifference<'a> {
         s
     }
 
-    /// `force ← a^n = M⁻¹ (P(t_n) − f_int(U^n))`; returns the elastic energy `½ Uᵀ f_int`.
+    /// `force ← a^n = M⁻¹ (P(t_n) − f_int(U^n) + f_c^n)`; returns the elastic energy
+    /// `½ Uᵀ f_int`.
     fn acceleration(&mut self) -> f64 {
         self.evaluator.internal_force(&self.u, &mut self.force);
         let elastic = 0.5 * dot(&self.u, &self.force);
+        if let Some(c) = self.contact.as_mut() {
+            self.contact_energy = c.apply(self.step, &self.u, &self.v, self.dt, &mut self.force);
+        }
         self.loads.subtract(self.t, &mut self.force);
         self.mass.accelerate(&mut self.force);
         elastic
@@ -214,23 +226,24 @@ impl<'a> CentralDifference<'a> {
         let kinetic = self.mass.kinetic_energy(&self.scratch);
         let potential = self.loads.gravity_potential(&self.u);
         let external_work = self.external_work;
-        let total = kinetic + elastic + potential - external_work;
+        let contact = self.contact_energy;
+        let total = kinetic + elastic + contact + potential - external_work;
         let initial = *self.initial_total.get_or_insert(total);
         self.energy_in_max = self.energy_in_max.max(initial + external_work - potential);
-        self.energy_scale = self.energy_scale.max(kinetic + elastic + potential.abs() + external_work.abs());
+        self.energy_scale = self.energy_scale.max(kinetic + elastic + contact + potential.abs() + external_work.abs());
         self.max_drift = self.max_drift.max((total - initial).abs());
-        Energy { t: self.t, kinetic, elastic, contact: 0.0, potential, external_work, total }
+        Energy { t: self.t, kinetic, elastic, contact, potential, external_work, total }
     }
 
     /// Why the run must stop, if it must.
     fn guard(&self, e: &Energy) -> Option<String> {
-        if !(e.total.is_finite() && e.kinetic.is_finite() && e.elastic.is_finite()) {
+        if !(e.total.is_finite() && e.kinetic.is_finite() && e.elastic.is_finite() && e.contact.is_finite()) {
             return Some("NaN or infinite energy: the solution blew up".into());
         }
         let stored = e.kinetic + e.elastic + e.contact;
         if stored > GROWTH_LIMIT * self.energy_in_max && stored > 0.0 {
             return Some(format!(
-                "energy growth: kinetic + elastic = {stored:.6e} J exceeds {GROWTH_LIMIT} × the energy put in ({:.6e} J); \
+                "energy growth: kinetic + elastic + contact = {stored:.6e} J exceeds {GROWTH_LIMIT} × the energy put in ({:.6e} J); \
                  the time step is likely above the stability limit",
                 self.energy_in_max
             ));

@@ -1,3 +1,5 @@
+pub mod buckets;
+pub mod contact;
 pub mod error;
 pub mod evaluator;
 pub mod formulation;

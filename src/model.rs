@@ -1,12 +1,13 @@
 //! The model: elements, interfaces (with the springs of eq. 12), supports, loads and initial
 //! motion. Built once from a scene, immutable afterwards; every analysis reads this one copy.
 
+use crate::contact::ContactSettings;
 use crate::error::{Error, Result};
 use crate::formulation::{elasticity, Formulation};
 use crate::geometry::{area_properties, AreaProperties, Vec2};
 use crate::mesh::{grid, voronoi, Mesh, Side};
 use crate::scene::{
-    ClampSpec, Component, ForceSpec, GridSpec, GroundSpringSpec, LoadSpec, MaterialSpec, MeshSpec, Plane, PolygonsSpec, Scene,
+    ClampSpec, Component, ContactSpec, ForceSpec, GridSpec, GroundSpringSpec, LoadSpec, MaterialSpec, MeshSpec, Plane, PolygonsSpec, Scene,
     SupportSpec, TractionSpec, VoronoiSpec,
 };
 
@@ -106,6 +107,8 @@ pub struct Body {
     pub mesh: Mesh,
     /// Its elements are `first_element .. first_element + mesh.n_cells()`.
     pub first_element: usize,
+    /// The numerators `E_n`, `E_s` (Pa) of its springs, `k = E / (h_a + h_b)` (eq. 12).
+    pub moduli: [f64; 2],
 }
 
 /// Everything the evaluators, the integrator and the analyses need.
@@ -128,25 +131,27 @@ pub struct Model {
     pub damping: f64,
     /// Initial velocity of every DOF (`ndof` per element).
     pub initial_velocity: Vec<f64>,
+    /// Contact between bodies and with the ground; `None` when the scene has none.
+    pub contact: Option<ContactSettings>,
+    /// Rigid ground segments `[from, to]` (m); the free side is on the left of `from → to`.
+    pub ground: Vec<[Vec2; 2]>,
 }
 
-/// Spring constants per unit length of eq. 12 for a given `h_a + h_b`; plane strain uses
-/// `E' = E/(1 − ν²)` and `ν' = ν/(1 − ν)` in the same formulas.
-pub fn spring_constants(m: &MaterialSpec, plane: Plane, h_sum: f64) -> (f64, f64) {
+/// The numerators of eq. 12, `k_n = E_n / (h_a + h_b)`, `k_s = E_s / (h_a + h_b)`:
+/// `E_n = E/(1 − ν²)`, `E_s = E/(1 + ν)`; plane strain uses `E' = E/(1 − ν²)` and
+/// `ν' = ν/(1 − ν)` in the same formulas.
+pub fn spring_moduli(m: &MaterialSpec, plane: Plane) -> [f64; 2] {
     let (e, nu) = match plane {
         Plane::Stress => (m.e, m.nu),
         Plane::Strain => (m.e / (1.0 - m.nu * m.nu), m.nu / (1.0 - m.nu)),
     };
-    (e / ((1.0 - nu * nu) * h_sum), e / ((1.0 + nu) * h_sum))
+    [e / (1.0 - nu * nu), e / (1.0 + nu)]
 }
 
 impl Model {
     /// Builds the model of a validated scene.
     pub fn build(scene: &Scene) -> Result<Model> {
         let formulation = Formulation::from_spec(scene.formulation)?;
-        if scene.contact.is_some() || !scene.ground.is_empty() {
-            return Err(Error::scene("contact", "contact and ground segments are not implemented yet; remove `contact` and `ground`"));
-        }
         let nd = formulation.ndof();
         let t = scene.thickness;
         let mut model = Model {
@@ -162,6 +167,8 @@ impl Model {
             gravity: scene.gravity.map(|g| Vec2::new(g[0], g[1])).unwrap_or_else(Vec2::zeros),
             damping: scene.damping.unwrap_or(0.0),
             initial_velocity: Vec::new(),
+            contact: scene.contact.as_ref().map(ContactSpec::settings),
+            ground: scene.ground.iter().map(|g| [Vec2::new(g.from[0], g.from[1]), Vec2::new(g.to[0], g.to[1])]).collect(),
         };
         for (bi, spec) in scene.bodies.iter().enumerate() {
             let material = scene.materials[&spec.material];
@@ -254,7 +261,7 @@ impl Model {
                     }
                 }
             }
-            model.bodies.push(Body { name: spec.name.clone(), mesh, first_element: first });
+            model.bodies.push(Body { name: spec.name.clone(), mesh, first_element: first, moduli: spring_moduli(&material, scene.plane) });
         }
         model.check_finite()?;
         model.fixed.sort_unstable();
@@ -286,8 +293,8 @@ impl Model {
         if !(h_a + h_b > 1e-12 * length) {
             return Err(format!("edge ({v1}, {v2}): the centroids lie on the edge line (h_a + h_b = 0)"));
         }
-        let (k_n, k_s) = spring_constants(m, self.plane, h_a + h_b);
-        let (k_n, k_s) = (k_n * self.formulation.spring_factor(), k_s * self.formulation.spring_factor());
+        let [e_n, e_s] = spring_moduli(m, self.plane);
+        let (k_n, k_s) = [e_n, e_s].map(|e| e / (h_a + h_b) * self.formulation.spring_factor()).into();
         Ok(Interface { a: a as u32, b: b.map_or(GROUND, |b| b as u32), p1, p2, normal, tangent, length, h_a, h_b, k_n, k_s })
     }
 

@@ -32,6 +32,24 @@ pub struct Summary {
     pub step_time_s: f64,
     pub threads: usize,
     pub energy: EnergySummary,
+    /// Contact figures; only for scenes with contact.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub contact: Option<ContactSummary>,
+}
+
+/// The contact figures of `summary.json`.
+#[derive(Debug, Clone, Serialize)]
+pub struct ContactSummary {
+    /// `edge-to-edge` or `point`.
+    pub model: String,
+    pub friction: Option<f64>,
+    /// Vertex–edge contacts per step, mean and largest.
+    pub mean_pairs: f64,
+    pub max_pairs: usize,
+    /// Narrow-phase tests (vertex path against a nearby edge) per step.
+    pub tests_per_step: f64,
+    /// Wall time spent in contact (s).
+    pub time_s: f64,
 }
 
 /// The energy figures of `summary.json` (J).

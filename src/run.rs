@@ -1,13 +1,14 @@
 //! A whole explicit run, from a scene to its outputs: model, evaluator, `Δt_crit`, the time
 //! loop and the files of DESIGN.md §9. The command line and the tests call this one function.
 
+use crate::contact::{self, Contact, WithBlocks};
 use crate::error::{Error, Result};
 use crate::evaluator::{self, Evaluator};
 use crate::integrator::{CentralDifference, Status};
 use crate::loads::Loads;
 use crate::mass::Mass;
 use crate::model::{dof_index, Model};
-use crate::output::{self, EnergySummary, History, Probe, Summary};
+use crate::output::{self, ContactSummary, EnergySummary, History, Probe, Summary};
 use crate::scene::{EvaluatorKind, Scene};
 use crate::{eigen, stability};
 use crate::vtk::VtkSeries;
@@ -30,7 +31,8 @@ pub struct Prepared {
     pub evaluator: Box<dyn Evaluator>,
     pub mass: Mass,
     pub loads: Loads,
-    /// Largest circular frequency (rad/s), matrix-free Krylov–Schur (`eigen::omega_max`).
+    /// Largest circular frequency (rad/s), by Lanczos (`eigen::omega_max`); with contact, of
+    /// `K` plus every contact closed against rigid ground (`contact::stiffness_estimate`).
     pub omega_max: f64,
     pub dt_crit: f64,
     pub dt: f64,
@@ -44,7 +46,13 @@ impl Prepared {
         let evaluator = evaluator::build(&model, opts.evaluator.unwrap_or(scene.evaluator));
         let mass = Mass::new(&model);
         let loads = Loads::new(&model);
-        let omega_max = eigen::omega_max(evaluator.as_ref(), &mass);
+        let omega_max = match Contact::new(&model) {
+            None => eigen::omega_max(evaluator.as_ref(), &mass),
+            Some(c) => {
+                let blocks = contact::stiffness_estimate(&model, &c);
+                eigen::omega_max(&WithBlocks { inner: evaluator.as_ref(), nd: model.formulation.ndof(), blocks }, &mass)
+            }
+        };
         if !omega_max.is_finite() {
             return Err(Error::scene("materials", format!(
                 "the stiffness or mass of the model overflows (ω_max = {omega_max}); check E, rho, thickness and the mesh size")));
@@ -160,6 +168,14 @@ pub fn run(scene: &Scene, opts: &RunOptions, out: &Path, monitor: &mut dyn Monit
         step_time_s: step_time,
         threads: rayon::current_num_threads(),
         energy: EnergySummary { initial: first.total, final_: last.total, max_relative_drift: cd.max_relative_drift() },
+        contact: cd.contact.as_ref().map(|c| ContactSummary {
+            model: c.settings.model.name().into(),
+            friction: c.settings.friction,
+            mean_pairs: c.stats.pairs as f64 / c.stats.steps.max(1) as f64,
+            max_pairs: c.stats.max_pairs,
+            tests_per_step: c.stats.tests as f64 / c.stats.steps.max(1) as f64,
+            time_s: c.stats.time_s,
+        }),
     };
     output::write_json(&out.join("summary.json"), &summary)?;
     Ok(summary)

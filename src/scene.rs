@@ -307,9 +307,20 @@ pub struct GroundSpec {
 #[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ContactSpec {
+    /// `edge-to-edge` or `point`.
     pub model: String,
+    /// Coulomb friction coefficient `μ ≥ 0`; `null` is no slip limit.
     #[serde(default)]
     pub friction: Option<f64>,
+}
+
+impl ContactSpec {
+    /// The settings of a validated spec.
+    pub fn settings(&self) -> crate::contact::ContactSettings {
+        use crate::contact::ContactModel;
+        let model = if self.model == "point" { ContactModel::Point } else { ContactModel::EdgeToEdge };
+        crate::contact::ContactSettings { model, friction: self.friction }
+    }
 }
 
 /// Time step and duration; exactly one of `dt`, `dt_factor` and one of `end`, `steps`.
@@ -423,6 +434,12 @@ impl Scene {
         for (i, g) in self.ground.iter().enumerate() {
             finite_all(&format!("ground[{i}].from"), &g.from)?;
             finite_all(&format!("ground[{i}].to"), &g.to)?;
+            if g.from == g.to {
+                return Err(Error::scene(format!("ground[{i}].to"), "must differ from `from` (a segment of positive length)"));
+            }
+        }
+        if !self.ground.is_empty() && self.contact.is_none() {
+            return Err(Error::scene("contact", "ground segments act only through contact: add `\"contact\": {\"model\": \"edge-to-edge\"}` (or `point`)"));
         }
         if let Some(c) = &self.contact {
             if c.model != "edge-to-edge" && c.model != "point" {

@@ -102,9 +102,20 @@ fn bad_meshes_name_the_cell() {
 }
 
 #[test]
-fn features_not_built_yet_are_refused_clearly() {
-    expect(&with(|v| v["formulation"] = serde_json::json!({"kind": "hybrid", "penalty": 0.0})), &["formulation.penalty", "> 0"]);
-    expect(&with(|v| v["contact"] = serde_json::json!({"model": "point"})), &["contact"]);
+fn penalty_and_contact_settings_are_checked() {
+    use serde_json::json;
+    expect(&with(|v| v["formulation"] = json!({"kind": "hybrid", "penalty": 0.0})), &["formulation.penalty", "> 0"]);
+    expect(&with(|v| v["ground"] = json!([{"from": [0.0, 0.0], "to": [1.0, 0.0]}])), &["contact", "ground segments act only through contact"]);
+    let with_ground = |contact: serde_json::Value, ground: serde_json::Value| {
+        with(move |v| {
+            v["contact"] = contact;
+            v["ground"] = ground;
+        })
+    };
+    let ground = json!([{"from": [0.0, 0.0], "to": [1.0, 0.0]}]);
+    expect(&with_ground(json!({"model": "dem"}), ground.clone()), &["contact.model", "edge-to-edge", "point"]);
+    expect(&with_ground(json!({"model": "point", "friction": -0.1}), ground.clone()), &["contact.friction", "μ ≥ 0"]);
+    expect(&with_ground(json!({"model": "point"}), json!([{"from": [1.0, 2.0], "to": [1.0, 2.0]}])), &["ground[0].to", "positive length"]);
 }
 
 /// Every number of every shipped scene pushed to an extreme, every key deleted, every string

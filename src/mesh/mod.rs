@@ -7,6 +7,7 @@
 pub mod grid;
 pub mod voronoi;
 
+use crate::buckets::{BucketLists, Buckets};
 use crate::error::{Error, Result};
 use crate::geometry::{area_properties, segments_cross, point_in_polygon, Vec2};
 use std::collections::HashMap;
@@ -178,16 +179,14 @@ impl Mesh {
         let (lo, hi) = self.bounding_box();
         let scale = (hi - lo).norm();
         let grid = Buckets::new(lo, hi, self.vertices.len());
-        let mut vertex_buckets = grid.empty();
-        for (i, v) in self.vertices.iter().enumerate() {
-            vertex_buckets[grid.index(*v)].push(i as u32);
-        }
+        let mut vertex_buckets = BucketLists::default();
+        vertex_buckets.fill(&grid, self.vertices.len(), |i| (self.vertices[i], self.vertices[i]));
         for e in &self.boundary {
             let (p, q) = (self.vertices[e.v1 as usize], self.vertices[e.v2 as usize]);
             let d = q - p;
             let l2 = d.norm_squared();
             for b in grid.covering(p.inf(&q), p.sup(&q)) {
-                for &i in &vertex_buckets[b] {
+                for &i in vertex_buckets.bucket(b) {
                     if i == e.v1 || i == e.v2 {
                         continue;
                     }
@@ -208,17 +207,14 @@ impl Mesh {
     fn check_no_nested_cells(&self, body: &str) -> Result<()> {
         let (lo, hi) = self.bounding_box();
         let grid = Buckets::new(lo, hi, self.n_cells());
-        let mut cell_buckets = grid.empty();
-        for c in 0..self.n_cells() {
+        let mut cell_buckets = BucketLists::default();
+        cell_buckets.fill(&grid, self.n_cells(), |c| {
             let pts = self.cell_points(c);
-            let (a, b) = pts.iter().fold((pts[0], pts[0]), |(a, b), p| (a.inf(p), b.sup(p)));
-            for k in grid.covering(a, b) {
-                cell_buckets[k].push(c as u32);
-            }
-        }
+            pts.iter().fold((pts[0], pts[0]), |(a, b), p| (a.inf(p), b.sup(p)))
+        });
         for d in 0..self.n_cells() {
             let centroid = area_properties(&self.cell_points(d)).centroid;
-            for &c in &cell_buckets[grid.index(centroid)] {
+            for &c in cell_buckets.bucket(grid.index(centroid)) {
                 if c as usize != d && point_in_polygon(centroid, &self.cell_points(c as usize)) {
                     return Err(Error::mesh(body, d, format!("overlaps cell {c}: its centroid lies inside it")));
                 }
@@ -246,51 +242,6 @@ impl Mesh {
                 None
             };
         }
-    }
-}
-
-/// A uniform grid of buckets over a bounding box, about one bucket per item, for the
-/// neighbourhood queries of the mesh checks (linear instead of quadratic in the mesh size).
-struct Buckets {
-    lo: Vec2,
-    size: Vec2,
-    nx: usize,
-    ny: usize,
-}
-
-impl Buckets {
-    fn new(lo: Vec2, hi: Vec2, items: usize) -> Buckets {
-        let n = (items as f64).sqrt().ceil().max(1.0) as usize;
-        let extent = (hi - lo).sup(&Vec2::repeat(f64::MIN_POSITIVE));
-        let (nx, ny) = if extent.x >= extent.y {
-            (n, ((n as f64 * extent.y / extent.x).ceil() as usize).max(1))
-        } else {
-            (((n as f64 * extent.x / extent.y).ceil() as usize).max(1), n)
-        };
-        Buckets { lo, size: Vec2::new(extent.x / nx as f64, extent.y / ny as f64), nx, ny }
-    }
-
-    fn empty(&self) -> Vec<Vec<u32>> {
-        vec![Vec::new(); self.nx * self.ny]
-    }
-
-    fn cell_of(&self, x: Vec2) -> (usize, usize) {
-        let i = ((x.x - self.lo.x) / self.size.x).floor().clamp(0.0, (self.nx - 1) as f64) as usize;
-        let j = ((x.y - self.lo.y) / self.size.y).floor().clamp(0.0, (self.ny - 1) as f64) as usize;
-        (i, j)
-    }
-
-    /// The bucket of a point.
-    fn index(&self, x: Vec2) -> usize {
-        let (i, j) = self.cell_of(x);
-        i + self.nx * j
-    }
-
-    /// The buckets that a box touches (widened by one bucket, for points on bucket borders).
-    fn covering(&self, a: Vec2, b: Vec2) -> impl Iterator<Item = usize> + '_ {
-        let ((i0, j0), (i1, j1)) = (self.cell_of(a), self.cell_of(b));
-        let (i0, j0, i1, j1) = (i0.saturating_sub(1), j0.saturating_sub(1), (i1 + 1).min(self.nx - 1), (j1 + 1).min(self.ny - 1));
-        (j0..=j1).flat_map(move |j| (i0..=i1).map(move |i| i + self.nx * j))
     }
 }
 

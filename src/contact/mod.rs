@@ -1,0 +1,625 @@
+//! Contact between bodies and with rigid ground (DESIGN.md §6, eqs. 17–20).
+//!
+//! Every boundary edge of a body, and every ground segment, is a surface that other bodies'
+//! vertices can enter. Each step:
+//! 1. the boundary vertices are placed with the finite rotation of their element
+//!    (`x = x_e + u_e + R(θ_e)(d + E_e d)`, `E_e d` the strain part of a hybrid element);
+//! 2. a broad phase (a bucket grid of the edges, rebuilt each step) lists the edges near each
+//!    vertex's path `p → m` over the step, and eqs. 18–19 find the paths that enter an edge of
+//!    another body; the crossing point `c` (eq. 20) is kept with the contact as a fraction of the
+//!    target edge, so it moves with it;
+//! 3. each contact's gap `δ_n`, `δ_s` (eq. 17) is measured; the contact is released when the
+//!    gap opens (`δ_n ≤ 0`) or the vertex leaves the edge's span; with a Coulomb limit `μ` the
+//!    crossing point slides so that `k_s |δ_s| ≤ μ k_n δ_n`;
+//! 4. the forces: [`ContactModel::EdgeToEdge`] treats the penetrating part of each edge next to
+//!    a contact vertex as a temporary interface with the target edge (tractions `k δ` per unit
+//!    length, integrated exactly over the overlap by 2-point Gauss on the clipped interval);
+//!    [`ContactModel::Point`] puts one spring `k ℓ_trib` at each contact vertex, the DEM way.
+//!    Equal and opposite forces act on both bodies at the same points, so momentum is kept.
+//!
+//! The springs are those of eq. 12 with the two sides' `h` (`h = 0` for the ground), in series
+//! when the materials differ, times the hybrid penalty. A scene without `contact` builds none of
+//! this and the integrator does no contact work.
+
+mod detect;
+mod work;
+
+pub use detect::{entry, frame, gap, Gap};
+
+use crate::buckets::{BucketLists, Buckets};
+use crate::evaluator::Evaluator;
+use crate::formulation::Formulation;
+use crate::geometry::Vec2;
+use crate::model::{Model, GROUND};
+use crate::scene::EvaluatorKind;
+use std::time::Instant;
+use work::Ledger;
+
+/// The contact model of a scene (`contact.model`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ContactModel {
+    /// The paper's contact: the penetrating part of the boundary is a temporary interface.
+    EdgeToEdge,
+    /// Classic DEM: a spring at each penetrating vertex.
+    Point,
+}
+
+impl ContactModel {
+    /// The name used in scenes and outputs.
+    pub fn name(self) -> &'static str {
+        match self {
+            ContactModel::EdgeToEdge => "edge-to-edge",
+            ContactModel::Point => "point",
+        }
+    }
+}
+
+/// What a scene asks of contact.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ContactSettings {
+    pub model: ContactModel,
+    /// Coulomb friction coefficient `μ`; `None` is no slip limit.
+    pub friction: Option<f64>,
+}
+
+/// Marks a missing edge or body.
+const NONE: u32 = u32::MAX;
+
+/// A vertex of an element on its body's boundary: a point that can enter another body.
+#[derive(Debug, Clone, Copy)]
+struct Vertex {
+    element: u32,
+    body: u32,
+    /// Offset from the element's centroid in the reference configuration (m).
+    offset: Vec2,
+    /// The element's boundary edges that meet here ([`NONE`] if only one does).
+    edges: [u32; 2],
+}
+
+/// A surface that vertices can enter: a boundary edge of an element (counter-clockwise, solid
+/// on its left) or a ground segment.
+#[derive(Debug, Clone, Copy)]
+struct Edge {
+    /// The element it belongs to, or [`GROUND`].
+    element: u32,
+    body: u32,
+    /// End points, as indices into the current points (vertices first, then ground points).
+    ends: [u32; 2],
+    /// Compliances `h / E_n` and `h / E_s` of this side (eq. 12 is `k = E / (h_a + h_b)`);
+    /// zero for the ground.
+    compliance: [f64; 2],
+    /// Reference length (m).
+    length: f64,
+}
+
+/// A vertex in contact with an edge.
+#[derive(Debug, Clone, Copy)]
+pub struct Record {
+    pub vertex: u32,
+    pub edge: u32,
+    /// The crossing point `c` of eq. 20 as a fraction of the edge, `c = b1 + λ (b2 − b1)`.
+    pub lambda: f64,
+    /// The vertex's tributary length (m): half of each of its edges that faces the target.
+    pub ell: f64,
+    /// Normal and tangential springs per unit length (Pa/m) at the vertex.
+    pub k: [f64; 2],
+    /// The gap `[δ_n, δ_s]` of this step (m).
+    pub gap: [f64; 2],
+}
+
+/// Counters of the contact work of a run.
+#[derive(Debug, Clone, Copy, Default, serde::Serialize)]
+pub struct ContactStats {
+    /// Steps evaluated.
+    pub steps: u64,
+    /// Vertex–edge contacts summed over the steps (the mean is `pairs / steps`).
+    pub pairs: u64,
+    /// Most vertex–edge contacts in one step.
+    pub max_pairs: usize,
+    /// Narrow-phase tests (vertex path against edge) summed over the steps.
+    pub tests: u64,
+    /// Wall time spent in contact (s).
+    pub time_s: f64,
+}
+
+/// The contact state of a run and the forces it exerts.
+#[derive(Debug, Clone)]
+pub struct Contact {
+    pub settings: ContactSettings,
+    frames: Frames,
+    thickness: f64,
+    factor: f64,
+    vertices: Vec<Vertex>,
+    edges: Vec<Edge>,
+    /// Current points: the vertices' positions, then the ground points (fixed).
+    points: Vec<Vec2>,
+    /// The vertices' positions at the previous step.
+    previous: Vec<Vec2>,
+    /// Live contacts, sorted by `(vertex, edge)`.
+    records: Vec<Record>,
+    /// Contacts found this step.
+    fresh: Vec<Record>,
+    buckets: BucketLists,
+    /// Per edge, the last vertex that tested it (each pair is tested once per step).
+    stamp: Vec<u32>,
+    /// Edge-to-edge pairs `(source edge, target edge)` of this step.
+    pairs: Vec<(u32, u32)>,
+    /// The contact forces and their work.
+    ledger: Ledger,
+    /// Energy in the contact springs at the last evaluation (J).
+    stored: f64,
+    /// The step of the last evaluation.
+    step: Option<u64>,
+    pub stats: ContactStats,
+}
+
+impl Contact {
+    /// The contact of a model; `None` when its scene declares none.
+    pub fn new(model: &Model) -> Option<Contact> {
+        let settings = model.contact?;
+        let mut vertices = Vec::new();
+        let mut edges = Vec::new();
+        for (bi, body) in model.bodies.iter().enumerate() {
+            let mesh = &body.mesh;
+            let moduli = body.moduli;
+            // The element's boundary vertices, numbered in order of first appearance.
+            let mut index = std::collections::HashMap::new();
+            for e in &mesh.boundary {
+                let element = body.first_element + e.cell as usize;
+                let centroid = model.elements[element].props.centroid;
+                let (p1, p2) = (mesh.vertices[e.v1 as usize], mesh.vertices[e.v2 as usize]);
+                let (_, n, length) = frame(p1, p2);
+                let h = (p1 - centroid).dot(&n).abs();
+                let id = edges.len() as u32;
+                let mut end = |v: u32, p: Vec2| {
+                    *index.entry((element, v)).or_insert_with(|| {
+                        vertices.push(Vertex { element: element as u32, body: bi as u32, offset: p - centroid, edges: [NONE; 2] });
+                        vertices.len() as u32 - 1
+                    })
+                };
+                let ends = [end(e.v1, p1), end(e.v2, p2)];
+                for &v in &ends {
+                    let slot = &mut vertices[v as usize].edges;
+                    let k = if slot[0] == NONE { 0 } else { 1 };
+                    slot[k] = id;
+                }
+                edges.push(Edge { element: element as u32, body: bi as u32, ends, compliance: [h / moduli[0], h / moduli[1]], length });
+            }
+        }
+        let mut points: Vec<Vec2> = vertices.iter().map(|v| model.elements[v.element as usize].props.centroid + v.offset).collect();
+        for g in &model.ground {
+            // Stored `to → from`: the solid side is then on the left, as for a body's boundary.
+            let at = points.len() as u32;
+            points.extend([g[1], g[0]]);
+            edges.push(Edge { element: GROUND, body: NONE, ends: [at, at + 1], compliance: [0.0; 2], length: (g[1] - g[0]).norm() });
+        }
+        Some(Contact {
+            settings,
+            frames: Frames { formulation: model.formulation, centroids: model.elements.iter().map(|e| e.props.centroid).collect() },
+            thickness: model.thickness,
+            factor: model.formulation.spring_factor(),
+            previous: points[..vertices.len()].to_vec(),
+            stamp: vec![NONE; edges.len()],
+            vertices,
+            edges,
+            points,
+            records: Vec::new(),
+            fresh: Vec::new(),
+            buckets: BucketLists::default(),
+            pairs: Vec::new(),
+            ledger: Ledger::new(model.elements.len(), model.formulation.ndof()),
+            stored: 0.0,
+            step: None,
+            stats: ContactStats::default(),
+        })
+    }
+
+    /// The live contacts after the last step.
+    pub fn records(&self) -> &[Record] {
+        &self.records
+    }
+
+    /// Subtracts the contact forces `f_c^n` at step `n`, state `u = U^n`, from `f` (which holds
+    /// `f_int − P`) and returns the contact energy `−W`, `W` the work of the contact forces on
+    /// the bodies so far: the energy stored in the contact springs plus what friction, and
+    /// tangential springs released while stretched, took from the motion (J). `velocity` is
+    /// `v^{n−½}`, so that `U^n − U^{n−1} = Δt v^{n−½}`. A second call at the same step gives the
+    /// same forces. Allocation-free once the buffers have grown.
+    pub fn apply(&mut self, step: u64, u: &[f64], velocity: &[f64], dt: f64, f: &mut [f64]) -> f64 {
+        if self.step != Some(step) {
+            let clock = Instant::now();
+            self.ledger.next();
+            self.place(u);
+            self.detect();
+            self.update_gaps();
+            self.stored = match self.settings.model {
+                ContactModel::Point => self.point_forces(u),
+                ContactModel::EdgeToEdge => self.edge_forces(u),
+            };
+            if self.step.is_some() {
+                self.ledger.add_work(velocity, dt);
+            }
+            let n = self.vertices.len();
+            self.previous.copy_from_slice(&self.points[..n]);
+            self.step = Some(step);
+            self.stats.steps += 1;
+            self.stats.pairs += self.records.len() as u64;
+            self.stats.max_pairs = self.stats.max_pairs.max(self.records.len());
+            self.stats.time_s += clock.elapsed().as_secs_f64();
+        }
+        self.ledger.subtract_from(f);
+        -self.ledger.work
+    }
+
+    /// Energy in the contact springs at the last evaluation (J); the contact energy minus this
+    /// is what contact took from the motion.
+    pub fn stored(&self) -> f64 {
+        self.stored
+    }
+
+    /// Current positions of the boundary vertices (finite rotation of each element).
+    fn place(&mut self, u: &[f64]) {
+        for (x, v) in self.points.iter_mut().zip(&self.vertices) {
+            *x = self.frames.place(u, v.element as usize, v.offset);
+        }
+    }
+
+    /// New contacts: vertex paths that entered an edge of another body this step (eqs. 18–20);
+    /// at the first step, vertices that start just inside an edge.
+    fn detect(&mut self) {
+        let n = self.vertices.len();
+        let (mut lo, mut hi) = (self.points[0], self.points[0]);
+        for x in self.points[..n].iter().chain(&self.previous) {
+            lo = lo.inf(x);
+            hi = hi.sup(x);
+        }
+        let grid = Buckets::new(lo, hi, self.edges.len());
+        let (points, edges) = (&self.points, &self.edges);
+        self.buckets.fill(&grid, edges.len(), |k| {
+            let [a, b] = edges[k].ends.map(|i| points[i as usize]);
+            (a.inf(&b), a.sup(&b))
+        });
+        self.stamp.fill(NONE);
+        self.fresh.clear();
+        for v in 0..n {
+            let (p, m) = (self.previous[v], self.points[v]);
+            let vertex = self.vertices[v];
+            let mut best: Option<(f64, u32, f64)> = None;
+            for k in grid.covering(p.inf(&m), p.sup(&m)) {
+                for &e in self.buckets.bucket(k) {
+                    let edge = &self.edges[e as usize];
+                    if edge.body == vertex.body || self.stamp[e as usize] == v as u32 {
+                        continue;
+                    }
+                    self.stamp[e as usize] = v as u32;
+                    self.stats.tests += 1;
+                    let [b1, b2] = edge.ends.map(|i| self.points[i as usize]);
+                    let found = if self.step.is_some() {
+                        entry(p, m, b1, b2).map(|lambda| (gap(m, b1, b2, lambda).normal, lambda))
+                    } else {
+                        start_inside(m, b1, b2, self.size(v))
+                    };
+                    if let Some((depth, lambda)) = found {
+                        if best.is_none_or(|b| depth < b.0) {
+                            best = Some((depth, e, lambda));
+                        }
+                    }
+                }
+            }
+            if let Some((_, e, lambda)) = best {
+                if self.find(v as u32, e).is_none() {
+                    let r = self.record(v as u32, e, lambda);
+                    self.fresh.push(r);
+                }
+            }
+        }
+        if !self.fresh.is_empty() {
+            self.records.extend_from_slice(&self.fresh);
+            self.records.sort_unstable_by_key(|r| (r.vertex, r.edge));
+        }
+    }
+
+    /// A size of the element of vertex `v` (m): the depth within which a vertex that starts
+    /// inside another body counts as touching it.
+    fn size(&self, v: usize) -> f64 {
+        let vx = &self.vertices[v];
+        vx.edges.iter().filter(|&&e| e != NONE).map(|&e| self.edges[e as usize].length).fold(0.0, f64::max)
+    }
+
+    /// A new contact of vertex `v` with edge `e`: its tributary length and springs.
+    fn record(&self, v: u32, e: u32, lambda: f64) -> Record {
+        let target = &self.edges[e as usize];
+        let [b1, b2] = target.ends.map(|i| self.points[i as usize]);
+        let (_, n_target, _) = frame(b1, b2);
+        // Half of each of the vertex's edges that faces the target (outward normals opposed);
+        // all of them when none does (a corner poking in edge-first).
+        let faces = |k: u32| {
+            let [a, b] = self.edges[k as usize].ends.map(|i| self.points[i as usize]);
+            frame(a, b).1.dot(&n_target) < 0.0
+        };
+        let mine = self.vertices[v as usize].edges.map(|k| (k != NONE).then_some(k)).into_iter().flatten();
+        let any_facing = mine.clone().any(faces);
+        let (mut ell, mut compliance) = (0.0, [0.0; 2]);
+        for k in mine.filter(|&k| !any_facing || faces(k)) {
+            let ed = &self.edges[k as usize];
+            ell += 0.5 * ed.length;
+            for c in 0..2 {
+                compliance[c] += 0.5 * ed.length * ed.compliance[c];
+            }
+        }
+        let k = [0, 1].map(|c| self.factor / (compliance[c] / ell + target.compliance[c]));
+        Record { vertex: v, edge: e, lambda, ell, k, gap: [0.0; 2] }
+    }
+
+    /// Index of the live contact of vertex `v` with edge `e`.
+    fn find(&self, v: u32, e: u32) -> Option<usize> {
+        self.records.binary_search_by_key(&(v, e), |r| (r.vertex, r.edge)).ok()
+    }
+
+    /// Eq. 17 for every contact; releases those whose gap opened or that left their edge, and
+    /// slides the crossing point of those beyond the Coulomb limit.
+    fn update_gaps(&mut self) {
+        let (points, edges) = (&self.points, &self.edges);
+        let mu = self.settings.friction;
+        self.records.retain_mut(|r| {
+            let [b1, b2] = edges[r.edge as usize].ends.map(|i| points[i as usize]);
+            let m = points[r.vertex as usize];
+            let g = gap(m, b1, b2, r.lambda);
+            if g.normal <= 0.0 || !(0.0..=1.0).contains(&g.along) {
+                return false;
+            }
+            let mut slip = g.tangential;
+            if let Some(mu) = mu {
+                let limit = mu * r.k[0] * g.normal / r.k[1];
+                if slip.abs() > limit {
+                    let kept = limit.copysign(slip);
+                    r.lambda += (slip - kept) / (b2 - b1).norm();
+                    slip = kept;
+                }
+            }
+            r.gap = [g.normal, slip];
+            true
+        });
+    }
+
+    /// DEM point contact: at each contact vertex `F = t ℓ (k_n δ_n n − k_s δ_s s)`; returns the
+    /// stored energy `½ t ℓ (k_n δ_n² + k_s δ_s²)` summed.
+    fn point_forces(&mut self, u: &[f64]) -> f64 {
+        let mut energy = 0.0;
+        for r in &mut self.records {
+            let target = &self.edges[r.edge as usize];
+            let [b1, b2] = target.ends.map(|i| self.points[i as usize]);
+            let (s, n, _) = frame(b1, b2);
+            let [dn, ds] = r.gap;
+            let scale = self.thickness * r.ell;
+            let force = scale * (r.k[0] * dn * n - r.k[1] * ds * s);
+            let x = self.points[r.vertex as usize];
+            self.frames.push(u, &mut self.ledger, self.vertices[r.vertex as usize].element, x, force);
+            if target.element != GROUND {
+                self.frames.push(u, &mut self.ledger, target.element, x, -force);
+            }
+            energy += 0.5 * scale * (r.k[0] * dn * dn + r.k[1] * ds * ds);
+        }
+        energy
+    }
+
+    /// Edge-to-edge contact: each boundary edge next to a contact vertex against that vertex's
+    /// target edge, as a temporary interface; returns the stored energy.
+    fn edge_forces(&mut self, u: &[f64]) -> f64 {
+        self.pairs.clear();
+        for r in &self.records {
+            for &e in &self.vertices[r.vertex as usize].edges {
+                if e != NONE {
+                    self.pairs.push((e, r.edge));
+                }
+            }
+        }
+        self.pairs.sort_unstable();
+        self.pairs.dedup();
+        let mut energy = 0.0;
+        for p in 0..self.pairs.len() {
+            let (e, target) = self.pairs[p];
+            // Two edges pressed into each other from both sides form one interface: the one
+            // with the lower source edge carries it.
+            if self.edges[target as usize].element != GROUND && target < e && self.pairs.binary_search(&(target, e)).is_ok() {
+                continue;
+            }
+            energy += self.edge_pair(u, e, target);
+        }
+        energy
+    }
+
+    /// The temporary interface between source edge `e` and target edge `target`: the tractions
+    /// `t_n = k_n δ_n`, `t_s` (linear along the edge) over the part of `e` that is inside and
+    /// within the span of `target`, integrated by 2-point Gauss (exact: the tractions are
+    /// linear, the moment quadratic). Returns the stored energy `½ t ∫ (t_n δ_n − t_s δ_s) dℓ`
+    /// (`½ t ∫ (t_n²/k_n + t_s²/k_s) dℓ` when both ends are in contact).
+    fn edge_pair(&mut self, u: &[f64], e: u32, target: u32) -> f64 {
+        let (src, tgt) = (self.edges[e as usize], self.edges[target as usize]);
+        let [q1, q2] = src.ends.map(|i| self.points[i as usize]);
+        let [b1, b2] = tgt.ends.map(|i| self.points[i as usize]);
+        let (s, n, lt) = frame(b1, b2);
+        let k = [0, 1].map(|c| self.factor / (src.compliance[c] + tgt.compliance[c]));
+        // Penetration and position along the target at both ends, both linear along the edge.
+        let depth = [q1, q2].map(|q| -(q - b1).dot(&n));
+        let along = [q1, q2].map(|q| (q - b1).dot(&s) / lt);
+        // Tangential slip at the ends: δ_s of a contact record; an end without one takes the
+        // other end's (a rigid edge slides as a whole). The traction is −k_s δ_s at an end with a
+        // record; at an end without one it is the other end's ratio t_s / t_n times this end's
+        // t_n, so that t_s vanishes with t_n where the edge leaves the target (like t_n, it
+        // then follows the penetration profile, and the Coulomb limit checked at the record
+        // holds along the whole edge).
+        let rec = src.ends.map(|v| self.find(v, target));
+        let slip_of = |i: Option<usize>| i.map(|i| self.records[i].gap[1]);
+        let (slip, shear) = match rec.map(slip_of) {
+            [Some(a), Some(b)] => ([a, b], [-k[1] * a, -k[1] * b]),
+            [Some(a), None] => ([a, a], [-k[1] * a, -k[1] * a * depth[1] / depth[0]]),
+            [None, Some(b)] => ([b, b], [-k[1] * b * depth[0] / depth[1], -k[1] * b]),
+            [None, None] => return 0.0,
+        };
+        let Some((xa, xb)) = clip(depth, along) else { return 0.0 };
+        let lerp = |v: [f64; 2], xi: f64| v[0] + xi * (v[1] - v[0]);
+        let half = 0.5 * (xb - xa);
+        let w = half * (q2 - q1).norm() * self.thickness;
+        let mut energy = 0.0;
+        for g in [-1.0, 1.0] {
+            let xi = xa + half * (1.0 + g / 3f64.sqrt());
+            let (tn, ts) = (k[0] * lerp(depth, xi), lerp(shear, xi));
+            let x = q1 + xi * (q2 - q1);
+            let force = w * (tn * n + ts * s);
+            self.frames.push(u, &mut self.ledger, src.element, x, force);
+            if tgt.element != GROUND {
+                self.frames.push(u, &mut self.ledger, tgt.element, x, -force);
+            }
+            energy += 0.5 * w * (tn * lerp(depth, xi) - ts * lerp(slip, xi));
+        }
+        energy
+    }
+}
+
+/// The current frames of the elements: where a force on a moving element acts.
+#[derive(Debug, Clone)]
+struct Frames {
+    formulation: Formulation,
+    /// Reference centroids (m).
+    centroids: Vec<Vec2>,
+}
+
+impl Frames {
+    /// Current position of the point at reference offset `d` of element `e` (finite rotation).
+    fn place(&self, u: &[f64], e: usize, d: Vec2) -> Vec2 {
+        let nd = self.formulation.ndof();
+        let ue = &u[e * nd..(e + 1) * nd];
+        self.centroids[e] + Vec2::new(ue[0], ue[1]) + rotation(ue[2]) * (d + strain(self.formulation, ue, d))
+    }
+
+    /// `f_c += N_eᵀ F` for a force `F` at the current point `x` of element `e`, through the
+    /// element's current position and rotation.
+    fn push(&self, u: &[f64], ledger: &mut Ledger, e: u32, x: Vec2, force: Vec2) {
+        let nd = self.formulation.ndof();
+        let e = e as usize;
+        let ue = &u[e * nd..(e + 1) * nd];
+        let r = rotation(ue[2]);
+        let d = r.transpose() * (x - self.centroids[e] - Vec2::new(ue[0], ue[1]));
+        let mut q = [0.0; 6];
+        self.formulation.add_point_force(&mut q[..nd], d, r.transpose() * force);
+        // The translation entries hold Rᵀ F, in the element's frame: back to global axes.
+        q[0] = force.x;
+        q[1] = force.y;
+        ledger.add(e, &q[..nd]);
+    }
+}
+
+/// The fraction interval of an edge that is inside (`depth ≥ 0`) and within the target's span
+/// (`0 ≤ along ≤ 1`), both linear along the edge; `None` if empty.
+fn clip(depth: [f64; 2], along: [f64; 2]) -> Option<(f64, f64)> {
+    let (mut a, mut b) = (0.0f64, 1.0f64);
+    // Where a linear function `v0 + ξ (v1 − v0)` is ≥ `lo` (and ≤ `hi`).
+    let mut keep = |v: [f64; 2], lo: f64, hi: f64| {
+        let dv = v[1] - v[0];
+        if dv == 0.0 {
+            if v[0] < lo || v[0] > hi {
+                b = a - 1.0;
+            }
+            return;
+        }
+        let (x_lo, x_hi) = ((lo - v[0]) / dv, (hi - v[0]) / dv);
+        let (p, q) = if dv > 0.0 { (x_lo, x_hi) } else { (x_hi, x_lo) };
+        a = a.max(p);
+        b = b.min(q);
+    };
+    keep(depth, 0.0, f64::INFINITY);
+    keep(along, 0.0, 1.0);
+    (b > a).then_some((a, b))
+}
+
+/// A vertex that starts inside an edge, within `tol` of it and within its span: a contact from
+/// the start (crossing point: its projection), e.g. a block placed at rest on the ground.
+fn start_inside(m: Vec2, b1: Vec2, b2: Vec2, tol: f64) -> Option<(f64, f64)> {
+    let (s, n, l) = frame(b1, b2);
+    let depth = -(m - b1).dot(&n);
+    let along = (m - b1).dot(&s) / l;
+    (depth > 0.0 && depth <= 0.05 * tol && (0.0..=1.0).contains(&along)).then_some((depth, along))
+}
+
+/// The rotation matrix of angle `theta`.
+fn rotation(theta: f64) -> nalgebra::Matrix2<f64> {
+    let (s, c) = theta.sin_cos();
+    nalgebra::Matrix2::new(c, -s, s, c)
+}
+
+/// The strain part `E_e d` of an element's displacement at offset `d` (zero for rigid).
+fn strain(formulation: Formulation, ue: &[f64], d: Vec2) -> Vec2 {
+    match formulation {
+        Formulation::Rigid => Vec2::zeros(),
+        Formulation::Hybrid { .. } => {
+            let mut w = [0.0; 6];
+            w[3..].copy_from_slice(&ue[3..6]);
+            formulation.displacement(&w, d)
+        }
+    }
+}
+
+/// The stiffness of every contact closed at once against rigid ground, per element (row-major
+/// `ndof × ndof` blocks): each boundary edge pressed with `k_n` in every direction
+/// (edge-to-edge), or each boundary vertex with `k_n ℓ_trib` (point). Contacts between bodies
+/// are softer (their springs are in series), so `ω_max` with these blocks bounds the stable
+/// step of a contact run from below.
+pub fn stiffness_estimate(model: &Model, contact: &Contact) -> Vec<f64> {
+    let nd = model.formulation.ndof();
+    let t = model.thickness;
+    let mut blocks = vec![0.0; model.elements.len() * nd * nd];
+    let mut add = |e: usize, d: Vec2, weight: f64| {
+        // weight · N(d)ᵀ N(d), with the rows of N from the generalised forces of unit forces.
+        let rows = [Vec2::new(1.0, 0.0), Vec2::new(0.0, 1.0)].map(|dir| model.formulation.point_load(d, dir, 0.0));
+        for i in 0..nd {
+            for j in 0..nd {
+                blocks[(e * nd + i) * nd + j] += weight * (rows[0][i] * rows[0][j] + rows[1][i] * rows[1][j]);
+            }
+        }
+    };
+    for edge in contact.edges.iter().filter(|e| e.element != GROUND) {
+        let e = edge.element as usize;
+        let k = contact.factor / edge.compliance[0];
+        match contact.settings.model {
+            ContactModel::EdgeToEdge => {
+                let [a, b] = edge.ends.map(|v| contact.vertices[v as usize].offset);
+                for g in [-1.0, 1.0] {
+                    let xi = 0.5 * (1.0 + g / 3f64.sqrt());
+                    add(e, a + xi * (b - a), t * k * 0.5 * edge.length);
+                }
+            }
+            // Half of each edge at each of its ends; a vertex's springs are then at most the
+            // stiffest of its edges' (the record averages them).
+            ContactModel::Point => {
+                for v in edge.ends {
+                    add(e, contact.vertices[v as usize].offset, t * k * 0.5 * edge.length);
+                }
+            }
+        }
+    }
+    blocks
+}
+
+/// An evaluator plus a block-diagonal stiffness (for `ω_max` with the contact estimate).
+pub struct WithBlocks<'a> {
+    pub inner: &'a dyn Evaluator,
+    pub nd: usize,
+    pub blocks: Vec<f64>,
+}
+
+impl Evaluator for WithBlocks<'_> {
+    fn kind(&self) -> EvaluatorKind {
+        self.inner.kind()
+    }
+    fn internal_force(&self, u: &[f64], f: &mut [f64]) {
+        self.inner.internal_force(u, f);
+        let nd = self.nd;
+        for (e, (fe, ue)) in f.chunks_exact_mut(nd).zip(u.chunks_exact(nd)).enumerate() {
+            let b = &self.blocks[e * nd * nd..(e + 1) * nd * nd];
+            for i in 0..nd {
+                fe[i] += (0..nd).map(|j| b[i * nd + j] * ue[j]).sum::<f64>();
+            }
+        }
+    }
+}
