@@ -4,6 +4,7 @@ pub mod error;
 pub mod evaluator;
 pub mod formulation;
 pub mod geometry;
+pub mod hopping;
 pub mod integrator;
 pub mod loads;
 pub mod mass;

@@ -236,8 +236,11 @@ impl Contact {
                 ContactModel::Point => self.point_forces(u),
                 ContactModel::EdgeToEdge => self.edge_forces(u),
             };
-            if self.step.is_some() {
-                self.ledger.add_work(velocity, dt);
+            match self.step {
+                Some(_) => self.ledger.add_work(velocity, dt),
+                // Springs already pressed at the start (a body placed at rest on another) hold
+                // energy that no work of this run put in.
+                None => self.ledger.work = -self.stored,
             }
             let n = self.vertices.len();
             self.previous.copy_from_slice(&self.points[..n]);
@@ -295,6 +298,10 @@ impl Contact {
                     self.stats.tests += 1;
                     let [b1, b2] = edge.ends.map(|i| self.points[i as usize]);
                     let found = if self.step.is_some() {
+                        // The path relative to the edge: where `p` was with respect to the edge's
+                        // previous position, carried to its current one (`p` itself for ground).
+                        let [a1, a2] = edge.ends.map(|i| if (i as usize) < n { self.previous[i as usize] } else { self.points[i as usize] });
+                        let p = relative_start(p, a1, a2, b1, b2);
                         entry(p, m, b1, b2).map(|lambda| (gap(m, b1, b2, lambda).normal, lambda))
                     } else {
                         start_inside(m, b1, b2, self.size(v))
@@ -486,11 +493,10 @@ struct Frames {
 }
 
 impl Frames {
-    /// Current position of the point at reference offset `d` of element `e` (finite rotation).
+    /// Current position of the point at reference offset `d` of element `e`.
     fn place(&self, u: &[f64], e: usize, d: Vec2) -> Vec2 {
         let nd = self.formulation.ndof();
-        let ue = &u[e * nd..(e + 1) * nd];
-        self.centroids[e] + Vec2::new(ue[0], ue[1]) + rotation(ue[2]) * (d + strain(self.formulation, ue, d))
+        current_position(self.formulation, self.centroids[e], &u[e * nd..(e + 1) * nd], d)
     }
 
     /// `f_c += N_eᵀ F` for a force `F` at the current point `x` of element `e`, through the
@@ -533,6 +539,18 @@ fn clip(depth: [f64; 2], along: [f64; 2]) -> Option<(f64, f64)> {
     (b > a).then_some((a, b))
 }
 
+/// The point with the same coordinates in the frame of the edge `b1 → b2` as `p` has in the
+/// frame of `a1 → a2` (the same edge one step earlier).
+fn relative_start(p: Vec2, a1: Vec2, a2: Vec2, b1: Vec2, b2: Vec2) -> Vec2 {
+    if a1 == b1 && a2 == b2 {
+        return p;
+    }
+    let (s0, n0, _) = frame(a1, a2);
+    let (s1, n1, _) = frame(b1, b2);
+    let d = p - a1;
+    b1 + d.dot(&s0) * s1 + d.dot(&n0) * n1
+}
+
 /// A vertex that starts inside an edge, within `tol` of it and within its span: a contact from
 /// the start (crossing point: its projection), e.g. a block placed at rest on the ground.
 fn start_inside(m: Vec2, b1: Vec2, b2: Vec2, tol: f64) -> Option<(f64, f64)> {
@@ -540,6 +558,12 @@ fn start_inside(m: Vec2, b1: Vec2, b2: Vec2, tol: f64) -> Option<(f64, f64)> {
     let depth = -(m - b1).dot(&n);
     let along = (m - b1).dot(&s) / l;
     (depth > 0.0 && depth <= 0.05 * tol && (0.0..=1.0).contains(&along)).then_some((depth, along))
+}
+
+/// Where the point at reference offset `d` from the centroid `x_e` of an element with DOFs `ue`
+/// is, with the finite rotation of the element: `x_e + u_e + R(θ_e)(d + E_e d)`.
+pub fn current_position(formulation: Formulation, centroid: Vec2, ue: &[f64], d: Vec2) -> Vec2 {
+    centroid + Vec2::new(ue[0], ue[1]) + rotation(ue[2]) * (d + strain(formulation, ue, d))
 }
 
 /// The rotation matrix of angle `theta`.

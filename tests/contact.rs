@@ -1,0 +1,230 @@
+//! Contact (eqs. 17–20): the hopping block against its theory, tilted landings, friction on an
+//! incline, a block at rest, a falling stack, and no contact work without contact.
+
+use rbsm::contact::Contact;
+use rbsm::hopping::{centre_velocity, lowest_point, Theory, Tracker};
+use rbsm::integrator::{CentralDifference, Status};
+use rbsm::run::{Prepared, RunOptions};
+use rbsm::scene::Scene;
+
+const E: f64 = 5.127e9;
+const NU: f64 = 0.112;
+const RHO: f64 = 1850.0;
+const G: f64 = 9.80665;
+const B: f64 = 0.21;
+const D: f64 = 0.06;
+const T: f64 = 0.1;
+
+/// The paper's brick (`cells` elements), lower face at `height` before a rotation of `tilt`
+/// degrees about its centroid, over a ground line through the origin at `slope` degrees.
+fn brick(cells: [usize; 2], model: &str, friction: Option<f64>, tilt: f64, height: f64, slope: f64) -> String {
+    let (s, c) = slope.to_radians().sin_cos();
+    // Centroid on the normal through the origin of the ground line, `D/2 + height` above it.
+    let centre = [-(D / 2.0 + height) * s, (D / 2.0 + height) * c];
+    let friction = friction.map_or("null".to_string(), |m| m.to_string());
+    format!(
+        r#"{{
+        "name": "brick", "plane": "stress", "thickness": {T},
+        "formulation": {{"kind": "rigid"}}, "evaluator": "element-wise",
+        "gravity": [0.0, -{G}],
+        "materials": {{"brick": {{"E": {E}, "nu": {NU}, "rho": {RHO}}}}},
+        "bodies": [{{"name": "brick", "material": "brick",
+            "mesh": {{"kind": "grid", "origin": [{}, {}], "size": [{B}, {D}], "cells": [{}, {}], "cell": "rect"}},
+            "initial": {{"rotation_deg": {}}}}}],
+        "ground": [{{"from": [{}, {}], "to": [{}, {}]}}],
+        "contact": {{"model": "{model}", "friction": {friction}}},
+        "time": {{"dt": 1e-6, "steps": 1}}
+    }}"#,
+        centre[0] - B / 2.0,
+        centre[1] - D / 2.0,
+        cells[0],
+        cells[1],
+        tilt + slope,
+        -2.0 * c,
+        -2.0 * s,
+        2.0 * c,
+        2.0 * s
+    )
+}
+
+/// The flat landing of the single rigid brick: `K_c = k_n B t` with `k_n = E'/(D/2)`.
+fn theory(height: f64) -> Theory {
+    let e_prime = E / (1.0 - NU * NU);
+    Theory { mass: RHO * B * D * T, stiffness: e_prime / (D / 2.0) * B * T, g: G, height }
+}
+
+struct Outcome {
+    tracker: Tracker,
+    drift: f64,
+    status: Status,
+    /// Largest |θ| of element 0 and its final value.
+    max_rotation: f64,
+    final_u: Vec<f64>,
+    final_v: Vec<f64>,
+    max_pairs: usize,
+    tests_per_step: f64,
+}
+
+/// Runs `scene` for `steps` steps of `dt`, sampling every step.
+fn run(scene: &str, dt: f64, steps: u64) -> Outcome {
+    let scene = Scene::from_json(scene).expect("valid scene");
+    let p = Prepared::new(&scene, &RunOptions { dt: Some(dt), steps: Some(steps), ..Default::default() }).expect("model");
+    let mut cd = CentralDifference::new(&p.model, p.evaluator.as_ref(), &p.mass, &p.loads, dt);
+    let mut tracker = Tracker::default();
+    let mut max_rotation: f64 = 0.0;
+    let nd = p.model.formulation.ndof();
+    let status = cd
+        .run(
+            steps,
+            1,
+            |s, _| {
+                tracker.push(s.t, lowest_point(&p.model, s.u), centre_velocity(&p.model, s.v).y);
+                max_rotation = max_rotation.max((0..p.model.elements.len()).map(|e| s.u[e * nd + 2].abs()).fold(0.0, f64::max));
+                Ok(())
+            },
+            |_| {},
+        )
+        .unwrap();
+    let c = cd.contact.as_ref().expect("contact scene");
+    Outcome {
+        tracker,
+        drift: cd.max_relative_drift(),
+        status,
+        max_rotation,
+        final_u: cd.u.clone(),
+        final_v: cd.velocity().to_vec(),
+        max_pairs: c.stats.max_pairs,
+        tests_per_step: c.stats.tests as f64 / c.stats.steps as f64,
+    }
+}
+
+/// One bounce of the flat single brick from 0.2 m, both contact models, against the theory.
+#[test]
+fn hopping_block_matches_the_theory_of_a_flat_landing() {
+    let h = 0.2;
+    let th = theory(h);
+    let steps = (1.15 * th.period() / 1e-6) as u64;
+    for model in ["edge-to-edge", "point"] {
+        let o = run(&brick([1, 1], model, None, 0.0, h, 0.0), 1e-6, steps);
+        assert_eq!(o.status, Status::Ok);
+        let b = o.tracker.bounces[0];
+        let rel = |a: f64, b: f64| (a - b).abs() / b;
+        eprintln!("{model}: {b:?}; theory impact {} contact {} speed {}", th.impact_time(), th.contact_time(), th.impact_speed());
+        // Impact time and speed: free fall, exact up to the step (1e-6 s in 0.2 s).
+        assert!(rel(b.impact, th.impact_time()) < 1e-5, "impact at {} s", b.impact);
+        assert!(rel(b.impact_speed, th.impact_speed()) < 1e-5, "impact speed {}", b.impact_speed);
+        // Contact time against (π + 2 arcsin(δ_s/A))/ω: ~25 steps per contact, 1 % (measured 0.4 %).
+        assert!(rel(b.release - b.impact, th.contact_time()) < 0.01, "contact time {} s", b.release - b.impact);
+        // Rebound speed and apex: no energy loss, up to the penalty's O(Δt) onset error.
+        assert!(rel(b.rebound_speed, b.impact_speed) < 1e-3, "rebound speed {}", b.rebound_speed);
+        assert!(rel(b.apex, h) < 2e-3, "apex {} m", b.apex);
+        assert!(o.max_rotation < 1e-9, "a flat landing does not turn the block: θ = {}", o.max_rotation);
+        assert!(o.drift < 5e-3, "energy drift {}", o.drift);
+    }
+}
+
+/// The apex error shrinks with the step (the penalty contact's onset error).
+#[test]
+fn apex_error_converges_with_the_time_step() {
+    let h = 0.05;
+    let th = theory(h);
+    let errors: Vec<f64> = [4e-6, 1e-6]
+        .iter()
+        .map(|&dt| {
+            let o = run(&brick([1, 1], "edge-to-edge", None, 0.0, h, 0.0), dt, (1.3 * th.period() / dt) as u64);
+            (o.tracker.bounces[0].apex - h).abs() / h
+        })
+        .collect();
+    eprintln!("apex errors at dt = 4e-6, 1e-6: {errors:?}");
+    assert!(errors[1] < errors[0] / 3.0, "apex error {errors:?} does not fall with dt");
+}
+
+/// A 5° tilt: frictionless contact keeps the energy in both models, and the two models differ.
+#[test]
+fn tilted_landing_conserves_energy_without_friction() {
+    let h = 0.1;
+    let steps = (1.2 * theory(h).period() / 1e-6) as u64;
+    let mut rotations = Vec::new();
+    for model in ["edge-to-edge", "point"] {
+        let o = run(&brick([1, 1], model, Some(0.0), 5.0, h, 0.0), 1e-6, steps);
+        assert_eq!(o.status, Status::Ok);
+        eprintln!("{model}: drift {:e}, final θ {:e}, rate {:e}", o.drift, o.final_u[2], o.final_v[2]);
+        assert!(o.drift < 2e-3, "{model}: energy drift {}", o.drift);
+        rotations.push(o.final_v[2]);
+    }
+    assert!((rotations[0] - rotations[1]).abs() > 1e-3 * rotations[0].abs(), "the two models spin the block alike: {rotations:?}");
+}
+
+/// A brick at rest on flat ground, placed at its static penetration, stays there for 10⁵ steps.
+#[test]
+fn resting_block_stays_at_rest() {
+    let th = theory(0.0);
+    let static_depth = th.mass * G / th.stiffness;
+    for model in ["edge-to-edge", "point"] {
+        let o = run(&brick([1, 1], model, None, 0.0, -static_depth, 0.0), 1e-6, 100_000);
+        assert_eq!(o.status, Status::Ok);
+        let speed = o.final_v[..3].iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        let moved = o.final_u[..3].iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        eprintln!("{model}: static depth {static_depth:e} m, |v| {speed:e}, |u| {moved:e}, bounces {}", o.tracker.bounces.len());
+        assert!(speed < 1e-9 && moved < 1e-6 * static_depth, "{model}: drifted: |v| {speed:e} m/s, |u| {moved:e} m");
+    }
+}
+
+/// A brick on a 20° incline with μ = 0.2 slides at `g (sin α − μ cos α)`; with μ = 0.5 it holds.
+#[test]
+fn incline_with_friction_slides_at_the_coulomb_rate() {
+    let alpha = 20f64.to_radians();
+    let th = theory(0.0);
+    let depth = th.mass * G * alpha.cos() / th.stiffness;
+    for model in ["edge-to-edge", "point"] {
+        for mu in [0.2, 0.5] {
+            let (t1, t2) = (0.05, 0.1);
+            let o_speed = |steps: u64| {
+                let o = run(&brick([1, 1], model, Some(mu), 0.0, -depth, 20.0), 1e-6, steps);
+                assert_eq!(o.status, Status::Ok);
+                // Down the slope.
+                -(o.final_v[0] * alpha.cos() + o.final_v[1] * alpha.sin())
+            };
+            let (v1, v2) = (o_speed((t1 / 1e-6) as u64), o_speed((t2 / 1e-6) as u64));
+            let a = (v2 - v1) / (t2 - t1);
+            let expected = (G * (alpha.sin() - mu * alpha.cos())).max(0.0);
+            eprintln!("{model}, μ = {mu}: a = {a:.5} m/s², Coulomb {expected:.5}");
+            if expected > 0.0 {
+                assert!((a - expected).abs() < 0.01 * expected, "{model}: a = {a}, expected {expected}");
+            } else {
+                assert!(a.abs() < 1e-3 && v2.abs() < 1e-3, "{model}: a block that should stick moves: v = {v2}, a = {a}");
+            }
+        }
+    }
+}
+
+/// Three bricks stacked with offsets topple onto the ground: multi-body contact works, the
+/// broad phase tests only nearby pairs, nothing sinks in and the energy balance holds.
+#[test]
+fn a_toppling_stack_of_bricks() {
+    let scene = include_str!("../examples/scenes/toppling_stack.json");
+    let parsed = Scene::from_json(scene).unwrap();
+    let p = Prepared::new(&parsed, &RunOptions::default()).unwrap();
+    let o = run(scene, p.dt, 150_000);
+    assert_eq!(o.status, Status::Ok);
+    let model = &p.model;
+    // Boundary vertices (one per boundary edge of a closed boundary) against boundary edges
+    // of the other bodies and the ground.
+    let edges: usize = model.bodies.iter().map(|b| b.mesh.boundary.len()).sum();
+    let all_pairs = edges * (edges - edges / model.bodies.len() + model.ground.len());
+    eprintln!("stack: max pairs {}, tests/step {:.1} (all pairs {all_pairs}), drift {:e}", o.max_pairs, o.tests_per_step, o.drift);
+    assert!(o.max_pairs >= 3, "the bricks touch each other and the ground: {} pairs", o.max_pairs);
+    assert!(o.tests_per_step < 0.6 * all_pairs as f64, "broad phase: {} tests per step", o.tests_per_step);
+    assert!(o.drift < 0.01, "energy drift {}", o.drift);
+    assert!(lowest_point(model, &o.final_u) > -1e-3, "a brick sank into the ground");
+}
+
+/// A scene without `contact` builds no contact and so does no contact work.
+#[test]
+fn no_contact_without_contact() {
+    let scene = Scene::from_json(&std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/examples/scenes/cantilever.json")).unwrap()).unwrap();
+    let p = Prepared::new(&scene, &RunOptions::default()).unwrap();
+    assert!(Contact::new(&p.model).is_none());
+    let cd = CentralDifference::new(&p.model, p.evaluator.as_ref(), &p.mass, &p.loads, p.dt);
+    assert!(cd.contact.is_none());
+}
