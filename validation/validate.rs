@@ -5,6 +5,8 @@
 //! Run: `cargo run --release --example validate` (about a minute). Exit code 1 if a check fails.
 //! `-- --bless` rewrites `reference.json` from this run (after a deliberate change).
 
+#[path = "contact.rs"]
+mod contact;
 #[path = "fem.rs"]
 mod fem;
 
@@ -611,6 +613,7 @@ fn main() {
     critical_time_step(&mut r);
     parity(&mut r);
     hybrid(&mut r);
+    contact::contact(&mut r);
     // Checks: bounds, and figures against the reference.
     let reference: BTreeMap<String, f64> = std::fs::read_to_string(dir.join("reference.json"))
         .ok()

@@ -338,11 +338,13 @@ impl Contact {
         let target = &self.edges[e as usize];
         let [b1, b2] = target.ends.map(|i| self.points[i as usize]);
         let (_, n_target, _) = frame(b1, b2);
-        // Half of each of the vertex's edges that faces the target (outward normals opposed);
-        // all of them when none does (a corner poking in edge-first).
+        // Half of each of the vertex's edges that faces the target (outward normals within 60°
+        // of opposed: a threshold well away from the side faces of a flat landing, where
+        // `n · n_target` is 0 and round-off would pick one corner's side and not the other's);
+        // all of them when none does.
         let faces = |k: u32| {
             let [a, b] = self.edges[k as usize].ends.map(|i| self.points[i as usize]);
-            frame(a, b).1.dot(&n_target) < 0.0
+            frame(a, b).1.dot(&n_target) <= -0.5
         };
         let mine = self.vertices[v as usize].edges.map(|k| (k != NONE).then_some(k)).into_iter().flatten();
         let any_facing = mine.clone().any(faces);
