@@ -137,3 +137,56 @@ pub fn centre_velocity(model: &Model, v: &[f64]) -> Vec2 {
     }
     p / m
 }
+
+/// The paper's brick (§4; DESIGN.md §10) as a scene, and the theory of its flat landing: the
+/// one definition the tests, the validation report and the examples use.
+pub mod brick {
+    use super::Theory;
+
+    /// Young's modulus (Pa), Poisson's ratio, density (kg/m³), gravity (m/s²).
+    pub const E: f64 = 5.127e9;
+    pub const NU: f64 = 0.112;
+    pub const RHO: f64 = 1850.0;
+    pub const G: f64 = 9.80665;
+    /// Width `B`, depth `D` and thickness `t` (m).
+    pub const WIDTH: f64 = 0.21;
+    pub const DEPTH: f64 = 0.06;
+    pub const THICKNESS: f64 = 0.1;
+
+    /// A scene of the brick as `cells` rigid elements, its lower face at `height` above a
+    /// ground line through the origin at `slope` degrees, then turned by `tilt` degrees about
+    /// its centroid; `model` is the contact model, `friction` its `μ` (`None`: no slip limit).
+    /// The time step is half the computed `Δt_crit`, one step (callers override both).
+    pub fn scene(cells: [usize; 2], model: &str, friction: Option<f64>, tilt: f64, height: f64, slope: f64) -> String {
+        let (s, c) = slope.to_radians().sin_cos();
+        // Centroid on the normal through the origin of the ground line, `D/2 + height` above it.
+        let centre = [-(DEPTH / 2.0 + height) * s, (DEPTH / 2.0 + height) * c];
+        let friction = friction.map_or("null".to_string(), |m| m.to_string());
+        format!(
+            r#"{{"name": "brick", "plane": "stress", "thickness": {THICKNESS}, "formulation": {{"kind": "rigid"}},
+            "evaluator": "element-wise", "gravity": [0.0, -{G}],
+            "materials": {{"brick": {{"E": {E}, "nu": {NU}, "rho": {RHO}}}}},
+            "bodies": [{{"name": "brick", "material": "brick",
+                "mesh": {{"kind": "grid", "origin": [{}, {}], "size": [{WIDTH}, {DEPTH}], "cells": [{}, {}], "cell": "rect"}},
+                "initial": {{"rotation_deg": {}}}}}],
+            "ground": [{{"from": [{}, {}], "to": [{}, {}]}}],
+            "contact": {{"model": "{model}", "friction": {friction}}},
+            "time": {{"dt_factor": 0.5, "steps": 1}}}}"#,
+            centre[0] - WIDTH / 2.0,
+            centre[1] - DEPTH / 2.0,
+            cells[0],
+            cells[1],
+            tilt + slope,
+            -2.0 * c,
+            -2.0 * s,
+            2.0 * c,
+            2.0 * s
+        )
+    }
+
+    /// The flat landing of the single rigid brick from `height`: `K_c = k_n B t` with
+    /// `k_n = E'/(D/2)` (eq. 12, `h_b = 0`, plane stress).
+    pub fn theory(height: f64) -> Theory {
+        Theory { mass: RHO * WIDTH * DEPTH * THICKNESS, stiffness: E / (1.0 - NU * NU) / (DEPTH / 2.0) * WIDTH * THICKNESS, g: G, height }
+    }
+}

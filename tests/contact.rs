@@ -2,56 +2,12 @@
 //! incline, a block at rest, a falling stack, and no contact work without contact.
 
 use rbsm::contact::Contact;
-use rbsm::hopping::{centre_velocity, lowest_point, Theory, Tracker};
+use rbsm::hopping::{centre_velocity, lowest_point, Tracker};
 use rbsm::integrator::{CentralDifference, Status};
 use rbsm::run::{Prepared, RunOptions};
 use rbsm::scene::Scene;
 
-const E: f64 = 5.127e9;
-const NU: f64 = 0.112;
-const RHO: f64 = 1850.0;
-const G: f64 = 9.80665;
-const B: f64 = 0.21;
-const D: f64 = 0.06;
-const T: f64 = 0.1;
-
-/// The paper's brick (`cells` elements), lower face at `height` before a rotation of `tilt`
-/// degrees about its centroid, over a ground line through the origin at `slope` degrees.
-fn brick(cells: [usize; 2], model: &str, friction: Option<f64>, tilt: f64, height: f64, slope: f64) -> String {
-    let (s, c) = slope.to_radians().sin_cos();
-    // Centroid on the normal through the origin of the ground line, `D/2 + height` above it.
-    let centre = [-(D / 2.0 + height) * s, (D / 2.0 + height) * c];
-    let friction = friction.map_or("null".to_string(), |m| m.to_string());
-    format!(
-        r#"{{
-        "name": "brick", "plane": "stress", "thickness": {T},
-        "formulation": {{"kind": "rigid"}}, "evaluator": "element-wise",
-        "gravity": [0.0, -{G}],
-        "materials": {{"brick": {{"E": {E}, "nu": {NU}, "rho": {RHO}}}}},
-        "bodies": [{{"name": "brick", "material": "brick",
-            "mesh": {{"kind": "grid", "origin": [{}, {}], "size": [{B}, {D}], "cells": [{}, {}], "cell": "rect"}},
-            "initial": {{"rotation_deg": {}}}}}],
-        "ground": [{{"from": [{}, {}], "to": [{}, {}]}}],
-        "contact": {{"model": "{model}", "friction": {friction}}},
-        "time": {{"dt": 1e-6, "steps": 1}}
-    }}"#,
-        centre[0] - B / 2.0,
-        centre[1] - D / 2.0,
-        cells[0],
-        cells[1],
-        tilt + slope,
-        -2.0 * c,
-        -2.0 * s,
-        2.0 * c,
-        2.0 * s
-    )
-}
-
-/// The flat landing of the single rigid brick: `K_c = k_n B t` with `k_n = E'/(D/2)`.
-fn theory(height: f64) -> Theory {
-    let e_prime = E / (1.0 - NU * NU);
-    Theory { mass: RHO * B * D * T, stiffness: e_prime / (D / 2.0) * B * T, g: G, height }
-}
+use rbsm::hopping::brick::{self, G};
 
 struct Outcome {
     tracker: Tracker,
@@ -102,10 +58,10 @@ fn run(scene: &str, dt: f64, steps: u64) -> Outcome {
 #[test]
 fn hopping_block_matches_the_theory_of_a_flat_landing() {
     let h = 0.2;
-    let th = theory(h);
+    let th = brick::theory(h);
     let steps = (1.15 * th.period() / 1e-6) as u64;
     for model in ["edge-to-edge", "point"] {
-        let o = run(&brick([1, 1], model, None, 0.0, h, 0.0), 1e-6, steps);
+        let o = run(&brick::scene([1, 1], model, None, 0.0, h, 0.0), 1e-6, steps);
         assert_eq!(o.status, Status::Ok);
         let b = o.tracker.bounces[0];
         let rel = |a: f64, b: f64| (a - b).abs() / b;
@@ -127,11 +83,11 @@ fn hopping_block_matches_the_theory_of_a_flat_landing() {
 #[test]
 fn apex_error_converges_with_the_time_step() {
     let h = 0.05;
-    let th = theory(h);
+    let th = brick::theory(h);
     let errors: Vec<f64> = [4e-6, 1e-6]
         .iter()
         .map(|&dt| {
-            let o = run(&brick([1, 1], "edge-to-edge", None, 0.0, h, 0.0), dt, (1.3 * th.period() / dt) as u64);
+            let o = run(&brick::scene([1, 1], "edge-to-edge", None, 0.0, h, 0.0), dt, (1.3 * th.period() / dt) as u64);
             (o.tracker.bounces[0].apex - h).abs() / h
         })
         .collect();
@@ -143,10 +99,10 @@ fn apex_error_converges_with_the_time_step() {
 #[test]
 fn tilted_landing_conserves_energy_without_friction() {
     let h = 0.1;
-    let steps = (1.2 * theory(h).period() / 1e-6) as u64;
+    let steps = (1.2 * brick::theory(h).period() / 1e-6) as u64;
     let mut rotations = Vec::new();
     for model in ["edge-to-edge", "point"] {
-        let o = run(&brick([1, 1], model, Some(0.0), 5.0, h, 0.0), 1e-6, steps);
+        let o = run(&brick::scene([1, 1], model, Some(0.0), 5.0, h, 0.0), 1e-6, steps);
         assert_eq!(o.status, Status::Ok);
         eprintln!("{model}: drift {:e}, final θ {:e}, rate {:e}", o.drift, o.final_u[2], o.final_v[2]);
         assert!(o.drift < 2e-3, "{model}: energy drift {}", o.drift);
@@ -158,10 +114,10 @@ fn tilted_landing_conserves_energy_without_friction() {
 /// A brick at rest on flat ground, placed at its static penetration, stays there for 10⁵ steps.
 #[test]
 fn resting_block_stays_at_rest() {
-    let th = theory(0.0);
+    let th = brick::theory(0.0);
     let static_depth = th.mass * G / th.stiffness;
     for model in ["edge-to-edge", "point"] {
-        let o = run(&brick([1, 1], model, None, 0.0, -static_depth, 0.0), 1e-6, 100_000);
+        let o = run(&brick::scene([1, 1], model, None, 0.0, -static_depth, 0.0), 1e-6, 100_000);
         assert_eq!(o.status, Status::Ok);
         let speed = o.final_v[..3].iter().fold(0.0f64, |a, v| a.max(v.abs()));
         let moved = o.final_u[..3].iter().fold(0.0f64, |a, v| a.max(v.abs()));
@@ -174,13 +130,13 @@ fn resting_block_stays_at_rest() {
 #[test]
 fn incline_with_friction_slides_at_the_coulomb_rate() {
     let alpha = 20f64.to_radians();
-    let th = theory(0.0);
+    let th = brick::theory(0.0);
     let depth = th.mass * G * alpha.cos() / th.stiffness;
     for model in ["edge-to-edge", "point"] {
         for mu in [0.2, 0.5] {
             let (t1, t2) = (0.05, 0.1);
             let o_speed = |steps: u64| {
-                let o = run(&brick([1, 1], model, Some(mu), 0.0, -depth, 20.0), 1e-6, steps);
+                let o = run(&brick::scene([1, 1], model, Some(mu), 0.0, -depth, 20.0), 1e-6, steps);
                 assert_eq!(o.status, Status::Ok);
                 // Down the slope.
                 -(o.final_v[0] * alpha.cos() + o.final_v[1] * alpha.sin())

@@ -8,44 +8,10 @@ use rbsm::run::{Prepared, RunOptions};
 use rbsm::scene::Scene;
 use std::path::Path;
 
-const E: f64 = 5.127e9;
-const NU: f64 = 0.112;
-const RHO: f64 = 1850.0;
-const G: f64 = 9.80665;
-const B: f64 = 0.21;
-const D: f64 = 0.06;
-const T: f64 = 0.1;
+use rbsm::hopping::brick::{self, DEPTH as D, E, G, NU, RHO};
 
-/// The paper's brick as `cells` elements, lower face at `height` before a tilt about its
-/// centroid, over ground through the origin at `slope` degrees.
-fn brick(cells: [usize; 2], model: &str, friction: &str, tilt: f64, height: f64, slope: f64) -> Scene {
-    let (s, c) = slope.to_radians().sin_cos();
-    let centre = [-(D / 2.0 + height) * s, (D / 2.0 + height) * c];
-    let json = format!(
-        r#"{{"name": "brick", "plane": "stress", "thickness": {T}, "formulation": {{"kind": "rigid"}},
-            "evaluator": "element-wise", "gravity": [0.0, -{G}],
-            "materials": {{"brick": {{"E": {E}, "nu": {NU}, "rho": {RHO}}}}},
-            "bodies": [{{"name": "brick", "material": "brick",
-                "mesh": {{"kind": "grid", "origin": [{}, {}], "size": [{B}, {D}], "cells": [{}, {}], "cell": "rect"}},
-                "initial": {{"rotation_deg": {}}}}}],
-            "ground": [{{"from": [{}, {}], "to": [{}, {}]}}],
-            "contact": {{"model": "{model}", "friction": {friction}}},
-            "time": {{"dt_factor": 0.5, "steps": 1}}}}"#,
-        centre[0] - B / 2.0,
-        centre[1] - D / 2.0,
-        cells[0],
-        cells[1],
-        tilt + slope,
-        -2.0 * c,
-        -2.0 * s,
-        2.0 * c,
-        2.0 * s
-    );
-    Scene::from_json(&json).unwrap()
-}
-
-fn theory(height: f64) -> Theory {
-    Theory { mass: RHO * B * D * T, stiffness: E / (1.0 - NU * NU) / (D / 2.0) * B * T, g: G, height }
+fn brick_scene(cells: [usize; 2], model: &str, friction: Option<f64>, tilt: f64, height: f64, slope: f64) -> Scene {
+    Scene::from_json(&rbsm::hopping::brick::scene(cells, model, friction, tilt, height, slope)).unwrap()
 }
 
 /// What one run gives.
@@ -167,7 +133,7 @@ pub fn contact(r: &mut Report) {
 
     // 8.1 Ten bounces from 1 m, single rigid element.
     let h = 1.0;
-    let th = theory(h);
+    let th = brick::theory(h);
     let end = 10.0 * th.period() + 0.2;
     r.line(&format!(
         "### 8.1 Ten bounces from H = {h} m, one rigid element, Δt = 1 µs\n\nTheory: impact at √(2H/g) = {:.6} s with \
@@ -189,7 +155,7 @@ pub fn contact(r: &mut Report) {
     r.line("|---|---|---|---|---|---|---|");
     let mut traces = vec![("theory", theory_curve(&th, end, 4000))];
     for model in ["edge-to-edge", "point"] {
-        let o = run(&brick([1, 1], model, "null", 0.0, h, 0.0), Some(1e-6), end, 1e-3);
+        let o = run(&brick_scene([1, 1], model, None, 0.0, h, 0.0), Some(1e-6), end, 1e-3);
         let b = &o.tracker.bounces;
         let key = model.replace('-', "_");
         let tilt = |i: usize| {
@@ -228,12 +194,12 @@ pub fn contact(r: &mut Report) {
     r.line("| Δt (s) | edge-to-edge apex err. | point apex err. | steps per contact |");
     r.line("|---|---|---|---|");
     let h2 = 0.2;
-    let th2 = theory(h2);
+    let th2 = brick::theory(h2);
     let mut series: Vec<(&str, Vec<(f64, f64)>)> = vec![("edge-to-edge", vec![]), ("point", vec![])];
     for dt in [8e-6, 4e-6, 2e-6, 1e-6, 5e-7] {
         let mut row = format!("| {dt:.0e} |");
         for (k, model) in ["edge-to-edge", "point"].iter().enumerate() {
-            let o = run(&brick([1, 1], model, "null", 0.0, h2, 0.0), Some(dt), 1.3 * th2.period(), 1.0);
+            let o = run(&brick_scene([1, 1], model, None, 0.0, h2, 0.0), Some(dt), 1.3 * th2.period(), 1.0);
             let err = ((o.tracker.bounces[0].apex - h2) / h2).abs();
             series[k].1.push((dt, err));
             row.push_str(&format!(" {err:.3e} |"));
@@ -261,7 +227,7 @@ pub fn contact(r: &mut Report) {
     r.line("|---|---|---|---|---|---|---|---|---|");
     let c_bar = (E / (1.0 - NU * NU) / RHO).sqrt();
     for model in ["edge-to-edge", "point"] {
-        let o = run(&brick([21, 6], model, "null", 0.0, h2, 0.0), None, 2.0 * th2.period() + 0.05, 1e-3);
+        let o = run(&brick_scene([21, 6], model, None, 0.0, h2, 0.0), None, 2.0 * th2.period() + 0.05, 1e-3);
         let b = &o.tracker.bounces;
         let apex = |i: usize| b.get(i).map_or(f64::NAN, |x| (x.apex - h2) / h2);
         r.line(&format!(
@@ -292,22 +258,22 @@ pub fn contact(r: &mut Report) {
     r.line("| model | friction | apex 1 of the centroid over its start (m) | θ at 0.6 s (rad) | spin at 0.6 s (rad/s) | energy taken by contact (J) | energy drift |");
     r.line("|---|---|---|---|---|---|---|");
     let mut tilt_traces = Vec::new();
-    for friction in ["0", "null"] {
+    for friction in [Some(0.0), None] {
         for model in ["edge-to-edge", "point"] {
-            let o = run(&brick([1, 1], model, friction, 5.0, h2, 0.0), Some(1e-6), 0.6, 1e-3);
+            let o = run(&brick_scene([1, 1], model, friction, 5.0, h2, 0.0), Some(1e-6), 0.6, 1e-3);
             let apex = o.tracker.bounces.first().map_or(f64::NAN, |b| b.apex);
             r.line(&format!(
                 "| {model} | {} | {apex:.5} | {:.4} | {:.4} | {:.4} | {:.1e} |",
-                if friction == "0" { "μ = 0" } else { "none (stick)" },
+                if friction.is_some() { "μ = 0" } else { "none (stick)" },
                 o.final_u[2],
                 o.final_v[2],
                 o.contact_final,
                 o.drift
             ));
-            let key = format!("{}_{}", model.replace('-', "_"), if friction == "0" { "mu0" } else { "stick" });
+            let key = format!("{}_{}", model.replace('-', "_"), if friction.is_some() { "mu0" } else { "stick" });
             r.bound(&format!("8.4 {key} energy drift"), o.drift, 2e-3);
             r.figure(&format!("8.4 {key} spin at 0.6 s"), o.final_v[2], 0.05);
-            if friction == "0" {
+            if friction.is_some() {
                 tilt_traces.push((if model == "point" { "point, θ" } else { "edge-to-edge, θ" }, o.trace.iter().map(|p| (p.0, p.2)).collect()));
             }
         }
@@ -324,10 +290,10 @@ pub fn contact(r: &mut Report) {
     r.line("| model | μ | a measured (m/s²) | a Coulomb (m/s²) | rel. error |");
     r.line("|---|---|---|---|---|");
     let alpha = 20f64.to_radians();
-    let depth = |cos: f64| theory(0.0).mass * G * cos / theory(0.0).stiffness;
+    let depth = |cos: f64| brick::theory(0.0).mass * G * cos / brick::theory(0.0).stiffness;
     for model in ["edge-to-edge", "point"] {
         for mu in [0.2, 0.5] {
-            let scene = brick([1, 1], model, &mu.to_string(), 0.0, -depth(alpha.cos()), 20.0);
+            let scene = brick_scene([1, 1], model, Some(mu), 0.0, -depth(alpha.cos()), 20.0);
             let speed = |end: f64| {
                 let o = run(&scene, Some(1e-6), end, 1.0);
                 -(o.final_v[0] * alpha.cos() + o.final_v[1] * alpha.sin())
@@ -342,7 +308,7 @@ pub fn contact(r: &mut Report) {
     r.line("\n| model | steps at rest | static penetration (m) | max |v| at the end (m/s) | max |u| at the end (m) |");
     r.line("|---|---|---|---|---|");
     for model in ["edge-to-edge", "point"] {
-        let o = run(&brick([1, 1], model, "null", 0.0, -depth(1.0), 0.0), Some(1e-6), 0.1, 1.0);
+        let o = run(&brick_scene([1, 1], model, None, 0.0, -depth(1.0), 0.0), Some(1e-6), 0.1, 1.0);
         let v = o.final_v[..3].iter().fold(0.0f64, |a, x| a.max(x.abs()));
         let u = o.final_u[..3].iter().fold(0.0f64, |a, x| a.max(x.abs()));
         r.line(&format!("| {model} | {} | {:.3e} | {v:.1e} | {u:.1e} |", o.steps, depth(1.0)));
