@@ -1,42 +1,263 @@
-//! Time of one internal-force evaluation (the heart of an explicit step) for both evaluators on
-//! square grids and Voronoi meshes, reported per element: `cargo bench --bench step`.
+//! Time per explicit step (evaluator plus the central-difference update) of both evaluators,
+//! rigid and hybrid, on square grids and Voronoi meshes of 10³ … 10⁶ elements, on 1 and 2
+//! threads, as ns per element-step; each figure beside its memory-bound limit: the bytes a step
+//! must move divided by the bandwidth of a triad kernel measured in the same harness. Also the
+//! model build time of 10⁶ Voronoi elements, `ω_max` of 3 × 10⁶ DOFs and the bytes per element.
+//!
+//! `cargo bench --bench step` measures everything and rewrites `benches/summary.md`.
+//! `RBSM_BENCH_MAX=100000 cargo bench --bench step` stops at 10⁵ elements (a quick look; the
+//! summary is then not rewritten).
 
-use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
-use rbsm::evaluator;
+use criterion::Criterion;
+use rbsm::integrator::CentralDifference;
+use rbsm::loads::Loads;
+use rbsm::mass::Mass;
 use rbsm::model::Model;
 use rbsm::scene::{EvaluatorKind, Scene};
+use rbsm::{eigen, evaluator};
+use std::cell::RefCell;
+use std::fmt::Write as _;
+use std::time::{Duration, Instant};
 
-fn model(mesh: &str) -> Model {
+const SIZES: [usize; 4] = [1_000, 10_000, 100_000, 1_000_000];
+const THREADS: [usize; 2] = [1, 2];
+
+fn mesh_json(kind: &str, n: usize) -> String {
+    match kind {
+        "grid" => {
+            let k = (n as f64).sqrt().round() as usize;
+            format!(r#"{{"kind": "grid", "origin": [0, 0], "size": [1, 1], "cells": [{k}, {k}]}}"#)
+        }
+        _ => format!(r#"{{"kind": "voronoi", "origin": [0, 0], "size": [1, 1], "sites": {n}, "seed": 1, "lloyd": 2}}"#),
+    }
+}
+
+fn scene(mesh: &str, formulation: &str) -> Scene {
     let json = format!(
-        r#"{{"name": "bench", "thickness": 1.0, "formulation": {{"kind": "rigid"}},
+        r#"{{"name": "bench", "thickness": 1.0, "formulation": {formulation},
             "materials": {{"m": {{"E": 3e10, "nu": 0.2, "rho": 2400}}}},
             "bodies": [{{"name": "b", "material": "m", "mesh": {mesh},
-                         "supports": [{{"edge": "left", "kind": "ground-spring"}}]}}],
-            "time": {{"dt": 1e-6, "steps": 1}}}}"#
+                         "supports": [{{"edge": "left", "kind": "ground-spring"}}],
+                         "loads": [{{"kind": "traction", "edge": "right", "value": [1e6, 1e5]}}]}}],
+            "time": {{"dt": 1e-9, "steps": 1}}}}"#
     );
-    Model::build(&Scene::from_json(&json).unwrap()).unwrap()
+    Scene::from_json(&json).expect("the bench scene is valid")
 }
 
-fn internal_force(c: &mut Criterion) {
-    let mut group = c.benchmark_group("internal_force");
-    group.sample_size(20);
-    let meshes = [
-        ("grid", 10_000usize, r#"{"kind": "grid", "origin": [0, 0], "size": [1, 1], "cells": [100, 100]}"#.to_string()),
-        ("grid", 250_000, r#"{"kind": "grid", "origin": [0, 0], "size": [1, 1], "cells": [500, 500]}"#.to_string()),
-        ("voronoi", 10_000, r#"{"kind": "voronoi", "origin": [0, 0], "size": [1, 1], "sites": 10000, "seed": 1, "lloyd": 5}"#.to_string()),
-    ];
-    for (kind, n, mesh) in meshes {
-        let m = model(&mesh);
-        let u: Vec<f64> = (0..m.n_dofs()).map(|i| ((i * 7919) % 1000) as f64 * 1e-6).collect();
-        let mut f = vec![0.0; m.n_dofs()];
-        group.throughput(Throughput::Elements(n as u64));
-        for ev in [EvaluatorKind::Assembled, EvaluatorKind::ElementWise] {
-            let e = evaluator::build(&m, ev);
-            group.bench_with_input(BenchmarkId::new(format!("{kind}/{}", ev.name()), n), &n, |b, _| b.iter(|| e.internal_force(&u, &mut f)));
+const FORMULATIONS: [(&str, &str); 2] = [("rigid", r#"{"kind": "rigid"}"#), ("hybrid", r#"{"kind": "hybrid", "penalty": 10}"#)];
+
+/// Median of the per-step times recorded by the last criterion run.
+fn median(samples: &RefCell<Vec<f64>>, keep: usize) -> f64 {
+    let s = samples.borrow();
+    let mut last: Vec<f64> = s[s.len().saturating_sub(keep)..].to_vec();
+    last.sort_by(f64::total_cmp);
+    // NaN when the case was filtered out on the command line.
+    last.get(last.len() / 2).copied().unwrap_or(f64::NAN)
+}
+
+fn pool(threads: usize) -> rayon::ThreadPool {
+    rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("a thread pool")
+}
+
+/// `a = b + s c` over arrays far larger than the caches; returns bytes moved per second
+/// (three arrays of 8-byte values, as STREAM counts them).
+fn triad(c: &mut Criterion, threads: usize) -> f64 {
+    use rayon::prelude::*;
+    let n = 1 << 25;
+    let (mut a, b, cc) = (vec![0.0f64; n], vec![1.0f64; n], vec![2.0f64; n]);
+    let samples = RefCell::new(Vec::new());
+    let pool = pool(threads);
+    c.bench_function(&format!("triad/{threads}thr"), |bench| {
+        bench.iter_custom(|iters| {
+            let e = pool.install(|| {
+                let t0 = Instant::now();
+                for _ in 0..iters {
+                    a.par_chunks_mut(1 << 16).zip(b.par_chunks(1 << 16)).zip(cc.par_chunks(1 << 16)).for_each(|((a, b), c)| {
+                        for ((a, b), c) in a.iter_mut().zip(b).zip(c) {
+                            *a = b + 3.0 * c;
+                        }
+                    });
+                }
+                t0.elapsed()
+            });
+            samples.borrow_mut().push(e.as_secs_f64() / iters as f64);
+            e
+        })
+    });
+    std::hint::black_box(&a);
+    (3 * 8 * n) as f64 / median(&samples, 10)
+}
+
+struct Row {
+    mesh: &'static str,
+    formulation: &'static str,
+    evaluator: &'static str,
+    elements: usize,
+    threads: usize,
+    ns: f64,
+    bytes: f64,
+    bound_ns: f64,
+}
+
+fn main() {
+    let max: usize = std::env::var("RBSM_BENCH_MAX").ok().and_then(|s| s.parse::<f64>().ok()).map_or(usize::MAX, |x| x as usize);
+    let mut c = Criterion::default().sample_size(10).warm_up_time(Duration::from_millis(300)).measurement_time(Duration::from_secs(2)).configure_from_args();
+    let bandwidth: Vec<f64> = THREADS.iter().map(|&t| triad(&mut c, t)).collect();
+    let mut rows = Vec::new();
+    let mut builds = Vec::new();
+    for mesh in ["grid", "voronoi"] {
+        for n in SIZES.into_iter().filter(|&n| n <= max) {
+            for (fname, fjson) in FORMULATIONS {
+                let t0 = Instant::now();
+                let model = Model::build(&scene(&mesh_json(mesh, n), fjson)).expect("the bench model builds");
+                builds.push((mesh, fname, model.elements.len(), t0.elapsed().as_secs_f64()));
+                let (mass, loads) = (Mass::new(&model), Loads::new(&model));
+                let nd = model.formulation.ndof();
+                let inv_bytes = if mass.is_diagonal() { 8 * nd } else { 8 * nd * nd };
+                for kind in [EvaluatorKind::Assembled, EvaluatorKind::ElementWise] {
+                    let ev = evaluator::build(&model, kind);
+                    let ne = model.elements.len();
+                    // Evaluator data, U read and f written; then f, M⁻¹ read and v, U updated.
+                    let bytes = ev.bytes() as f64 / ne as f64 + (8 * nd * 7 + inv_bytes) as f64;
+                    let mut integrator = CentralDifference::new(&model, ev.as_ref(), &mass, &loads, 1e-9);
+                    for (ti, &threads) in THREADS.iter().enumerate() {
+                        let samples = RefCell::new(Vec::new());
+                        let pool = pool(threads);
+                        c.bench_function(&format!("step/{mesh}/{fname}/{}/{threads}thr/{ne}", kind.name()), |b| {
+                            b.iter_custom(|iters| {
+                                let e = pool.install(|| {
+                                    let t0 = Instant::now();
+                                    integrator.step_only(iters);
+                                    t0.elapsed()
+                                });
+                                samples.borrow_mut().push(e.as_secs_f64() / iters as f64);
+                                e
+                            })
+                        });
+                        let ns = median(&samples, 10) / ne as f64 * 1e9;
+                        let bound_ns = bytes / bandwidth[ti] * 1e9;
+                        rows.push(Row { mesh, formulation: fname, evaluator: kind.name(), elements: ne, threads, ns, bytes, bound_ns });
+                    }
+                }
+            }
         }
     }
-    group.finish();
+    c.final_summary();
+    if max < 1_000_000 {
+        eprintln!("RBSM_BENCH_MAX is set: benches/summary.md is left as it was");
+        return;
+    }
+    let extras = extras();
+    let summary = render(&bandwidth, &rows, &builds, &extras);
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/benches/summary.md");
+    std::fs::write(path, summary).expect("benches/summary.md is writable");
+    eprintln!("wrote {path}");
 }
 
-criterion_group!(benches, internal_force);
-criterion_main!(benches);
+/// Figures measured once (they take seconds each): memory per element of a ready 10⁶ rigid
+/// grid, `ω_max` of 3 × 10⁶ DOFs, and the cost of a declared contact with nothing touching.
+struct Extras {
+    rss_per_element: f64,
+    working_set: f64,
+    omega_max_s: f64,
+    dofs: usize,
+    contact_ns: [f64; 2],
+}
+
+fn rss_bytes() -> f64 {
+    let statm = std::fs::read_to_string("/proc/self/statm").unwrap_or_default();
+    statm.split_whitespace().nth(1).and_then(|p| p.parse::<f64>().ok()).unwrap_or(f64::NAN) * 4096.0
+}
+
+fn extras() -> Extras {
+    let before = rss_bytes();
+    let model = Model::build(&scene(&mesh_json("grid", 1_000_000), FORMULATIONS[0].1)).expect("the bench model builds");
+    let (mass, loads) = (Mass::new(&model), Loads::new(&model));
+    let ev = evaluator::build(&model, EvaluatorKind::ElementWise);
+    let integrator = CentralDifference::new(&model, ev.as_ref(), &mass, &loads, 1e-9);
+    let ne = model.elements.len() as f64;
+    let rss_per_element = (rss_bytes() - before) / ne;
+    // u, v, force, scratch and the guard's last good u and v; M⁻¹ (lumped: 8 B per DOF).
+    let working_set = ev.bytes() as f64 / ne + (6 + 1) as f64 * 8.0 * 3.0;
+    drop(integrator);
+    let t0 = Instant::now();
+    std::hint::black_box(eigen::omega_max(ev.as_ref(), &mass));
+    let omega_max_s = t0.elapsed().as_secs_f64();
+    let dofs = model.n_dofs();
+    drop((ev, model));
+    // A 10⁵-element rigid grid with and without a declared contact (a ground far below it).
+    let mut contact_ns = [0.0; 2];
+    for (k, extra) in ["", r#", "contact": {"model": "edge-to-edge"}, "ground": [{"from": [-1, -10], "to": [2, -10]}]"#].iter().enumerate() {
+        let json = format!(
+            r#"{{"name": "c", "formulation": {{"kind": "rigid"}}, "materials": {{"m": {{"E": 3e10, "nu": 0.2, "rho": 2400}}}},
+                "bodies": [{{"name": "b", "material": "m", "mesh": {}}}], "time": {{"dt": 1e-9, "steps": 1}}{extra}}}"#,
+            mesh_json("grid", 100_000)
+        );
+        let model = Model::build(&Scene::from_json(&json).expect("valid")).expect("builds");
+        let (mass, loads) = (Mass::new(&model), Loads::new(&model));
+        let ev = evaluator::build(&model, EvaluatorKind::ElementWise);
+        let mut integrator = CentralDifference::new(&model, ev.as_ref(), &mass, &loads, 1e-9);
+        let mut times: Vec<f64> = (0..7)
+            .map(|_| {
+                let t0 = Instant::now();
+                integrator.step_only(20);
+                t0.elapsed().as_secs_f64() / 20.0 / model.elements.len() as f64 * 1e9
+            })
+            .collect();
+        times.sort_by(f64::total_cmp);
+        contact_ns[k] = times[3];
+    }
+    Extras { rss_per_element, working_set, omega_max_s, dofs, contact_ns }
+}
+
+fn machine() -> String {
+    let cpu = std::fs::read_to_string("/proc/cpuinfo").unwrap_or_default();
+    let model = cpu.lines().find(|l| l.starts_with("model name")).and_then(|l| l.split(':').nth(1)).unwrap_or("unknown").trim().to_string();
+    let mem = std::fs::read_to_string("/proc/meminfo").unwrap_or_default();
+    let total = mem.lines().next().and_then(|l| l.split_whitespace().nth(1)).and_then(|k| k.parse::<f64>().ok()).unwrap_or(0.0) / 1048576.0;
+    format!("{model}, {} cores, {total:.1} GiB; rustc release profile", std::thread::available_parallelism().map_or(0, |n| n.get()))
+}
+
+fn render(bandwidth: &[f64], rows: &[Row], builds: &[(&str, &str, usize, f64)], x: &Extras) -> String {
+    let mut s = String::new();
+    let _ = writeln!(s, "# Step benchmark summary\n\nRegenerate with `cargo bench --bench step` (about 15 minutes). Machine: {}.\n", machine());
+    let _ = writeln!(s, "Triad bandwidth `a = b + s c` (3 × 8 bytes per entry): {} GB/s on 1 thread, {} GB/s on 2.\n",
+        fmt(bandwidth[0] / 1e9, 1), fmt(bandwidth[1] / 1e9, 1));
+    let _ = writeln!(s, "Each time is the median of 10 criterion samples, in ns per element-step: one step of the central-difference");
+    let _ = writeln!(s, "loop between its checks (evaluator, then the fused `v`, `U` update). *Bytes* is what one step must move per element");
+    let _ = writeln!(s, "(evaluator data, `U` read and `f` written, then `f`, `M⁻¹` read and `v`, `U` updated); *limit* is bytes / triad");
+    let _ = writeln!(s, "bandwidth, and *× limit* how far the step is from that memory bound.\n");
+    let _ = writeln!(s, "| mesh | formulation | evaluator | elements | bytes/elt | 1 thr ns | × limit | 2 thr ns | × limit |\n|---|---|---|---:|---:|---:|---:|---:|---:|");
+    for pair in rows.chunks(2) {
+        let (a, b) = (&pair[0], &pair[1]);
+        let _ = writeln!(s, "| {} | {} | {} | {} | {:.0} | {} | {} | {} | {} |", a.mesh, a.formulation, a.evaluator, a.elements, a.bytes,
+            fmt(a.ns, 1), fmt(a.ns / a.bound_ns, 2), fmt(b.ns, 1), fmt(b.ns / b.bound_ns, 2));
+    }
+    let find = |ev: &str, thr: usize| rows.iter().find(|r| r.mesh == "grid" && r.formulation == "rigid" && r.evaluator == ev && r.elements == 1_000_000 && r.threads == thr).map_or(f64::NAN, |r| r.ns);
+    let voronoi_build = builds.iter().filter(|b| b.0 == "voronoi" && b.1 == "rigid").map(|b| (b.2, b.3)).last().unwrap_or((0, f64::NAN));
+    let _ = writeln!(s, "\n## Targets (issue 6), 10⁶ rigid elements on a square grid\n\n| target | measured | met |\n|---|---|---|");
+    let mut target = |what: &str, measured: f64, limit: f64, unit: &str| {
+        let _ = writeln!(s, "| {what} ≤ {limit} {unit} | {} {unit} | {} |", fmt(measured, 1), if measured <= limit { "yes" } else { "**no**" });
+    };
+    target("element-wise, 1 thread", find("element-wise", 1), 15.0, "ns");
+    target("element-wise, 2 threads", find("element-wise", 2), 10.0, "ns");
+    target("assembled, 1 thread", find("assembled", 1), 30.0, "ns");
+    target("assembled, 2 threads", find("assembled", 2), 18.0, "ns");
+    target("element-wise working set per element", x.working_set, 500.0, "B");
+    target(&format!("Voronoi model build, {} elements", voronoi_build.0), voronoi_build.1, 10.0, "s");
+    target(&format!("ω_max of {} DOFs (Lanczos, element-wise)", x.dofs), x.omega_max_s, 60.0, "s");
+    let _ = writeln!(s, "\nThe working set is the evaluator's data, `M⁻¹` and the integrator's six vectors (`U`, `v`, `f`, the averaged");
+    let _ = writeln!(s, "velocity and the guard's last good `U`, `v`). The whole process grows by {} bytes per element from nothing to", fmt(x.rss_per_element, 0));
+    let _ = writeln!(s, "ready to step (resident memory; this adds the model itself: meshes, elements, interfaces).\n");
+    let _ = writeln!(s, "No allocation inside a step: `tests/allocation.rs` counts them. Contact: a 10⁵-element rigid grid steps in {} ns per", fmt(x.contact_ns[0], 1));
+    let _ = writeln!(s, "element without a `contact` section, which builds no contact engine; declaring contact with a ground far away costs {} ns", fmt(x.contact_ns[1], 1));
+    let _ = writeln!(s, "(median of 7 × 20 steps, 2 threads).\n\nModel build times (s):\n\n| mesh | formulation | elements | build s |\n|---|---|---:|---:|");
+    for b in builds {
+        let _ = writeln!(s, "| {} | {} | {} | {} |", b.0, b.1, b.2, fmt(b.3, 2));
+    }
+    s
+}
+
+fn fmt(x: f64, digits: usize) -> String {
+    format!("{x:.digits$}")
+}

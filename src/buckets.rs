@@ -71,6 +71,13 @@ pub struct BucketLists {
 }
 
 impl BucketLists {
+    /// Room for the lists of a [`Buckets`] grid made for `items` items, each filed under a few
+    /// buckets: `fill` then does not allocate unless the items spread over many more.
+    pub fn with_capacity(items: usize) -> BucketLists {
+        let buckets = items + 4 * (items as f64).sqrt().ceil() as usize + 4;
+        BucketLists { start: Vec::with_capacity(buckets + 1), items: Vec::with_capacity(4 * items), cursor: Vec::with_capacity(buckets) }
+    }
+
     /// Files item `i` under every bucket that its box `boxes(i)` touches (query with
     /// [`Buckets::covering`]).
     pub fn fill(&mut self, grid: &Buckets, n_items: usize, boxes: impl Fn(usize) -> (Vec2, Vec2)) {

@@ -15,6 +15,20 @@ pub trait Kinematics<const N: usize>: Send + Sync + 'static {
     fn displacement(u: &[f64; N], d: Vec2) -> Vec2;
     /// `f += N_e(x)ᵀ F`: the generalised force of a point force `F` at offset `d`.
     fn add_force(f: &mut [f64; N], d: Vec2, force: Vec2);
+    /// The part of the displacement linear in the offset, `(N_e(d) − N_e(0)) U_e`: how the
+    /// displacement changes from `x_e` to `x_e + d`.
+    fn gradient(u: &[f64; N], d: Vec2) -> Vec2;
+    /// `f += (N_e(d) − N_e(0))ᵀ F`: [`Kinematics::add_force`] without the translation part.
+    fn add_linear(f: &mut [f64; N], d: Vec2, force: Vec2);
+    /// The part of an edge's 2-point Gauss rule that is odd in the Gauss offset `g` (eq. 15,
+    /// see `evaluator::element_wise`): `f += (N_e(g) − N_e(0))ᵀ λ(δ₁)`, with
+    /// `δ₁ = gradient(u_o, g) − gradient(u_e, g)` (`u_o = None` on ground) and
+    /// `λ(δ) = k_s δ + (k_n − k_s)(n·δ) n`; `g` lies along the edge, normal to `n`.
+    #[inline(always)]
+    fn add_edge_odd(f: &mut [f64; N], ue: &[f64; N], uo: Option<&[f64; N]>, g: Vec2, n: Vec2, ks: f64, dk: f64) {
+        let delta = uo.map_or(Vec2::zeros(), |uo| Self::gradient(uo, g)) - Self::gradient(ue, g);
+        Self::add_linear(f, g, ks * delta + (dk * n.dot(&delta)) * n);
+    }
     /// The 2 × N shape matrix `N_e(x)` at offset `d`.
     fn shape(d: Vec2) -> SMatrix<f64, 2, N>;
     /// Consistent mass `ρ t ∫ N_eᵀ N_e dA` of an element (eqs. 8, 9).
@@ -40,6 +54,19 @@ impl Kinematics<3> for Rigid {
         f[0] += force.x;
         f[1] += force.y;
         f[2] += d.x * force.y - d.y * force.x;
+    }
+    #[inline(always)]
+    fn gradient(u: &[f64; 3], d: Vec2) -> Vec2 {
+        Vec2::new(-u[2] * d.y, u[2] * d.x)
+    }
+    #[inline(always)]
+    fn add_linear(f: &mut [f64; 3], d: Vec2, force: Vec2) {
+        f[2] += d.x * force.y - d.y * force.x;
+    }
+    /// With `g = |g| s` and `n = ẑ × s`: `δ₁ = Δθ |g| n`, so the term is `k_n |g|² Δθ` on `θ`.
+    #[inline(always)]
+    fn add_edge_odd(f: &mut [f64; 3], ue: &[f64; 3], uo: Option<&[f64; 3]>, g: Vec2, _: Vec2, ks: f64, dk: f64) {
+        f[2] += (ks + dk) * g.norm_squared() * (uo.map_or(0.0, |uo| uo[2]) - ue[2]);
     }
     fn shape(d: Vec2) -> SMatrix<f64, 2, 3> {
         SMatrix::<f64, 2, 3>::new(1.0, 0.0, -d.y, 0.0, 1.0, d.x)
@@ -71,6 +98,17 @@ impl Kinematics<6> for Hybrid {
     fn add_force(f: &mut [f64; 6], d: Vec2, force: Vec2) {
         f[0] += force.x;
         f[1] += force.y;
+        f[2] += d.x * force.y - d.y * force.x;
+        f[3] += d.x * force.x;
+        f[4] += d.y * force.y;
+        f[5] += 0.5 * (d.y * force.x + d.x * force.y);
+    }
+    #[inline(always)]
+    fn gradient(u: &[f64; 6], d: Vec2) -> Vec2 {
+        Vec2::new(-u[2] * d.y + u[3] * d.x + 0.5 * u[5] * d.y, u[2] * d.x + u[4] * d.y + 0.5 * u[5] * d.x)
+    }
+    #[inline(always)]
+    fn add_linear(f: &mut [f64; 6], d: Vec2, force: Vec2) {
         f[2] += d.x * force.y - d.y * force.x;
         f[3] += d.x * force.x;
         f[4] += d.y * force.y;
@@ -256,6 +294,11 @@ mod tests {
         Hybrid::add_force(&mut f, d, force);
         let via_nt = n.transpose() * force;
         assert!((0..6).all(|i| (f[i] - via_nt[i]).abs() < 1e-15));
+        let at_centroid = Hybrid::shape(Vec2::zeros()) * nalgebra::SVector::<f64, 6>::from(u);
+        assert!((Hybrid::gradient(&u, d) - Vec2::new(via_n[0] - at_centroid[0], via_n[1] - at_centroid[1])).norm() < 1e-15);
+        let mut g = [0.0; 6];
+        Hybrid::add_linear(&mut g, d, force);
+        assert!(g[..2] == [0.0, 0.0] && (2..6).all(|i| (g[i] - via_nt[i]).abs() < 1e-15));
     }
 
     #[test]
@@ -270,5 +313,9 @@ mod tests {
         Rigid::add_force(&mut f, d, force);
         let via_nt = n.transpose() * force;
         assert_eq!(f, [via_nt[0], via_nt[1], via_nt[2]]);
+        assert!((Rigid::gradient(&u, d) - Vec2::new(via_n[0] - u[0], via_n[1] - u[1])).norm() < 1e-15);
+        let mut g = [0.0; 3];
+        Rigid::add_linear(&mut g, d, force);
+        assert_eq!(g, [0.0, 0.0, via_nt[2]]);
     }
 }

@@ -4,12 +4,13 @@
 //! element-local.
 
 use crate::model::Model;
+use crate::parallel::{for_each_chunk_pair, CHUNK};
 
 /// `M` and `M⁻¹` of a model. Diagonal blocks are stored as diagonals.
 #[derive(Debug, Clone)]
 pub enum Mass {
     /// Lumped: `m[i]` per DOF, `inv[i] = 1/m[i]` (0 for a fixed DOF).
-    Diagonal { m: Vec<f64>, inv: Vec<f64>, inv_sqrt: Vec<f64>, sqrt: Vec<f64> },
+    Diagonal { nd: usize, m: Vec<f64>, inv: Vec<f64>, inv_sqrt: Vec<f64>, sqrt: Vec<f64> },
     /// One dense `nd × nd` block per element (row-major): `m`, the inverse `inv` of its free
     /// part, the Cholesky factor `l` of its free part and its inverse `l_inv` (zero rows and
     /// columns on fixed DOFs).
@@ -34,7 +35,7 @@ impl Mass {
         }
         let inv_sqrt = inv.iter().map(|x| x.sqrt()).collect();
         let sqrt = inv.iter().zip(&m).map(|(i, m)| if *i == 0.0 { 0.0 } else { m.sqrt() }).collect();
-        Mass::Diagonal { m, inv, inv_sqrt, sqrt }
+        Mass::Diagonal { nd, m, inv, inv_sqrt, sqrt }
     }
 
     /// The consistent block mass of eq. 8, each block's free part inverted once.
@@ -100,25 +101,36 @@ impl Mass {
         }
     }
 
-    /// `a = −M⁻¹ f` in place (the acceleration of a net internal-minus-external force `f`).
-    pub fn accelerate(&self, f: &mut [f64]) {
-        match self {
-            Mass::Diagonal { inv, .. } => {
-                for (x, w) in f.iter_mut().zip(inv) {
-                    *x = -*x * w;
-                }
-            }
-            Mass::Blocks { nd, inv, .. } => {
-                let mut tmp = [0.0; 6];
-                for (e, fe) in f.chunks_exact_mut(*nd).enumerate() {
-                    let b = &inv[e * nd * nd..(e + 1) * nd * nd];
-                    for i in 0..*nd {
-                        tmp[i] = -(0..*nd).map(|j| b[i * nd + j] * fe[j]).sum::<f64>();
+    /// One explicit update from the net force `f = f_int − P − f_c` (DESIGN.md §7):
+    /// `v ← (c₁ v − Δt M⁻¹ f) c₂`, then `u ← u + Δt v` unless `u` is empty. Element-local and
+    /// in parallel, one pass over the vectors; the result does not depend on the thread count.
+    pub fn advance(&self, f: &[f64], v: &mut [f64], u: &mut [f64], dt: f64, (c1, c2): (f64, f64)) {
+        let nd = match self {
+            Mass::Diagonal { nd, .. } | Mass::Blocks { nd, .. } => *nd,
+        };
+        for_each_chunk_pair(v, u, CHUNK * nd, |first, v, u| {
+            let f = &f[first..first + v.len()];
+            match self {
+                Mass::Diagonal { inv, .. } => {
+                    let inv = &inv[first..first + v.len()];
+                    for ((v, f), w) in v.iter_mut().zip(f).zip(inv) {
+                        *v = (c1 * *v - dt * w * f) * c2;
                     }
-                    fe.copy_from_slice(&tmp[..*nd]);
+                }
+                Mass::Blocks { inv, .. } => {
+                    let inv = &inv[first * nd..(first + v.len()) * nd];
+                    for ((ve, fe), b) in v.chunks_exact_mut(nd).zip(f.chunks_exact(nd)).zip(inv.chunks_exact(nd * nd)) {
+                        for i in 0..nd {
+                            let a: f64 = (0..nd).map(|j| b[i * nd + j] * fe[j]).sum();
+                            ve[i] = (c1 * ve[i] - dt * a) * c2;
+                        }
+                    }
                 }
             }
-        }
+            for (u, v) in u.iter_mut().zip(v.iter()) {
+                *u += dt * v;
+            }
+        });
     }
 
     /// Kinetic energy `½ vᵀ M v`.

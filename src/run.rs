@@ -76,7 +76,7 @@ impl Prepared {
 }
 
 /// What the caller sees of a run while it goes: a line of text, and the step reached.
-pub trait Monitor {
+pub trait Monitor: Send {
     /// Information before the run starts (model size, time step, warnings).
     fn info(&mut self, line: &str);
     /// The step reached, called often; `total` steps in all.

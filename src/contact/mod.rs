@@ -193,6 +193,7 @@ impl Contact {
             points.extend([g[1], g[0]]);
             edges.push(Edge { element: GROUND, body: NONE, ends: [at, at + 1], compliance: [0.0; 2], length: (g[1] - g[0]).norm() });
         }
+        let (nv, ne) = (vertices.len(), edges.len());
         Some(Contact {
             settings,
             frames: Frames { formulation: model.formulation, centroids: model.elements.iter().map(|e| e.props.centroid).collect() },
@@ -203,10 +204,11 @@ impl Contact {
             vertices,
             edges,
             points,
-            records: Vec::new(),
-            fresh: Vec::new(),
-            buckets: BucketLists::default(),
-            pairs: Vec::new(),
+            // Room for two contacts per vertex, so that the steps do not allocate.
+            records: Vec::with_capacity(2 * nv),
+            fresh: Vec::with_capacity(2 * nv),
+            buckets: BucketLists::with_capacity(ne),
+            pairs: Vec::with_capacity(2 * nv),
             ledger: Ledger::new(model.elements.len(), model.formulation.ndof()),
             stored: 0.0,
             step: None,
@@ -637,6 +639,9 @@ pub struct WithBlocks<'a> {
 impl Evaluator for WithBlocks<'_> {
     fn kind(&self) -> EvaluatorKind {
         self.inner.kind()
+    }
+    fn bytes(&self) -> usize {
+        self.inner.bytes() + std::mem::size_of_val(&self.blocks[..])
     }
     fn internal_force(&self, u: &[f64], f: &mut [f64]) {
         self.inner.internal_force(u, f);

@@ -23,8 +23,8 @@ impl Ledger {
             nd,
             now: vec![0.0; n_elements * nd],
             before: vec![0.0; n_elements * nd],
-            touched_now: Vec::new(),
-            touched_before: Vec::new(),
+            touched_now: Vec::with_capacity(n_elements),
+            touched_before: Vec::with_capacity(n_elements),
             mark: vec![0; n_elements],
             work: 0.0,
         }

@@ -166,6 +166,11 @@ impl<K: Kinematics<N>, const N: usize> Evaluator for Assembled<K, N> {
         EvaluatorKind::Assembled
     }
 
+    fn bytes(&self) -> usize {
+        let k = &self.stiffness;
+        std::mem::size_of_val(&k.row_start[..]) + std::mem::size_of_val(&k.cols[..]) + std::mem::size_of_val(&k.blocks[..])
+    }
+
     fn internal_force(&self, u: &[f64], f: &mut [f64]) {
         self.stiffness.mul(u, f);
     }

@@ -21,6 +21,8 @@ pub trait Evaluator: Send + Sync {
     /// `f = f_int(u)`; both slices hold `ndof` entries per element, element after element.
     /// Allocation-free; parallel over elements; the result does not depend on the thread count.
     fn internal_force(&self, u: &[f64], f: &mut [f64]);
+    /// The bytes of data it holds, all of which one evaluation reads.
+    fn bytes(&self) -> usize;
 }
 
 /// The global stiffness `K` of eq. 7 as scalar triplets `(row, col, value)` over all DOFs.

@@ -1,0 +1,73 @@
+//! No allocation inside a step: a counting global allocator watches the time loop once it is
+//! warm, for both evaluators and formulations, on a model large enough to run in parallel, and
+//! on the contact scene.
+
+use rbsm::integrator::CentralDifference;
+use rbsm::run::{Prepared, RunOptions};
+use rbsm::scene::{EvaluatorKind, Scene};
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+struct Counting;
+
+static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        unsafe { System.dealloc(ptr, layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+/// Allocations made by `steps` steps of the time loop (energies, guard and observer included)
+/// after `warm` steps to let lazily grown buffers reach their size.
+fn allocations(p: &Prepared, warm: u64, steps: u64) -> usize {
+    let mut cd = CentralDifference::new(&p.model, p.evaluator.as_ref(), &p.mass, &p.loads, p.dt);
+    cd.run(warm, 10, |_, _| Ok(()), |_| ()).unwrap();
+    let before = ALLOCATIONS.load(Ordering::Relaxed);
+    cd.run(steps, 10, |_, _| Ok(()), |_| ()).unwrap();
+    cd.step_only(steps);
+    ALLOCATIONS.load(Ordering::Relaxed) - before
+}
+
+/// One test: the counter is global, and tests running side by side would count each other.
+#[test]
+fn the_time_loop_does_not_allocate() {
+    plain_steps();
+    contact_steps();
+}
+
+fn plain_steps() {
+    // 4800 elements: more than one parallel chunk, so rayon's loops are exercised too.
+    for (formulation, evaluator) in [("rigid", EvaluatorKind::Assembled), ("rigid", EvaluatorKind::ElementWise), ("hybrid", EvaluatorKind::ElementWise)] {
+        let f = if formulation == "rigid" { r#"{"kind": "rigid"}"# } else { r#"{"kind": "hybrid", "penalty": 10}"# };
+        let json = format!(
+            r#"{{"name": "a", "thickness": 1.0, "formulation": {f}, "gravity": [0, -9.81],
+                "materials": {{"m": {{"E": 3e10, "nu": 0.2, "rho": 2400}}}},
+                "bodies": [{{"name": "b", "material": "m", "mesh": {{"kind": "grid", "origin": [0, 0], "size": [2, 1], "cells": [80, 60]}},
+                    "supports": [{{"edge": "left", "kind": "ground-spring"}}],
+                    "loads": [{{"kind": "traction", "edge": "right", "value": [0, -1e5], "amplitude": [[0, 0], [1e-4, 1]]}}]}}],
+                "time": {{"dt_factor": 0.5, "steps": 10}}}}"#
+        );
+        let scene = Scene::from_json(&json).unwrap_or_else(|e| panic!("{e}"));
+        let p = Prepared::new(&scene, &RunOptions { evaluator: Some(evaluator), ..Default::default() }).unwrap();
+        assert_eq!(allocations(&p, 20, 200), 0, "{formulation} / {}", evaluator.name());
+    }
+}
+
+fn contact_steps() {
+    let scene = Scene::from_file(std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/examples/scenes/toppling_stack.json"))).unwrap();
+    let p = Prepared::new(&scene, &RunOptions::default()).unwrap();
+    // The stack is in contact from the start; after the warm-up its buffers have their size.
+    assert_eq!(allocations(&p, 2000, 2000), 0);
+}
