@@ -75,6 +75,18 @@ enum Command {
         #[arg(long)]
         out: Option<PathBuf>,
     },
+    /// Speed against accuracy: runs the scene at every combination of the sweeps and writes
+    /// tradeoff.csv, tradeoff.md and tradeoff.svg (error against wall time, Pareto front).
+    Tradeoff {
+        scene: PathBuf,
+        /// KEY=V1,V2,... with KEY one of dt, dt_factor, refine, formulation, penalty, evaluator,
+        /// contact; repeat for a product of sweeps.
+        #[arg(long = "sweep", required = true)]
+        sweeps: Vec<String>,
+        /// Output directory (default: out/tradeoff-<scene name>).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
 }
 
 /// Information lines and a progress bar on standard error; the bar appears only on a terminal,
@@ -174,6 +186,27 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
                     t.push_str(&format!("  run at {:.3} Δt_crit: {} after {} steps, energy drift {:.3e}\n", f.fraction, f.status, f.steps, f.max_relative_drift));
                 }
                 t.trim_end().to_string()
+            });
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::Tradeoff { scene, sweeps, out } => {
+            let sweeps = sweeps.iter().map(|s| rbsm::tradeoff::Sweep::parse(s)).collect::<rbsm::error::Result<Vec<_>>>()?;
+            let text = std::fs::read_to_string(scene).map_err(|e| rbsm::error::Error::io(scene, e))?;
+            let parsed = Scene::from_file(scene)?;
+            let dir = out.clone().unwrap_or_else(|| PathBuf::from(format!("out/tradeoff-{}", parsed.name)));
+            let total: usize = sweeps.iter().map(|s| s.values.len()).product();
+            let mut done = 0;
+            let report = rbsm::tradeoff::sweep(&text, &sweeps, |p| {
+                done += 1;
+                if !cli.quiet {
+                    eprintln!("[{done}/{total}] {}: {} steps in {:.3} s, {}", rbsm::tradeoff::describe(&p.settings), p.steps, p.wall_s, p.status);
+                }
+            })?;
+            report.write(&dir)?;
+            print(cli.json, &report, || {
+                let md = std::fs::read_to_string(dir.join("tradeoff.md")).unwrap_or_default();
+                format!("{md}
+written: {}/tradeoff.{{csv,md,svg}}", dir.display())
             });
             Ok(ExitCode::SUCCESS)
         }

@@ -36,6 +36,23 @@ pub struct Scene {
     pub time: TimeSpec,
     #[serde(default)]
     pub output: OutputSpec,
+    /// What `rbsm tradeoff` measures the error against, when the scene has a closed form or a
+    /// theory; without it the finest run of the sweep is the reference.
+    #[serde(default)]
+    pub reference: Option<ReferenceSpec>,
+}
+
+/// A closed form or theory for the error of `rbsm tradeoff`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
+pub enum ReferenceSpec {
+    /// The first bounce of a body dropped on horizontal ground: its apex returns to the drop
+    /// height (the hopping block, DESIGN.md §10).
+    HoppingBlock,
+    /// An axial bar (the first body, a grid from `origin.x` to `origin.x + size.x`) held by a
+    /// ground spring on its left edge, loaded at `t = 0` by the traction of its right edge: the
+    /// displacement history of the named probe against the bar's modal series.
+    BarStep { probe: String },
 }
 
 /// Plane stress or plane strain (eq. 12 and its plane-strain form).
@@ -427,6 +444,11 @@ impl Scene {
         }
         if self.bodies.is_empty() {
             return Err(Error::scene("bodies", "at least one body is needed"));
+        }
+        if let Some(ReferenceSpec::BarStep { probe }) = &self.reference {
+            if !self.output.probes.iter().any(|p| p.name.as_deref() == Some(probe.as_str())) {
+                return Err(Error::scene("reference.probe", format!("must name one of `output.probes`, got `{probe}`")));
+            }
         }
         for (i, b) in self.bodies.iter().enumerate() {
             self.validate_body(i, b)?;

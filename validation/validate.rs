@@ -10,7 +10,6 @@ mod contact;
 #[path = "fem.rs"]
 mod fem;
 
-use plotters::prelude::*;
 use rbsm::eigen::{self, Method};
 use rbsm::evaluator;
 use rbsm::integrator::{CentralDifference, Status};
@@ -82,31 +81,7 @@ fn model(s: &Scene) -> Model {
 
 /// A log-log plot of several series.
 fn plot(path: &Path, title: &str, x_label: &str, y_label: &str, series: &[(&str, Vec<(f64, f64)>)]) {
-    let root = SVGBackend::new(path, (720, 480)).into_drawing_area();
-    root.fill(&WHITE).unwrap();
-    let all: Vec<(f64, f64)> = series.iter().flat_map(|s| s.1.iter().copied()).filter(|p| p.0 > 0.0 && p.1 > 0.0).collect();
-    let (x0, x1) = all.iter().fold((f64::MAX, f64::MIN), |a, p| (a.0.min(p.0), a.1.max(p.0)));
-    let (y0, y1) = all.iter().fold((f64::MAX, f64::MIN), |a, p| (a.0.min(p.1), a.1.max(p.1)));
-    let mut chart = ChartBuilder::on(&root)
-        .caption(title, ("sans-serif", 20))
-        .margin(15)
-        .x_label_area_size(40)
-        .y_label_area_size(70)
-        .build_cartesian_2d((x0 / 1.3..x1 * 1.3).log_scale(), (y0 / 2.0..y1 * 2.0).log_scale())
-        .unwrap();
-    chart.configure_mesh().x_desc(x_label).y_desc(y_label).y_label_formatter(&|y| format!("{y:.0e}")).draw().unwrap();
-    for (i, (name, pts)) in series.iter().enumerate() {
-        let color = Palette99::pick(i).to_rgba();
-        let pts: Vec<_> = pts.iter().copied().filter(|p| p.0 > 0.0 && p.1 > 0.0).collect();
-        chart
-            .draw_series(LineSeries::new(pts.clone(), color.stroke_width(2)))
-            .unwrap()
-            .label(*name)
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2)));
-        chart.draw_series(pts.iter().map(|&p| Circle::new(p, 3, color.filled()))).unwrap();
-    }
-    chart.configure_series_labels().background_style(WHITE.mix(0.8)).border_style(BLACK).draw().unwrap();
-    root.present().unwrap();
+    rbsm::plot::log_log(path, title, x_label, y_label, series).expect("the plot is written");
 }
 
 /// 1. One-row column on a ground spring: axial frequencies against the discrete closed form and
