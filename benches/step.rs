@@ -189,7 +189,7 @@ fn extras() -> Extras {
     let mut contact_ns = [0.0; 2];
     for (k, extra) in ["", r#", "contact": {"model": "edge-to-edge"}, "ground": [{"from": [-1, -10], "to": [2, -10]}]"#].iter().enumerate() {
         let json = format!(
-            r#"{{"name": "c", "formulation": {{"kind": "rigid"}}, "materials": {{"m": {{"E": 3e10, "nu": 0.2, "rho": 2400}}}},
+            r#"{{"name": "c", "thickness": 1.0, "formulation": {{"kind": "rigid"}}, "materials": {{"m": {{"E": 3e10, "nu": 0.2, "rho": 2400}}}},
                 "bodies": [{{"name": "b", "material": "m", "mesh": {}}}], "time": {{"dt": 1e-9, "steps": 1}}{extra}}}"#,
             mesh_json("grid", 100_000)
         );

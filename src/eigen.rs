@@ -157,7 +157,7 @@ pub fn omega_max(evaluator: &dyn Evaluator, mass: &Mass) -> f64 {
         // The bisection costs O(j): look every 10 iterations (or at breakdown), so that the
         // tridiagonal work stays well below the operator's on large models.
         let breakdown = b <= 1e-14 * a.abs().max(history.last().copied().unwrap_or(0.0));
-        if j % 10 == 0 || breakdown {
+        if j % 10 == 0 || breakdown || j + 1 == MAX_ITER.min(n) {
             let top = largest_tridiagonal_eigenvalue(&alpha, &beta);
             history.push(top);
             let k = history.len();

@@ -1,7 +1,9 @@
 pub mod buckets;
+pub mod checks;
 pub mod contact;
 pub mod error;
 pub mod evaluator;
+pub mod extremes;
 pub mod formulation;
 pub mod geometry;
 pub mod hopping;

@@ -135,15 +135,21 @@ impl Mass {
 
     /// Kinetic energy `½ vᵀ M v`.
     pub fn kinetic_energy(&self, v: &[f64]) -> f64 {
+        self.kinetic_product(v, v)
+    }
+
+    /// `½ aᵀ M b`.
+    pub fn kinetic_product(&self, a: &[f64], b: &[f64]) -> f64 {
         match self {
-            Mass::Diagonal { m, .. } => 0.5 * v.iter().zip(m).map(|(v, m)| m * v * v).sum::<f64>(),
+            Mass::Diagonal { m, .. } => 0.5 * a.iter().zip(b).zip(m).map(|((a, b), m)| m * a * b).sum::<f64>(),
             Mass::Blocks { nd, m, .. } => {
-                0.5 * v
+                0.5 * a
                     .chunks_exact(*nd)
+                    .zip(b.chunks_exact(*nd))
                     .enumerate()
-                    .map(|(e, ve)| {
-                        let b = &m[e * nd * nd..(e + 1) * nd * nd];
-                        (0..*nd).map(|i| ve[i] * (0..*nd).map(|j| b[i * nd + j] * ve[j]).sum::<f64>()).sum::<f64>()
+                    .map(|(e, (ae, be))| {
+                        let blk = &m[e * nd * nd..(e + 1) * nd * nd];
+                        (0..*nd).map(|i| ae[i] * (0..*nd).map(|j| blk[i * nd + j] * be[j]).sum::<f64>()).sum::<f64>()
                     })
                     .sum::<f64>()
             }

@@ -31,6 +31,9 @@ pub struct Summary {
     /// The time-stepping loop alone.
     pub step_time_s: f64,
     pub threads: usize,
+    /// What the checks of `checks::warnings` found (extreme inputs, dt above Δt_crit).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<String>,
     pub energy: EnergySummary,
     /// Contact figures; only for scenes with contact.
     #[serde(skip_serializing_if = "Option::is_none")]

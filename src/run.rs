@@ -75,6 +75,16 @@ impl Prepared {
     }
 }
 
+impl Prepared {
+    /// A central-difference integrator of the model at time step `dt`, with the guard told
+    /// `Δt_crit`.
+    pub fn integrator(&self, dt: f64) -> CentralDifference<'_> {
+        let mut cd = CentralDifference::new(&self.model, self.evaluator.as_ref(), &self.mass, &self.loads, dt);
+        cd.set_stability_limit(self.dt_crit);
+        cd
+    }
+}
+
 /// What the caller sees of a run while it goes: a line of text, and the step reached.
 pub trait Monitor: Send {
     /// Information before the run starts (model size, time step, warnings).
@@ -109,8 +119,9 @@ pub fn run(scene: &Scene, opts: &RunOptions, out: &Path, monitor: &mut dyn Monit
     ));
     let ratio = p.dt / p.dt_crit;
     monitor.info(&format!("dt = {:.6e} s, Δt_crit = {:.6e} s, dt/Δt_crit = {ratio:.4}, {} steps", p.dt, p.dt_crit, p.steps));
-    if ratio > 1.0 {
-        monitor.info(&format!("warning: dt is {ratio:.4} × Δt_crit: central difference is unstable above 1; expect divergence"));
+    let warnings = crate::checks::warnings(model, p.dt, p.dt_crit);
+    for w in &warnings {
+        monitor.info(&format!("warning: {w}"));
     }
     let nd = model.formulation.ndof();
     let probes = scene
@@ -126,8 +137,8 @@ pub fn run(scene: &Scene, opts: &RunOptions, out: &Path, monitor: &mut dyn Monit
         .collect::<Result<Vec<_>>>()?;
     let mut history = History::create(out, probes)?;
     let mut vtk = if scene.output.vtk { Some(VtkSeries::create(out)?) } else { None };
-    let mut cd = CentralDifference::new(model, p.evaluator.as_ref(), &p.mass, &p.loads, p.dt);
-    let (mut first, mut last) = (None, None);
+    let mut cd = p.integrator(p.dt);
+    let (mut first, mut last, mut rotation) = (None, None, 0.0f64);
     let start = Instant::now();
     let status = cd.run(
         p.steps,
@@ -135,6 +146,7 @@ pub fn run(scene: &Scene, opts: &RunOptions, out: &Path, monitor: &mut dyn Monit
         |s, e| {
             first.get_or_insert(*e);
             last = Some(*e);
+            rotation = rotation.max(crate::checks::largest_rotation(model, s.u, true));
             history.write(s, e)?;
             if let Some(v) = vtk.as_mut() {
                 v.write(model, s)?;
@@ -144,6 +156,11 @@ pub fn run(scene: &Scene, opts: &RunOptions, out: &Path, monitor: &mut dyn Monit
         |step| monitor.progress(step, p.steps),
     )?;
     let step_time = start.elapsed().as_secs_f64();
+    let mut warnings = warnings;
+    if let Some(w) = crate::checks::rotation_warning(rotation) {
+        monitor.info(&format!("warning: {w}"));
+        warnings.push(w);
+    }
     let reason = match &status {
         Status::Ok => None,
         Status::Diverged { step, t, reason } => Some(format!("step {step}, t = {t:e} s: {reason}")),
@@ -167,6 +184,7 @@ pub fn run(scene: &Scene, opts: &RunOptions, out: &Path, monitor: &mut dyn Monit
         wall_time_s: wall.elapsed().as_secs_f64(),
         step_time_s: step_time,
         threads: rayon::current_num_threads(),
+        warnings,
         energy: EnergySummary { initial: first.total, final_: last.total, max_relative_drift: cd.max_relative_drift() },
         contact: cd.contact.as_ref().map(|c| ContactSummary {
             model: c.settings.model.name().into(),

@@ -169,6 +169,7 @@ pub fn run_at_fraction(model: &Model, evaluator: &dyn Evaluator, mass: &Mass, dt
     let loads = Loads::none(model);
     let dt = fraction * dt_crit;
     let mut cd = CentralDifference::from_state(model, evaluator, mass, &loads, dt, u0, vec![0.0; model.n_dofs()]);
+    cd.set_stability_limit(dt_crit);
     cd.damping = 0.0;
     let every = (steps / 200).max(1);
     let mut history = Vec::new();

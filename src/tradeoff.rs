@@ -10,7 +10,7 @@
 use crate::error::{Error, Result};
 use crate::geometry::{area_properties, Vec2};
 use crate::hopping::{lowest_point, Tracker};
-use crate::integrator::{CentralDifference, Status};
+use crate::integrator::Status;
 use crate::model::{dof_index, Model};
 use crate::run::{Prepared, RunOptions};
 use crate::scene::{ReferenceSpec, Scene};
@@ -266,7 +266,7 @@ fn run_point(scene: &Scene, settings: Vec<(Key, String)>, probes: &[Probe]) -> R
     let setup_s = start.elapsed().as_secs_f64();
     let model = &p.model;
     let nd = model.formulation.ndof();
-    let mut cd = CentralDifference::new(model, p.evaluator.as_ref(), &p.mass, &p.loads, p.dt);
+    let mut cd = p.integrator(p.dt);
     let clock = Instant::now();
     let (status, measure) = if matches!(scene.reference, Some(ReferenceSpec::HoppingBlock)) {
         // Every step, until the first apex: the contact lasts a few dozen steps.

@@ -2,7 +2,7 @@
 //! warm, for both evaluators and formulations, on a model large enough to run in parallel, and
 //! on the contact scene.
 
-use rbsm::integrator::CentralDifference;
+
 use rbsm::run::{Prepared, RunOptions};
 use rbsm::scene::{EvaluatorKind, Scene};
 use std::alloc::{GlobalAlloc, Layout, System};
@@ -32,7 +32,7 @@ static GLOBAL: Counting = Counting;
 /// Allocations made by `steps` steps of the time loop (energies, guard and observer included)
 /// after `warm` steps to let lazily grown buffers reach their size.
 fn allocations(p: &Prepared, warm: u64, steps: u64) -> usize {
-    let mut cd = CentralDifference::new(&p.model, p.evaluator.as_ref(), &p.mass, &p.loads, p.dt);
+    let mut cd = p.integrator(p.dt);
     cd.run(warm, 10, |_, _| Ok(()), |_| ()).unwrap();
     let before = ALLOCATIONS.load(Ordering::Relaxed);
     cd.run(steps, 10, |_, _| Ok(()), |_| ()).unwrap();

@@ -3,7 +3,7 @@
 
 use rbsm::contact::Contact;
 use rbsm::hopping::{centre_velocity, lowest_point, Tracker};
-use rbsm::integrator::{CentralDifference, Status};
+use rbsm::integrator::Status;
 use rbsm::run::{Prepared, RunOptions};
 use rbsm::scene::Scene;
 
@@ -25,7 +25,7 @@ struct Outcome {
 fn run(scene: &str, dt: f64, steps: u64) -> Outcome {
     let scene = Scene::from_json(scene).expect("valid scene");
     let p = Prepared::new(&scene, &RunOptions { dt: Some(dt), steps: Some(steps), ..Default::default() }).expect("model");
-    let mut cd = CentralDifference::new(&p.model, p.evaluator.as_ref(), &p.mass, &p.loads, dt);
+    let mut cd = p.integrator(dt);
     let mut tracker = Tracker::default();
     let mut max_rotation: f64 = 0.0;
     let nd = p.model.formulation.ndof();
@@ -181,6 +181,6 @@ fn no_contact_without_contact() {
     let scene = Scene::from_json(&std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/examples/scenes/cantilever.json")).unwrap()).unwrap();
     let p = Prepared::new(&scene, &RunOptions::default()).unwrap();
     assert!(Contact::new(&p.model).is_none());
-    let cd = CentralDifference::new(&p.model, p.evaluator.as_ref(), &p.mass, &p.loads, p.dt);
+    let cd = p.integrator(p.dt);
     assert!(cd.contact.is_none());
 }

@@ -5,7 +5,7 @@ mod common;
 use common::*;
 use rbsm::evaluator;
 use rbsm::geometry::Vec2;
-use rbsm::integrator::{CentralDifference, Status};
+use rbsm::integrator::Status;
 use rbsm::model::Model;
 use rbsm::run::{Prepared, RunOptions};
 use rbsm::scene::{EvaluatorKind, Scene};
@@ -92,7 +92,7 @@ fn hybrid_trajectories_agree_and_keep_energy() {
     let scene = Scene::from_json(&json).unwrap();
     let run = |kind| {
         let p = Prepared::new(&scene, &RunOptions { evaluator: Some(kind), ..Default::default() }).unwrap();
-        let mut cd = CentralDifference::new(&p.model, p.evaluator.as_ref(), &p.mass, &p.loads, p.dt);
+        let mut cd = p.integrator(p.dt);
         assert_eq!(cd.run(10_000, 100, |_, _| Ok(()), |_| {}).unwrap(), Status::Ok);
         (cd.u.clone(), cd.max_relative_drift())
     };

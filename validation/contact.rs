@@ -3,7 +3,7 @@
 use super::{plot, Report};
 use plotters::prelude::*;
 use rbsm::hopping::{centre_velocity, lowest_point, Theory, Tracker};
-use rbsm::integrator::{CentralDifference, Status};
+use rbsm::integrator::Status;
 use rbsm::run::{Prepared, RunOptions};
 use rbsm::scene::Scene;
 use std::path::Path;
@@ -35,7 +35,7 @@ fn run(scene: &Scene, dt: Option<f64>, end: f64, sample: f64) -> Run {
     let dt = probe.dt;
     let steps = (end / dt).ceil() as u64;
     let p = probe;
-    let mut cd = CentralDifference::new(&p.model, p.evaluator.as_ref(), &p.mass, &p.loads, dt);
+    let mut cd = p.integrator(dt);
     let mut tracker = Tracker::default();
     let mut trace = Vec::new();
     let every = ((sample / dt).round() as u64).max(1);

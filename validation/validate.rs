@@ -7,12 +7,14 @@
 
 #[path = "contact.rs"]
 mod contact;
+mod extremes;
 #[path = "fem.rs"]
 mod fem;
+mod trade;
 
 use rbsm::eigen::{self, Method};
 use rbsm::evaluator;
-use rbsm::integrator::{CentralDifference, Status};
+use rbsm::integrator::Status;
 use rbsm::mass::Mass;
 use rbsm::model::Model;
 use rbsm::run::{Prepared, RunOptions};
@@ -410,7 +412,7 @@ fn parity(r: &mut Report) {
         let s = Scene::from_file(format!("{}/examples/scenes/{name}.json", env!("CARGO_MANIFEST_DIR"))).unwrap();
         let run = |k| {
             let p = Prepared::new(&s, &RunOptions { evaluator: Some(k), ..Default::default() }).unwrap();
-            let mut cd = CentralDifference::new(&p.model, p.evaluator.as_ref(), &p.mass, &p.loads, p.dt);
+            let mut cd = p.integrator(p.dt);
             assert_eq!(cd.run(10_000, 10_000, |_, _| Ok(()), |_| {}).unwrap(), Status::Ok);
             cd.u
         };
@@ -589,6 +591,8 @@ fn main() {
     parity(&mut r);
     hybrid(&mut r);
     contact::contact(&mut r);
+    trade::trade_section(&mut r);
+    extremes::extremes(&mut r);
     // Checks: bounds, and figures against the reference.
     let reference: BTreeMap<String, f64> = std::fs::read_to_string(dir.join("reference.json"))
         .ok()
