@@ -1,13 +1,17 @@
 //! The element-wise evaluator (eqs. 15–16): each element's force is the resultant of the
 //! tractions `λ = diag(k_n, k_s) δ` on its own edges, integrated by the edge's 2-point Gauss rule.
-//! No global matrix; each element writes only its own force, so the loop runs in parallel
-//! without locks and gives the same bits on any number of threads.
+//! No global matrix.
 //!
-//! The two Gauss points of an edge sit at `m ± e` about its midpoint `m`, with
-//! `e = L/(2√3) s` along the edge. The displacement jump is affine along the edge,
-//! `δ(m ± e) = δ₀ ± δ₁`, so the rule's sum `Σ± N_e(m ± e)ᵀ λ(m ± e) t L/2` splits exactly into
-//! `t L [N_e(m)ᵀ λ(δ₀) + (N_e(e) − N_e(0))ᵀ λ(δ₁)]`: the same quadrature in half the work,
-//! from one 64-byte record per interface shared by its two elements.
+//! The two Gauss points of an edge sit at `m ± g` about its midpoint `m`, with
+//! `g = L/(2√3) s` along the edge. The displacement jump is affine along the edge,
+//! `δ(m ± g) = δ₀ ± δ₁`, so the rule's sum `Σ± N_e(m ± g)ᵀ λ(m ± g) t L/2` splits exactly into
+//! `t L [N_e(m)ᵀ λ(δ₀) + (N_e(g) − N_e(0))ᵀ λ(δ₁)]`: the same quadrature in half the work.
+//!
+//! The traction on a shared edge is one physical quantity, `+λ` on one side and `−λ` on the
+//! other. So an evaluation has two passes, both parallel and free of locks: each interface
+//! computes its traction once and the generalised forces it puts on its two elements (from one
+//! 64-byte record); then each element sums those of its own edges (eq. 15) and adds its interior
+//! term. Every sum runs in a fixed order, so the result does not depend on the thread count.
 
 use super::Evaluator;
 use crate::formulation::Kinematics;
@@ -16,6 +20,7 @@ use crate::model::{Model, GROUND};
 use crate::parallel::for_each_chunk;
 use crate::scene::EvaluatorKind;
 use std::marker::PhantomData;
+use std::sync::Mutex;
 
 /// What one interface needs at evaluation time (64 bytes).
 #[derive(Debug, Clone, Copy)]
@@ -37,16 +42,19 @@ struct Face {
 pub struct ElementWise<K: Kinematics<N>, const N: usize> {
     centroids: Vec<Vec2>,
     faces: Vec<Face>,
-    /// `faces_of[face_start[e] .. face_start[e + 1]]` are the faces of element `e`.
-    face_start: Vec<u32>,
-    faces_of: Vec<u32>,
+    /// `sides[side_start[e] .. side_start[e + 1]]` are the edges of element `e`, as `2k` (it is
+    /// side `a` of face `k`) or `2k + 1` (side `b`): indices into the per-side forces.
+    side_start: Vec<u32>,
+    sides: Vec<u32>,
     /// `t A D` per element, acting on the strains `U_e[3..6]` (hybrid only; empty for rigid).
     interior: Vec<nalgebra::Matrix3<f64>>,
+    /// The generalised forces of each face on its sides `a` and `b`, from the first pass.
+    side_forces: Mutex<Vec<[[f64; N]; 2]>>,
     kinematics: PhantomData<K>,
 }
 
 impl<K: Kinematics<N>, const N: usize> ElementWise<K, N> {
-    /// Per-element face lists from the model's interfaces.
+    /// Face records and per-element side lists from the model's interfaces.
     pub fn new(model: &Model) -> Self {
         let t = model.thickness;
         let mut faces: Vec<Face> = model
@@ -58,26 +66,27 @@ impl<K: Kinematics<N>, const N: usize> ElementWise<K, N> {
                 Face { a: i.a, b: i.b, mid: i.midpoint(), normal: i.normal, ks_tl: i.k_s * t * i.length, dk_tl: (i.k_n - i.k_s) * t * i.length, half }
             })
             .collect();
-        // In the order of their lower element, so that the loop over elements walks them forwards.
+        // In the order of their lower element, so that both passes walk memory forwards.
         faces.sort_by_key(|f| (f.a.min(f.b), f.a.max(f.b)));
         let n = model.elements.len();
         let mut count = vec![0u32; n + 1];
         for f in &faces {
-            count[f.a as usize + 1] += 1;
-            if f.b != GROUND {
-                count[f.b as usize + 1] += 1;
+            for e in [f.a, f.b] {
+                if e != GROUND {
+                    count[e as usize + 1] += 1;
+                }
             }
         }
         for e in 0..n {
             count[e + 1] += count[e];
         }
-        let face_start = count.clone();
-        let mut faces_of = vec![0u32; face_start[n] as usize];
+        let side_start = count.clone();
+        let mut sides = vec![0u32; side_start[n] as usize];
         let mut next = count;
         for (k, f) in faces.iter().enumerate() {
-            for e in [f.a, f.b] {
+            for (side, e) in [f.a, f.b].into_iter().enumerate() {
                 if e != GROUND {
-                    faces_of[next[e as usize] as usize] = k as u32;
+                    sides[next[e as usize] as usize] = (2 * k + side) as u32;
                     next[e as usize] += 1;
                 }
             }
@@ -88,40 +97,32 @@ impl<K: Kinematics<N>, const N: usize> ElementWise<K, N> {
         } else {
             Vec::new()
         };
-        ElementWise { centroids, faces, face_start, faces_of, interior, kinematics: PhantomData }
+        let side_forces = Mutex::new(vec![[[0.0; N]; 2]; faces.len()]);
+        ElementWise { centroids, faces, side_start, sides, interior, side_forces, kinematics: PhantomData }
     }
 
-    /// The force that the springs exert on element `e`: `Σ_faces t L [N_e(m)ᵀ λ₀ + (N_e(e) −
-    /// N_e(0))ᵀ λ₁]` (eq. 15 by the split 2-point rule of the module doc), and for hybrid
-    /// elements the interior term `−t A D ε`.
+    /// The generalised forces that face `f` puts on its sides `a` and `b`:
+    /// `± t L [N(m)ᵀ λ(δ₀) + (N(g) − N(0))ᵀ λ(δ₁)]` with `δ = u_b − u_a` (module doc).
     #[inline]
-    fn element_force(&self, e: usize, u: &[[f64; N]]) -> [f64; N] {
-        // Accumulated in registers, stored once.
-        let mut fe = [0.0; N];
-        let (xe, ue) = (self.centroids[e], &u[e]);
-        for &k in &self.faces_of[self.face_start[e] as usize..self.face_start[e + 1] as usize] {
-            let f = &self.faces[k as usize];
-            let other = if f.a as usize == e { f.b } else { f.a };
-            let n = f.normal;
-            let d = f.mid - xe;
-            // δ = u_other − u_e: the spring pulls `e` towards the other side, whichever side it is.
-            let mut delta = -K::displacement(ue, d);
-            let uo = (other != GROUND).then(|| &u[other as usize]);
-            if let Some(uo) = uo {
-                delta += K::displacement(uo, f.mid - self.centroids[other as usize]);
-            }
-            K::add_force(&mut fe, d, f.ks_tl * delta + (f.dk_tl * n.dot(&delta)) * n);
-            K::add_edge_odd(&mut fe, ue, uo, f.half * Vec2::new(n.y, -n.x), n, f.ks_tl, f.dk_tl);
+    fn face_forces(&self, f: &Face, u: &[[f64; N]]) -> [[f64; N]; 2] {
+        let n = f.normal;
+        let g = f.half * Vec2::new(n.y, -n.x);
+        let (ua, da) = (&u[f.a as usize], f.mid - self.centroids[f.a as usize]);
+        let mut delta = -K::displacement(ua, da);
+        let mut out = [[0.0; N]; 2];
+        if f.b == GROUND {
+            K::add_force(&mut out[0], da, f.ks_tl * delta + (f.dk_tl * n.dot(&delta)) * n);
+            K::add_edge_odd(&mut out[0], ua, None, g, n, f.ks_tl, f.dk_tl);
+            return out;
         }
-        if K::HAS_INTERIOR {
-            // The element's own strain energy ½ t A εᵀ D ε pulls back on its strains (eq. 8).
-            let ue = &u[e];
-            let stress = self.interior[e] * nalgebra::Vector3::new(ue[3], ue[4], ue[5]);
-            for i in 0..3 {
-                fe[3 + i] -= stress[i];
-            }
-        }
-        fe
+        let (ub, db) = (&u[f.b as usize], f.mid - self.centroids[f.b as usize]);
+        delta += K::displacement(ub, db);
+        let traction = f.ks_tl * delta + (f.dk_tl * n.dot(&delta)) * n;
+        K::add_force(&mut out[0], da, traction);
+        K::add_edge_odd(&mut out[0], ua, Some(ub), g, n, f.ks_tl, f.dk_tl);
+        K::add_force(&mut out[1], db, -traction);
+        K::add_edge_odd(&mut out[1], ub, Some(ua), g, n, f.ks_tl, f.dk_tl);
+        out
     }
 }
 
@@ -132,17 +133,42 @@ impl<K: Kinematics<N>, const N: usize> Evaluator for ElementWise<K, N> {
 
     fn bytes(&self) -> usize {
         use std::mem::size_of_val;
-        size_of_val(&self.centroids[..]) + size_of_val(&self.faces[..]) + size_of_val(&self.face_start[..])
-            + size_of_val(&self.faces_of[..]) + size_of_val(&self.interior[..])
+        let side_forces = self.faces.len() * std::mem::size_of::<[[f64; N]; 2]>();
+        size_of_val(&self.centroids[..]) + size_of_val(&self.faces[..]) + size_of_val(&self.side_start[..])
+            + size_of_val(&self.sides[..]) + size_of_val(&self.interior[..]) + side_forces
     }
 
     fn internal_force(&self, u: &[f64], f: &mut [f64]) {
         let (u, _) = u.as_chunks::<N>();
         let (f, _) = f.as_chunks_mut::<N>();
-        // Eq. 15 gives the force that the springs exert on the element; f_int is its negative.
+        let mut side_forces = self.side_forces.lock().unwrap_or_else(|e| e.into_inner());
+        // Pass 1: the traction of each interface, once, and its forces on both sides.
+        for_each_chunk(&mut side_forces, |first, chunk| {
+            for (k, out) in chunk.iter_mut().enumerate() {
+                *out = self.face_forces(&self.faces[first + k], u);
+            }
+        });
+        let side_forces = &*side_forces;
+        // Pass 2 (eq. 15): each element sums the forces of its own edges; f_int is minus the
+        // springs' force, plus the interior term `t A D ε` (eq. 8) for hybrid elements.
         for_each_chunk(f, |first, block| {
             for (i, fe) in block.iter_mut().enumerate() {
-                *fe = self.element_force(first + i, u).map(|x| -x);
+                let e = first + i;
+                let mut acc = [0.0; N];
+                for &h in &self.sides[self.side_start[e] as usize..self.side_start[e + 1] as usize] {
+                    let s = &side_forces[(h / 2) as usize][(h % 2) as usize];
+                    for j in 0..N {
+                        acc[j] -= s[j];
+                    }
+                }
+                if K::HAS_INTERIOR {
+                    let ue = &u[e];
+                    let stress = self.interior[e] * nalgebra::Vector3::new(ue[3], ue[4], ue[5]);
+                    for j in 0..3 {
+                        acc[3 + j] += stress[j];
+                    }
+                }
+                *fe = acc;
             }
         });
     }
