@@ -105,9 +105,7 @@ impl Mass {
     /// `v ← (c₁ v − Δt M⁻¹ f) c₂`, then `u ← u + Δt v` unless `u` is empty. Element-local and
     /// in parallel, one pass over the vectors; the result does not depend on the thread count.
     pub fn advance(&self, f: &[f64], v: &mut [f64], u: &mut [f64], dt: f64, (c1, c2): (f64, f64)) {
-        let nd = match self {
-            Mass::Diagonal { nd, .. } | Mass::Blocks { nd, .. } => *nd,
-        };
+        let nd = self.nd();
         for_each_chunk_pair(v, u, CHUNK * nd, |first, v, u| {
             let f = &f[first..first + v.len()];
             match self {
@@ -179,19 +177,32 @@ impl Mass {
     }
 
     fn apply_factor(&self, x: &[f64], y: &mut [f64], transpose: bool) {
-        self.apply(x, y, transpose, true)
+        self.apply_range(0, x, y, transpose, true)
     }
 
-    /// `L`, `Lᵀ`, `L⁻¹` or `L⁻ᵀ` applied element by element.
     fn apply(&self, x: &[f64], y: &mut [f64], transpose: bool, inverse: bool) {
+        self.apply_range(0, x, y, transpose, inverse)
+    }
+
+    /// DOFs per element.
+    pub fn nd(&self) -> usize {
+        match self {
+            Mass::Diagonal { nd, .. } | Mass::Blocks { nd, .. } => *nd,
+        }
+    }
+
+    /// `L`, `Lᵀ`, `L⁻¹` or `L⁻ᵀ` applied element by element to the DOFs `first ..` of the whole
+    /// vector (`first` a multiple of `nd`), so that chunks can be done in parallel.
+    pub fn apply_range(&self, first: usize, x: &[f64], y: &mut [f64], transpose: bool, inverse: bool) {
         match self {
             Mass::Diagonal { inv_sqrt, sqrt, .. } => {
-                for ((y, x), s) in y.iter_mut().zip(x).zip(if inverse { inv_sqrt } else { sqrt }) {
+                let s = if inverse { inv_sqrt } else { sqrt };
+                for ((y, x), s) in y.iter_mut().zip(x).zip(&s[first..]) {
                     *y = x * s;
                 }
             }
             Mass::Blocks { nd, l, l_inv, .. } => {
-                let factor = if inverse { l_inv } else { l };
+                let factor = &(if inverse { l_inv } else { l })[first * nd..];
                 for (e, (ye, xe)) in y.chunks_exact_mut(*nd).zip(x.chunks_exact(*nd)).enumerate() {
                     let b = &factor[e * nd * nd..(e + 1) * nd * nd];
                     for i in 0..*nd {
