@@ -91,3 +91,26 @@ fn the_hopping_block_is_measured_against_its_theory() {
     // The apex error falls with the time step, near second order (validation §8.2).
     assert!(e[0] < 1e-2 && e[1] < e[0] / 4.0, "{e:?}");
 }
+
+#[test]
+fn the_command_line_writes_the_trade_and_refuses_bad_sweeps() {
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/examples/scenes/column_step.json");
+    let dir = tempfile::tempdir().unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_rbsm"))
+        .args(["tradeoff", scene, "--sweep", "refine=1,2", "--out"])
+        .arg(dir.path())
+        .args(["--json", "--quiet"])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(report["points"].as_array().unwrap().len(), 2);
+    assert!(report["reference"].as_str().unwrap().contains("closed form"));
+    for f in ["tradeoff.csv", "tradeoff.md", "tradeoff.svg"] {
+        assert!(dir.path().join(f).exists(), "{f}");
+    }
+    let bad = std::process::Command::new(env!("CARGO_BIN_EXE_rbsm")).args(["tradeoff", scene, "--sweep", "refine=x"]).output().unwrap();
+    assert_eq!(bad.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert!(err.contains("--sweep refine") && err.contains("1..=64"), "{err}");
+}
