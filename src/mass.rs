@@ -10,7 +10,7 @@ use crate::parallel::{for_each_chunk_pair, CHUNK};
 #[derive(Debug, Clone)]
 pub enum Mass {
     /// Lumped: `m[i]` per DOF, `inv[i] = 1/m[i]` (0 for a fixed DOF).
-    Diagonal { nd: usize, m: Vec<f64>, inv: Vec<f64>, inv_sqrt: Vec<f64>, sqrt: Vec<f64> },
+    Diagonal { nd: usize, m: Vec<f64>, inv: Vec<f64> },
     /// One dense `nd × nd` block per element (row-major): `m`, the inverse `inv` of its free
     /// part, the Cholesky factor `l` of its free part and its inverse `l_inv` (zero rows and
     /// columns on fixed DOFs).
@@ -33,9 +33,7 @@ impl Mass {
         for &d in &model.fixed {
             inv[d] = 0.0;
         }
-        let inv_sqrt = inv.iter().map(|x| x.sqrt()).collect();
-        let sqrt = inv.iter().zip(&m).map(|(i, m)| if *i == 0.0 { 0.0 } else { m.sqrt() }).collect();
-        Mass::Diagonal { nd, m, inv, inv_sqrt, sqrt }
+        Mass::Diagonal { nd, m, inv }
     }
 
     /// The consistent block mass of eq. 8, each block's free part inverted once.
@@ -195,10 +193,15 @@ impl Mass {
     /// vector (`first` a multiple of `nd`), so that chunks can be done in parallel.
     pub fn apply_range(&self, first: usize, x: &[f64], y: &mut [f64], transpose: bool, inverse: bool) {
         match self {
-            Mass::Diagonal { inv_sqrt, sqrt, .. } => {
-                let s = if inverse { inv_sqrt } else { sqrt };
-                for ((y, x), s) in y.iter_mut().zip(x).zip(&s[first..]) {
-                    *y = x * s;
+            // `L = M^{½}` on the free DOFs, square roots taken here rather than stored.
+            Mass::Diagonal { inv, .. } if inverse => {
+                for ((y, x), w) in y.iter_mut().zip(x).zip(&inv[first..]) {
+                    *y = x * w.sqrt();
+                }
+            }
+            Mass::Diagonal { m, inv, .. } => {
+                for (((y, x), w), m) in y.iter_mut().zip(x).zip(&inv[first..]).zip(&m[first..]) {
+                    *y = if *w == 0.0 { 0.0 } else { x * m.sqrt() };
                 }
             }
             Mass::Blocks { nd, l, l_inv, .. } => {
