@@ -47,8 +47,10 @@ pub fn trade_section(r: &mut Report) {
     r.bound("trade cantilever: error at refine 2 over refine 1 (dt_factor 0.9)", error(&k, &["2", "0.9"]) / error(&k, &["1", "0.9"]), 0.5);
     r.line("### 9.3 Hopping block, against its theory\n");
     let h = trade(r, "hopping_block.json", &["dt=8e-6,4e-6,2e-6,1e-6", "contact=edge-to-edge,point"]);
-    r.line("For the single rigid brick both contact models give the same apex error: with a flat landing the point springs at the \
-            two corners and the edge-to-edge interface carry the same force. The error falls near second order in `Δt`.\n");
+    r.line("For the single rigid brick both contact models give nearly the same apex error: with a flat landing the point \
+            springs at the two corners and the edge-to-edge interface carry the same force. From 8 µs to 1 µs the error falls by \
+            about 180×, order 2.5 in `Δt`. Each point runs one step at a time through the first bounce, so its wall time is \
+            dominated by the flight, not by the contact.\n");
     for m in ["edge-to-edge", "point"] {
         r.figure(&format!("trade hopping: apex error dt=1e-6 {m}"), error(&h, &["1e-6", m]), 1e-6);
         r.bound(&format!("trade hopping: apex error dt=1e-6 over dt=8e-6, {m} (second order: 1/64)"), error(&h, &["1e-6", m]) / error(&h, &["8e-6", m]), 1.0 / 16.0);
