@@ -101,8 +101,8 @@ pub fn extremes(r: &mut Report) {
     }
     let (d5, d7) = (drifts[0].1, drifts[2].1);
     r.line(&format!("\nThe total is the discrete energy that central difference conserves exactly on a linear system \
-            (`½ v^{{n+½}}ᵀ M v^{{n−½}} + ½ Uᵀ K U`), so only round-off moves it: ×{:.0} from 10⁵ to 10⁷ steps, about the ×10 of a \
-            random walk of round-off (√100), {:.1e} per step.\n", d7 / d5, d7 / 1e7));
+            (`½ v^{{n+½}}ᵀ M v^{{n−½}} + ½ Uᵀ K U`), so only round-off moves it: ×{:.1} from 10⁵ to 10⁷ steps, where a steady \
+            accumulation would give ×100; {:.1e} per step.\n", d7 / d5, d7 / 1e7));
     r.bound("extreme 1e7 steps: drift", d7, 1e-10);
     r.bound("extreme 1e7 steps: drift(1e7) / drift(1e5) (linear growth would give 100)", d7 / d5, 100.0);
 
