@@ -232,7 +232,7 @@ fn machine() -> String {
 
 fn render(bandwidth: &[f64], rows: &[Row], builds: &[(&str, &str, usize, f64)], x: &Extras) -> String {
     let mut s = String::new();
-    let _ = writeln!(s, "# Step benchmark summary\n\nRegenerate with `cargo bench --bench step` (about 20 minutes). Machine: {}.\n", machine());
+    let _ = writeln!(s, "# Step benchmark summary\n\nRegenerate with `cargo bench --bench step` (about 10 minutes). Machine: {}.\n", machine());
     let _ = writeln!(s, "Triad bandwidth `a = b + s c` (3 × 8 bytes per entry): {} GB/s on 1 thread, {} GB/s on 2.\n",
         fmt(bandwidth[0] / 1e9, 1), fmt(bandwidth[1] / 1e9, 1));
     let _ = writeln!(s, "Each time is the median of 10 criterion samples, in ns per element-step: one step of the central-difference");
