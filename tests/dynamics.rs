@@ -78,6 +78,8 @@ fn unstable_run_stops_with_reason_and_keeps_its_outputs() {
     let reason = summary.reason.unwrap();
     assert!(reason.starts_with("step ") && reason.contains("t = ") && reason.contains("energy growth"), "{reason}");
     assert!(summary.steps < 25_000, "stopped at step {}", summary.steps);
+    // It was warned about before it started, and the summary keeps the warning.
+    assert!(summary.warnings.iter().any(|w| w.contains("1.0500 × Δt_crit")), "{:?}", summary.warnings);
     let history = std::fs::read_to_string(dir.path().join("history.csv")).unwrap();
     for line in history.lines().skip(1) {
         assert!(line.split(',').all(|x| x.parse::<f64>().is_ok_and(f64::is_finite)), "bad row {line}");
