@@ -83,7 +83,10 @@ pub fn penalty(p: f64) -> Result<Penalty> {
     let u = statics::solve(&model)?.u;
     let (sigma, e, nu) = (1e6, 2e10, 0.2);
     let exact = |x: crate::geometry::Vec2| (sigma / e * x.x, -nu * sigma / e * x.y);
-    let scale = model.elements.iter().map(|el| exact(el.props.centroid).0.hypot(exact(el.props.centroid).1)).fold(0.0, f64::max);
+    let scale = model.elements.iter().map(|el| {
+        let (a, b) = exact(el.props.centroid);
+        a.hypot(b)
+    }).fold(0.0, f64::max);
     let patch_error = model
         .elements
         .iter()

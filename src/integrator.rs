@@ -189,7 +189,7 @@ impl<'a> CentralDifference<'a> {
     ) -> Result<Status> {
         let check_every = every.min(CHECK_EVERY);
         let dt = self.dt;
-        let damping = (1.0 - 0.5 * self.damping * dt, 1.0 / (1.0 + 0.5 * self.damping * dt));
+        let damping = self.damping_factors();
         let end = self.step + steps;
         if self.pending && steps > 0 {
             self.finish_step(dt);
@@ -248,6 +248,12 @@ impl<'a> CentralDifference<'a> {
         self.t = self.step as f64 * dt;
     }
 
+    /// `(1 − αΔt/2, 1/(1 + αΔt/2))` of the damped velocity update.
+    fn damping_factors(&self) -> (f64, f64) {
+        let half = 0.5 * self.damping * self.dt;
+        (1.0 - half, 1.0 / (1.0 + half))
+    }
+
     /// One step without energies, guard or outputs (the time loop between its checks):
     /// `v^{n+½}` and `U^{n+1}` in one element-local pass once `force` holds the net force at `t_n`.
     fn advance(&mut self, dt: f64, damping: (f64, f64)) {
@@ -261,7 +267,7 @@ impl<'a> CentralDifference<'a> {
     /// step, for benchmarks. `run` does the same between its checks.
     pub fn step_only(&mut self, steps: u64) {
         let dt = self.dt;
-        let damping = (1.0 - 0.5 * self.damping * dt, 1.0 / (1.0 + 0.5 * self.damping * dt));
+        let damping = self.damping_factors();
         in_pool(|| {
             let mut steps = steps;
             if self.pending && steps > 0 {

@@ -156,30 +156,22 @@ impl Mass {
     /// squared frequencies `ω²` of `K φ = ω² M φ` as eigenvalues. For a lumped mass,
     /// `L = M^{½}`.
     pub fn inv_factor_t(&self, x: &[f64], y: &mut [f64]) {
-        self.apply_factor(x, y, true)
+        self.apply_range(0, x, y, true, true)
     }
 
     /// `y = L⁻¹ x` (see [`Mass::inv_factor_t`]).
     pub fn inv_factor(&self, x: &[f64], y: &mut [f64]) {
-        self.apply_factor(x, y, false)
+        self.apply_range(0, x, y, false, true)
     }
 
     /// `y = L x` on the free DOFs (the shift-invert operator `Lᵀ (K − σM)⁻¹ L` uses it).
     pub fn factor(&self, x: &[f64], y: &mut [f64]) {
-        self.apply(x, y, false, false)
+        self.apply_range(0, x, y, false, false)
     }
 
     /// `y = Lᵀ x` on the free DOFs.
     pub fn factor_t(&self, x: &[f64], y: &mut [f64]) {
-        self.apply(x, y, true, false)
-    }
-
-    fn apply_factor(&self, x: &[f64], y: &mut [f64], transpose: bool) {
-        self.apply_range(0, x, y, transpose, true)
-    }
-
-    fn apply(&self, x: &[f64], y: &mut [f64], transpose: bool, inverse: bool) {
-        self.apply_range(0, x, y, transpose, inverse)
+        self.apply_range(0, x, y, true, false)
     }
 
     /// DOFs per element.

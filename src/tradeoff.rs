@@ -270,7 +270,7 @@ fn run_point(scene: &Scene, settings: Vec<(Key, String)>, probes: &[Probe]) -> R
     let clock = Instant::now();
     let (status, measure) = if matches!(scene.reference, Some(ReferenceSpec::HoppingBlock)) {
         // Every step, until the first apex: the contact lasts a few dozen steps.
-        let ground = model.ground.first().map_or(0.0, |g| g[0].y);
+        let ground = ground_height(model);
         let mut tracker = Tracker::default();
         let mut status = Status::Ok;
         // Until the body falls again after its first rebound: the apex is then behind it.
@@ -329,6 +329,11 @@ fn run_point(scene: &Scene, settings: Vec<(Key, String)>, probes: &[Probe]) -> R
     Ok((point, measure))
 }
 
+/// The height of the (horizontal) ground of a hopping-block scene: its first segment's.
+fn ground_height(model: &Model) -> f64 {
+    model.ground.first().map_or(0.0, |g| g[0].y)
+}
+
 /// The element whose polygon contains `x` (the nearest centroid when none does: a point on a
 /// shared edge belongs to either side).
 fn element_at(model: &Model, x: Vec2) -> usize {
@@ -355,7 +360,7 @@ fn score(scene: &Scene, model: &Model, runs: &mut [(Point, Measure)], probes: &[
     let ok = |p: &Point| p.status == "ok";
     match &scene.reference {
         Some(ReferenceSpec::HoppingBlock) => {
-            let ground = model.ground.first().map_or(0.0, |g| g[0].y);
+            let ground = ground_height(model);
             let height = lowest_point(model, &vec![0.0; model.n_dofs()]) - ground;
             for (p, m) in runs.iter_mut() {
                 if let (true, Measure::Apex(a)) = (ok(p), m) {
