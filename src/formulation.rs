@@ -21,13 +21,12 @@ pub trait Kinematics<const N: usize>: Send + Sync + 'static {
     /// `f += (N_e(d) − N_e(0))ᵀ F`: [`Kinematics::add_force`] without the translation part.
     fn add_linear(f: &mut [f64; N], d: Vec2, force: Vec2);
     /// The part of an edge's 2-point Gauss rule that is odd in the Gauss offset `g` (eq. 15,
-    /// see `evaluator::element_wise`): `f += (N_e(g) − N_e(0))ᵀ λ(δ₁)`, with
-    /// `δ₁ = gradient(u_o, g) − gradient(u_e, g)` (`u_o = None` on ground) and
-    /// `λ(δ) = k_s δ + (k_n − k_s)(n·δ) n`; `g` lies along the edge, normal to `n`.
+    /// see `evaluator::element_wise`): `f += (N_e(g) − N_e(0))ᵀ S δ₁`, with
+    /// `δ₁ = gradient(u_o, g) − gradient(u_e, g)` (`u_o = None` on ground); `g` lies along the edge.
     #[inline(always)]
-    fn add_edge_odd(f: &mut [f64; N], ue: &[f64; N], uo: Option<&[f64; N]>, g: Vec2, n: Vec2, ks: f64, dk: f64) {
+    fn add_edge_odd(f: &mut [f64; N], ue: &[f64; N], uo: Option<&[f64; N]>, g: Vec2, s: &Springs) {
         let delta = uo.map_or(Vec2::zeros(), |uo| Self::gradient(uo, g)) - Self::gradient(ue, g);
-        Self::add_linear(f, g, ks * delta + (dk * n.dot(&delta)) * n);
+        Self::add_linear(f, g, s.apply(delta));
     }
     /// The 2 × N shape matrix `N_e(x)` at offset `d`.
     fn shape(d: Vec2) -> SMatrix<f64, 2, N>;
@@ -38,6 +37,34 @@ pub trait Kinematics<const N: usize>: Send + Sync + 'static {
     fn interior_stiffness(props: &AreaProperties, d: &Matrix3<f64>, t: f64) -> SMatrix<f64, N, N>;
     /// Whether `interior_stiffness` can be non-zero (evaluators skip it otherwise).
     const HAS_INTERIOR: bool;
+}
+
+/// The penalty springs of an edge acting on a displacement jump `δ`:
+/// `λ = S δ = k_s δ + (k_n − k_s)(n·δ) n` (eq. 12), a symmetric 2 × 2 matrix stored as its
+/// three entries (N/m³, or N/m when it carries the factor `t L` of an edge's integral).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Springs {
+    xx: f64,
+    xy: f64,
+    yy: f64,
+}
+
+impl Springs {
+    /// `S = k_s I + (k_n − k_s) n nᵀ` for the unit normal `n`.
+    pub fn new(normal: Vec2, k_n: f64, k_s: f64) -> Self {
+        let dk = k_n - k_s;
+        Springs { xx: k_s + dk * normal.x * normal.x, xy: dk * normal.x * normal.y, yy: k_s + dk * normal.y * normal.y }
+    }
+    /// `S δ`.
+    #[inline(always)]
+    pub fn apply(&self, d: Vec2) -> Vec2 {
+        Vec2::new(self.xx * d.x + self.xy * d.y, self.xy * d.x + self.yy * d.y)
+    }
+    /// `dᵀ S d`.
+    #[inline(always)]
+    pub fn quadratic(&self, d: Vec2) -> f64 {
+        self.xx * d.x * d.x + 2.0 * self.xy * d.x * d.y + self.yy * d.y * d.y
+    }
 }
 
 /// Plain RBSM (eq. 10): `U_e = (u, v, θ)`, `N_e = [[1, 0, −Δy], [0, 1, Δx]]`.
@@ -63,10 +90,10 @@ impl Kinematics<3> for Rigid {
     fn add_linear(f: &mut [f64; 3], d: Vec2, force: Vec2) {
         f[2] += d.x * force.y - d.y * force.x;
     }
-    /// With `g = |g| s` and `n = ẑ × s`: `δ₁ = Δθ |g| n`, so the term is `k_n |g|² Δθ` on `θ`.
+    /// `δ₁ = Δθ ẑ × g`, so the term is `(ẑ × g)ᵀ S (ẑ × g) Δθ = k_n |g|² Δθ` on `θ`.
     #[inline(always)]
-    fn add_edge_odd(f: &mut [f64; 3], ue: &[f64; 3], uo: Option<&[f64; 3]>, g: Vec2, _: Vec2, ks: f64, dk: f64) {
-        f[2] += (ks + dk) * g.norm_squared() * (uo.map_or(0.0, |uo| uo[2]) - ue[2]);
+    fn add_edge_odd(f: &mut [f64; 3], ue: &[f64; 3], uo: Option<&[f64; 3]>, g: Vec2, s: &Springs) {
+        f[2] += s.quadratic(Vec2::new(-g.y, g.x)) * (uo.map_or(0.0, |uo| uo[2]) - ue[2]);
     }
     fn shape(d: Vec2) -> SMatrix<f64, 2, 3> {
         SMatrix::<f64, 2, 3>::new(1.0, 0.0, -d.y, 0.0, 1.0, d.x)

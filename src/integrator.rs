@@ -10,7 +10,7 @@ use crate::contact::Contact;
 use crate::error::Result;
 use crate::evaluator::Evaluator;
 use crate::loads::Loads;
-use crate::mass::Mass;
+use crate::mass::{Mass, Update};
 use crate::model::Model;
 use crate::parallel::for_each_chunk;
 
@@ -71,6 +71,8 @@ pub struct CentralDifference<'a> {
     /// Half-step velocities `v^{n−½}`.
     pub v: Vec<f64>,
     force: Vec<f64>,
+    /// Whether `force` is all zero, as a fused step leaves it.
+    force_clear: bool,
     scratch: Vec<f64>,
     /// Contact state and forces; `None` for a scene without contact.
     pub contact: Option<Contact>,
@@ -116,6 +118,7 @@ impl<'a> CentralDifference<'a> {
             u: u0,
             v: v0,
             force: vec![0.0; n],
+            force_clear: false,
             scratch: vec![0.0; n],
             contact: Contact::new(model),
             contact_energy: 0.0,
@@ -137,12 +140,18 @@ impl<'a> CentralDifference<'a> {
     /// energy `½ Uᵀ f_int` when `energy` is asked for (a pass over the vectors), else 0.
     fn net_force(&mut self, energy: bool) -> f64 {
         self.evaluator.internal_force(&self.u, &mut self.force);
+        self.force_clear = false;
         let elastic = if energy { 0.5 * dot(&self.u, &self.force) } else { 0.0 };
+        self.subtract_external();
+        elastic
+    }
+
+    /// `force −= f_c^n + P(t_n)`.
+    fn subtract_external(&mut self) {
         if let Some(c) = self.contact.as_mut() {
             self.contact_energy = c.apply(self.step, &self.u, &self.v, self.dt, &mut self.force);
         }
         self.loads.subtract(self.t, &mut self.force);
-        elastic
     }
 
     /// Tells the guard the stability limit `Δt_crit` of the model (see [`GROWTH_LIMIT`]).
@@ -198,11 +207,11 @@ impl<'a> CentralDifference<'a> {
             let last = self.step == end;
             let record = last || self.step % every == 0;
             let check = record || self.step % check_every == 0;
-            let elastic = self.net_force(check);
             if !check {
-                self.advance(dt, damping);
+                self.step_unchecked(dt, damping);
                 continue;
             }
+            let elastic = self.net_force(true);
             self.scratch.copy_from_slice(&self.v);
             self.mass.advance(&self.force, &mut self.v, &mut [], dt, damping);
             let shadow = self.mass.kinetic_product(&self.scratch, &self.v);
@@ -255,9 +264,21 @@ impl<'a> CentralDifference<'a> {
     }
 
     /// One step without energies, guard or outputs (the time loop between its checks):
-    /// `v^{n+½}` and `U^{n+1}` in one element-local pass once `force` holds the net force at `t_n`.
-    fn advance(&mut self, dt: f64, damping: (f64, f64)) {
-        self.mass.advance(&self.force, &mut self.v, &mut self.u, dt, damping);
+    /// `v^{n+½}` and `U^{n+1}`, fused with the evaluation when the evaluator can do that, else
+    /// in one element-local pass after it.
+    fn step_unchecked(&mut self, dt: f64, damping: (f64, f64)) {
+        if !self.evaluator.fuses() {
+            self.net_force(false);
+            self.mass.advance(&self.force, &mut self.v, &mut self.u, dt, damping);
+        } else {
+            if !self.force_clear {
+                self.force.fill(0.0);
+            }
+            self.subtract_external();
+            let update = Update { mass: self.mass, dt, damping };
+            self.evaluator.advance(&mut self.u, &mut self.v, &mut self.force, &update);
+            self.force_clear = true;
+        }
         self.external_work += self.loads.work_increment(self.t, dt, &self.v);
         self.step += 1;
         self.t = self.step as f64 * dt;
@@ -275,8 +296,7 @@ impl<'a> CentralDifference<'a> {
                 steps -= 1;
             }
             for _ in 0..steps {
-                self.net_force(false);
-                self.advance(dt, damping);
+                self.step_unchecked(dt, damping);
             }
         })
     }

@@ -6,6 +6,27 @@
 use crate::model::Model;
 use crate::parallel::{for_each_chunk_pair, CHUNK};
 
+/// One explicit update of an element (DESIGN.md §7), for evaluators that fuse it with the
+/// evaluation ([`crate::evaluator::Evaluator::advance`]).
+pub struct Update<'a> {
+    pub mass: &'a Mass,
+    /// Time step (s).
+    pub dt: f64,
+    /// `(1 − αΔt/2, 1/(1 + αΔt/2))` of mass-proportional damping `α`.
+    pub damping: (f64, f64),
+}
+
+impl Update<'_> {
+    /// `v_e ← (c₁ v_e − Δt M_e⁻¹ f_e) c₂`, then `u_e ← u_e + Δt v_e`, for element `e`.
+    #[inline(always)]
+    pub fn element<const N: usize>(&self, e: usize, f: &[f64; N], v: &mut [f64; N], u: &mut [f64; N]) {
+        self.mass.velocity_update(e, f, v, self.dt, self.damping);
+        for j in 0..N {
+            u[j] += self.dt * v[j];
+        }
+    }
+}
+
 /// `M` and `M⁻¹` of a model. Diagonal blocks are stored as diagonals.
 #[derive(Debug, Clone)]
 pub enum Mass {
@@ -106,27 +127,33 @@ impl Mass {
         let nd = self.nd();
         for_each_chunk_pair(v, u, CHUNK * nd, |first, v, u| {
             let f = &f[first..first + v.len()];
-            match self {
-                Mass::Diagonal { inv, .. } => {
-                    let inv = &inv[first..first + v.len()];
-                    for ((v, f), w) in v.iter_mut().zip(f).zip(inv) {
-                        *v = (c1 * *v - dt * w * f) * c2;
-                    }
-                }
-                Mass::Blocks { inv, .. } => {
-                    let inv = &inv[first * nd..(first + v.len()) * nd];
-                    for ((ve, fe), b) in v.chunks_exact_mut(nd).zip(f.chunks_exact(nd)).zip(inv.chunks_exact(nd * nd)) {
-                        for i in 0..nd {
-                            let a: f64 = (0..nd).map(|j| b[i * nd + j] * fe[j]).sum();
-                            ve[i] = (c1 * ve[i] - dt * a) * c2;
-                        }
-                    }
-                }
+            for (k, (ve, fe)) in v.chunks_exact_mut(nd).zip(f.chunks_exact(nd)).enumerate() {
+                self.velocity_update(first / nd + k, fe, ve, dt, (c1, c2));
             }
             for (u, v) in u.iter_mut().zip(v.iter()) {
                 *u += dt * v;
             }
         });
+    }
+
+    /// `v_e ← (c₁ v_e − Δt M_e⁻¹ f_e) c₂` for element `e`.
+    #[inline(always)]
+    fn velocity_update(&self, e: usize, f: &[f64], v: &mut [f64], dt: f64, (c1, c2): (f64, f64)) {
+        match self {
+            Mass::Diagonal { inv, .. } => {
+                let nd = v.len();
+                for ((v, f), w) in v.iter_mut().zip(f).zip(&inv[e * nd..(e + 1) * nd]) {
+                    *v = (c1 * *v - dt * w * f) * c2;
+                }
+            }
+            Mass::Blocks { nd, inv, .. } => {
+                let b = &inv[e * nd * nd..(e + 1) * nd * nd];
+                for i in 0..*nd {
+                    let a: f64 = (0..*nd).map(|j| b[i * nd + j] * f[j]).sum();
+                    v[i] = (c1 * v[i] - dt * a) * c2;
+                }
+            }
+        }
     }
 
     /// Kinetic energy `½ vᵀ M v`.

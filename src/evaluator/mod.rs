@@ -11,6 +11,7 @@ pub use assembled::{interface_stiffness, Assembled, BlockCsr};
 pub use element_wise::ElementWise;
 
 use crate::formulation::{Formulation, Hybrid, Rigid};
+use crate::mass::Update;
 use crate::model::Model;
 use crate::scene::EvaluatorKind;
 
@@ -23,6 +24,17 @@ pub trait Evaluator: Send + Sync {
     fn internal_force(&self, u: &[f64], f: &mut [f64]);
     /// The bytes of data it holds, all of which one evaluation reads.
     fn bytes(&self) -> usize;
+    /// Whether it implements [`Evaluator::advance`].
+    fn fuses(&self) -> bool {
+        false
+    }
+    /// One explicit step fused with the evaluation (DESIGN.md §7): with `force` holding the
+    /// rest of the net force, `−P − f_c`, each element gets `f_int(U^n) + force` and is advanced
+    /// by `update` as soon as its force is complete; `force` is left zero. Only for an evaluator
+    /// that [`fuses`](Evaluator::fuses); the others are evaluated and advanced in two passes.
+    fn advance(&self, _u: &mut [f64], _v: &mut [f64], _force: &mut [f64], _update: &Update) {
+        unreachable!("advance is only called on an evaluator that fuses")
+    }
 }
 
 /// The global stiffness `K` of eq. 7 as scalar triplets `(row, col, value)` over all DOFs.
