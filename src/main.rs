@@ -45,6 +45,18 @@ enum Command {
         #[arg(long)]
         steps: Option<u64>,
     },
+    /// Validate a scene without running it and print what it would model: elements,
+    /// interfaces, DOFs, supports, loads, contact, Δt_crit, the time step and the memory.
+    /// Exit code 0 only for a valid scene.
+    Check {
+        scene: PathBuf,
+        /// Override the scene's evaluator.
+        #[arg(long, value_enum)]
+        evaluator: Option<EvaluatorKind>,
+        /// Override the time step (s).
+        #[arg(long)]
+        dt: Option<f64>,
+    },
     /// Static solution K_ff U_f = P_f (sparse Cholesky); loads at their full value.
     Static {
         scene: PathBuf,
@@ -135,6 +147,16 @@ fn main() -> ExitCode {
     }
 }
 
+/// `1.2 MB`, `35.0 kB`, `512 B`.
+fn human_bytes(b: usize) -> String {
+    match b {
+        0..1000 => format!("{b} B"),
+        1000..1_000_000 => format!("{:.1} kB", b as f64 / 1e3),
+        1_000_000..1_000_000_000 => format!("{:.1} MB", b as f64 / 1e6),
+        _ => format!("{:.2} GB", b as f64 / 1e9),
+    }
+}
+
 /// Prints a report as JSON, or as the text `text` gives.
 fn print(json: bool, value: &impl serde::Serialize, text: impl FnOnce() -> String) {
     if json {
@@ -146,6 +168,30 @@ fn print(json: bool, value: &impl serde::Serialize, text: impl FnOnce() -> Strin
 
 fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
     match &cli.command {
+        Command::Check { scene, evaluator, dt } => {
+            let r = rbsm::report::check_report(&Scene::from_file(scene)?, &RunOptions { evaluator: *evaluator, dt: *dt, steps: None })?;
+            print(cli.json, &r, || {
+                let mut t = format!("{}: valid\n", r.scene);
+                t += &format!("  {} bodies, {} elements ({} formulation, {} evaluator)\n", r.bodies, r.elements, r.formulation, r.evaluator);
+                t += &format!("  {} interfaces, {} ground springs; {} DOFs, {} fixed\n", r.interfaces, r.ground_springs, r.dofs, r.fixed_dofs);
+                t += &format!("  {} point loads; gravity ({}, {}) m/s²\n", r.loads, r.gravity[0], r.gravity[1]);
+                t += &match &r.contact {
+                    None => "  contact: none declared (no contact search)\n".to_string(),
+                    Some(c) => format!(
+                        "  contact: {}, {} vertices against {} edges; at the start {} pairs tested, {} in contact\n",
+                        c.model, c.vertices, c.edges, c.pairs_tested_at_start, c.pairs_in_contact_at_start
+                    ),
+                };
+                t += &format!("  ω_max = {:.6e} rad/s, Δt_crit = {:.6e} s\n", r.omega_max, r.dt_crit);
+                t += &format!("  dt = {:.6e} s = {:.4} Δt_crit, {} steps\n", r.dt, r.dt_ratio, r.steps);
+                t += &format!("  memory for stepping: {}", human_bytes(r.memory_bytes));
+                for w in &r.warnings {
+                    t += &format!("\n  warning: {w}");
+                }
+                t
+            });
+            Ok(ExitCode::SUCCESS)
+        }
         Command::Static { scene } => {
             let r = rbsm::report::static_report(&Scene::from_file(scene)?)?;
             print(cli.json, &r, || {

@@ -5,9 +5,9 @@ use crate::contact::ContactSettings;
 use crate::error::{Error, Result};
 use crate::formulation::{elasticity, Formulation};
 use crate::geometry::{area_properties, AreaProperties, Vec2};
-use crate::mesh::{grid, voronoi, Mesh, Side};
+use crate::mesh::{grid, voronoi, EdgeSet, Mesh};
 use crate::scene::{
-    ClampSpec, Component, ContactSpec, ForceSpec, GridSpec, GroundSpringSpec, LoadSpec, MaterialSpec, MeshSpec, Plane, PolygonsSpec, Scene,
+    ClampSpec, Component, ContactSpec, ForceSpec, GridSpec, GroundSpringSpec, LoadSpec, MaterialSpec, MeshSpec, GmshSpec, Plane, PolygonsSpec, Scene,
     SupportSpec, TractionSpec, VoronoiSpec,
 };
 
@@ -205,7 +205,7 @@ impl Model {
                 let field = at(&format!("supports[{k}].edge"));
                 match s {
                     SupportSpec::GroundSpring(GroundSpringSpec { edge, components }) => {
-                        for e in side_edges(&mesh, *edge, &field)? {
+                        for e in side_edges(&mesh, edge, &field)? {
                             let mut iface = model.interface(first + e.cell as usize, None, &mesh, e.v1, e.v2, &material)
                                 .map_err(|m| Error::mesh(&spec.name, e.cell as usize, m))?;
                             if !components.contains(&Component::N) {
@@ -222,7 +222,7 @@ impl Model {
                             None => (0..nd).collect(),
                             Some(names) => names.iter().map(|n| dof_index(n, formulation, &at(&format!("supports[{k}].dofs")))).collect::<Result<_>>()?,
                         };
-                        for e in side_edges(&mesh, *edge, &field)? {
+                        for e in side_edges(&mesh, edge, &field)? {
                             let el = first + e.cell as usize;
                             model.fixed.extend(which.iter().map(|&d| el * nd + d));
                         }
@@ -233,7 +233,7 @@ impl Model {
                 match l {
                     LoadSpec::Traction(TractionSpec { edge, value, amplitude }) => {
                         let q = Vec2::new(value[0], value[1]);
-                        for e in side_edges(&mesh, *edge, &at(&format!("loads[{k}].edge")))? {
+                        for e in side_edges(&mesh, edge, &at(&format!("loads[{k}].edge")))? {
                             let (p, r) = (mesh.vertices[e.v1 as usize], mesh.vertices[e.v2 as usize]);
                             // Uniform traction: the resultant acts at the midpoint, exactly.
                             model.loads.push(Load {
@@ -349,14 +349,11 @@ fn build_mesh(body: &str, spec: &MeshSpec) -> Result<Mesh> {
         MeshSpec::Grid(GridSpec { origin, size, cells, cell }) => grid::grid(body, v(origin), v(size), cells[0], cells[1], *cell),
         MeshSpec::Voronoi(VoronoiSpec { origin, size, sites, seed, lloyd }) => voronoi::voronoi(body, v(origin), v(size), *sites, *seed, *lloyd),
         MeshSpec::Polygons(PolygonsSpec { vertices, cells }) => Mesh::from_polygons(body, vertices.iter().map(v).collect(), cells),
+        MeshSpec::Gmsh(GmshSpec { path }) => crate::mesh::gmsh::read(body, path),
     }
 }
 
-/// The boundary edges of a side; an error naming `field` when there are none.
-fn side_edges<'m>(mesh: &'m Mesh, side: Side, field: &str) -> Result<Vec<&'m crate::mesh::BoundaryEdge>> {
-    let edges: Vec<_> = mesh.boundary.iter().filter(|e| e.side == Some(side)).collect();
-    if edges.is_empty() {
-        return Err(Error::scene(field, format!("no boundary edge lies on side `{side:?}` of the body's bounding box")));
-    }
-    Ok(edges)
+/// The boundary edges of a side or group; an error naming `field` when there are none.
+fn side_edges<'m>(mesh: &'m Mesh, set: &EdgeSet, field: &str) -> Result<Vec<&'m crate::mesh::BoundaryEdge>> {
+    mesh.edges_in(set).map_err(|m| Error::scene(field, m))
 }

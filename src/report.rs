@@ -1,4 +1,5 @@
-//! The JSON answers of the analysis commands (DESIGN.md §9): `static`, `eigen`, `stability`.
+//! The JSON answers of the analysis commands (DESIGN.md §9): `check`, `static`, `eigen`,
+//! `stability`.
 
 use crate::error::Result;
 use crate::eigen::{self, Method, Modes};
@@ -128,4 +129,91 @@ pub fn stability_report(scene: &Scene, fractions: &[f64], steps: u64) -> Result<
     let (dt, ratio) = stability::empirical_limit(&model, ev.as_ref(), &mass, dt_crit, steps, 1e-4);
     let fractions = fractions.iter().map(|&f| stability::run_at_fraction(&model, ev.as_ref(), &mass, dt_crit, f, steps)).collect();
     Ok(StabilityReport { omega_max, dt_crit, bounds, empirical: Empirical { dt, ratio }, fractions })
+}
+
+/// `rbsm check --json`: what a run of the scene would model, without running it.
+#[derive(Serialize)]
+pub struct CheckReport {
+    pub scene: String,
+    pub formulation: &'static str,
+    pub evaluator: &'static str,
+    pub bodies: usize,
+    pub elements: usize,
+    /// Interfaces between two elements, and ground springs (supports).
+    pub interfaces: usize,
+    pub ground_springs: usize,
+    pub dofs: usize,
+    /// DOFs fixed by clamps.
+    pub fixed_dofs: usize,
+    /// Point loads that the tractions and forces become.
+    pub loads: usize,
+    pub gravity: [f64; 2],
+    /// `None` without a `contact` section: then no contact work is done.
+    pub contact: Option<ContactCheck>,
+    /// Largest circular frequency (rad/s) and `Δt_crit = 2/ω_max` (s).
+    pub omega_max: f64,
+    pub dt_crit: f64,
+    /// The time step a run would take (s), its ratio to `Δt_crit`, and the steps.
+    pub dt: f64,
+    pub dt_ratio: f64,
+    pub steps: u64,
+    /// Bytes a run holds for stepping: the evaluator's data, `M` and `M⁻¹`, and the
+    /// integrator's vectors (`U`, `v`, force, averaged velocity, and the guard's `U`, `v`).
+    pub memory_bytes: usize,
+    pub warnings: Vec<String>,
+}
+
+/// The contact a run would model.
+#[derive(Serialize)]
+pub struct ContactCheck {
+    pub model: &'static str,
+    /// Vertices that can touch and edges they can touch (ground segments included).
+    pub vertices: usize,
+    pub edges: usize,
+    /// Vertex–edge pairs near enough to be tested at the start, and those in contact there.
+    pub pairs_tested_at_start: u64,
+    pub pairs_in_contact_at_start: usize,
+}
+
+/// Validates `scene` and everything a run would build (mesh, model, probes, `Δt_crit`, the
+/// time step) without stepping.
+pub fn check_report(scene: &Scene, opts: &crate::run::RunOptions) -> Result<CheckReport> {
+    let p = crate::run::Prepared::new(scene, opts)?;
+    crate::run::probes(scene, &p.model)?;
+    let m = &p.model;
+    let contact = crate::contact::Contact::new(m).map(|mut c| {
+        let n = m.n_dofs();
+        c.apply(0, &vec![0.0; n], &m.initial_velocity, p.dt, &mut vec![0.0; n]);
+        let (vertices, edges) = c.extent();
+        ContactCheck {
+            model: c.settings.model.name(),
+            vertices,
+            edges,
+            pairs_tested_at_start: c.stats.tests,
+            pairs_in_contact_at_start: c.records().len(),
+        }
+    });
+    let ground_springs = m.interfaces.iter().filter(|i| i.b == crate::model::GROUND).count();
+    let mass_bytes = 8 * p.mass.triplets().len() * if p.mass.is_diagonal() { 2 } else { 4 };
+    Ok(CheckReport {
+        scene: m.name.clone(),
+        formulation: m.formulation.name(),
+        evaluator: p.evaluator.kind().name(),
+        bodies: m.bodies.len(),
+        elements: m.elements.len(),
+        interfaces: m.interfaces.len() - ground_springs,
+        ground_springs,
+        dofs: m.n_dofs(),
+        fixed_dofs: m.fixed.len(),
+        loads: m.loads.len(),
+        gravity: [m.gravity.x, m.gravity.y],
+        contact,
+        omega_max: p.omega_max,
+        dt_crit: p.dt_crit,
+        dt: p.dt,
+        dt_ratio: p.dt / p.dt_crit,
+        steps: p.steps,
+        memory_bytes: p.evaluator.bytes() + mass_bytes + 6 * 8 * m.n_dofs(),
+        warnings: crate::checks::warnings(m, p.dt, p.dt_crit),
+    })
 }

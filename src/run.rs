@@ -101,6 +101,22 @@ impl Monitor for Silent {
     fn progress(&mut self, _: u64, _: u64) {}
 }
 
+/// The history columns the scene asks for, each checked against the model's DOFs.
+pub fn probes(scene: &Scene, model: &Model) -> Result<Vec<Probe>> {
+    let nd = model.formulation.ndof();
+    scene
+        .output
+        .probes
+        .iter()
+        .enumerate()
+        .map(|(k, pr)| {
+            let d = dof_index(&pr.dof, model.formulation, &format!("output.probes[{k}].dof"))?;
+            let name = pr.name.clone().unwrap_or_else(|| format!("e{}_{}", pr.element, pr.dof));
+            Ok(Probe { name, dof: pr.element * nd + d })
+        })
+        .collect()
+}
+
 /// Runs `scene` and writes its outputs into `out`; returns the summary (also written).
 pub fn run(scene: &Scene, opts: &RunOptions, out: &Path, monitor: &mut dyn Monitor) -> Result<Summary> {
     let wall = Instant::now();
@@ -123,18 +139,7 @@ pub fn run(scene: &Scene, opts: &RunOptions, out: &Path, monitor: &mut dyn Monit
     for w in &warnings {
         monitor.info(&format!("warning: {w}"));
     }
-    let nd = model.formulation.ndof();
-    let probes = scene
-        .output
-        .probes
-        .iter()
-        .enumerate()
-        .map(|(k, pr)| {
-            let d = dof_index(&pr.dof, model.formulation, &format!("output.probes[{k}].dof"))?;
-            let name = pr.name.clone().unwrap_or_else(|| format!("e{}_{}", pr.element, pr.dof));
-            Ok(Probe { name, dof: pr.element * nd + d })
-        })
-        .collect::<Result<Vec<_>>>()?;
+    let probes = probes(scene, model)?;
     let mut history = History::create(out, probes)?;
     let mut vtk = if scene.output.vtk { Some(VtkSeries::create(out)?) } else { None };
     let mut cd = p.integrator(p.dt);

@@ -4,7 +4,7 @@
 //! [`Scene::validate`] then checks every value against its allowed range.
 
 use crate::error::{Error, Result};
-use crate::mesh::{grid::Cell, Side};
+use crate::mesh::{grid::Cell, EdgeSet};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -129,6 +129,15 @@ pub enum MeshSpec {
     Grid(GridSpec),
     Voronoi(VoronoiSpec),
     Polygons(PolygonsSpec),
+    Gmsh(GmshSpec),
+}
+
+/// A gmsh MSH 4.1 file of triangles and quadrilaterals; a relative `path` is taken from the
+/// scene file's directory. Its physical groups of lines name edges for supports and loads.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GmshSpec {
+    pub path: std::path::PathBuf,
 }
 
 /// `cells = [nx, ny]` rectangles (or twice as many triangles) over `origin .. origin + size`.
@@ -170,7 +179,8 @@ impl<'de> Deserialize<'de> for MeshSpec {
             "grid" => variant(rest).map(MeshSpec::Grid),
             "voronoi" => variant(rest).map(MeshSpec::Voronoi),
             "polygons" => variant(rest).map(MeshSpec::Polygons),
-            other => Err(unknown_kind(other, &["grid", "voronoi", "polygons"])),
+            "gmsh" => variant(rest).map(MeshSpec::Gmsh),
+            other => Err(unknown_kind(other, &["grid", "voronoi", "polygons", "gmsh"])),
         }
     }
 }
@@ -193,7 +203,7 @@ pub enum SupportSpec {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct GroundSpringSpec {
-    pub edge: Side,
+    pub edge: EdgeSet,
     /// `["n", "s"]` by default; `["n"]` is a roller.
     #[serde(default = "both_components")]
     pub components: Vec<Component>,
@@ -203,7 +213,7 @@ pub struct GroundSpringSpec {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ClampSpec {
-    pub edge: Side,
+    pub edge: EdgeSet,
     #[serde(default)]
     pub dofs: Option<Vec<String>>,
 }
@@ -242,7 +252,7 @@ pub enum LoadSpec {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct TractionSpec {
-    pub edge: Side,
+    pub edge: EdgeSet,
     pub value: [f64; 2],
     /// Piecewise-linear factor in time, `[[t, factor], ...]`; constant 1 when absent.
     #[serde(default)]
@@ -394,14 +404,20 @@ impl Scene {
     pub fn from_file(path: impl AsRef<Path>) -> Result<Scene> {
         let path = path.as_ref();
         let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-        Scene::from_json(&text).map_err(|e| match e {
+        Scene::parse(&text, path.parent()).map_err(|e| match e {
             Error::Parse { message, .. } => Error::Parse { path: path.display().to_string(), message },
             other => other,
         })
     }
 
-    /// Parses and validates a scene from JSON text.
+    /// Parses and validates a scene from JSON text; mesh files are found from the working
+    /// directory.
     pub fn from_json(text: &str) -> Result<Scene> {
+        Scene::parse(text, None)
+    }
+
+    /// Parses a scene whose relative mesh paths start at `dir`, then validates it.
+    fn parse(text: &str, dir: Option<&Path>) -> Result<Scene> {
         let de = &mut serde_json::Deserializer::from_str(text);
         let scene: Scene = serde_path_to_error::deserialize(de).map_err(|e| {
             let mut path = e.path().to_string();
@@ -414,6 +430,16 @@ impl Scene {
             let message = if path == "." { inner } else { format!("at `{path}`: {inner}") };
             Error::Parse { path: "<json>".into(), message }
         })?;
+        let mut scene = scene;
+        if let Some(dir) = dir {
+            for body in &mut scene.bodies {
+                if let MeshSpec::Gmsh(GmshSpec { path }) = &mut body.mesh {
+                    if path.is_relative() {
+                        *path = dir.join(&*path);
+                    }
+                }
+            }
+        }
         scene.validate()?;
         Ok(scene)
     }
@@ -519,6 +545,11 @@ impl Scene {
             MeshSpec::Polygons(PolygonsSpec { vertices, cells }) => {
                 if vertices.len() < 3 || cells.is_empty() {
                     return Err(Error::scene(at("mesh"), "needs at least 3 vertices and 1 cell"));
+                }
+            }
+            MeshSpec::Gmsh(GmshSpec { path }) => {
+                if !path.is_file() {
+                    return Err(Error::scene(at("mesh.path"), format!("no file `{}` (a relative path starts at the scene file's directory)", path.display())));
                 }
             }
         }

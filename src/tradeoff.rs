@@ -458,7 +458,7 @@ impl Bar {
             .loads
             .iter()
             .find_map(|l| match l {
-                crate::scene::LoadSpec::Traction(t) if t.edge == crate::mesh::Side::Right => Some(t.value[0]),
+                crate::scene::LoadSpec::Traction(t) if t.edge == crate::mesh::EdgeSet::Side(crate::mesh::Side::Right) => Some(t.value[0]),
                 _ => None,
             })
             .ok_or_else(|| Error::scene(field, "bar-step needs a traction on the right edge of the first body"))?;

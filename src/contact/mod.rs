@@ -154,6 +154,11 @@ pub struct Contact {
 }
 
 impl Contact {
+    /// The vertices that can touch and the edges they can touch (ground segments included).
+    pub fn extent(&self) -> (usize, usize) {
+        (self.vertices.len(), self.edges.len())
+    }
+
     /// The contact of a model; `None` when its scene declares none.
     pub fn new(model: &Model) -> Option<Contact> {
         let settings = model.contact?;

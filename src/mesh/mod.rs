@@ -2,10 +2,14 @@
 //!
 //! Pure geometry; the model (`crate::model`) turns cells into elements and shared edges into
 //! interfaces. Generators: [`grid`] (rectangles or triangles), [`voronoi`] (centroidal Voronoi
-//! cells clipped to a rectangle) and [`Mesh::from_polygons`] (explicit cells from the scene).
+//! cells clipped to a rectangle), [`Mesh::from_polygons`] (explicit cells from the scene) and
+//! [`gmsh`] (MSH 4.1 files).
 
+pub mod gmsh;
 pub mod grid;
 pub mod voronoi;
+
+pub use gmsh::EdgeGroup;
 
 use crate::buckets::{BucketLists, Buckets};
 use crate::error::{Error, Result};
@@ -20,6 +24,36 @@ pub enum Side {
     Right,
     Bottom,
     Top,
+}
+
+/// Which boundary edges a support or load acts on: a side of the body's bounding box
+/// (`left`, `right`, `bottom`, `top`) or, any other name, a physical group of a gmsh mesh.
+#[derive(Debug, Clone, PartialEq, Eq, Hash)]
+pub enum EdgeSet {
+    Side(Side),
+    Group(String),
+}
+
+impl<'de> serde::Deserialize<'de> for EdgeSet {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        let name = String::deserialize(d)?;
+        Ok(match name.as_str() {
+            "left" => EdgeSet::Side(Side::Left),
+            "right" => EdgeSet::Side(Side::Right),
+            "bottom" => EdgeSet::Side(Side::Bottom),
+            "top" => EdgeSet::Side(Side::Top),
+            _ => EdgeSet::Group(name),
+        })
+    }
+}
+
+impl std::fmt::Display for EdgeSet {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            EdgeSet::Side(s) => write!(f, "{}", format!("{s:?}").to_lowercase()),
+            EdgeSet::Group(g) => write!(f, "{g}"),
+        }
+    }
 }
 
 /// An edge shared by two cells: `a` runs `v1 → v2` counter-clockwise, `b` runs it backwards.
@@ -53,6 +87,8 @@ pub struct Mesh {
     pub shared: Vec<SharedEdge>,
     /// Every edge that belongs to one cell only.
     pub boundary: Vec<BoundaryEdge>,
+    /// Named groups of boundary edges (gmsh physical groups; empty for generated meshes).
+    pub groups: Vec<EdgeGroup>,
 }
 
 /// How much checking a cell list needs: generated meshes are valid by construction.
@@ -91,6 +127,32 @@ impl Mesh {
         (lo, hi)
     }
 
+    /// The boundary edges in `set`, in boundary order; `Err` with the reason when there are none.
+    pub fn edges_in(&self, set: &EdgeSet) -> std::result::Result<Vec<&BoundaryEdge>, String> {
+        let edges: Vec<&BoundaryEdge> = match set {
+            EdgeSet::Side(side) => self.boundary.iter().filter(|e| e.side == Some(*side)).collect(),
+            EdgeSet::Group(name) => {
+                let Some(group) = self.groups.iter().find(|g| &g.name == name) else {
+                    let known: Vec<&str> = self.groups.iter().map(|g| g.name.as_str()).collect();
+                    return Err(format!(
+                        "no side or edge group `{name}`: use left, right, bottom, top{}",
+                        if known.is_empty() { String::new() } else { format!(" or a group of the mesh: {}", known.join(", ")) }
+                    ));
+                };
+                let mut pairs = group.edges.clone();
+                pairs.sort_unstable();
+                self.boundary.iter().filter(|e| pairs.binary_search(&[e.v1.min(e.v2), e.v1.max(e.v2)]).is_ok()).collect()
+            }
+        };
+        if edges.is_empty() {
+            return Err(match set {
+                EdgeSet::Side(side) => format!("no boundary edge lies on side `{side:?}` of the body's bounding box"),
+                EdgeSet::Group(name) => format!("edge group `{name}` holds no boundary edge of the mesh"),
+            });
+        }
+        Ok(edges)
+    }
+
     /// A mesh from explicit polygons, as given in a scene (`mesh.kind = "polygons"`).
     ///
     /// Cells must be counter-clockwise, non-degenerate, simple, non-overlapping and conforming
@@ -121,7 +183,7 @@ impl Mesh {
             cell_vertices.extend_from_slice(cell);
             cell_start.push(cell_vertices.len() as u32);
         }
-        let mut mesh = Mesh { vertices, cell_start, cell_vertices, shared: Vec::new(), boundary: Vec::new() };
+        let mut mesh = Mesh { vertices, cell_start, cell_vertices, shared: Vec::new(), boundary: Vec::new(), groups: Vec::new() };
         mesh.match_edges(body)?;
         if checks == Checks::UserInput {
             mesh.check_conforming(body)?;

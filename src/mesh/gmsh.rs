@@ -1,0 +1,142 @@
+//! Meshes from gmsh: MSH 4.1 files (ASCII or binary, read by the `mshio` crate) of 3-node
+//! triangles and 4-node quadrilaterals. Physical groups of 2-node lines name boundary edges,
+//! which supports and loads select by name (`"edge": "clamp"`), beside the bounding-box sides.
+//!
+//! Only the nodes that cells use become vertices, in the order of their gmsh tags; cells keep
+//! the file's order and are turned counter-clockwise where gmsh wrote them clockwise.
+
+use super::{Checks, Mesh};
+use crate::error::{Error, Result};
+use crate::geometry::Vec2;
+use mshio::mshfile::ElementType;
+use std::collections::{BTreeMap, HashMap};
+use std::path::Path;
+
+/// Boundary edges named by a gmsh physical group: vertex pairs, each sorted.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EdgeGroup {
+    pub name: String,
+    pub edges: Vec<[u32; 2]>,
+}
+
+/// Reads the mesh of body `body` from the MSH 4.1 file `path`.
+pub fn read(body: &str, path: &Path) -> Result<Mesh> {
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let field = format!("mesh `{body}` ({})", path.display());
+    let fail = |message: String| Error::scene(field.clone(), message);
+    let version = format_version(&bytes).ok_or_else(|| fail("not a gmsh MSH file: no `$MeshFormat` header".into()))?;
+    if version != "4.1" {
+        return Err(fail(format!("MSH version {version} is not supported; save the mesh as MSH 4.1 (`gmsh -2 -format msh41 file.geo`)")));
+    }
+    let msh = mshio::parse_msh_bytes(&bytes).map_err(|e| fail(format!("cannot parse the MSH 4.1 file: {e}")))?;
+    let nodes = msh.data.nodes.as_ref().ok_or_else(|| fail("the file has no `$Nodes` section".into()))?;
+    let elements = msh.data.elements.as_ref().ok_or_else(|| fail("the file has no `$Elements` section".into()))?;
+    // Node tag → coordinates. Without a tag map a block's tags run on from the smallest tag.
+    let mut coordinates: HashMap<u64, Vec2> = HashMap::new();
+    let mut next = nodes.min_node_tag;
+    for block in &nodes.node_blocks {
+        let tags: Vec<u64> = match &block.node_tags {
+            Some(map) => {
+                let mut t = vec![0; block.nodes.len()];
+                for (&tag, &i) in map {
+                    t[i] = tag;
+                }
+                t
+            }
+            None => (next..next + block.nodes.len() as u64).collect(),
+        };
+        next += block.nodes.len() as u64;
+        for (tag, n) in tags.into_iter().zip(&block.nodes) {
+            coordinates.insert(tag, Vec2::new(n.x, n.y));
+        }
+    }
+    let names = physical_names(&bytes);
+    let curve_groups: HashMap<i32, Vec<i32>> = msh.data.entities.as_ref().map_or_else(HashMap::new, |e| {
+        e.curves.iter().map(|c| (c.tag, c.physical_tags.clone())).collect()
+    });
+    let mut cells: Vec<Vec<u64>> = Vec::new();
+    let mut lines: BTreeMap<String, Vec<[u64; 2]>> = BTreeMap::new();
+    for block in &elements.element_blocks {
+        match block.element_type {
+            ElementType::Tri3 | ElementType::Qua4 => cells.extend(block.elements.iter().map(|e| e.nodes.clone())),
+            ElementType::Lin2 => {
+                for &group in curve_groups.get(&block.entity_tag).into_iter().flatten() {
+                    let name = names.get(&(1, group)).cloned().unwrap_or_else(|| group.to_string());
+                    lines.entry(name).or_default().extend(block.elements.iter().map(|e| [e.nodes[0], e.nodes[1]]));
+                }
+            }
+            ElementType::Pnt => {}
+            other => {
+                let tag = block.elements.first().map_or(0, |e| e.element_tag);
+                return Err(fail(format!(
+                    "element {tag} is of type {other:?}, which is not supported: use 3-node triangles or 4-node quadrilaterals \
+                     (first order, `Mesh.ElementOrder = 1`) for cells and 2-node lines for groups"
+                )));
+            }
+        }
+    }
+    if cells.is_empty() {
+        return Err(fail("the file has no triangles or quadrilaterals: mesh the surface in 2D (`gmsh -2`)".into()));
+    }
+    // Vertices: the nodes the cells use, in tag order.
+    let mut used: Vec<u64> = cells.iter().flatten().copied().collect();
+    used.sort_unstable();
+    used.dedup();
+    let index: HashMap<u64, u32> = used.iter().enumerate().map(|(i, &t)| (t, i as u32)).collect();
+    let mut vertices = Vec::with_capacity(used.len());
+    for t in &used {
+        vertices.push(*coordinates.get(t).ok_or_else(|| fail(format!("node {t} is used by a cell but not defined")))?);
+    }
+    let cells: Vec<Vec<u32>> = cells
+        .iter()
+        .map(|c| {
+            let mut c: Vec<u32> = c.iter().map(|t| index[t]).collect();
+            let p: Vec<Vec2> = c.iter().map(|&v| vertices[v as usize]).collect();
+            let twice_area: f64 = (0..p.len()).map(|i| p[i].perp(&p[(i + 1) % p.len()])).sum();
+            if twice_area < 0.0 {
+                c.reverse();
+            }
+            c
+        })
+        .collect();
+    let mut mesh = Mesh::build(body, vertices, &cells, Checks::UserInput)?;
+    for (name, pairs) in lines {
+        let mut edges = Vec::with_capacity(pairs.len());
+        for [p, q] in pairs {
+            let (Some(&a), Some(&b)) = (index.get(&p), index.get(&q)) else {
+                return Err(fail(format!("group `{name}`: the line {p}–{q} is not an edge of any cell")));
+            };
+            edges.push([a.min(b), a.max(b)]);
+        }
+        mesh.groups.push(EdgeGroup { name, edges });
+    }
+    Ok(mesh)
+}
+
+/// The version in the `$MeshFormat` header, e.g. `4.1` (the header is text in binary files too).
+fn format_version(bytes: &[u8]) -> Option<String> {
+    let head = String::from_utf8_lossy(&bytes[..bytes.len().min(256)]).into_owned();
+    let mut lines = head.lines().map(str::trim);
+    lines.find(|l| *l == "$MeshFormat")?;
+    lines.next()?.split_whitespace().next().map(str::to_string)
+}
+
+/// `(dimension, tag) → name` from the `$PhysicalNames` section (text in binary files too),
+/// which `mshio` does not read.
+fn physical_names(bytes: &[u8]) -> HashMap<(i32, i32), String> {
+    let mut out = HashMap::new();
+    let Some(start) = bytes.windows(14).position(|w| w == b"$PhysicalNames") else {
+        return out;
+    };
+    let end = bytes[start..].windows(17).position(|w| w == b"$EndPhysicalNames").map_or(bytes.len(), |e| start + e);
+    let text = String::from_utf8_lossy(&bytes[start..end]).into_owned();
+    for line in text.lines().skip(2) {
+        let mut parts = line.trim().splitn(3, ' ');
+        if let (Some(dim), Some(tag), Some(name)) = (parts.next(), parts.next(), parts.next()) {
+            if let (Ok(dim), Ok(tag)) = (dim.parse(), tag.parse()) {
+                out.insert((dim, tag), name.trim().trim_matches('"').to_string());
+            }
+        }
+    }
+    out
+}
