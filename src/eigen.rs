@@ -295,29 +295,25 @@ impl LinOp<f64> for ShiftInvert<'_> {
     fn ncols(&self) -> usize {
         self.sys.n()
     }
-    fn apply(&self, mut out: MatMut<'_, f64>, rhs: MatRef<'_, f64>, _: Par, _: &mut MemStack) {
+    fn apply(&self, out: MatMut<'_, f64>, rhs: MatRef<'_, f64>, _: Par, _: &mut MemStack) {
         let n = self.sys.n();
         let (mut col, mut y) = (vec![0.0; n], vec![0.0; n]);
         let mut x = Mat::<f64>::zeros(n, rhs.ncols());
-        for j in 0..rhs.ncols() {
-            for i in 0..n {
-                col[i] = rhs[(i, j)];
+        // `dst[:, j] = op(src[:, j])` over the free DOFs, column by column.
+        let mut columns = |src: MatRef<'_, f64>, mut dst: MatMut<'_, f64>, op: &dyn Fn(&[f64], &mut [f64])| {
+            for j in 0..src.ncols() {
+                for i in 0..n {
+                    col[i] = src[(i, j)];
+                }
+                self.sys.apply_free(&col, &mut y, op);
+                for i in 0..n {
+                    dst[(i, j)] = y[i];
+                }
             }
-            self.sys.apply_free(&col, &mut y, |a, b| self.mass.factor(a, b));
-            for i in 0..n {
-                x[(i, j)] = y[i];
-            }
-        }
+        };
+        columns(rhs, x.as_mut(), &|a, b| self.mass.factor(a, b));
         self.llt.solve_in_place(x.as_mut());
-        for j in 0..rhs.ncols() {
-            for i in 0..n {
-                col[i] = x[(i, j)];
-            }
-            self.sys.apply_free(&col, &mut y, |a, b| self.mass.factor_t(a, b));
-            for i in 0..n {
-                out[(i, j)] = y[i];
-            }
-        }
+        columns(x.as_ref(), out, &|a, b| self.mass.factor_t(a, b));
     }
     fn conj_apply(&self, out: MatMut<'_, f64>, rhs: MatRef<'_, f64>, par: Par, stack: &mut MemStack) {
         self.apply(out, rhs, par, stack)

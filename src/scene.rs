@@ -419,7 +419,7 @@ impl Scene {
     /// Parses a scene whose relative mesh paths start at `dir`, then validates it.
     fn parse(text: &str, dir: Option<&Path>) -> Result<Scene> {
         let de = &mut serde_json::Deserializer::from_str(text);
-        let scene: Scene = serde_path_to_error::deserialize(de).map_err(|e| {
+        let mut scene: Scene = serde_path_to_error::deserialize(de).map_err(|e| {
             let mut path = e.path().to_string();
             let mut inner = e.into_inner().to_string();
             // A variant's own path (see `variant`) continues the outer one.
@@ -430,7 +430,6 @@ impl Scene {
             let message = if path == "." { inner } else { format!("at `{path}`: {inner}") };
             Error::Parse { path: "<json>".into(), message }
         })?;
-        let mut scene = scene;
         if let Some(dir) = dir {
             for body in &mut scene.bodies {
                 if let MeshSpec::Gmsh(GmshSpec { path }) = &mut body.mesh {

@@ -7,7 +7,7 @@
 
 use super::{Checks, Mesh};
 use crate::error::{Error, Result};
-use crate::geometry::Vec2;
+use crate::geometry::{area_properties, Vec2};
 use mshio::mshfile::ElementType;
 use std::collections::{BTreeMap, HashMap};
 use std::path::Path;
@@ -92,8 +92,7 @@ pub fn read(body: &str, path: &Path) -> Result<Mesh> {
         .map(|c| {
             let mut c: Vec<u32> = c.iter().map(|t| index[t]).collect();
             let p: Vec<Vec2> = c.iter().map(|&v| vertices[v as usize]).collect();
-            let twice_area: f64 = (0..p.len()).map(|i| p[i].perp(&p[(i + 1) % p.len()])).sum();
-            if twice_area < 0.0 {
+            if area_properties(&p).area < 0.0 {
                 c.reverse();
             }
             c
