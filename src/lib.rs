@@ -1,6 +1,7 @@
 pub mod buckets;
 pub mod checks;
 pub mod contact;
+pub mod drawing;
 pub mod error;
 pub mod evaluator;
 pub mod extremes;

@@ -73,6 +73,21 @@ enum Command {
         /// Write the mode shapes as VTK into this directory.
         #[arg(long)]
         vtk: Option<PathBuf>,
+        /// Draw the mode shapes as SVG (deformed mesh over the reference) into this directory.
+        #[arg(long)]
+        svg: Option<PathBuf>,
+    },
+    /// Draw a scene's model as SVG: elements, interface springs, supports, loads, ground.
+    Draw {
+        scene: PathBuf,
+        /// The SVG file to write.
+        #[arg(long)]
+        out: PathBuf,
+    },
+    /// Draw the histories a run left in DIR as SVG beside them: energies.svg and probes.svg
+    /// from history.csv (rbsm run), stability.svg from fraction_F.csv (rbsm stability --out).
+    Plot {
+        dir: PathBuf,
     },
     /// Exact Δt_crit, cheap bounds, the empirical limit and runs at fractions of Δt_crit.
     Stability {
@@ -192,6 +207,21 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
             });
             Ok(ExitCode::SUCCESS)
         }
+        Command::Draw { scene, out } => {
+            let model = rbsm::model::Model::build(&Scene::from_file(scene)?)?;
+            let svg = rbsm::drawing::model_svg(&model);
+            std::fs::write(out, svg).map_err(|e| rbsm::error::Error::io(out, e))?;
+            if !cli.quiet {
+                eprintln!("written: {}", out.display());
+            }
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::Plot { dir } => {
+            for path in rbsm::plot::histories(dir)? {
+                println!("written: {}", path.display());
+            }
+            Ok(ExitCode::SUCCESS)
+        }
         Command::Static { scene } => {
             let r = rbsm::report::static_report(&Scene::from_file(scene)?)?;
             print(cli.json, &r, || {
@@ -200,10 +230,13 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
             });
             Ok(ExitCode::SUCCESS)
         }
-        Command::Eigen { scene, modes, method, vtk } => {
+        Command::Eigen { scene, modes, method, vtk, svg } => {
             let (r, model, shapes) = rbsm::report::eigen_report(&Scene::from_file(scene)?, *modes, *method)?;
             if let Some(dir) = vtk {
                 rbsm::vtk::write_mode_shapes(dir, &model, &shapes)?;
+            }
+            if let Some(dir) = svg {
+                rbsm::drawing::write_mode_shapes(dir, &model, &shapes)?;
             }
             print(cli.json, &r, || {
                 let mut t = format!("{} free DOFs ({} solver); ω_max = {:.6e} rad/s, Δt_crit = {:.6e} s\n", r.dofs, r.method, r.omega_max, r.dt_crit);

@@ -153,14 +153,14 @@ pub fn write_json(path: &Path, value: &impl Serialize) -> Result<()> {
     writeln!(w).and_then(|_| w.flush()).map_err(|e| Error::io(path, e))
 }
 
-/// Writes `fraction_F.csv` (`t,total`) for each run of a stability analysis.
+/// Writes `fraction_F.csv` (`t,total,stored`: s, J, J) for each run of a stability analysis.
 pub fn write_fraction_histories(dir: &Path, runs: &[crate::stability::FractionRun]) -> Result<()> {
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
     for r in runs {
         let path = dir.join(format!("fraction_{}.csv", r.fraction));
-        let mut text = String::from("t,total\n");
-        for (t, e) in &r.history {
-            text.push_str(&format!("{t:e},{e:e}\n"));
+        let mut text = String::from("t,total,stored\n");
+        for (t, e, stored) in &r.history {
+            text.push_str(&format!("{t:e},{e:e},{stored:e}\n"));
         }
         std::fs::write(&path, text).map_err(|e| Error::io(&path, e))?;
     }

@@ -20,70 +20,220 @@ fn range(values: impl Iterator<Item = f64>, factor: f64) -> std::ops::Range<f64>
 /// Named series of `(x, y)` as lines with markers on log–log axes (non-positive points are
 /// left out).
 pub fn log_log(path: &Path, title: &str, x_label: &str, y_label: &str, series: &[(&str, Vec<(f64, f64)>)]) -> Result<()> {
-    let root = SVGBackend::new(path, (720, 480)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| failed(path, e))?;
-    let all = || series.iter().flat_map(|s| s.1.iter().copied());
-    let mut chart = ChartBuilder::on(&root)
-        .caption(title, ("sans-serif", 20))
-        .margin(15)
-        .x_label_area_size(40)
-        .y_label_area_size(70)
-        .build_cartesian_2d(range(all().map(|p| p.0), 1.3).log_scale(), range(all().map(|p| p.1), 2.0).log_scale())
-        .map_err(|e| failed(path, e))?;
-    chart.configure_mesh().x_desc(x_label).y_desc(y_label).y_label_formatter(&|y| format!("{y:.0e}")).draw().map_err(|e| failed(path, e))?;
-    for (i, (name, pts)) in series.iter().enumerate() {
-        let color = Palette99::pick(i).to_rgba();
-        let pts: Vec<_> = pts.iter().copied().filter(|p| p.0 > 0.0 && p.1 > 0.0).collect();
-        chart
-            .draw_series(LineSeries::new(pts.clone(), color.stroke_width(2)))
-            .map_err(|e| failed(path, e))?
-            .label(*name)
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2)));
-        chart.draw_series(pts.iter().map(|&p| Circle::new(p, 3, color.filled()))).map_err(|e| failed(path, e))?;
-    }
-    chart.configure_series_labels().background_style(WHITE.mix(0.8)).border_style(BLACK).draw().map_err(|e| failed(path, e))?;
-    root.present().map_err(|e| failed(path, e))
+    svg_file(path, (720, 480), |root| {
+        let all = || series.iter().flat_map(|s| s.1.iter().copied());
+        let mut chart = ChartBuilder::on(root)
+            .caption(title, ("sans-serif", 20))
+            .margin(15)
+            .x_label_area_size(40)
+            .y_label_area_size(70)
+            .build_cartesian_2d(range(all().map(|p| p.0), 1.3).log_scale(), range(all().map(|p| p.1), 2.0).log_scale())
+            .map_err(|e| failed(path, e))?;
+        chart.configure_mesh().x_desc(x_label).y_desc(y_label).y_label_formatter(&|y| format!("{y:.0e}")).draw().map_err(|e| failed(path, e))?;
+        for (i, (name, pts)) in series.iter().enumerate() {
+            let color = Palette99::pick(i).to_rgba();
+            let pts: Vec<_> = pts.iter().copied().filter(|p| p.0 > 0.0 && p.1 > 0.0).collect();
+            chart
+                .draw_series(LineSeries::new(pts.clone(), color.stroke_width(2)))
+                .map_err(|e| failed(path, e))?
+                .label(*name)
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2)));
+            chart.draw_series(pts.iter().map(|&p| Circle::new(p, 3, color.filled()))).map_err(|e| failed(path, e))?;
+        }
+        chart.configure_series_labels().background_style(WHITE.mix(0.8)).border_style(BLACK).draw().map_err(|e| failed(path, e))?;
+        Ok(())
+    })
 }
 
 /// Error against wall time of the points `(wall_s, error, on_front, label)`: every point as a
 /// grey dot, the Pareto front as a line through red diamonds labelled with their settings.
 pub fn pareto(path: &Path, title: &str, points: &[(f64, f64, bool, String)]) -> Result<()> {
-    let root = SVGBackend::new(path, (820, 540)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| failed(path, e))?;
-    let mut chart = ChartBuilder::on(&root)
-        .caption(title, ("sans-serif", 20))
-        .margin(15)
-        .x_label_area_size(40)
-        .y_label_area_size(70)
-        .build_cartesian_2d(range(points.iter().map(|p| p.0), 1.5).log_scale(), range(points.iter().map(|p| p.1), 2.0).log_scale())
-        .map_err(|e| failed(path, e))?;
-    chart
-        .configure_mesh()
-        .x_desc("wall time (s)")
-        .y_desc("relative error")
-        .y_label_formatter(&|y| format!("{y:.0e}"))
-        .draw()
-        .map_err(|e| failed(path, e))?;
-    chart
-        .draw_series(points.iter().map(|p| Circle::new((p.0, p.1), 3, RGBColor(120, 120, 120).filled())))
-        .map_err(|e| failed(path, e))?
-        .label("run")
-        .legend(|(x, y)| Circle::new((x + 10, y), 3, RGBColor(120, 120, 120).filled()));
-    let mut front: Vec<(f64, f64)> = points.iter().filter(|p| p.2).map(|p| (p.0, p.1)).collect();
-    front.sort_by(|a, b| a.0.total_cmp(&b.0));
-    chart
-        .draw_series(LineSeries::new(front.clone(), RED.stroke_width(2)))
-        .map_err(|e| failed(path, e))?
-        .label("Pareto front")
-        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED.stroke_width(2)));
-    for p in points.iter().filter(|p| p.2) {
-        chart
-            .draw_series([TriangleMarker::new((p.0, p.1), 6, RED.filled())])
+    svg_file(path, (820, 540), |root| {
+        let mut chart = ChartBuilder::on(root)
+            .caption(title, ("sans-serif", 20))
+            .margin(15)
+            .x_label_area_size(40)
+            .y_label_area_size(70)
+            .build_cartesian_2d(range(points.iter().map(|p| p.0), 1.5).log_scale(), range(points.iter().map(|p| p.1), 2.0).log_scale())
             .map_err(|e| failed(path, e))?;
         chart
-            .draw_series([Text::new(p.3.clone(), (p.0, p.1), ("sans-serif", 11).into_font().color(&BLACK))])
+            .configure_mesh()
+            .x_desc("wall time (s)")
+            .y_desc("relative error")
+            .y_label_formatter(&|y| format!("{y:.0e}"))
+            .draw()
             .map_err(|e| failed(path, e))?;
+        chart
+            .draw_series(points.iter().map(|p| Circle::new((p.0, p.1), 3, RGBColor(120, 120, 120).filled())))
+            .map_err(|e| failed(path, e))?
+            .label("run")
+            .legend(|(x, y)| Circle::new((x + 10, y), 3, RGBColor(120, 120, 120).filled()));
+        let mut front: Vec<(f64, f64)> = points.iter().filter(|p| p.2).map(|p| (p.0, p.1)).collect();
+        front.sort_by(|a, b| a.0.total_cmp(&b.0));
+        chart
+            .draw_series(LineSeries::new(front.clone(), RED.stroke_width(2)))
+            .map_err(|e| failed(path, e))?
+            .label("Pareto front")
+            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED.stroke_width(2)));
+        for p in points.iter().filter(|p| p.2) {
+            chart
+                .draw_series([TriangleMarker::new((p.0, p.1), 6, RED.filled())])
+                .map_err(|e| failed(path, e))?;
+            chart
+                .draw_series([Text::new(p.3.clone(), (p.0, p.1), ("sans-serif", 11).into_font().color(&BLACK))])
+                .map_err(|e| failed(path, e))?;
+        }
+        chart.configure_series_labels().background_style(WHITE.mix(0.8)).border_style(BLACK).draw().map_err(|e| failed(path, e))?;
+        Ok(())
+    })
+}
+
+/// One column of a CSV file of numbers: its header and its values.
+#[derive(Debug, Clone)]
+pub struct Column {
+    /// The header of the column.
+    pub name: String,
+    /// The values, top to bottom.
+    pub values: Vec<f64>,
+}
+
+/// Reads a CSV file of numbers under one header line, as the runs write them.
+pub fn read_csv(path: &Path) -> Result<Vec<Column>> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let bad = |line: usize, message: String| Error::Parse { path: path.display().to_string(), message: format!("line {line}: {message}") };
+    let mut lines = text.lines();
+    let mut columns: Vec<Column> =
+        lines.next().ok_or_else(|| bad(1, "empty file, a header line was expected".into()))?.split(',').map(|h| Column { name: h.trim().to_string(), values: Vec::new() }).collect();
+    for (i, line) in lines.enumerate().filter(|(_, l)| !l.trim().is_empty()) {
+        let fields: Vec<&str> = line.split(',').collect();
+        if fields.len() != columns.len() {
+            return Err(bad(i + 2, format!("{} fields where the header has {}", fields.len(), columns.len())));
+        }
+        for (c, f) in columns.iter_mut().zip(fields) {
+            c.values.push(f.trim().parse().map_err(|_| bad(i + 2, format!("`{f}` in column `{}` is not a number", c.name)))?);
+        }
+    }
+    Ok(columns)
+}
+
+/// A tick label: plain decimals between 1e-3 and 1e4, else scientific with three digits.
+fn tick(x: f64) -> String {
+    if x == 0.0 || (1e-3..1e4).contains(&x.abs()) {
+        let s = format!("{x:.4}");
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        format!("{x:.2e}")
+    }
+}
+
+/// Lines of `(x, y)` series on linear axes in `area`; with `log_y`, `y` is drawn as `log10 y`
+/// (non-positive values left out) and labelled in powers of ten.
+fn panel(area: &DrawingArea<SVGBackend, plotters::coord::Shift>, path: &Path, title: &str, x_label: &str, y_label: &str, series: &[(&str, Vec<(f64, f64)>)], log_y: bool) -> Result<()> {
+    let series: Vec<(&str, Vec<(f64, f64)>)> = series
+        .iter()
+        .map(|(n, pts)| (*n, pts.iter().filter(|p| !log_y || p.1 > 0.0).map(|&(x, y)| (x, if log_y { y.log10() } else { y })).filter(|p| p.0.is_finite() && p.1.is_finite()).collect()))
+        .collect();
+    let all = || series.iter().flat_map(|s| s.1.iter().copied());
+    let bounds = |f: fn((f64, f64)) -> f64| {
+        let (lo, hi) = all().map(f).fold((f64::MAX, f64::MIN), |a, v| (a.0.min(v), a.1.max(v)));
+        if lo > hi {
+            (0.0, 1.0)
+        } else {
+            let pad = if hi > lo { 0.05 * (hi - lo) } else { lo.abs().max(1e-30) * 0.1 };
+            (lo - pad, hi + pad)
+        }
+    };
+    let ((x0, x1), (y0, y1)) = (bounds(|p| p.0), bounds(|p| p.1));
+    let mut chart = ChartBuilder::on(area)
+        .caption(title, ("sans-serif", 16))
+        .margin(10)
+        .x_label_area_size(36)
+        .y_label_area_size(80)
+        .build_cartesian_2d(x0..x1, y0..y1)
+        .map_err(|e| failed(path, e))?;
+    let y_format = |y: &f64| if log_y { format!("{:.1e}", 10f64.powf(*y)) } else { tick(*y) };
+    chart.configure_mesh().x_desc(x_label).y_desc(y_label).x_label_formatter(&|x| tick(*x)).y_label_formatter(&y_format).draw().map_err(|e| failed(path, e))?;
+    for (i, (name, pts)) in series.iter().enumerate() {
+        let color = Palette99::pick(i).to_rgba();
+        chart
+            .draw_series(LineSeries::new(pts.clone(), color.stroke_width(2)))
+            .map_err(|e| failed(path, e))?
+            .label(*name)
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2)));
     }
     chart.configure_series_labels().background_style(WHITE.mix(0.8)).border_style(BLACK).draw().map_err(|e| failed(path, e))?;
+    Ok(())
+}
+
+/// Creates the SVG `path` of `size` pixels, lets `draw` fill it, and writes it.
+fn svg_file(path: &Path, size: (u32, u32), draw: impl FnOnce(&DrawingArea<SVGBackend, plotters::coord::Shift>) -> Result<()>) -> Result<()> {
+    let root = SVGBackend::new(path, size).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| failed(path, e))?;
+    draw(&root)?;
     root.present().map_err(|e| failed(path, e))
+}
+
+/// The columns of a run's `history.csv` that are energies (J), the rest being probes.
+const ENERGIES: [&str; 6] = ["kinetic", "elastic", "contact", "potential", "external_work", "total"];
+
+/// Draws the histories that runs left in `dir`, as SVG beside them, and returns the files written:
+/// - `history.csv` of `rbsm run`: `energies.svg` (each energy that is not zero throughout, J,
+///   against `t`) and `probes.svg` (one panel per probe);
+/// - `fraction_F.csv` of `rbsm stability --out`: `stability.svg`, the total energy of each run
+///   the stored (kinetic + elastic) energy of each run relative to its start, on a log scale:
+///   bounded below `Δt_crit`, geometric growth (a straight line) above it until the guard stops
+///   the run.
+pub fn histories(dir: &Path) -> Result<Vec<std::path::PathBuf>> {
+    let mut written = Vec::new();
+    let history = dir.join("history.csv");
+    if history.exists() {
+        let columns = read_csv(&history)?;
+        let t = &columns.first().filter(|c| c.name == "t").ok_or_else(|| Error::Parse { path: history.display().to_string(), message: "the first column must be `t`".into() })?.values;
+        let pairs = |c: &Column| t.iter().copied().zip(c.values.iter().copied()).collect::<Vec<_>>();
+        let energies: Vec<(&str, Vec<(f64, f64)>)> =
+            columns.iter().filter(|c| ENERGIES.contains(&c.name.as_str()) && c.values.iter().any(|v| *v != 0.0)).map(|c| (c.name.as_str(), pairs(c))).collect();
+        let path = dir.join("energies.svg");
+        svg_file(&path, (820, 480), |root| panel(root, &path, "energies", "t (s)", "energy (J)", &energies, false))?;
+        written.push(path);
+        let probes: Vec<&Column> = columns[1..].iter().filter(|c| !ENERGIES.contains(&c.name.as_str())).collect();
+        if !probes.is_empty() {
+            let path = dir.join("probes.svg");
+            svg_file(&path, (820, 260 * probes.len() as u32), |root| {
+                for (area, c) in root.split_evenly((probes.len(), 1)).iter().zip(&probes) {
+                    panel(area, &path, &format!("probe {}", c.name), "t (s)", "DOF value (m or rad)", &[(c.name.as_str(), pairs(c))], false)?;
+                }
+                Ok(())
+            })?;
+            written.push(path);
+        }
+    }
+    let mut fractions = Vec::new();
+    for entry in std::fs::read_dir(dir).map_err(|e| Error::io(dir, e))? {
+        let p = entry.map_err(|e| Error::io(dir, e))?.path();
+        let name = p.file_name().and_then(|n| n.to_str()).unwrap_or("");
+        if let Some(f) = name.strip_prefix("fraction_").and_then(|n| n.strip_suffix(".csv")) {
+            fractions.push((f.to_string(), p.clone()));
+        }
+    }
+    if !fractions.is_empty() {
+        fractions.sort_by(|a, b| a.0.parse::<f64>().unwrap_or(f64::MAX).total_cmp(&b.0.parse::<f64>().unwrap_or(f64::MAX)));
+        let mut series = Vec::new();
+        for (f, p) in &fractions {
+            let c = read_csv(p)?;
+            let stored = c.iter().find(|c| c.name == "stored").ok_or_else(|| Error::Parse { path: p.display().to_string(), message: "expected the columns t,total,stored".into() })?;
+            let s0 = stored.values.first().copied().unwrap_or(1.0);
+            series.push((format!("dt = {f} Δt_crit"), c[0].values.iter().zip(&stored.values).map(|(t, e)| (*t, e / s0)).collect::<Vec<_>>()));
+        }
+        let series: Vec<(&str, Vec<(f64, f64)>)> = series.iter().map(|(n, s)| (n.as_str(), s.clone())).collect();
+        let path = dir.join("stability.svg");
+        svg_file(&path, (820, 480), |root| panel(root, &path, "kinetic + elastic energy at fractions of Δt_crit", "t (s)", "E / E(0)", &series, true))?;
+        written.push(path);
+    }
+    if written.is_empty() {
+        return Err(Error::Parse {
+            path: dir.display().to_string(),
+            message: "holds neither history.csv (from `rbsm run`) nor fraction_F.csv files (from `rbsm stability --out`)".into(),
+        });
+    }
+    Ok(written)
 }
