@@ -30,6 +30,7 @@ impl Buckets {
         self.nx * self.ny
     }
 
+    /// The bucket `(i, j)` holding point `x` (m); points outside go to the nearest bucket.
     pub fn cell_of(&self, x: Vec2) -> (usize, usize) {
         let i = ((x.x - self.lo.x) / self.size.x).floor().clamp(0.0, (self.nx - 1) as f64) as usize;
         let j = ((x.y - self.lo.y) / self.size.y).floor().clamp(0.0, (self.ny - 1) as f64) as usize;

@@ -27,7 +27,9 @@ pub const DENSE_LIMIT: usize = 500;
 pub enum Method {
     /// Dense up to `DENSE_LIMIT` free DOFs, sparse above.
     Auto,
+    /// Dense symmetric eigensolver (nalgebra), all modes.
     Dense,
+    /// Lanczos for `ω_max`, Krylov–Schur shift-invert (faer) for the lowest modes.
     Sparse,
 }
 

@@ -7,16 +7,39 @@ use thiserror::Error;
 pub enum Error {
     /// A scene value is missing, unknown or out of its allowed range; `field` is the JSON path.
     #[error("scene: `{field}`: {message}")]
-    Scene { field: String, message: String },
+    Scene {
+        /// The JSON path of the value, e.g. `bodies[0].mesh.cells`.
+        field: String,
+        /// What is wrong and the allowed range.
+        message: String,
+    },
     /// A mesh cell is degenerate, clockwise, overlapping or non-conforming.
     #[error("mesh `{body}`: cell {cell}: {message}")]
-    Mesh { body: String, cell: usize, message: String },
+    Mesh {
+        /// The body's name.
+        body: String,
+        /// The cell's index within the body.
+        cell: usize,
+        /// What is wrong with it.
+        message: String,
+    },
     /// The scene could not be parsed as JSON of the expected shape.
     #[error("scene {path}: {message}")]
-    Parse { path: String, message: String },
+    Parse {
+        /// The scene file (or `<string>`).
+        path: String,
+        /// The parser's message, with the line and column.
+        message: String,
+    },
     /// Reading or writing a file failed.
     #[error("{path}: {source}")]
-    Io { path: String, #[source] source: std::io::Error },
+    Io {
+        /// The file or directory.
+        path: String,
+        /// What the system said.
+        #[source]
+        source: std::io::Error,
+    },
 }
 
 impl Error {

@@ -31,7 +31,9 @@ const TENSION: &str = r#"[{"kind": "traction", "edge": "right", "value": [1e6, 0
 /// A free run of `steps` steps at `fraction × Δt_crit`.
 #[derive(Debug, Clone)]
 pub struct Run {
+    /// `dt / Δt_crit`.
     pub fraction: f64,
+    /// Steps taken.
     pub steps: u64,
     /// `ok` or `diverged at step …: reason`.
     pub status: String,
@@ -66,15 +68,21 @@ pub fn lanczos_against_dense(p: &Prepared) -> Result<f64> {
 /// static error against the continuum, `Δt_crit` against the rigid one, a stable run.
 #[derive(Debug, Clone)]
 pub struct Penalty {
+    /// Penalty factor `p`.
     pub p: f64,
+    /// Static error of the patch against the continuum, relative.
     pub patch_error: f64,
     /// `Δt_crit(p) / Δt_crit(rigid)`, and the same times `√p` (constant when `1/√p` holds).
     pub dt_ratio: f64,
+    /// `dt_ratio · √p`.
     pub dt_ratio_sqrt_p: f64,
+    /// A free run at 0.9 `Δt_crit`.
     pub run: Run,
+    /// What the checks warned.
     pub warnings: Vec<String>,
 }
 
+/// Validation §10.1: the tension patch at penalty `p`.
 pub fn penalty(p: f64) -> Result<Penalty> {
     let time = r#"{"dt_factor": 0.9, "steps": 1}"#;
     let hybrid = format!(r#"{{"kind": "hybrid", "penalty": {p}}}"#);
@@ -109,13 +117,19 @@ pub fn penalty(p: f64) -> Result<Penalty> {
 /// the warnings of a prepared model.
 #[derive(Debug, Clone)]
 pub struct Limits {
+    /// Number of elements.
     pub elements: usize,
     /// Largest over smallest element size `√A`.
     pub sizes: f64,
+    /// Critical time step (s).
     pub dt_crit: f64,
+    /// Relative difference of Lanczos `ω_max` from the dense one.
     pub lanczos_error: f64,
+    /// A run at 0.9 `Δt_crit`.
     pub stable: Run,
+    /// A run just above `Δt_crit`.
     pub above: Run,
+    /// What the checks warned.
     pub warnings: Vec<String>,
 }
 
@@ -187,16 +201,23 @@ pub fn size_ratio(ratio: f64) -> Result<Limits> {
 /// displacements (`u = a x`, `v = b y`, `ν = −b/a`) and the error against the continuum.
 #[derive(Debug, Clone)]
 pub struct Poisson {
+    /// Poisson's ratio of the input.
     pub nu: f64,
+    /// `rigid` or `hybrid`.
     pub formulation: &'static str,
+    /// `ν` fitted from the displacements.
     pub nu_effective: f64,
     /// `E` fitted from `σ/a`, over the input `E`.
     pub e_ratio: f64,
+    /// Critical time step (s).
     pub dt_crit: f64,
+    /// A free run at 0.9 `Δt_crit`.
     pub run: Run,
+    /// What the checks warned.
     pub warnings: Vec<String>,
 }
 
+/// Validation §10.4: the tension patch at Poisson's ratio `nu`, rigid or hybrid, in `plane` (`stress`, `strain`).
 pub fn poisson(nu: f64, hybrid: bool, plane: &str) -> Result<Poisson> {
     let f = if hybrid { r#"{"kind": "hybrid", "penalty": 1000}"# } else { RIGID };
     let s = scene(f, plane, nu, PATCH, ROLLERS, TENSION, "{}", r#"{"dt_factor": 0.9, "steps": 1}"#)?;
@@ -254,13 +275,16 @@ pub struct Tumble {
     pub cells: usize,
     /// The largest rotation reached (rad) and the energy drift.
     pub max_rotation: f64,
+    /// The run.
     pub run: Run,
     /// The largest elastic energy over the kinetic energy at the start: spurious strain of the
     /// small-rotation interface springs when the block is meshed.
     pub spurious: f64,
+    /// What the checks warned.
     pub warnings: Vec<String>,
 }
 
+/// Validation §10.6: a block of `cells × cells` elements spun at `spin` rad/s onto the ground for `time` s.
 pub fn tumble(cells: usize, spin: f64, time: f64) -> Result<Tumble> {
     let json = format!(
         r#"{{"name": "tumble", "thickness": 0.1, "formulation": {{"kind": "rigid"}}, "gravity": [0, -9.81],

@@ -189,7 +189,10 @@ pub enum Formulation {
     /// 3 DOF per element: `(u, v, θ)`.
     Rigid,
     /// 6 DOF per element: `(u, v, θ, ε_x, ε_y, γ_xy)`; interface springs `penalty` × eq. 12.
-    Hybrid { penalty: f64 },
+    Hybrid {
+        /// The penalty factor `p > 0` on the springs of eq. 12.
+        penalty: f64,
+    },
 }
 
 impl Formulation {

@@ -65,6 +65,7 @@ pub struct Bounce {
     pub release: f64,
     /// Downward speed at impact and upward speed at release (m/s).
     pub impact_speed: f64,
+    /// Upward speed at release (m/s).
     pub rebound_speed: f64,
     /// Highest lowest-point height of the flight that follows (m); `NaN` until it is reached.
     pub apex: f64,
@@ -145,12 +146,17 @@ pub mod brick {
 
     /// Young's modulus (Pa), Poisson's ratio, density (kg/m³), gravity (m/s²).
     pub const E: f64 = 5.127e9;
+    /// Poisson's ratio of the brick.
     pub const NU: f64 = 0.112;
+    /// Density of the brick (kg/m³).
     pub const RHO: f64 = 1850.0;
+    /// Gravitational acceleration (m/s²).
     pub const G: f64 = 9.80665;
     /// Width `B`, depth `D` and thickness `t` (m).
     pub const WIDTH: f64 = 0.21;
+    /// Depth `D` of the brick (m).
     pub const DEPTH: f64 = 0.06;
+    /// Thickness `t` of the brick (m).
     pub const THICKNESS: f64 = 0.1;
 
     /// A scene of the brick as `cells` rigid elements, its lower face at `height` above a

@@ -18,30 +18,47 @@ use crate::parallel::for_each_chunk;
 /// is constant for an undamped run, up to the integrator's error.
 #[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
 pub struct Energy {
+    /// Time (s).
     pub t: f64,
+    /// Kinetic energy `½ vᵀ M v` (J).
     pub kinetic: f64,
+    /// Elastic energy `½ Uᵀ K U` of the springs and, hybrid, of the elements' interiors (J).
     pub elastic: f64,
+    /// Minus the work of the contact forces: stored in the contact springs plus what friction took from the motion (J).
     pub contact: f64,
     /// Gravitational potential energy relative to the initial configuration.
     pub potential: f64,
     /// Work done by the applied loads since the start.
     pub external_work: f64,
+    /// `kinetic + elastic + contact + potential − external_work` (J).
     pub total: f64,
 }
 
 /// How a run ended.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Status {
+    /// Every step was taken.
     Ok,
     /// Stopped at `step` (time `t`) for `reason`; the state is the last one that passed the guard.
-    Diverged { step: u64, t: f64, reason: String },
+    Diverged {
+        /// The step at which the guard failed.
+        step: u64,
+        /// Its time (s).
+        t: f64,
+        /// What the guard saw: energy growth or a NaN.
+        reason: String,
+    },
 }
 
 /// The state at a recorded step: displacements `U^n` and velocities `v^n`.
 pub struct Snapshot<'a> {
+    /// Step number `n`.
     pub step: u64,
+    /// Time `t_n` (s).
     pub t: f64,
+    /// Displacements `U^n`, `ndof` per element (m, rad and strains).
     pub u: &'a [f64],
+    /// Whole-step velocities `v^n` (m/s, rad/s, 1/s).
     pub v: &'a [f64],
 }
 
@@ -63,8 +80,11 @@ pub struct CentralDifference<'a> {
     loads: &'a Loads,
     /// Mass-proportional damping `α` (1/s).
     pub damping: f64,
+    /// Time step `Δt` (s).
     pub dt: f64,
+    /// Time `t_n` of the current state (s).
     pub t: f64,
+    /// Steps taken, `n`.
     pub step: u64,
     /// Displacements `U^n`.
     pub u: Vec<f64>,

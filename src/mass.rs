@@ -9,6 +9,7 @@ use crate::parallel::{for_each_chunk_pair, CHUNK};
 /// One explicit update of an element (DESIGN.md §7), for evaluators that fuse it with the
 /// evaluation ([`crate::evaluator::Evaluator::advance`]).
 pub struct Update<'a> {
+    /// The model's mass matrix.
     pub mass: &'a Mass,
     /// Time step (s).
     pub dt: f64,
@@ -30,12 +31,29 @@ impl Update<'_> {
 /// `M` and `M⁻¹` of a model. Diagonal blocks are stored as diagonals.
 #[derive(Debug, Clone)]
 pub enum Mass {
-    /// Lumped: `m[i]` per DOF, `inv[i] = 1/m[i]` (0 for a fixed DOF).
-    Diagonal { nd: usize, m: Vec<f64>, inv: Vec<f64> },
-    /// One dense `nd × nd` block per element (row-major): `m`, the inverse `inv` of its free
-    /// part, the Cholesky factor `l` of its free part and its inverse `l_inv` (zero rows and
-    /// columns on fixed DOFs).
-    Blocks { nd: usize, m: Vec<f64>, inv: Vec<f64>, l: Vec<f64>, l_inv: Vec<f64> },
+    /// Lumped: a diagonal `M` (the rigid formulation, eq. 9).
+    Diagonal {
+        /// DOFs per element.
+        nd: usize,
+        /// `m[i]` per DOF (kg, kg·m²).
+        m: Vec<f64>,
+        /// `1/m[i]`, 0 for a fixed DOF.
+        inv: Vec<f64>,
+    },
+    /// One dense `nd × nd` block per element, row-major (the hybrid formulation, eq. 8). Zero
+    /// rows and columns on fixed DOFs in `inv`, `l` and `l_inv`.
+    Blocks {
+        /// DOFs per element.
+        nd: usize,
+        /// The blocks `M_e`.
+        m: Vec<f64>,
+        /// The inverse of each block's free part.
+        inv: Vec<f64>,
+        /// The Cholesky factor `L` of each block's free part, `M_e = L Lᵀ`.
+        l: Vec<f64>,
+        /// `L⁻¹`.
+        l_inv: Vec<f64>,
+    },
 }
 
 impl Mass {

@@ -30,23 +30,28 @@ pub struct Element {
 /// A shared edge carrying normal and shear penalty springs (eqs. 6, 11, 12).
 #[derive(Debug, Clone, Copy)]
 pub struct Interface {
+    /// The first element; the normal points away from it.
     pub a: u32,
     /// The other element, or [`GROUND`].
     pub b: u32,
     /// End points of the edge (m).
     pub p1: Vec2,
+    /// Second end point (m); `p1 → p2` runs counter-clockwise around `a`.
     pub p2: Vec2,
     /// Unit normal from `a` to `b`.
     pub normal: Vec2,
     /// Unit tangent, `normal = ẑ × tangent`.
     pub tangent: Vec2,
+    /// Edge length `L` (m).
     pub length: f64,
     /// Perpendicular distances from the centroids to the edge line (m).
     pub h_a: f64,
+    /// Distance from `b`'s centroid (m); 0 for ground.
     pub h_b: f64,
     /// Spring constants per unit edge length and thickness (Pa/m): eq. 12, times the penalty
     /// `p` for the hybrid formulation.
     pub k_n: f64,
+    /// Shear spring `k_s` (Pa/m).
     pub k_s: f64,
 }
 
@@ -89,11 +94,13 @@ impl Amplitude {
 /// A point force and moment on an element.
 #[derive(Debug, Clone)]
 pub struct Load {
+    /// The element it acts on (global index).
     pub element: u32,
     /// Where the force acts (m).
     pub point: Vec2,
     /// Force (N) and moment (N·m).
     pub force: Vec2,
+    /// Moment (N·m).
     pub moment: f64,
     /// Time variation; `None` is constant.
     pub amplitude: Option<Amplitude>,
@@ -102,6 +109,7 @@ pub struct Load {
 /// A meshed body.
 #[derive(Debug, Clone)]
 pub struct Body {
+    /// The body's name in the scene.
     pub name: String,
     /// The body's mesh, placed (origin and initial rotation applied).
     pub mesh: Mesh,
@@ -114,16 +122,23 @@ pub struct Body {
 /// Everything the evaluators, the integrator and the analyses need.
 #[derive(Debug, Clone)]
 pub struct Model {
+    /// The scene's name.
     pub name: String,
+    /// Plane stress or plane strain.
     pub plane: Plane,
     /// Thickness `t` (m).
     pub thickness: f64,
+    /// Rigid or hybrid (eq. 5).
     pub formulation: Formulation,
+    /// The meshed bodies, in scene order.
     pub bodies: Vec<Body>,
+    /// Every element of every body, body after body.
     pub elements: Vec<Element>,
+    /// Interfaces between elements, then ground springs.
     pub interfaces: Vec<Interface>,
     /// Fixed DOFs (global indices, sorted).
     pub fixed: Vec<usize>,
+    /// Point loads: each traction becomes one force per boundary edge, at its midpoint.
     pub loads: Vec<Load>,
     /// Gravitational acceleration (m/s²), zero when the scene has none.
     pub gravity: Vec2,

@@ -11,29 +11,40 @@ use std::path::{Path, PathBuf};
 /// `summary.json`.
 #[derive(Debug, Clone, Serialize)]
 pub struct Summary {
+    /// The scene's name.
     pub scene: String,
+    /// `rigid` or `hybrid`.
     pub formulation: String,
+    /// `assembled` or `element-wise`.
     pub evaluator: String,
+    /// Number of elements.
     pub elements: usize,
+    /// Number of interfaces (ground springs included).
     pub interfaces: usize,
     /// Free DOFs (fixed ones excluded).
     pub dofs: usize,
+    /// Time step (s).
     pub dt: f64,
+    /// Critical time step `2/ω_max` (s).
     pub dt_crit: f64,
     /// Steps completed.
     pub steps: u64,
+    /// Time reached (s).
     pub t_end: f64,
     /// `ok` or `diverged`.
     pub status: String,
     /// Why a run diverged, with the step and the time; `null` for `ok`.
     pub reason: Option<String>,
+    /// Whole run, setup included (s).
     pub wall_time_s: f64,
     /// The time-stepping loop alone.
     pub step_time_s: f64,
+    /// Worker threads.
     pub threads: usize,
     /// What the checks of `checks::warnings` found (extreme inputs, dt above Δt_crit).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub warnings: Vec<String>,
+    /// Energies at the start and the end, and the drift.
     pub energy: EnergySummary,
     /// Contact figures; only for scenes with contact.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -45,9 +56,11 @@ pub struct Summary {
 pub struct ContactSummary {
     /// `edge-to-edge` or `point`.
     pub model: String,
+    /// Coulomb `μ`; `null` is no slip limit.
     pub friction: Option<f64>,
     /// Vertex–edge contacts per step, mean and largest.
     pub mean_pairs: f64,
+    /// Largest number of vertex–edge contacts in one step.
     pub max_pairs: usize,
     /// Narrow-phase tests (vertex path against a nearby edge) per step.
     pub tests_per_step: f64,
@@ -58,8 +71,10 @@ pub struct ContactSummary {
 /// The energy figures of `summary.json` (J).
 #[derive(Debug, Clone, Serialize)]
 pub struct EnergySummary {
+    /// Total energy at the start (J).
     pub initial: f64,
     #[serde(rename = "final")]
+    /// Total energy at the end (J).
     pub final_: f64,
     /// Largest `|total − initial|` divided by the largest energy seen in the run.
     pub max_relative_drift: f64,
@@ -68,7 +83,9 @@ pub struct EnergySummary {
 /// One history column beyond the energies: DOF `dof` of element `element`.
 #[derive(Debug, Clone)]
 pub struct Probe {
+    /// Column header.
     pub name: String,
+    /// Global DOF index.
     pub dof: usize,
 }
 

@@ -97,10 +97,15 @@ pub struct Column {
     pub values: Vec<f64>,
 }
 
+/// An error naming `path` and what is wrong with its contents.
+fn invalid(path: &Path, message: &str) -> Error {
+    Error::io(path, std::io::Error::new(std::io::ErrorKind::InvalidData, message.to_string()))
+}
+
 /// Reads a CSV file of numbers under one header line, as the runs write them.
 pub fn read_csv(path: &Path) -> Result<Vec<Column>> {
     let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-    let bad = |line: usize, message: String| Error::Parse { path: path.display().to_string(), message: format!("line {line}: {message}") };
+    let bad = |line: usize, message: String| invalid(path, &format!("line {line}: {message}"));
     let mut lines = text.lines();
     let mut columns: Vec<Column> =
         lines.next().ok_or_else(|| bad(1, "empty file, a header line was expected".into()))?.split(',').map(|h| Column { name: h.trim().to_string(), values: Vec::new() }).collect();
@@ -188,7 +193,7 @@ pub fn histories(dir: &Path) -> Result<Vec<std::path::PathBuf>> {
     let history = dir.join("history.csv");
     if history.exists() {
         let columns = read_csv(&history)?;
-        let t = &columns.first().filter(|c| c.name == "t").ok_or_else(|| Error::Parse { path: history.display().to_string(), message: "the first column must be `t`".into() })?.values;
+        let t = &columns.first().filter(|c| c.name == "t").ok_or_else(|| invalid(&history, "the first column must be `t`"))?.values;
         let pairs = |c: &Column| t.iter().copied().zip(c.values.iter().copied()).collect::<Vec<_>>();
         let energies: Vec<(&str, Vec<(f64, f64)>)> =
             columns.iter().filter(|c| ENERGIES.contains(&c.name.as_str()) && c.values.iter().any(|v| *v != 0.0)).map(|c| (c.name.as_str(), pairs(c))).collect();
@@ -220,7 +225,7 @@ pub fn histories(dir: &Path) -> Result<Vec<std::path::PathBuf>> {
         let mut series = Vec::new();
         for (f, p) in &fractions {
             let c = read_csv(p)?;
-            let stored = c.iter().find(|c| c.name == "stored").ok_or_else(|| Error::Parse { path: p.display().to_string(), message: "expected the columns t,total,stored".into() })?;
+            let stored = c.iter().find(|c| c.name == "stored").ok_or_else(|| invalid(p, "expected the columns t,total,stored"))?;
             let s0 = stored.values.first().copied().unwrap_or(1.0);
             series.push((format!("dt = {f} Δt_crit"), c[0].values.iter().zip(&stored.values).map(|(t, e)| (*t, e / s0)).collect::<Vec<_>>()));
         }
@@ -230,10 +235,7 @@ pub fn histories(dir: &Path) -> Result<Vec<std::path::PathBuf>> {
         written.push(path);
     }
     if written.is_empty() {
-        return Err(Error::Parse {
-            path: dir.display().to_string(),
-            message: "holds neither history.csv (from `rbsm run`) nor fraction_F.csv files (from `rbsm stability --out`)".into(),
-        });
+        return Err(invalid(dir, "holds neither history.csv (from `rbsm run`) nor fraction_F.csv files (from `rbsm stability --out`)"));
     }
     Ok(written)
 }

@@ -13,9 +13,12 @@ use crate::system::FreeSystem;
 use serde::Serialize;
 
 #[derive(Serialize)]
+/// One element of `rbsm static --json`.
 pub struct StaticElement {
+    /// Reference centroid (m).
     pub centroid: [f64; 2],
     #[serde(rename = "U")]
+    /// Its DOFs `U_e` (m, rad, strains).
     pub u: Vec<f64>,
     /// `(σ_x, σ_y, τ_xy) = D ε` (Pa), hybrid only.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -23,11 +26,15 @@ pub struct StaticElement {
 }
 
 #[derive(Serialize)]
+/// One interface of `rbsm static --json`.
 pub struct StaticInterface {
+    /// The first element.
     pub a: u32,
     /// The other element, or `null` for a ground spring.
     pub b: Option<u32>,
+    /// Midpoint of the edge (m).
     pub midpoint: [f64; 2],
+    /// Unit normal from `a` to `b`.
     pub normal: [f64; 2],
     /// `[t_n, t_s]` (Pa) at the midpoint.
     pub traction: [f64; 2],
@@ -36,7 +43,9 @@ pub struct StaticInterface {
 /// `rbsm static --json`.
 #[derive(Serialize)]
 pub struct StaticReport {
+    /// Every element.
     pub elements: Vec<StaticElement>,
+    /// Every interface, ground springs included.
     pub interfaces: Vec<StaticInterface>,
     /// Strain energy `½ Uᵀ K U` (J).
     pub energy: f64,
@@ -75,10 +84,15 @@ pub fn static_report(scene: &Scene) -> Result<StaticReport> {
 pub struct EigenReport {
     /// Free DOFs.
     pub dofs: usize,
+    /// Frequencies of the lowest modes (Hz).
     pub frequencies_hz: Vec<f64>,
+    /// Their circular frequencies `ω` (rad/s).
     pub omega: Vec<f64>,
+    /// Largest circular frequency (rad/s).
     pub omega_max: f64,
+    /// `2/ω_max` (s).
     pub dt_crit: f64,
+    /// `dense` or `sparse`.
     pub method: &'static str,
 }
 
@@ -101,18 +115,26 @@ pub fn eigen_report(scene: &Scene, n_modes: usize, method: Method) -> Result<(Ei
 }
 
 #[derive(Serialize)]
+/// The empirical stability limit found by bisection.
 pub struct Empirical {
+    /// Largest stable time step found (s).
     pub dt: f64,
+    /// Its ratio to `Δt_crit`.
     pub ratio: f64,
 }
 
 /// `rbsm stability --json`.
 #[derive(Serialize)]
 pub struct StabilityReport {
+    /// Largest circular frequency (rad/s).
     pub omega_max: f64,
+    /// `2/ω_max` (s).
     pub dt_crit: f64,
+    /// The cheap estimates and how they compare.
     pub bounds: Vec<Bound>,
+    /// The limit found by running.
     pub empirical: Empirical,
+    /// The runs at the asked fractions of `Δt_crit`.
     pub fractions: Vec<FractionRun>,
 }
 
@@ -134,44 +156,59 @@ pub fn stability_report(scene: &Scene, fractions: &[f64], steps: u64) -> Result<
 /// `rbsm check --json`: what a run of the scene would model, without running it.
 #[derive(Serialize)]
 pub struct CheckReport {
+    /// The scene's name.
     pub scene: String,
+    /// `rigid` or `hybrid`.
     pub formulation: &'static str,
+    /// `assembled` or `element-wise`.
     pub evaluator: &'static str,
+    /// Number of bodies.
     pub bodies: usize,
+    /// Number of elements.
     pub elements: usize,
     /// Interfaces between two elements, and ground springs (supports).
     pub interfaces: usize,
+    /// Boundary edges tied to ground by springs.
     pub ground_springs: usize,
+    /// Free DOFs.
     pub dofs: usize,
     /// DOFs fixed by clamps.
     pub fixed_dofs: usize,
     /// Point loads that the tractions and forces become.
     pub loads: usize,
+    /// Gravitational acceleration (m/s²).
     pub gravity: [f64; 2],
     /// `None` without a `contact` section: then no contact work is done.
     pub contact: Option<ContactCheck>,
     /// Largest circular frequency (rad/s) and `Δt_crit = 2/ω_max` (s).
     pub omega_max: f64,
+    /// `2/ω_max` (s).
     pub dt_crit: f64,
     /// The time step a run would take (s), its ratio to `Δt_crit`, and the steps.
     pub dt: f64,
+    /// `dt / Δt_crit`.
     pub dt_ratio: f64,
+    /// Steps a run would take.
     pub steps: u64,
     /// Bytes a run holds for stepping: the evaluator's data, `M` and `M⁻¹`, and the
     /// integrator's vectors (`U`, `v`, force, averaged velocity, and the guard's `U`, `v`).
     pub memory_bytes: usize,
+    /// What the checks warn about the scene.
     pub warnings: Vec<String>,
 }
 
 /// The contact a run would model.
 #[derive(Serialize)]
 pub struct ContactCheck {
+    /// `edge-to-edge` or `point`.
     pub model: &'static str,
     /// Vertices that can touch and edges they can touch (ground segments included).
     pub vertices: usize,
+    /// Edges that can be touched, ground segments included.
     pub edges: usize,
     /// Vertex–edge pairs near enough to be tested at the start, and those in contact there.
     pub pairs_tested_at_start: u64,
+    /// Vertex–edge pairs in contact at the start.
     pub pairs_in_contact_at_start: usize,
 }
 

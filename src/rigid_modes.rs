@@ -13,6 +13,7 @@ use crate::model::{Model, GROUND};
 pub struct FreeMode {
     /// Which elements move: a whole body, or a range of its elements.
     pub what: String,
+    /// The motion: a translation direction or a rotation centre.
     pub motion: Motion,
 }
 

@@ -18,6 +18,7 @@ use std::time::Instant;
 /// Command-line overrides of the scene.
 #[derive(Debug, Clone, Default)]
 pub struct RunOptions {
+    /// Evaluator, replacing the scene's.
     pub evaluator: Option<EvaluatorKind>,
     /// Time step (s), replacing the scene's `dt` or `dt_factor`.
     pub dt: Option<f64>,
@@ -27,15 +28,22 @@ pub struct RunOptions {
 
 /// A model ready to step: evaluator, mass, loads and the time step.
 pub struct Prepared {
+    /// The model of the scene.
     pub model: Model,
+    /// The evaluator of `f_int`.
     pub evaluator: Box<dyn Evaluator>,
+    /// `M` and its inverse.
     pub mass: Mass,
+    /// Point loads and gravity.
     pub loads: Loads,
     /// Largest circular frequency (rad/s), by Lanczos (`eigen::omega_max`); with contact, of
     /// `K` plus every contact closed against rigid ground (`contact::stiffness_estimate`).
     pub omega_max: f64,
+    /// Critical time step `2/ω_max` (s).
     pub dt_crit: f64,
+    /// The time step of the run (s).
     pub dt: f64,
+    /// Steps to run.
     pub steps: u64,
 }
 

@@ -13,13 +13,17 @@ use std::path::Path;
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Scene {
+    /// Name of the scene, used in outputs.
     pub name: String,
     #[serde(default)]
+    /// `stress` (default) or `strain`.
     pub plane: Plane,
     /// Out-of-plane thickness `t` (m).
     pub thickness: f64,
+    /// `rigid` or `hybrid` with its penalty.
     pub formulation: FormulationSpec,
     #[serde(default)]
+    /// `assembled` (default) or `element-wise`.
     pub evaluator: EvaluatorKind,
     /// Gravitational acceleration (m/s²), global components.
     #[serde(default)]
@@ -27,14 +31,20 @@ pub struct Scene {
     /// Mass-proportional damping coefficient `α` (1/s): `C = α M`. Optional, default none.
     #[serde(default)]
     pub damping: Option<f64>,
+    /// Materials by name.
     pub materials: BTreeMap<String, MaterialSpec>,
+    /// The meshed bodies.
     pub bodies: Vec<BodySpec>,
     #[serde(default)]
+    /// Rigid ground segments for contact.
     pub ground: Vec<GroundSpec>,
     #[serde(default)]
+    /// Contact between bodies and with the ground; none when absent.
     pub contact: Option<ContactSpec>,
+    /// Time step and duration.
     pub time: TimeSpec,
     #[serde(default)]
+    /// What a run writes.
     pub output: OutputSpec,
     /// What `rbsm tradeoff` measures the error against, when the scene has a closed form or a
     /// theory; without it the finest run of the sweep is the reference.
@@ -52,7 +62,10 @@ pub enum ReferenceSpec {
     /// An axial bar (the first body, a grid from `origin.x` to `origin.x + size.x`) held by a
     /// ground spring on its left edge, loaded at `t = 0` by the traction of its right edge: the
     /// displacement history of the named probe against the bar's modal series.
-    BarStep { probe: String },
+    BarStep {
+        /// The probe (a `u` DOF) whose history is compared.
+        probe: String,
+    },
 }
 
 /// Plane stress or plane strain (eq. 12 and its plane-strain form).
@@ -60,7 +73,9 @@ pub enum ReferenceSpec {
 #[serde(rename_all = "lowercase")]
 pub enum Plane {
     #[default]
+    /// Plane stress (default).
     Stress,
+    /// Plane strain.
     Strain,
 }
 
@@ -71,7 +86,10 @@ pub enum FormulationSpec {
     /// Plain RBSM: `(u, v, θ)` per element (eq. 10).
     Rigid,
     /// Rigid plus constant strain (eqs. 5, 8), springs `penalty` times eq. 12.
-    Hybrid { penalty: f64 },
+    Hybrid {
+        /// The penalty factor `p > 0`.
+        penalty: f64,
+    },
 }
 
 /// Which evaluator computes the internal forces (DESIGN.md §5).
@@ -112,23 +130,33 @@ pub struct MaterialSpec {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct BodySpec {
+    /// Name of the body, used in messages.
     pub name: String,
+    /// Name of its material in `materials`.
     pub material: String,
+    /// How it is cut into elements.
     pub mesh: MeshSpec,
     #[serde(default)]
+    /// Ground springs and clamps.
     pub supports: Vec<SupportSpec>,
     #[serde(default)]
+    /// Tractions and point forces.
     pub loads: Vec<LoadSpec>,
     #[serde(default)]
+    /// Initial velocity, spin and rotation.
     pub initial: InitialSpec,
 }
 
 /// How a body is cut into elements (`kind`: `grid`, `voronoi` or `polygons`).
 #[derive(Debug, Clone)]
 pub enum MeshSpec {
+    /// `grid`: rectangles or triangles.
     Grid(GridSpec),
+    /// `voronoi`: centroidal Voronoi cells.
     Voronoi(VoronoiSpec),
+    /// `polygons`: explicit cells.
     Polygons(PolygonsSpec),
+    /// `gmsh`: an MSH 4.1 file.
     Gmsh(GmshSpec),
 }
 
@@ -137,6 +165,7 @@ pub enum MeshSpec {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct GmshSpec {
+    /// The MSH file.
     pub path: std::path::PathBuf,
 }
 
@@ -144,10 +173,14 @@ pub struct GmshSpec {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct GridSpec {
+    /// Lower-left corner (m).
     pub origin: [f64; 2],
+    /// Width and height (m).
     pub size: [f64; 2],
+    /// Cells along x and y.
     pub cells: [usize; 2],
     #[serde(default = "default_cell")]
+    /// `rect` (default) or `tri`.
     pub cell: Cell,
 }
 
@@ -155,12 +188,17 @@ pub struct GridSpec {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct VoronoiSpec {
+    /// Lower-left corner (m).
     pub origin: [f64; 2],
+    /// Width and height (m).
     pub size: [f64; 2],
+    /// Number of cells.
     pub sites: usize,
     #[serde(default)]
+    /// Random seed of the sites.
     pub seed: u64,
     #[serde(default)]
+    /// Lloyd iterations towards centroidal cells.
     pub lloyd: usize,
 }
 
@@ -168,7 +206,9 @@ pub struct VoronoiSpec {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct PolygonsSpec {
+    /// Vertex coordinates (m).
     pub vertices: Vec<[f64; 2]>,
+    /// Cells as vertex indices, counter-clockwise.
     pub cells: Vec<Vec<usize>>,
 }
 
@@ -195,7 +235,9 @@ fn default_cell() -> Cell {
 /// A support on a side of the body's bounding box (`kind`: `ground-spring` or `clamp`).
 #[derive(Debug, Clone)]
 pub enum SupportSpec {
+    /// `ground-spring`.
     GroundSpring(GroundSpringSpec),
+    /// `clamp`.
     Clamp(ClampSpec),
 }
 
@@ -203,6 +245,7 @@ pub enum SupportSpec {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct GroundSpringSpec {
+    /// Where: a side or a gmsh group.
     pub edge: EdgeSet,
     /// `["n", "s"]` by default; `["n"]` is a roller.
     #[serde(default = "both_components")]
@@ -213,8 +256,10 @@ pub struct GroundSpringSpec {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ClampSpec {
+    /// Where: a side or a gmsh group.
     pub edge: EdgeSet,
     #[serde(default)]
+    /// DOF names (`u`, `v`, `theta`, ...); all when absent.
     pub dofs: Option<Vec<String>>,
 }
 
@@ -237,14 +282,18 @@ fn both_components() -> Vec<Component> {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Component {
+    /// Normal.
     N,
+    /// Shear.
     S,
 }
 
 /// A load on a body (`kind`: `traction` or `force`).
 #[derive(Debug, Clone)]
 pub enum LoadSpec {
+    /// `traction`.
     Traction(TractionSpec),
+    /// `force`.
     Force(ForceSpec),
 }
 
@@ -252,7 +301,9 @@ pub enum LoadSpec {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct TractionSpec {
+    /// Where: a side or a gmsh group.
     pub edge: EdgeSet,
+    /// `[t_x, t_y]` (N/m², global).
     pub value: [f64; 2],
     /// Piecewise-linear factor in time, `[[t, factor], ...]`; constant 1 when absent.
     #[serde(default)]
@@ -264,9 +315,12 @@ pub struct TractionSpec {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ForceSpec {
+    /// Element index within the body.
     pub element: usize,
+    /// `[F_x, F_y, M]` (N, N, N·m).
     pub value: [f64; 3],
     #[serde(default)]
+    /// Piecewise-linear factor in time, `[[t, factor], ...]`; constant 1 when absent.
     pub amplitude: Option<Vec<[f64; 2]>>,
 }
 
@@ -326,7 +380,9 @@ pub struct InitialSpec {
 #[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct GroundSpec {
+    /// Start point (m).
     pub from: [f64; 2],
+    /// End point (m); the free side is on the left of `from → to`.
     pub to: [f64; 2],
 }
 
@@ -355,12 +411,16 @@ impl ContactSpec {
 #[serde(deny_unknown_fields)]
 pub struct TimeSpec {
     #[serde(default)]
+    /// Time step (s).
     pub dt: Option<f64>,
     #[serde(default)]
+    /// Time step as a fraction of `Δt_crit`.
     pub dt_factor: Option<f64>,
     #[serde(default)]
+    /// End time (s).
     pub end: Option<f64>,
     #[serde(default)]
+    /// Number of steps.
     pub steps: Option<u64>,
 }
 
@@ -394,8 +454,11 @@ fn default_every() -> u64 {
 #[serde(deny_unknown_fields)]
 pub struct ProbeSpec {
     #[serde(default)]
+    /// Column header; `e<element>_<dof>` when absent.
     pub name: Option<String>,
+    /// Element (global index).
     pub element: usize,
+    /// DOF name: `u`, `v`, `theta`, and hybrid `ex`, `ey`, `gxy`.
     pub dof: String,
 }
 

@@ -21,6 +21,7 @@ pub fn critical_time_step(omega_max: f64) -> f64 {
 /// A cheap estimate of `Δt_crit` and how it compares with the exact value.
 #[derive(Debug, Clone, Serialize)]
 pub struct Bound {
+    /// `gershgorin`, `irons-treharne`, `per-body` or `single-body`.
     pub name: &'static str,
     /// The estimate (s).
     pub dt: f64,
@@ -150,11 +151,15 @@ fn generalized_max(k: &DMatrix<f64>, m: &DMatrix<f64>, free: &[bool]) -> f64 {
 /// The outcome of an undamped run at `fraction · Δt_crit`.
 #[derive(Debug, Clone, Serialize)]
 pub struct FractionRun {
+    /// `dt / Δt_crit`.
     pub fraction: f64,
+    /// Time step (s).
     pub dt: f64,
+    /// Steps taken (fewer than asked when it diverged).
     pub steps: u64,
     /// `ok` or `diverged`.
     pub status: String,
+    /// Largest `|total − initial|` over the largest energy seen.
     pub max_relative_drift: f64,
     /// `(t, total, kinetic + elastic)` energies (J) at the recorded steps, 200 or so per run.
     /// The total stays conserved to round-off even in an unstable run (central difference

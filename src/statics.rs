@@ -14,7 +14,9 @@ use faer::linalg::solvers::Solve;
 
 /// The static solution: `U` over all DOFs and the strain energy `½ Uᵀ K U` (J).
 pub struct StaticSolution {
+    /// Displacements over all DOFs (zero on fixed ones).
     pub u: Vec<f64>,
+    /// Strain energy `½ Uᵀ K U` (J).
     pub energy: f64,
 }
 

@@ -51,6 +51,7 @@ const KEYS: [(&str, Key); 7] = [
 ];
 
 impl Key {
+    /// The key as written on the command line.
     pub fn name(self) -> &'static str {
         KEYS.iter().find(|k| k.1 == self).map_or("?", |k| k.0)
     }
@@ -59,7 +60,9 @@ impl Key {
 /// One `--sweep KEY=V1,V2,...`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Sweep {
+    /// What is swept.
     pub key: Key,
+    /// Its values, as given.
     pub values: Vec<String>,
 }
 
@@ -103,10 +106,15 @@ impl Sweep {
 pub struct Point {
     /// `(key, value)` of each sweep, in the order given.
     pub settings: Vec<(Key, String)>,
+    /// Elements of the point's model.
     pub elements: usize,
+    /// Its DOFs.
     pub dofs: usize,
+    /// Time step (s).
     pub dt: f64,
+    /// Critical time step (s).
     pub dt_crit: f64,
+    /// Steps run.
     pub steps: u64,
     /// Model, evaluator and `Δt_crit` (s).
     pub setup_s: f64,
@@ -127,11 +135,13 @@ pub struct Point {
 /// The whole sweep.
 #[derive(Debug, Clone, Serialize)]
 pub struct Report {
+    /// The scene's name.
     pub scene: String,
     /// What the errors are measured against.
     pub reference: String,
     /// How the error is defined.
     pub error: String,
+    /// Every point of the sweep, in sweep order.
     pub points: Vec<Point>,
 }
 

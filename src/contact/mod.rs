@@ -57,6 +57,7 @@ impl ContactModel {
 /// What a scene asks of contact.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ContactSettings {
+    /// Edge-to-edge (eqs. 17–20) or point (DEM) contact.
     pub model: ContactModel,
     /// Coulomb friction coefficient `μ`; `None` is no slip limit.
     pub friction: Option<f64>,
@@ -95,7 +96,9 @@ struct Edge {
 /// A vertex in contact with an edge.
 #[derive(Debug, Clone, Copy)]
 pub struct Record {
+    /// The vertex (index into the contact's vertices).
     pub vertex: u32,
+    /// The edge it touches (index into the contact's edges).
     pub edge: u32,
     /// The crossing point `c` of eq. 20 as a fraction of the edge, `c = b1 + λ (b2 − b1)`.
     pub lambda: f64,
@@ -125,6 +128,7 @@ pub struct ContactStats {
 /// The contact state of a run and the forces it exerts.
 #[derive(Debug, Clone)]
 pub struct Contact {
+    /// What the scene asked for.
     pub settings: ContactSettings,
     frames: Frames,
     thickness: f64,
@@ -150,6 +154,7 @@ pub struct Contact {
     stored: f64,
     /// The step of the last evaluation.
     step: Option<u64>,
+    /// Pairs, tests and time spent, for `summary.json`.
     pub stats: ContactStats,
 }
 
@@ -636,8 +641,11 @@ pub fn stiffness_estimate(model: &Model, contact: &Contact) -> Vec<f64> {
 
 /// An evaluator plus a block-diagonal stiffness (for `ω_max` with the contact estimate).
 pub struct WithBlocks<'a> {
+    /// The model's evaluator (`K`).
     pub inner: &'a dyn Evaluator,
+    /// DOFs per element.
     pub nd: usize,
+    /// One `nd × nd` contact stiffness block per element, row-major (N/m, N, N·m).
     pub blocks: Vec<f64>,
 }
 

@@ -15,7 +15,9 @@ use std::path::Path;
 /// Boundary edges named by a gmsh physical group: vertex pairs, each sorted.
 #[derive(Debug, Clone, PartialEq)]
 pub struct EdgeGroup {
+    /// The physical group's name.
     pub name: String,
+    /// Its edges as vertex pairs `[low, high]` into the mesh's vertices.
     pub edges: Vec<[u32; 2]>,
 }
 

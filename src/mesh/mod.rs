@@ -20,9 +20,13 @@ use std::collections::HashMap;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Side {
+    /// `x` = smallest.
     Left,
+    /// `x` = largest.
     Right,
+    /// `y` = smallest.
     Bottom,
+    /// `y` = largest.
     Top,
 }
 
@@ -30,7 +34,9 @@ pub enum Side {
 /// (`left`, `right`, `bottom`, `top`) or, any other name, a physical group of a gmsh mesh.
 #[derive(Debug, Clone, PartialEq, Eq, Hash)]
 pub enum EdgeSet {
+    /// A side of the bounding box.
     Side(Side),
+    /// A physical group of a gmsh mesh, by name.
     Group(String),
 }
 
@@ -59,18 +65,26 @@ impl std::fmt::Display for EdgeSet {
 /// An edge shared by two cells: `a` runs `v1 → v2` counter-clockwise, `b` runs it backwards.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SharedEdge {
+    /// The cell that runs the edge `v1 → v2`.
     pub a: u32,
+    /// The cell that runs it `v2 → v1`.
     pub b: u32,
+    /// First vertex (counter-clockwise for `a`).
     pub v1: u32,
+    /// Second vertex.
     pub v2: u32,
 }
 
 /// An edge of one cell only, with the bounding-box side it lies on (if any).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BoundaryEdge {
+    /// The cell the edge belongs to.
     pub cell: u32,
+    /// First vertex, counter-clockwise around the cell.
     pub v1: u32,
+    /// Second vertex.
     pub v2: u32,
+    /// The side of the bounding box it lies on, if any.
     pub side: Option<Side>,
 }
 
