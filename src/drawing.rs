@@ -113,23 +113,21 @@ impl Canvas {
     }
 }
 
-/// The vertices of element `e` of body `b` displaced by `scale · N_e(x) U_e`.
-fn element_polygon(model: &Model, b: usize, c: usize, u: Option<(&[f64], f64)>) -> Vec<Vec2> {
-    let body = &model.bodies[b];
-    let e = body.first_element + c;
+/// Every element as `(body, its vertices, each vertex's displacement N_e(x) U_e)`, the
+/// displacements zero without `u`.
+fn element_polygons(model: &Model, u: Option<&[f64]>) -> Vec<(usize, Vec<Vec2>, Vec<Vec2>)> {
     let nd = model.formulation.ndof();
-    let xe = model.elements[e].props.centroid;
-    body.mesh
-        .cell(c)
-        .iter()
-        .map(|&k| {
-            let x = body.mesh.vertices[k as usize];
-            match u {
-                Some((u, s)) => x + model.formulation.displacement(&u[e * nd..(e + 1) * nd], x - xe) * s,
-                None => x,
-            }
-        })
-        .collect()
+    let mut polygons = Vec::with_capacity(model.elements.len());
+    for (b, body) in model.bodies.iter().enumerate() {
+        for c in 0..body.mesh.n_cells() {
+            let e = body.first_element + c;
+            let xe = model.elements[e].props.centroid;
+            let vertices: Vec<Vec2> = body.mesh.cell(c).iter().map(|&k| body.mesh.vertices[k as usize]).collect();
+            let moved = vertices.iter().map(|&x| u.map_or(Vec2::zeros(), |u| model.formulation.displacement(&u[e * nd..(e + 1) * nd], x - xe))).collect();
+            polygons.push((b, vertices, moved));
+        }
+    }
+    polygons
 }
 
 fn all_vertices(model: &Model) -> impl Iterator<Item = Vec2> + '_ {
@@ -144,11 +142,9 @@ fn all_vertices(model: &Model) -> impl Iterator<Item = Vec2> + '_ {
 /// hatched black segments. About 800 pixels on its longer side.
 pub fn model_svg(model: &Model) -> String {
     let mut cv = Canvas::fit(all_vertices(model), 800.0);
-    for (b, body) in model.bodies.iter().enumerate() {
+    for (b, vertices, _) in element_polygons(model, None) {
         let fill = BODY_FILLS[b % BODY_FILLS.len()];
-        for c in 0..body.mesh.n_cells() {
-            cv.polygon(&element_polygon(model, b, c, None), &format!(r##"fill="{fill}" stroke="#555" stroke-width="0.6""##));
-        }
+        cv.polygon(&vertices, &format!(r##"fill="{fill}" stroke="#555" stroke-width="0.6""##));
     }
     let thin = model.interfaces.len() > 5000;
     let spring = format!(r##"stroke="#2a5db0" stroke-width="{}""##, if thin { 0.3 } else { 0.8 });
@@ -198,22 +194,12 @@ pub fn model_svg(model: &Model) -> String {
 /// largest vertex displacement is a tenth of the model's larger side, filled over the reference
 /// outline (grey). `caption` is printed above with the scale factor.
 pub fn displaced_svg(model: &Model, u: &[f64], caption: &str) -> String {
-    let mut largest: f64 = 0.0;
-    for (b, body) in model.bodies.iter().enumerate() {
-        for c in 0..body.mesh.n_cells() {
-            let (x0, x1) = (element_polygon(model, b, c, None), element_polygon(model, b, c, Some((u, 1.0))));
-            largest = x0.iter().zip(&x1).map(|(p, q)| (q - p).norm()).fold(largest, f64::max);
-        }
-    }
+    let elements = element_polygons(model, Some(u));
+    let largest = elements.iter().flat_map(|p| p.2.iter()).map(|d| d.norm()).fold(0.0, f64::max);
     let (lo, hi) = all_vertices(model).fold((Vec2::repeat(f64::MAX), Vec2::repeat(f64::MIN)), |(lo, hi), p| (lo.inf(&p), hi.sup(&p)));
-    let extent = (hi - lo).max();
-    let scale = if largest > 0.0 { 0.1 * extent / largest } else { 0.0 };
-    let mut polygons = Vec::with_capacity(model.elements.len());
-    for (b, body) in model.bodies.iter().enumerate() {
-        for c in 0..body.mesh.n_cells() {
-            polygons.push((b, element_polygon(model, b, c, None), element_polygon(model, b, c, Some((u, scale)))));
-        }
-    }
+    let scale = if largest > 0.0 { 0.1 * (hi - lo).max() / largest } else { 0.0 };
+    let polygons: Vec<(usize, Vec<Vec2>, Vec<Vec2>)> =
+        elements.into_iter().map(|(b, x, d)| (b, x.clone(), x.iter().zip(&d).map(|(x, d)| x + d * scale).collect())).collect();
     let points = polygons.iter().flat_map(|p| p.1.iter().chain(&p.2).copied()).collect::<Vec<_>>();
     let mut cv = Canvas::fit(points.into_iter(), 800.0);
     for (_, reference, _) in &polygons {

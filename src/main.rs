@@ -211,9 +211,7 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
             let model = rbsm::model::Model::build(&Scene::from_file(scene)?)?;
             let svg = rbsm::drawing::model_svg(&model);
             std::fs::write(out, svg).map_err(|e| rbsm::error::Error::io(out, e))?;
-            if !cli.quiet {
-                eprintln!("written: {}", out.display());
-            }
+            println!("written: {}", out.display());
             Ok(ExitCode::SUCCESS)
         }
         Command::Plot { dir } => {
