@@ -180,12 +180,17 @@ pub fn model_svg(model: &Model) -> String {
         cv.arrow_px(x, cv.margin + 4.0, model.gravity.normalize(), 24.0, "#444");
         cv.text(x + 5.0, cv.margin + 16.0, 11.0, "g");
     }
-    let caption = format!(
-        "{}: {} elements, {} interfaces; blue: springs centroid–edge, green: ground springs, red: loads",
-        model.name,
-        model.elements.len(),
-        model.interfaces.iter().filter(|i| i.b != GROUND).count()
-    );
+    // The key names only the marks the picture holds.
+    let pairs = model.interfaces.iter().filter(|i| i.b != GROUND).count();
+    let key = [
+        (pairs > 0, "blue: springs centroid–edge"),
+        (model.interfaces.len() > pairs, "green: ground springs"),
+        (!model.fixed.is_empty(), "black: clamped elements"),
+        (f_max > 0.0, "red: loads"),
+        (!model.ground.is_empty(), "hatched black: contact ground"),
+    ];
+    let key: Vec<&str> = key.iter().filter(|k| k.0).map(|k| k.1).collect();
+    let caption = format!("{}: {} elements, {pairs} interfaces; {}", model.name, model.elements.len(), key.join(", "));
     cv.text(cv.margin, 20.0, 13.0, &caption);
     cv.finish()
 }

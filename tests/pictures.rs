@@ -54,9 +54,20 @@ fn the_model_drawing_shows_each_element_spring_support_and_load_inside_its_frame
     let (x0, x1) = all.iter().fold((f64::MAX, f64::MIN), |a, p| (a.0.min(p.0), a.1.max(p.0)));
     let (y0, y1) = all.iter().fold((f64::MAX, f64::MIN), |a, p| (a.0.min(p.1), a.1.max(p.1)));
     assert!(((x1 - x0) / (y1 - y0) - 10.0).abs() < 1e-2, "2 m × 0.2 m");
-    // Contact ground and gravity on the hopping block.
+    // Contact ground and gravity on the hopping block; the key names only what is drawn.
     let svg = model_svg(&model("hopping_block"));
     assert!(svg.contains(">g</text>") && !tags(&svg, "line", "stroke=\"#000\" stroke-width=\"2.5\"").is_empty());
+    assert!(svg.contains("hatched black: contact ground") && !svg.contains("blue:") && !svg.contains("red:"));
+    // A clamped edge: one black triangle per element with fixed DOFs.
+    let path = format!("{}/examples/scenes/cantilever.json", env!("CARGO_MANIFEST_DIR"));
+    let mut scene: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+    scene["bodies"][0]["supports"] = serde_json::json!([{"edge": "left", "kind": "clamp"}]);
+    let m = Model::build(&Scene::from_json(&scene.to_string()).unwrap()).unwrap();
+    let svg = model_svg(&m);
+    let clamped: std::collections::BTreeSet<usize> = m.fixed.iter().map(|d| d / 3).collect();
+    assert_eq!(clamped.len(), 8);
+    assert_eq!(tags(&svg, "polygon", "fill=\"black\"").len(), clamped.len());
+    assert!(svg.contains("black: clamped elements") && !svg.contains("green:"));
 }
 
 #[test]
