@@ -1,4 +1,5 @@
-//! SVG plots on log–log axes: convergence series and the speed–accuracy trade.
+//! SVG plots (plotters): convergence series and the speed–accuracy trade on log–log axes, and
+//! the histories a run leaves (`rbsm plot`).
 
 use crate::error::{Error, Result};
 use plotters::prelude::*;
@@ -184,10 +185,9 @@ const ENERGIES: [&str; 6] = ["kinetic", "elastic", "contact", "potential", "exte
 /// Draws the histories that runs left in `dir`, as SVG beside them, and returns the files written:
 /// - `history.csv` of `rbsm run`: `energies.svg` (each energy that is not zero throughout, J,
 ///   against `t`) and `probes.svg` (one panel per probe);
-/// - `fraction_F.csv` of `rbsm stability --out`: `stability.svg`, the total energy of each run
-///   the stored (kinetic + elastic) energy of each run relative to its start, on a log scale:
-///   bounded below `Δt_crit`, geometric growth (a straight line) above it until the guard stops
-///   the run.
+/// - `fraction_F.csv` of `rbsm stability --out`: `stability.svg`, the stored (kinetic +
+///   elastic) energy of each run relative to its start, on a log scale: bounded below
+///   `Δt_crit`, growing geometrically (a straight line) above it until the guard stops the run.
 pub fn histories(dir: &Path) -> Result<Vec<std::path::PathBuf>> {
     let mut written = Vec::new();
     let history = dir.join("history.csv");
