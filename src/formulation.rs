@@ -20,14 +20,15 @@ pub trait Kinematics<const N: usize>: Send + Sync + 'static {
     fn gradient(u: &[f64; N], d: Vec2) -> Vec2;
     /// `f += (N_e(d) − N_e(0))ᵀ F`: [`Kinematics::add_force`] without the translation part.
     fn add_linear(f: &mut [f64; N], d: Vec2, force: Vec2);
+    /// What [`Kinematics::add_edge_odd`] needs of an edge, formed once from its Gauss offset
+    /// `g` and springs `S` ([`Kinematics::edge_odd`]).
+    type EdgeOdd: Copy + Send + Sync + std::fmt::Debug;
+    /// [`Kinematics::EdgeOdd`] of an edge with Gauss offset `g` (along the edge) and springs `s`.
+    fn edge_odd(g: Vec2, s: &Springs) -> Self::EdgeOdd;
     /// The part of an edge's 2-point Gauss rule that is odd in the Gauss offset `g` (eq. 15,
     /// see `evaluator::element_wise`): `f += (N_e(g) − N_e(0))ᵀ S δ₁`, with
-    /// `δ₁ = gradient(u_o, g) − gradient(u_e, g)` (`u_o = None` on ground); `g` lies along the edge.
-    #[inline(always)]
-    fn add_edge_odd(f: &mut [f64; N], ue: &[f64; N], uo: Option<&[f64; N]>, g: Vec2, s: &Springs) {
-        let delta = uo.map_or(Vec2::zeros(), |uo| Self::gradient(uo, g)) - Self::gradient(ue, g);
-        Self::add_linear(f, g, s.apply(delta));
-    }
+    /// `δ₁ = gradient(u_o, g) − gradient(u_e, g)` (`u_o = None` on ground).
+    fn add_edge_odd(f: &mut [f64; N], ue: &[f64; N], uo: Option<&[f64; N]>, odd: &Self::EdgeOdd, s: &Springs);
     /// The 2 × N shape matrix `N_e(x)` at offset `d`.
     fn shape(d: Vec2) -> SMatrix<f64, 2, N>;
     /// Consistent mass `ρ t ∫ N_eᵀ N_e dA` of an element (eqs. 8, 9).
@@ -90,10 +91,15 @@ impl Kinematics<3> for Rigid {
     fn add_linear(f: &mut [f64; 3], d: Vec2, force: Vec2) {
         f[2] += d.x * force.y - d.y * force.x;
     }
-    /// `δ₁ = Δθ ẑ × g`, so the term is `(ẑ × g)ᵀ S (ẑ × g) Δθ = k_n |g|² Δθ` on `θ`.
+    /// `δ₁ = Δθ ẑ × g`, so the term is a rotational spring on `θ`: `k_θ Δθ` with
+    /// `k_θ = (ẑ × g)ᵀ S (ẑ × g) = k_n |g|²` (N·m with `S` carrying `t L`), kept as that scalar.
+    type EdgeOdd = f64;
+    fn edge_odd(g: Vec2, s: &Springs) -> f64 {
+        s.quadratic(Vec2::new(-g.y, g.x))
+    }
     #[inline(always)]
-    fn add_edge_odd(f: &mut [f64; 3], ue: &[f64; 3], uo: Option<&[f64; 3]>, g: Vec2, s: &Springs) {
-        f[2] += s.quadratic(Vec2::new(-g.y, g.x)) * (uo.map_or(0.0, |uo| uo[2]) - ue[2]);
+    fn add_edge_odd(f: &mut [f64; 3], ue: &[f64; 3], uo: Option<&[f64; 3]>, k_theta: &f64, _: &Springs) {
+        f[2] += k_theta * (uo.map_or(0.0, |uo| uo[2]) - ue[2]);
     }
     fn shape(d: Vec2) -> SMatrix<f64, 2, 3> {
         SMatrix::<f64, 2, 3>::new(1.0, 0.0, -d.y, 0.0, 1.0, d.x)
@@ -140,6 +146,16 @@ impl Kinematics<6> for Hybrid {
         f[3] += d.x * force.x;
         f[4] += d.y * force.y;
         f[5] += 0.5 * (d.y * force.x + d.x * force.y);
+    }
+    /// The Gauss offset itself: the strains make `δ₁` a full vector.
+    type EdgeOdd = Vec2;
+    fn edge_odd(g: Vec2, _: &Springs) -> Vec2 {
+        g
+    }
+    #[inline(always)]
+    fn add_edge_odd(f: &mut [f64; 6], ue: &[f64; 6], uo: Option<&[f64; 6]>, &g: &Vec2, s: &Springs) {
+        let delta = uo.map_or(Vec2::zeros(), |uo| Self::gradient(uo, g)) - Self::gradient(ue, g);
+        Self::add_linear(f, g, s.apply(delta));
     }
     fn shape(d: Vec2) -> SMatrix<f64, 2, 6> {
         SMatrix::<f64, 2, 6>::from_row_slice(&[1.0, 0.0, -d.y, d.x, 0.0, 0.5 * d.y, 0.0, 1.0, d.x, 0.0, d.y, 0.5 * d.x])

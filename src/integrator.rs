@@ -96,6 +96,9 @@ pub struct CentralDifference<'a> {
     scratch: Vec<f64>,
     /// Contact state and forces; `None` for a scene without contact.
     pub contact: Option<Contact>,
+    /// The elements where `−P − f_c` can be non-zero, when they are few and known (no gravity,
+    /// no contact): a fused step reads `force` only there.
+    loaded: Option<Vec<u32>>,
     /// Contact energy at `t_n`: minus the work of the contact forces (`Contact::apply`).
     contact_energy: f64,
     external_work: f64,
@@ -141,6 +144,7 @@ impl<'a> CentralDifference<'a> {
             force_clear: false,
             scratch: vec![0.0; n],
             contact: Contact::new(model),
+            loaded: None,
             contact_energy: 0.0,
             external_work: 0.0,
             initial_total: None,
@@ -151,6 +155,9 @@ impl<'a> CentralDifference<'a> {
             fraction: None,
             pending: false,
         };
+        if s.contact.is_none() {
+            s.loaded = loads.loaded_elements();
+        }
         s.net_force(false);
         mass.advance(&s.force, &mut s.v, &mut [], -0.5 * dt, (1.0, 1.0));
         s
@@ -296,7 +303,7 @@ impl<'a> CentralDifference<'a> {
             }
             self.subtract_external();
             let update = Update { mass: self.mass, dt, damping };
-            self.evaluator.advance(&mut self.u, &mut self.v, &mut self.force, &update);
+            self.evaluator.advance(&mut self.u, &mut self.v, &mut self.force, self.loaded.as_deref(), &update);
             self.force_clear = true;
         }
         self.external_work += self.loads.work_increment(self.t, dt, &self.v);

@@ -72,6 +72,18 @@ impl Loads {
         }
     }
 
+    /// The elements that carry applied loads, in order, when `P` is zero elsewhere at all
+    /// times; `None` with gravity, which loads every element.
+    pub fn loaded_elements(&self) -> Option<Vec<u32>> {
+        if !self.weight.is_empty() {
+            return None;
+        }
+        let mut elements: Vec<u32> = self.entries.iter().map(|&(d, _, _)| (d / self.nd) as u32).collect();
+        elements.sort_unstable();
+        elements.dedup();
+        Some(elements)
+    }
+
     /// `f −= P(t)`.
     pub fn subtract(&self, t: f64, f: &mut [f64]) {
         for (e, w) in self.weight.iter().enumerate() {

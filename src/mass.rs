@@ -21,10 +21,14 @@ impl Update<'_> {
     /// `v_e ← (c₁ v_e − Δt M_e⁻¹ f_e) c₂`, then `u_e ← u_e + Δt v_e`, for element `e`.
     #[inline(always)]
     pub fn element<const N: usize>(&self, e: usize, f: &[f64; N], v: &mut [f64; N], u: &mut [f64; N]) {
-        self.mass.velocity_update(e, f, v, self.dt, self.damping);
+        // `v_e` is updated in registers: read back from memory, its fresh scalar stores could not
+        // be forwarded to a vector load.
+        let mut ve = *v;
+        self.mass.velocity_update(e, f, &mut ve, self.dt, self.damping);
         for j in 0..N {
-            u[j] += self.dt * v[j];
+            u[j] += self.dt * ve[j];
         }
+        *v = ve;
     }
 }
 

@@ -30,9 +30,11 @@ pub trait Evaluator: Send + Sync {
     }
     /// One explicit step fused with the evaluation (DESIGN.md §7): with `force` holding the
     /// rest of the net force, `−P − f_c`, each element gets `f_int(U^n) + force` and is advanced
-    /// by `update` as soon as its force is complete; `force` is left zero. Only for an evaluator
-    /// that [`fuses`](Evaluator::fuses); the others are evaluated and advanced in two passes.
-    fn advance(&self, _u: &mut [f64], _v: &mut [f64], _force: &mut [f64], _update: &Update) {
+    /// by `update` as soon as its force is complete; `force` is left zero. `loaded` lists, in
+    /// order, the only elements where `force` may be non-zero (`None`: any element), so that a
+    /// step need not read the rest. Only for an evaluator that [`fuses`](Evaluator::fuses); the
+    /// others are evaluated and advanced in two passes.
+    fn advance(&self, _u: &mut [f64], _v: &mut [f64], _force: &mut [f64], _loaded: Option<&[u32]>, _update: &Update) {
         unreachable!("advance is only called on an evaluator that fuses")
     }
 }
