@@ -96,8 +96,8 @@ pub struct CentralDifference<'a> {
     scratch: Vec<f64>,
     /// Contact state and forces; `None` for a scene without contact.
     pub contact: Option<Contact>,
-    /// The elements where `−P − f_c` can be non-zero, when they are few and known (no gravity,
-    /// no contact): a fused step reads `force` only there.
+    /// The elements where `−P − f_c` can be non-zero, when the loads name them (no gravity, no
+    /// contact): a fused step reads `force` only there.
     loaded: Option<Vec<u32>>,
     /// Contact energy at `t_n`: minus the work of the contact forces (`Contact::apply`).
     contact_energy: f64,
