@@ -168,10 +168,12 @@ impl Mass {
                     *v = (c1 * *v - dt * w * f) * c2;
                 }
             }
-            Mass::Blocks { nd, inv, .. } => {
+            Mass::Blocks { inv, .. } => {
+                // The length of `v`, not the field: a constant wherever the caller's is.
+                let nd = v.len();
                 let b = &inv[e * nd * nd..(e + 1) * nd * nd];
-                for i in 0..*nd {
-                    let a: f64 = (0..*nd).map(|j| b[i * nd + j] * f[j]).sum();
+                for i in 0..nd {
+                    let a: f64 = (0..nd).map(|j| b[i * nd + j] * f[j]).sum();
                     v[i] = (c1 * v[i] - dt * a) * c2;
                 }
             }

@@ -58,7 +58,11 @@ struct Face<K: Kinematics<N>, const N: usize> {
 #[derive(Debug, Clone)]
 struct Block {
     elements: Range<usize>,
-    faces: Range<usize>,
+    /// The interfaces between two of the block's elements, in interface order.
+    inner: Range<usize>,
+    /// Then, in interface order, those to a later block or to the ground. Of a given element,
+    /// these follow its inner ones in the interface order too (a later `b`, or [`GROUND`]).
+    rest: Range<usize>,
     /// Interfaces into later blocks, as a range of `ElementWise::crossing`.
     outgoing: Range<usize>,
     /// Interfaces from earlier blocks, as a range of `ElementWise::incoming`.
@@ -110,34 +114,33 @@ impl<K: Kinematics<N>, const N: usize> ElementWise<K, N> {
         faces.sort_by_key(|f| (f.a, f.b));
         let n = model.elements.len();
         let len = MIN_BLOCK.max(n.div_ceil(MAX_BLOCKS));
-        let block_of = |e: u32| e as usize / len;
-        let crossing: Vec<u32> = (0..faces.len() as u32)
-            .filter(|&k| {
-                let f = &faces[k as usize];
-                f.b != GROUND && block_of(f.b) != block_of(f.a)
-            })
-            .collect();
         let mut blocks = Vec::new();
-        let mut incoming = Vec::new();
         for first in (0..n).step_by(len) {
             let elements = first..(first + len).min(n);
             let start = |e: usize| faces.partition_point(|f| (f.a as usize) < e);
-            let out = |e: usize| crossing.partition_point(|&k| (faces[k as usize].a as usize) < e);
+            let here = start(elements.start)..start(elements.end);
+            // Inner interfaces first; a stable sort keeps the interface order in both parts.
+            faces[here.clone()].sort_by_key(|f| f.b == GROUND || f.b as usize >= elements.end);
+            let inner = here.start + faces[here.clone()].partition_point(|f| f.b != GROUND && (f.b as usize) < elements.end);
+            let reach = faces[here.start..inner].iter().map(|f| (f.b - f.a) as usize).max();
+            let ring = (reach.unwrap_or(0) + 1).next_power_of_two();
+            blocks.push(Block { elements, inner: here.start..inner, rest: inner..here.end, outgoing: 0..0, incoming: 0..0, ring });
+        }
+        let mut crossing = Vec::new();
+        for block in &mut blocks {
+            let before = crossing.len();
+            crossing.extend(block.rest.clone().filter(|&k| faces[k].b != GROUND).map(|k| k as u32));
+            block.outgoing = before..crossing.len();
+        }
+        let mut incoming = Vec::new();
+        for block in &mut blocks {
             let before = incoming.len();
             incoming.extend(crossing.iter().enumerate().filter_map(|(c, &k)| {
                 let b = faces[k as usize].b;
-                elements.contains(&(b as usize)).then_some((b, c as u32))
+                block.elements.contains(&(b as usize)).then_some((b, c as u32))
             }));
             incoming[before..].sort_unstable();
-            let faces_here = start(elements.start)..start(elements.end);
-            let reach = faces[faces_here.clone()].iter().filter(|f| (f.b as usize) < elements.end).map(|f| (f.b - f.a) as usize).max();
-            blocks.push(Block {
-                faces: faces_here,
-                outgoing: out(elements.start)..out(elements.end),
-                incoming: before..incoming.len(),
-                ring: (reach.unwrap_or(0) + 1).next_power_of_two(),
-                elements,
-            });
+            block.incoming = before..incoming.len();
         }
         let interior = if K::HAS_INTERIOR {
             model.elements.iter().map(|e| e.d * (model.thickness * e.props.area)).collect()
@@ -191,11 +194,14 @@ impl<K: Kinematics<N>, const N: usize> ElementWise<K, N> {
     fn sweep<S: BlockState<N>>(&self, block: &Block, crossing: &[[[f64; N]; 2]], ring: &mut [[f64; N]], state: &mut S) {
         let first = block.elements.start;
         let mask = ring.len() - 1;
+        let ring = &mut ring[..=mask];
         let incoming = &self.incoming[block.incoming.clone()];
         let mut next_in = 0;
-        let mut out = block.outgoing.start;
-        let faces = &self.faces[block.faces.clone()];
-        let mut k = 0;
+        let crossing_out = &crossing[block.outgoing.clone()];
+        let mut out = 0;
+        let inner = &self.faces[block.inner.clone()];
+        let rest = &self.faces[block.rest.clone()];
+        let (mut k, mut r) = (0, 0);
         for (i, e) in block.elements.clone().enumerate() {
             // An interface from an earlier block enters the ring as soon as the ring reaches its
             // element, before any interface of this block does: interface order.
@@ -207,25 +213,26 @@ impl<K: Kinematics<N>, const N: usize> ElementWise<K, N> {
                 sub(&mut ring[j & mask], &crossing[c as usize][1]);
                 next_in += 1;
             }
-            while k < faces.len() && faces[k].a as usize == e {
-                let face = &faces[k];
+            // The forces from earlier elements, then this element's own interfaces.
+            let mut f = std::mem::replace(&mut ring[i & mask], [0.0; N]);
+            let ue = *state.u(i);
+            while let Some(face) = inner.get(k).filter(|face| face.a as usize == e) {
                 k += 1;
+                let j = face.b as usize - first;
+                let [fa, fb] = self.face_forces(face, &ue, Some(state.u(j)));
+                sub(&mut f, &fa);
+                sub(&mut ring[j & mask], &fb);
+            }
+            while let Some(face) = rest.get(r).filter(|face| face.a as usize == e) {
+                r += 1;
                 if face.b == GROUND {
-                    let [fa, _] = self.face_forces(face, state.u(i), None);
-                    sub(&mut ring[i & mask], &fa);
-                } else if (face.b as usize) < block.elements.end {
-                    let j = face.b as usize - first;
-                    let [fa, fb] = self.face_forces(face, state.u(i), Some(state.u(j)));
-                    sub(&mut ring[i & mask], &fa);
-                    sub(&mut ring[j & mask], &fb);
+                    sub(&mut f, &self.face_forces(face, &ue, None)[0]);
                 } else {
-                    sub(&mut ring[i & mask], &crossing[out][0]);
+                    sub(&mut f, &crossing_out[out][0]);
                     out += 1;
                 }
             }
-            let mut f = std::mem::replace(&mut ring[i & mask], [0.0; N]);
             if K::HAS_INTERIOR {
-                let ue = state.u(i);
                 let stress = self.interior[e] * nalgebra::Vector3::new(ue[3], ue[4], ue[5]);
                 for j in 0..3 {
                     f[3 + j] += stress[j];
