@@ -19,6 +19,9 @@
 //! completion, and an interface reaches at most `max(b − a)` elements ahead. The pending forces
 //! are therefore kept in a ring of the next power of two above that reach, which stays in
 //! cache (a 1000 × 1000 grid needs 1024 slots): no global force vector is read or written.
+//! An element takes its pending force from the ring when the sweep reaches it and adds its own
+//! interfaces in registers. The records of a block's inner interfaces lie apart from those to
+//! the ground and to later blocks, which are rare and need no test in the inner loop.
 //! A time step reads the rest of the net force, `−P − f_c`, only at the elements that carry
 //! loads when the integrator can name them (no gravity, no contact).
 //!
@@ -76,6 +79,11 @@ struct Block {
 /// cross blocks on large meshes).
 const MIN_BLOCK: usize = 4096;
 const MAX_BLOCKS: usize = 64;
+
+/// How many interfaces ahead of the sweep their records are asked for, and half as many ahead
+/// the `U` of their higher element. The hardware prefetchers stop at every 4 KiB page, which
+/// the stream of records crosses every 57 interfaces; 64 interfaces take about 0.5 µs to sweep.
+const PREFETCH_AHEAD: usize = 64;
 
 /// Element-wise evaluation of eq. 15 for the kinematics `K` with `N` DOFs per element.
 pub struct ElementWise<K: Kinematics<N>, const N: usize> {
@@ -190,8 +198,22 @@ impl<K: Kinematics<N>, const N: usize> ElementWise<K, N> {
     /// interior term `t A D ε` of hybrid elements, summed in interface order in the block's
     /// `ring` (all zero before and after) and handed to `state` as soon as it is complete.
     /// `crossing` holds the crossing interfaces' forces.
+    ///
+    /// On x86-64 it runs compiled for AVX2 where the processor has it (three-operand
+    /// instructions: fewer of them). The arithmetic is the same, with no fused multiply-add, so
+    /// the forces are the same bits on every processor.
     #[inline(always)]
     fn sweep<S: BlockState<N>>(&self, block: &Block, crossing: &[[[f64; N]; 2]], ring: &mut [[f64; N]], state: &mut S) {
+        #[cfg(target_arch = "x86_64")]
+        if let Some(simd) = pulp::x86::V3::try_new() {
+            return simd.vectorize(|| self.sweep_in_order(block, crossing, ring, state));
+        }
+        self.sweep_in_order(block, crossing, ring, state)
+    }
+
+    /// [`ElementWise::sweep`], as compiled for the processor at hand.
+    #[inline(always)]
+    fn sweep_in_order<S: BlockState<N>>(&self, block: &Block, crossing: &[[[f64; N]; 2]], ring: &mut [[f64; N]], state: &mut S) {
         let first = block.elements.start;
         let mask = ring.len() - 1;
         let ring = &mut ring[..=mask];
@@ -217,6 +239,12 @@ impl<K: Kinematics<N>, const N: usize> ElementWise<K, N> {
             let mut f = std::mem::replace(&mut ring[i & mask], [0.0; N]);
             let ue = *state.u(i);
             while let Some(face) = inner.get(k).filter(|face| face.a as usize == e) {
+                if let Some(ahead) = inner.get(k + PREFETCH_AHEAD) {
+                    prefetch(ahead);
+                }
+                if let Some(ahead) = inner.get(k + PREFETCH_AHEAD / 2) {
+                    prefetch(state.u(ahead.b as usize - first));
+                }
                 k += 1;
                 let j = face.b as usize - first;
                 let [fa, fb] = self.face_forces(face, &ue, Some(state.u(j)));
@@ -248,6 +276,14 @@ impl<K: Kinematics<N>, const N: usize> ElementWise<K, N> {
 struct Scratch<const N: usize> {
     crossing: Vec<[[f64; N]; 2]>,
     rings: Vec<Vec<[f64; N]>>,
+}
+
+/// Asks the cache for `x` ahead of its use: a hint, with no effect on any result (a no-op off
+/// x86-64).
+#[inline(always)]
+fn prefetch<T>(x: &T) {
+    #[cfg(target_arch = "x86_64")]
+    safe_arch::prefetch_t0(x);
 }
 
 #[inline(always)]
@@ -381,8 +417,50 @@ impl<K: Kinematics<N>, const N: usize> Evaluator for ElementWise<K, N> {
 mod tests {
     use super::*;
     use crate::evaluator::Assembled;
-    use crate::formulation::Rigid;
+    use crate::formulation::{Hybrid, Rigid};
     use crate::scene::Scene;
+
+    /// `f_int` swept by the plain build, block after block.
+    fn plain_forces<K: Kinematics<N>, const N: usize>(ev: &ElementWise<K, N>, u: &[f64]) -> Vec<f64> {
+        let mut f = vec![0.0; u.len()];
+        let (u, _) = u.as_chunks::<N>();
+        let (fc, _) = f.as_chunks_mut::<N>();
+        let mut scratch = ev.crossing_pass(u);
+        let Scratch { crossing, rings } = &mut *scratch;
+        for (block, ring) in ev.blocks.iter().zip(rings.iter_mut()) {
+            let r = block.elements.clone();
+            ev.sweep_in_order(block, crossing, ring, &mut Evaluate { u: &u[r.clone()], f: &mut fc[r] });
+        }
+        drop(scratch);
+        f
+    }
+
+    /// The sweep compiled for AVX2, where the processor has it, and the plain one give the same
+    /// bits, rigid and hybrid, on a Voronoi mesh of several blocks with ground springs.
+    #[test]
+    fn the_avx2_sweep_gives_the_plain_bits() {
+        let json = |formulation: &str| {
+            format!(
+                r#"{{"name": "v", "thickness": 0.2, "formulation": {formulation},
+                "materials": {{"m": {{"E": 3e10, "nu": 0.2, "rho": 2400}}}},
+                "bodies": [{{"name": "b", "material": "m",
+                    "mesh": {{"kind": "voronoi", "origin": [0, 0], "size": [4, 1], "sites": 12000, "seed": 3}},
+                    "supports": [{{"edge": "left", "kind": "ground-spring"}}]}}],
+                "time": {{"dt": 1e-9, "steps": 1}}}}"#
+            )
+        };
+        fn check<K: Kinematics<N>, const N: usize>(model: &Model) {
+            let ev = ElementWise::<K, N>::new(model);
+            assert!(ev.blocks.len() >= 2 && !ev.crossing.is_empty());
+            let u: Vec<f64> = (0..model.n_dofs()).map(|i| ((i * 7919) % 1000) as f64 * 1e-6 - 5e-4).collect();
+            let mut f = vec![0.0; u.len()];
+            ev.internal_force(&u, &mut f);
+            let plain = plain_forces(&ev, &u);
+            assert!(f.iter().zip(&plain).all(|(a, b)| a.to_bits() == b.to_bits()), "the two builds differ");
+        }
+        check::<Rigid, 3>(&Model::build(&Scene::from_json(&json(r#"{"kind": "rigid"}"#)).unwrap()).unwrap());
+        check::<Hybrid, 6>(&Model::build(&Scene::from_json(&json(r#"{"kind": "hybrid", "penalty": 10}"#)).unwrap()).unwrap());
+    }
 
     /// On a grid of 5000 × 3 cells, in four blocks, an element's upper neighbour lies in the next
     /// block: the rings reach one element, and the interfaces from the earlier block enter them
