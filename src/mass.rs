@@ -8,6 +8,7 @@ use crate::parallel::{for_each_chunk_pair, CHUNK};
 
 /// One explicit update of an element (DESIGN.md §7), for evaluators that fuse it with the
 /// evaluation ([`crate::evaluator::Evaluator::advance`]).
+#[derive(Debug, Clone, Copy)]
 pub struct Update<'a> {
     /// The model's mass matrix.
     pub mass: &'a Mass,

@@ -203,17 +203,17 @@ impl<K: Kinematics<N>, const N: usize> ElementWise<K, N> {
     /// instructions: fewer of them). The arithmetic is the same, with no fused multiply-add, so
     /// the forces are the same bits on every processor.
     #[inline(always)]
-    fn sweep<S: BlockState<N>>(&self, block: &Block, crossing: &[[[f64; N]; 2]], ring: &mut [[f64; N]], state: &mut S) {
+    fn sweep<S: BlockState<N>>(&self, block: &Block, crossing: &[[[f64; N]; 2]], ring: &mut [[f64; N]], state: S) {
         #[cfg(target_arch = "x86_64")]
         if let Some(simd) = pulp::x86::V3::try_new() {
-            return simd.vectorize(|| self.sweep_in_order(block, crossing, ring, state));
+            return simd.vectorize(move || self.sweep_in_order(block, crossing, ring, state));
         }
         self.sweep_in_order(block, crossing, ring, state)
     }
 
     /// [`ElementWise::sweep`], as compiled for the processor at hand.
     #[inline(always)]
-    fn sweep_in_order<S: BlockState<N>>(&self, block: &Block, crossing: &[[[f64; N]; 2]], ring: &mut [[f64; N]], state: &mut S) {
+    fn sweep_in_order<S: BlockState<N>>(&self, block: &Block, crossing: &[[[f64; N]; 2]], ring: &mut [[f64; N]], mut state: S) {
         let first = block.elements.start;
         let mask = ring.len() - 1;
         let ring = &mut ring[..=mask];
@@ -326,7 +326,7 @@ struct Advance<'a, const N: usize> {
     force: &'a mut [[f64; N]],
     /// The elements, in order, where `force` may not be zero; `None`: all of them.
     loaded: Option<&'a [u32]>,
-    update: &'a Update<'a>,
+    update: Update<'a>,
 }
 
 impl<const N: usize> BlockState<N> for Advance<'_, N> {
@@ -373,7 +373,7 @@ impl<K: Kinematics<N>, const N: usize> Evaluator for ElementWise<K, N> {
         let mut scratch = self.crossing_pass(u);
         let Scratch { crossing, rings } = &mut *scratch;
         type Parts<'a, const N: usize> = ((&'a Block, &'a mut Vec<[f64; N]>), (&'a [[f64; N]], &'a mut [[f64; N]]));
-        let work = |((block, ring), (u, f)): Parts<N>| self.sweep(block, crossing, ring, &mut Evaluate { u, f });
+        let work = |((block, ring), (u, f)): Parts<N>| self.sweep(block, crossing, ring, Evaluate { u, f });
         match &self.blocks[..] {
             [block] => work(((block, &mut rings[0]), (u, f))),
             blocks => {
@@ -400,7 +400,7 @@ impl<K: Kinematics<N>, const N: usize> Evaluator for ElementWise<K, N> {
                 let at = |e: usize| l.partition_point(|&x| (x as usize) < e);
                 &l[at(block.elements.start)..at(block.elements.end)]
             });
-            self.sweep(block, crossing, ring, &mut Advance { u, v, force, loaded, update });
+            self.sweep(block, crossing, ring, Advance { u, v, force, loaded, update: *update });
         };
         match &self.blocks[..] {
             [block] => work(((block, &mut rings[0]), ((u, v), force))),
@@ -429,7 +429,7 @@ mod tests {
         let Scratch { crossing, rings } = &mut *scratch;
         for (block, ring) in ev.blocks.iter().zip(rings.iter_mut()) {
             let r = block.elements.clone();
-            ev.sweep_in_order(block, crossing, ring, &mut Evaluate { u: &u[r.clone()], f: &mut fc[r] });
+            ev.sweep_in_order(block, crossing, ring, Evaluate { u: &u[r.clone()], f: &mut fc[r] });
         }
         drop(scratch);
         f
