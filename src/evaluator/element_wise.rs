@@ -87,7 +87,7 @@ const PREFETCH_AHEAD: usize = 64;
 
 /// Element-wise evaluation of eq. 15 for the kinematics `K` with `N` DOFs per element.
 pub struct ElementWise<K: Kinematics<N>, const N: usize> {
-    /// Sorted by `(a, b)`.
+    /// Block after block: its inner interfaces, then the rest ([`Block`]), each sorted by `(a, b)`.
     faces: Vec<Face<K, N>>,
     blocks: Vec<Block>,
     /// The interfaces whose elements lie in two blocks, in interface order.
