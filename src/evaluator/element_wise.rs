@@ -128,8 +128,9 @@ impl<K: Kinematics<N>, const N: usize> ElementWise<K, N> {
             let start = |e: usize| faces.partition_point(|f| (f.a as usize) < e);
             let here = start(elements.start)..start(elements.end);
             // Inner interfaces first; a stable sort keeps the interface order in both parts.
-            faces[here.clone()].sort_by_key(|f| f.b == GROUND || f.b as usize >= elements.end);
-            let inner = here.start + faces[here.clone()].partition_point(|f| f.b != GROUND && (f.b as usize) < elements.end);
+            let is_inner = |f: &Face<K, N>| f.b != GROUND && (f.b as usize) < elements.end;
+            faces[here.clone()].sort_by_key(|f| !is_inner(f));
+            let inner = here.start + faces[here.clone()].partition_point(is_inner);
             let reach = faces[here.start..inner].iter().map(|f| (f.b - f.a) as usize).max();
             let ring = (reach.unwrap_or(0) + 1).next_power_of_two();
             blocks.push(Block { elements, inner: here.start..inner, rest: inner..here.end, outgoing: 0..0, incoming: 0..0, ring });
