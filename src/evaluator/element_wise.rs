@@ -122,7 +122,7 @@ impl<K: Kinematics<N>, const N: usize> ElementWise<K, N> {
         faces.sort_by_key(|f| (f.a, f.b));
         let n = model.elements.len();
         let len = MIN_BLOCK.max(n.div_ceil(MAX_BLOCKS));
-        let mut blocks = Vec::new();
+        let (mut blocks, mut crossing) = (Vec::new(), Vec::new());
         for first in (0..n).step_by(len) {
             let elements = first..(first + len).min(n);
             let start = |e: usize| faces.partition_point(|f| (f.a as usize) < e);
@@ -133,13 +133,10 @@ impl<K: Kinematics<N>, const N: usize> ElementWise<K, N> {
             let inner = here.start + faces[here.clone()].partition_point(is_inner);
             let reach = faces[here.start..inner].iter().map(|f| (f.b - f.a) as usize).max();
             let ring = (reach.unwrap_or(0) + 1).next_power_of_two();
-            blocks.push(Block { elements, inner: here.start..inner, rest: inner..here.end, outgoing: 0..0, incoming: 0..0, ring });
-        }
-        let mut crossing = Vec::new();
-        for block in &mut blocks {
             let before = crossing.len();
-            crossing.extend(block.rest.clone().filter(|&k| faces[k].b != GROUND).map(|k| k as u32));
-            block.outgoing = before..crossing.len();
+            crossing.extend((inner..here.end).filter(|&k| faces[k].b != GROUND).map(|k| k as u32));
+            let outgoing = before..crossing.len();
+            blocks.push(Block { elements, inner: here.start..inner, rest: inner..here.end, outgoing, incoming: 0..0, ring });
         }
         let mut incoming = Vec::new();
         for block in &mut blocks {
