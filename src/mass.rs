@@ -5,6 +5,7 @@
 
 use crate::model::Model;
 use crate::parallel::{for_each_chunk_pair, CHUNK};
+use std::ops::Range;
 
 /// One explicit update of an element (DESIGN.md §7), for evaluators that fuse it with the
 /// evaluation ([`crate::evaluator::Evaluator::advance`]).
@@ -19,17 +20,106 @@ pub struct Update<'a> {
 }
 
 impl Update<'_> {
-    /// `v_e ← (c₁ v_e − Δt M_e⁻¹ f_e) c₂`, then `u_e ← u_e + Δt v_e`, for element `e`.
-    #[inline(always)]
-    pub fn element<const N: usize>(&self, e: usize, f: &[f64; N], v: &mut [f64; N], u: &mut [f64; N]) {
-        // `v_e` is updated in registers: read back from memory, its fresh scalar stores could not
-        // be forwarded to a vector load.
-        let mut ve = *v;
-        self.mass.velocity_update(e, f, &mut ve, self.dt, self.damping);
-        for j in 0..N {
-            u[j] += self.dt * ve[j];
+    /// Runs `then` with this update for the consecutive `elements`, its `M⁻¹` sliced to them and
+    /// its kind (lumped or block) and whether it is damped fixed at compile time: the loop that
+    /// calls it per element then tests neither.
+    pub fn resolve<const N: usize>(&self, elements: Range<usize>, then: impl WithUpdate<N>) {
+        debug_assert_eq!(self.mass.nd(), N, "the update of {N} DOFs per element");
+        let (dt, damping) = (self.dt, self.damping);
+        let damped = damping != (1.0, 1.0);
+        match self.mass {
+            Mass::Diagonal { inv, .. } => {
+                let inv = &inv.as_chunks::<N>().0[elements];
+                match damped {
+                    true => then.run(Lumped::<N, true> { inv, dt, damping }),
+                    false => then.run(Lumped::<N, false> { inv, dt, damping }),
+                }
+            }
+            Mass::Blocks { inv, .. } => {
+                let inv = &inv.as_chunks::<N>().0.as_chunks::<N>().0[elements];
+                match damped {
+                    true => then.run(Consistent::<N, true> { inv, dt, damping }),
+                    false => then.run(Consistent::<N, false> { inv, dt, damping }),
+                }
+            }
         }
+    }
+}
+
+/// What runs with an [`ElementUpdate`] once [`Update::resolve`] has fixed its type.
+pub trait WithUpdate<const N: usize> {
+    /// Called once, with the update of the resolved elements.
+    fn run<E: ElementUpdate<N>>(self, update: E);
+}
+
+/// The update of an element of a run ([`Update::resolve`]).
+pub trait ElementUpdate<const N: usize> {
+    /// `v_i ← (c₁ v_i − Δt M_i⁻¹ f_i) c₂`, then `u_i ← u_i + Δt v_i`, for the run's element `i`.
+    fn element(&self, i: usize, f: &[f64; N], v: &mut [f64; N], u: &mut [f64; N]);
+}
+
+/// A lumped `M⁻¹`, one diagonal per element.
+#[derive(Clone, Copy)]
+struct Lumped<'a, const N: usize, const DAMPED: bool> {
+    inv: &'a [[f64; N]],
+    dt: f64,
+    damping: (f64, f64),
+}
+
+/// A block `M⁻¹`, one row-major `N × N` block per element.
+#[derive(Clone, Copy)]
+struct Consistent<'a, const N: usize, const DAMPED: bool> {
+    inv: &'a [[[f64; N]; N]],
+    dt: f64,
+    damping: (f64, f64),
+}
+
+impl<const N: usize, const DAMPED: bool> ElementUpdate<N> for Lumped<'_, N, DAMPED> {
+    #[inline(always)]
+    fn element(&self, i: usize, f: &[f64; N], v: &mut [f64; N], u: &mut [f64; N]) {
+        let mut ve = *v;
+        lumped_velocity::<DAMPED>(&mut ve, f, &self.inv[i], self.dt, self.damping);
+        displace(u, &ve, self.dt);
         *v = ve;
+    }
+}
+
+impl<const N: usize, const DAMPED: bool> ElementUpdate<N> for Consistent<'_, N, DAMPED> {
+    #[inline(always)]
+    fn element(&self, i: usize, f: &[f64; N], v: &mut [f64; N], u: &mut [f64; N]) {
+        let mut ve = *v;
+        block_velocity::<DAMPED>(&mut ve, f, self.inv[i].as_flattened(), self.dt, self.damping);
+        displace(u, &ve, self.dt);
+        *v = ve;
+    }
+}
+
+/// `u ← u + Δt v`. `v` is updated in registers by the caller: read back from memory, its fresh
+/// scalar stores could not be forwarded to a vector load.
+#[inline(always)]
+fn displace<const N: usize>(u: &mut [f64; N], v: &[f64; N], dt: f64) {
+    for j in 0..N {
+        u[j] += dt * v[j];
+    }
+}
+
+/// `v ← (c₁ v − Δt w f) c₂` with the lumped `M_e⁻¹ = diag(w)`. Undamped, `c₁ = c₂ = 1` are left
+/// out, which changes no bit.
+#[inline(always)]
+fn lumped_velocity<const DAMPED: bool>(v: &mut [f64], f: &[f64], w: &[f64], dt: f64, (c1, c2): (f64, f64)) {
+    for ((v, f), w) in v.iter_mut().zip(f).zip(w) {
+        *v = if DAMPED { (c1 * *v - dt * w * f) * c2 } else { *v - dt * w * f };
+    }
+}
+
+/// `v ← (c₁ v − Δt B f) c₂` with the row-major block `M_e⁻¹ = B` of `v.len()` rows (a
+/// constant wherever the caller's is).
+#[inline(always)]
+fn block_velocity<const DAMPED: bool>(v: &mut [f64], f: &[f64], b: &[f64], dt: f64, (c1, c2): (f64, f64)) {
+    let nd = v.len();
+    for i in 0..nd {
+        let a: f64 = (0..nd).map(|j| b[i * nd + j] * f[j]).sum();
+        v[i] = if DAMPED { (c1 * v[i] - dt * a) * c2 } else { v[i] - dt * a };
     }
 }
 
@@ -161,23 +251,11 @@ impl Mass {
 
     /// `v_e ← (c₁ v_e − Δt M_e⁻¹ f_e) c₂` for element `e`.
     #[inline(always)]
-    fn velocity_update(&self, e: usize, f: &[f64], v: &mut [f64], dt: f64, (c1, c2): (f64, f64)) {
+    fn velocity_update(&self, e: usize, f: &[f64], v: &mut [f64], dt: f64, damping: (f64, f64)) {
+        let nd = v.len();
         match self {
-            Mass::Diagonal { inv, .. } => {
-                let nd = v.len();
-                for ((v, f), w) in v.iter_mut().zip(f).zip(&inv[e * nd..(e + 1) * nd]) {
-                    *v = (c1 * *v - dt * w * f) * c2;
-                }
-            }
-            Mass::Blocks { inv, .. } => {
-                // The length of `v`, not the field: a constant wherever the caller's is.
-                let nd = v.len();
-                let b = &inv[e * nd * nd..(e + 1) * nd * nd];
-                for i in 0..nd {
-                    let a: f64 = (0..nd).map(|j| b[i * nd + j] * f[j]).sum();
-                    v[i] = (c1 * v[i] - dt * a) * c2;
-                }
-            }
+            Mass::Diagonal { inv, .. } => lumped_velocity::<true>(v, f, &inv[e * nd..(e + 1) * nd], dt, damping),
+            Mass::Blocks { inv, .. } => block_velocity::<true>(v, f, &inv[e * nd * nd..(e + 1) * nd * nd], dt, damping),
         }
     }
 

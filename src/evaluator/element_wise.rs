@@ -33,7 +33,7 @@
 use super::Evaluator;
 use crate::formulation::{Kinematics, Springs};
 use crate::geometry::Vec2;
-use crate::mass::Update;
+use crate::mass::{ElementUpdate, Update, WithUpdate};
 use crate::model::{Model, GROUND};
 use crate::scene::EvaluatorKind;
 use rayon::prelude::*;
@@ -317,17 +317,18 @@ impl<const N: usize> BlockState<N> for Evaluate<'_, N> {
 
 /// A time step: a complete element gets the rest of its net force from `force`, is advanced,
 /// and leaves its part of `force` zero.
-struct Advance<'a, const N: usize> {
+struct Advance<'a, const N: usize, E> {
     u: &'a mut [[f64; N]],
     v: &'a mut [[f64; N]],
     /// The block's part of `−P − f_c`.
     force: &'a mut [[f64; N]],
     /// The elements, in order, where `force` may not be zero; `None`: all of them.
     loaded: Option<&'a [u32]>,
-    update: Update<'a>,
+    /// The block's update ([`Update::resolve`]).
+    update: E,
 }
 
-impl<const N: usize> BlockState<N> for Advance<'_, N> {
+impl<const N: usize, E: ElementUpdate<N>> BlockState<N> for Advance<'_, N, E> {
     #[inline(always)]
     fn u(&self, i: usize) -> &[f64; N] {
         &self.u[i]
@@ -348,7 +349,26 @@ impl<const N: usize> BlockState<N> for Advance<'_, N> {
                 f[j] += p[j];
             }
         }
-        self.update.element(e, f, &mut self.v[i], &mut self.u[i]);
+        self.update.element(i, f, &mut self.v[i], &mut self.u[i]);
+    }
+}
+
+/// A block's time step, waiting for its update to be resolved.
+struct AdvanceBlock<'a, K: Kinematics<N>, const N: usize> {
+    evaluator: &'a ElementWise<K, N>,
+    block: &'a Block,
+    crossing: &'a [[[f64; N]; 2]],
+    ring: &'a mut [[f64; N]],
+    u: &'a mut [[f64; N]],
+    v: &'a mut [[f64; N]],
+    force: &'a mut [[f64; N]],
+    loaded: Option<&'a [u32]>,
+}
+
+impl<K: Kinematics<N>, const N: usize> WithUpdate<N> for AdvanceBlock<'_, K, N> {
+    fn run<E: ElementUpdate<N>>(self, update: E) {
+        let AdvanceBlock { evaluator, block, crossing, ring, u, v, force, loaded } = self;
+        evaluator.sweep(block, crossing, ring, Advance { u, v, force, loaded, update });
     }
 }
 
@@ -398,7 +418,8 @@ impl<K: Kinematics<N>, const N: usize> Evaluator for ElementWise<K, N> {
                 let at = |e: usize| l.partition_point(|&x| (x as usize) < e);
                 &l[at(block.elements.start)..at(block.elements.end)]
             });
-            self.sweep(block, crossing, ring, Advance { u, v, force, loaded, update: *update });
+            let ring = &mut ring[..];
+            update.resolve(block.elements.clone(), AdvanceBlock { evaluator: self, block, crossing, ring, u, v, force, loaded });
         };
         match &self.blocks[..] {
             [block] => work(((block, &mut rings[0]), ((u, v), force))),
