@@ -9,7 +9,7 @@
 //! (`cargo bench --bench step -- grid/rigid`) runs only the matching cases: a quick look, after
 //! which the summary is left as it was.
 
-use criterion::Criterion;
+use criterion::{Criterion, SamplingMode};
 use rbsm::integrator::CentralDifference;
 use rbsm::loads::Loads;
 use rbsm::mass::Mass;
@@ -47,13 +47,24 @@ fn scene(mesh: &str, formulation: &str) -> Scene {
 
 const FORMULATIONS: [(&str, &str); 2] = [("rigid", r#"{"kind": "rigid"}"#), ("hybrid", r#"{"kind": "hybrid", "penalty": 10}"#)];
 
-/// Median of the per-step times recorded by the last criterion run.
-fn median(samples: &RefCell<Vec<f64>>, keep: usize) -> f64 {
+/// Median and quartiles of the per-step times recorded by the last criterion run (its last
+/// `keep` samples; its warm-up comes first).
+fn quartiles(samples: &RefCell<Vec<f64>>, keep: usize) -> [f64; 3] {
     let s = samples.borrow();
     let mut last: Vec<f64> = s[s.len().saturating_sub(keep)..].to_vec();
     last.sort_by(f64::total_cmp);
     // NaN when the case was filtered out on the command line.
-    last.get(last.len() / 2).copied().unwrap_or(f64::NAN)
+    [1, 2, 3].map(|q| last.get(q * last.len() / 4).copied().unwrap_or(f64::NAN))
+}
+
+/// From this many elements a case is sampled longer ([`sampling`]).
+const LARGE: usize = 500_000;
+
+/// Samples per case, and the time criterion spreads them over: on this shared machine a burst
+/// of load from elsewhere can last a second or two, so the 10⁶-element cases, at 10–150 ms per
+/// step, take 30 samples of equal length over 8 s (or 30 steps, when longer) and not 10 over 2.
+fn sampling(elements: usize) -> (usize, Duration) {
+    if elements >= LARGE { (30, Duration::from_secs(8)) } else { (10, Duration::from_secs(2)) }
 }
 
 fn pool(threads: usize) -> rayon::ThreadPool {
@@ -86,7 +97,7 @@ fn triad(c: &mut Criterion, threads: usize) -> f64 {
         })
     });
     std::hint::black_box(&a);
-    (3 * 8 * n) as f64 / median(&samples, 10)
+    (3 * 8 * n) as f64 / quartiles(&samples, 10)[1]
 }
 
 struct Row {
@@ -95,7 +106,10 @@ struct Row {
     evaluator: &'static str,
     elements: usize,
     threads: usize,
+    /// Median, first and third quartile of the samples (ns per element-step).
     ns: f64,
+    spread: (f64, f64),
+    samples: usize,
     bytes: f64,
     bound_ns: f64,
 }
@@ -127,10 +141,17 @@ fn main() {
                     let vectors = if ev.fuses() { 4 } else { 7 };
                     let bytes = ev.bytes() as f64 / ne as f64 + (8 * nd * vectors + inv_bytes) as f64;
                     let mut integrator = CentralDifference::new(&model, ev.as_ref(), &mass, &loads, 1e-9);
+                    let (sample_size, time) = sampling(ne);
+                    let mut group = c.benchmark_group("step");
+                    group.sample_size(sample_size).measurement_time(time);
+                    if ne >= LARGE {
+                        // The same steps in every sample: 30 need not take the 465 of a linear ramp.
+                        group.sampling_mode(SamplingMode::Flat);
+                    }
                     for (ti, &threads) in THREADS.iter().enumerate() {
                         let samples = RefCell::new(Vec::new());
                         let pool = pool(threads);
-                        c.bench_function(&format!("step/{mesh}/{fname}/{}/{threads}thr/{ne}", kind.name()), |b| {
+                        group.bench_function(format!("{mesh}/{fname}/{}/{threads}thr/{ne}", kind.name()), |b| {
                             b.iter_custom(|iters| {
                                 let e = pool.install(|| {
                                     let t0 = Instant::now();
@@ -141,10 +162,12 @@ fn main() {
                                 e
                             })
                         });
-                        let ns = median(&samples, 10) / ne as f64 * 1e9;
+                        let [q1, ns, q3] = quartiles(&samples, sample_size).map(|t| t / ne as f64 * 1e9);
                         let bound_ns = bytes / bandwidth[ti] * 1e9;
-                        rows.push(Row { mesh, formulation: fname, evaluator: kind.name(), elements: ne, threads, ns, bytes, bound_ns });
+                        let (evaluator, spread, samples) = (kind.name(), (q1, q3), sample_size);
+                        rows.push(Row { mesh, formulation: fname, evaluator, elements: ne, threads, ns, spread, samples, bytes, bound_ns });
                     }
+                    group.finish();
                 }
             }
         }
@@ -239,7 +262,8 @@ fn render(bandwidth: &[f64], rows: &[Row], builds: &[(&str, &str, usize, f64)], 
     let _ = writeln!(s, "# Step benchmark summary\n\nRegenerate with `cargo bench --bench step` (about 10 minutes). Machine: {}.\n", machine());
     let _ = writeln!(s, "Triad bandwidth `a = b + s c` (3 × 8 bytes per entry): {} GB/s on 1 thread, {} GB/s on 2.\n",
         fmt(bandwidth[0] / 1e9, 1), fmt(bandwidth[1] / 1e9, 1));
-    let _ = writeln!(s, "Each time is the median of 10 criterion samples, in ns per element-step: one step of the central-difference");
+    let _ = writeln!(s, "Each time is the median of the criterion samples ({}), in ns per element-step: one step of the central-difference",
+        sampling_text());
     let _ = writeln!(s, "loop between its checks. *Bytes* is what one step must move per element: assembled, the evaluator's data, `U` read");
     let _ = writeln!(s, "and `f` written, then `f`, `M⁻¹` read and `v`, `U` updated; element-wise, whose sweep advances each element as soon as");
     let _ = writeln!(s, "its force is complete, the evaluator's data (its rings of pending forces included) and `M⁻¹` read, `U` and `v` read and");
@@ -251,19 +275,25 @@ fn render(bandwidth: &[f64], rows: &[Row], builds: &[(&str, &str, usize, f64)], 
         let _ = writeln!(s, "| {} | {} | {} | {} | {:.0} | {} | {} | {} | {} |", a.mesh, a.formulation, a.evaluator, a.elements, a.bytes,
             fmt(a.ns, 1), fmt(a.ns / a.bound_ns, 2), fmt(b.ns, 1), fmt(b.ns / b.bound_ns, 2));
     }
-    let find = |ev: &str, thr: usize| rows.iter().find(|r| r.mesh == "grid" && r.formulation == "rigid" && r.evaluator == ev && r.elements == 1_000_000 && r.threads == thr).map_or(f64::NAN, |r| r.ns);
+    let find = |ev: &str, thr: usize| rows.iter().find(|r| r.mesh == "grid" && r.formulation == "rigid" && r.evaluator == ev && r.elements == 1_000_000 && r.threads == thr);
     let voronoi_build = builds.iter().filter(|b| b.0 == "voronoi" && b.1 == "rigid").map(|b| (b.2, b.3)).last().unwrap_or((0, f64::NAN));
-    let _ = writeln!(s, "\n## Targets (issue 6), 10⁶ rigid elements on a square grid\n\n| target | measured | met |\n|---|---|---|");
-    let mut target = |what: &str, measured: f64, limit: f64, unit: &str| {
-        let _ = writeln!(s, "| {what} ≤ {limit} {unit} | {} {unit} | {} |", fmt(measured, 1), if measured <= limit { "yes" } else { "**no**" });
+    let _ = writeln!(s, "\n## Targets (issue 6), 10⁶ rigid elements on a square grid\n");
+    let _ = writeln!(s, "A step time is the median of its samples, and beside it the middle half of them (first to third quartile).\n");
+    let _ = writeln!(s, "| target | measured | met |\n|---|---|---|");
+    let mut target = |what: &str, measured: f64, limit: f64, unit: &str, spread: &str| {
+        let met = if measured <= limit { "yes" } else { "**no**" };
+        let _ = writeln!(s, "| {what} ≤ {limit} {unit} | {} {unit}{spread} | {met} |", fmt(measured, 1));
     };
-    target("element-wise, 1 thread", find("element-wise", 1), 15.0, "ns");
-    target("element-wise, 2 threads", find("element-wise", 2), 10.0, "ns");
-    target("assembled, 1 thread", find("assembled", 1), 30.0, "ns");
-    target("assembled, 2 threads", find("assembled", 2), 18.0, "ns");
-    target("element-wise working set per element", x.working_set, 500.0, "B");
-    target(&format!("Voronoi model build, {} elements", voronoi_build.0), voronoi_build.1, 10.0, "s");
-    target(&format!("ω_max of {} DOFs (Lanczos, element-wise)", x.dofs), x.omega_max_s, 60.0, "s");
+    for (ev, thr, limit) in [("element-wise", 1, 15.0), ("element-wise", 2, 10.0), ("assembled", 1, 30.0), ("assembled", 2, 18.0)] {
+        let what = format!("{ev}, {thr} thread{}", if thr > 1 { "s" } else { "" });
+        match find(ev, thr) {
+            Some(r) => target(&what, r.ns, limit, "ns", &format!(" ({}–{}, {} samples)", fmt(r.spread.0, 1), fmt(r.spread.1, 1), r.samples)),
+            None => target(&what, f64::NAN, limit, "ns", ""),
+        }
+    }
+    target("element-wise working set per element", x.working_set, 500.0, "B", "");
+    target(&format!("Voronoi model build, {} elements", voronoi_build.0), voronoi_build.1, 10.0, "s", "");
+    target(&format!("ω_max of {} DOFs (Lanczos, element-wise)", x.dofs), x.omega_max_s, 60.0, "s", "");
     let _ = writeln!(s, "\nThe working set is the evaluator's data, `M⁻¹` and the integrator's six vectors (`U`, `v`, `f`, the averaged");
     let _ = writeln!(s, "velocity and the guard's last good `U`, `v`). The whole process grows by {} bytes per element from nothing to", fmt(x.rss_per_element, 0));
     let _ = writeln!(s, "ready to step (resident memory, measured first in the bench process; this adds the model itself: meshes, elements,
@@ -275,6 +305,12 @@ interfaces, and what the allocator keeps of the build).\n");
         let _ = writeln!(s, "| {} | {} | {} | {} |", b.0, b.1, b.2, fmt(b.3, 2));
     }
     s
+}
+
+/// How many samples [`sampling`] takes, in words.
+fn sampling_text() -> String {
+    let ((few, short), (many, long)) = (sampling(1), sampling(usize::MAX));
+    format!("{few} over {} s; from {LARGE} elements, {many} over {} s", short.as_secs(), long.as_secs())
 }
 
 fn fmt(x: f64, digits: usize) -> String {
