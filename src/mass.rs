@@ -25,23 +25,15 @@ impl Update<'_> {
     /// calls it per element then tests neither.
     pub fn resolve<const N: usize>(&self, elements: Range<usize>, then: impl WithUpdate<N>) {
         debug_assert_eq!(self.mass.nd(), N, "the update of {N} DOFs per element");
-        let (dt, damping) = (self.dt, self.damping);
-        let damped = damping != (1.0, 1.0);
+        fn run<B: ElementInverse<N>, const N: usize>(inv: &[B], dt: f64, damping: (f64, f64), then: impl WithUpdate<N>) {
+            match damping != (1.0, 1.0) {
+                true => then.run(Resolved::<B, true> { inv, dt, damping }),
+                false => then.run(Resolved::<B, false> { inv, dt, damping }),
+            }
+        }
         match self.mass {
-            Mass::Diagonal { inv, .. } => {
-                let inv = &inv.as_chunks::<N>().0[elements];
-                match damped {
-                    true => then.run(Lumped::<N, true> { inv, dt, damping }),
-                    false => then.run(Lumped::<N, false> { inv, dt, damping }),
-                }
-            }
-            Mass::Blocks { inv, .. } => {
-                let inv = &inv.as_chunks::<N>().0.as_chunks::<N>().0[elements];
-                match damped {
-                    true => then.run(Consistent::<N, true> { inv, dt, damping }),
-                    false => then.run(Consistent::<N, false> { inv, dt, damping }),
-                }
-            }
+            Mass::Diagonal { inv, .. } => run(&inv.as_chunks::<N>().0[elements], self.dt, self.damping, then),
+            Mass::Blocks { inv, .. } => run(&inv.as_chunks::<N>().0.as_chunks::<N>().0[elements], self.dt, self.damping, then),
         }
     }
 }
@@ -58,53 +50,49 @@ pub trait ElementUpdate<const N: usize> {
     fn element(&self, i: usize, f: &[f64; N], v: &mut [f64; N], u: &mut [f64; N]);
 }
 
-/// A lumped `M⁻¹`, one diagonal per element.
+/// An element's `M_e⁻¹`: its diagonal (lumped) or its row-major block.
+trait ElementInverse<const N: usize> {
+    /// `v ← (c₁ v − Δt M_e⁻¹ f) c₂`; undamped, `c₁ = c₂ = 1` are left out, which changes no bit.
+    fn velocity<const DAMPED: bool>(&self, v: &mut [f64; N], f: &[f64; N], dt: f64, damping: (f64, f64));
+}
+
+impl<const N: usize> ElementInverse<N> for [f64; N] {
+    #[inline(always)]
+    fn velocity<const DAMPED: bool>(&self, v: &mut [f64; N], f: &[f64; N], dt: f64, damping: (f64, f64)) {
+        lumped_velocity::<DAMPED>(v, f, self, dt, damping)
+    }
+}
+
+impl<const N: usize> ElementInverse<N> for [[f64; N]; N] {
+    #[inline(always)]
+    fn velocity<const DAMPED: bool>(&self, v: &mut [f64; N], f: &[f64; N], dt: f64, damping: (f64, f64)) {
+        block_velocity::<DAMPED>(v, f, self.as_flattened(), dt, damping)
+    }
+}
+
+/// An [`Update`] resolved for a run of elements: their `M_e⁻¹`, `B` per element.
 #[derive(Clone, Copy)]
-struct Lumped<'a, const N: usize, const DAMPED: bool> {
-    inv: &'a [[f64; N]],
+struct Resolved<'a, B, const DAMPED: bool> {
+    inv: &'a [B],
     dt: f64,
     damping: (f64, f64),
 }
 
-/// A block `M⁻¹`, one row-major `N × N` block per element.
-#[derive(Clone, Copy)]
-struct Consistent<'a, const N: usize, const DAMPED: bool> {
-    inv: &'a [[[f64; N]; N]],
-    dt: f64,
-    damping: (f64, f64),
-}
-
-impl<const N: usize, const DAMPED: bool> ElementUpdate<N> for Lumped<'_, N, DAMPED> {
+impl<B: ElementInverse<N>, const N: usize, const DAMPED: bool> ElementUpdate<N> for Resolved<'_, B, DAMPED> {
     #[inline(always)]
     fn element(&self, i: usize, f: &[f64; N], v: &mut [f64; N], u: &mut [f64; N]) {
-        let mut ve = *v;
-        lumped_velocity::<DAMPED>(&mut ve, f, &self.inv[i], self.dt, self.damping);
-        displace(u, &ve, self.dt);
-        *v = ve;
+        // `v_i` is updated in registers: read back from memory, its fresh scalar stores could not
+        // be forwarded to a vector load.
+        let mut vi = *v;
+        self.inv[i].velocity::<DAMPED>(&mut vi, f, self.dt, self.damping);
+        for j in 0..N {
+            u[j] += self.dt * vi[j];
+        }
+        *v = vi;
     }
 }
 
-impl<const N: usize, const DAMPED: bool> ElementUpdate<N> for Consistent<'_, N, DAMPED> {
-    #[inline(always)]
-    fn element(&self, i: usize, f: &[f64; N], v: &mut [f64; N], u: &mut [f64; N]) {
-        let mut ve = *v;
-        block_velocity::<DAMPED>(&mut ve, f, self.inv[i].as_flattened(), self.dt, self.damping);
-        displace(u, &ve, self.dt);
-        *v = ve;
-    }
-}
-
-/// `u ← u + Δt v`. `v` is updated in registers by the caller: read back from memory, its fresh
-/// scalar stores could not be forwarded to a vector load.
-#[inline(always)]
-fn displace<const N: usize>(u: &mut [f64; N], v: &[f64; N], dt: f64) {
-    for j in 0..N {
-        u[j] += dt * v[j];
-    }
-}
-
-/// `v ← (c₁ v − Δt w f) c₂` with the lumped `M_e⁻¹ = diag(w)`. Undamped, `c₁ = c₂ = 1` are left
-/// out, which changes no bit.
+/// `v ← (c₁ v − Δt w f) c₂` with the lumped `M_e⁻¹ = diag(w)`.
 #[inline(always)]
 fn lumped_velocity<const DAMPED: bool>(v: &mut [f64], f: &[f64], w: &[f64], dt: f64, (c1, c2): (f64, f64)) {
     for ((v, f), w) in v.iter_mut().zip(f).zip(w) {
