@@ -7,8 +7,9 @@ use crate::model::Model;
 use crate::parallel::{for_each_chunk_pair, CHUNK};
 use std::ops::Range;
 
-/// One explicit update of an element (DESIGN.md §7), for evaluators that fuse it with the
-/// evaluation ([`crate::evaluator::Evaluator::advance`]).
+/// The explicit update of a step (DESIGN.md §7): `M`, `Δt` and the damping factors, for
+/// evaluators that fuse it with the evaluation ([`crate::evaluator::Evaluator::advance`]) and
+/// apply it element by element ([`Update::resolve`]).
 #[derive(Debug, Clone, Copy)]
 pub struct Update<'a> {
     /// The model's mass matrix.
