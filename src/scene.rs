@@ -145,6 +145,53 @@ pub struct BodySpec {
     #[serde(default)]
     /// Initial velocity, spin and rotation.
     pub initial: InitialSpec,
+    /// Copies of the body on a regular pattern (a wall, a pack), each a body of its own.
+    #[serde(default)]
+    pub array: Option<ArraySpec>,
+}
+
+/// `count = [nx, ny]` copies of a body: copy `(i, j)` is shifted by
+/// `(i · pitch[0] + (j odd ? row_offset : 0), j · pitch[1])` and named `name[i,j]`. A running-bond
+/// wall of bricks is one brick with `row_offset` half a brick.
+#[derive(Debug, Clone, Copy, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ArraySpec {
+    /// Copies along x and y.
+    pub count: [usize; 2],
+    /// Shift between neighbouring copies along x and y (m).
+    pub pitch: [f64; 2],
+    /// Extra x shift of every odd row (m).
+    #[serde(default)]
+    pub row_offset: f64,
+}
+
+/// Most bodies one scene may make with `array`.
+pub const MAX_BODIES: usize = 1_000_000;
+
+impl BodySpec {
+    /// The bodies this spec stands for: itself, or its `array` of shifted copies.
+    fn copies(self) -> Vec<BodySpec> {
+        let Some(a) = self.array else { return vec![self] };
+        let mut out = Vec::with_capacity(a.count[0] * a.count[1]);
+        for j in 0..a.count[1] {
+            for i in 0..a.count[0] {
+                let shift = [i as f64 * a.pitch[0] + if j % 2 == 1 { a.row_offset } else { 0.0 }, j as f64 * a.pitch[1]];
+                let mut body = BodySpec { name: format!("{}[{i},{j}]", self.name), array: None, ..self.clone() };
+                let moved = |p: &mut [f64; 2]| {
+                    p[0] += shift[0];
+                    p[1] += shift[1];
+                };
+                match &mut body.mesh {
+                    MeshSpec::Grid(g) => moved(&mut g.origin),
+                    MeshSpec::Voronoi(v) => moved(&mut v.origin),
+                    MeshSpec::Polygons(p) => p.vertices.iter_mut().for_each(moved),
+                    MeshSpec::Gmsh(_) => unreachable!("validated: an array has no gmsh mesh"),
+                }
+                out.push(body);
+            }
+        }
+        out
+    }
 }
 
 /// How a body is cut into elements (`kind`: `grid`, `voronoi` or `polygons`).
@@ -503,6 +550,7 @@ impl Scene {
             }
         }
         scene.validate()?;
+        scene.bodies = std::mem::take(&mut scene.bodies).into_iter().flat_map(BodySpec::copies).collect();
         Ok(scene)
     }
 
@@ -633,6 +681,16 @@ impl Scene {
                 if a.is_empty() || a.windows(2).any(|w| !(w[1][0] > w[0][0])) || a.iter().any(|p| !p[0].is_finite() || !p[1].is_finite()) {
                     return Err(Error::scene(field, "must be a non-empty list of [t, factor] with strictly increasing t"));
                 }
+            }
+        }
+        if let Some(a) = &b.array {
+            if a.count[0] == 0 || a.count[1] == 0 || a.count[0].saturating_mul(a.count[1]) > MAX_BODIES {
+                return Err(Error::scene(at("array.count"), format!("both counts must be ≥ 1 and their product ≤ {MAX_BODIES}, got {:?}", a.count)));
+            }
+            finite_all(&at("array.pitch"), &a.pitch)?;
+            finite_all(&at("array.row_offset"), &[a.row_offset])?;
+            if matches!(b.mesh, MeshSpec::Gmsh(_)) {
+                return Err(Error::scene(at("array"), "copies need a `grid`, `voronoi` or `polygons` mesh (a gmsh mesh cannot be shifted)"));
             }
         }
         finite_all(&at("initial.velocity"), &b.initial.velocity)?;
