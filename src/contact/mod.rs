@@ -22,6 +22,7 @@
 //! this and the integrator does no contact work.
 
 mod detect;
+mod overlap;
 mod work;
 
 pub use detect::{entry, frame, gap, Gap};
@@ -33,6 +34,7 @@ use crate::geometry::Vec2;
 use crate::model::{Model, GROUND};
 use crate::scene::EvaluatorKind;
 use std::time::Instant;
+use overlap::Overlap;
 use work::Ledger;
 
 /// The contact model of a scene (`contact.model`).
@@ -119,8 +121,12 @@ pub struct ContactStats {
     pub pairs: u64,
     /// Most vertex–edge contacts in one step.
     pub max_pairs: usize,
-    /// Narrow-phase tests (vertex path against edge) summed over the steps.
+    /// Narrow-phase tests summed over the steps: vertex path against edge (point), source edge
+    /// against target element or ground strip (edge-to-edge).
     pub tests: u64,
+    /// Builds of the candidate lists: every step for point contact; for edge-to-edge, only when
+    /// something moved beyond the neighbour list's skin.
+    pub rebuilds: u64,
     /// Wall time spent in contact (s).
     pub time_s: f64,
 }
@@ -146,12 +152,14 @@ pub struct Contact {
     buckets: BucketLists,
     /// Per edge, the last vertex that tested it (each pair is tested once per step).
     stamp: Vec<u32>,
-    /// Edge-to-edge pairs `(source edge, target edge)` of this step.
-    pairs: Vec<(u32, u32)>,
+    /// Edge-to-edge contact's targets, neighbour list and pieces (`None` for point contact).
+    overlap: Option<Overlap>,
     /// The contact forces and their work.
     ledger: Ledger,
     /// Energy in the contact springs at the last evaluation (J).
     stored: f64,
+    /// The force of the ground on the bodies at the last evaluation of point contact (N).
+    ground: Vec2,
     /// The step of the last evaluation.
     step: Option<u64>,
     /// Pairs, tests and time spent, for `summary.json`.
@@ -218,17 +226,24 @@ impl Contact {
             records: Vec::with_capacity(2 * nv),
             fresh: Vec::with_capacity(2 * nv),
             buckets: BucketLists::with_capacity(ne),
-            pairs: Vec::with_capacity(2 * nv),
+            overlap: (settings.model == ContactModel::EdgeToEdge).then(|| Overlap::new(model, settings.friction)),
             ledger: Ledger::new(model.elements.len(), model.formulation.ndof()),
             stored: 0.0,
+            ground: Vec2::zeros(),
             step: None,
             stats: ContactStats::default(),
         })
     }
 
-    /// The live contacts after the last step.
+    /// The live vertex contacts of point contact after the last step.
     pub fn records(&self) -> &[Record] {
         &self.records
+    }
+
+    /// The number of live contacts after the last step: vertex contacts (point), or pieces of
+    /// edges inside the part of one face of a target (edge-to-edge).
+    pub fn live(&self) -> usize {
+        self.overlap.as_ref().map_or(self.records.len(), Overlap::len)
     }
 
     /// Subtracts the contact forces `f_c^n` at step `n`, state `u = U^n`, from `f` (which holds
@@ -241,12 +256,14 @@ impl Contact {
         if self.step != Some(step) {
             let clock = Instant::now();
             self.ledger.next();
-            self.place(u);
-            self.detect();
-            self.update_gaps();
-            self.stored = match self.settings.model {
-                ContactModel::Point => self.point_forces(u),
-                ContactModel::EdgeToEdge => self.edge_forces(u),
+            self.stored = match self.overlap.as_mut() {
+                Some(o) => o.forces(&self.frames, u, velocity, dt, &mut self.ledger, &mut self.stats.tests),
+                None => {
+                    self.place(u);
+                    self.detect();
+                    self.update_gaps();
+                    self.point_forces(u)
+                }
             };
             match self.step {
                 Some(_) => self.ledger.add_work(velocity, dt),
@@ -258,12 +275,26 @@ impl Contact {
             self.previous.copy_from_slice(&self.points[..n]);
             self.step = Some(step);
             self.stats.steps += 1;
-            self.stats.pairs += self.records.len() as u64;
-            self.stats.max_pairs = self.stats.max_pairs.max(self.records.len());
+            let live = self.live();
+            self.stats.pairs += live as u64;
+            self.stats.max_pairs = self.stats.max_pairs.max(live);
+            self.stats.rebuilds = self.overlap.as_ref().map_or(self.stats.steps, |o| o.rebuilds);
             self.stats.time_s += clock.elapsed().as_secs_f64();
         }
         self.ledger.subtract_from(f);
         -self.ledger.work
+    }
+
+    /// The force that the ground segments exert on the bodies at the last evaluation (N): the
+    /// ground's reaction, equal to the weight of what rests on it when nothing moves.
+    pub fn ground_reaction(&self) -> Vec2 {
+        self.overlap.as_ref().map_or(self.ground, |o| o.ground)
+    }
+
+    /// The generalised contact force `f_c` on element `e` at the last evaluation (`ndof`
+    /// entries: N, N, N·m, then for hybrid the strain work-conjugates).
+    pub fn element_force(&self, e: usize) -> &[f64] {
+        self.ledger.on(e)
     }
 
     /// Energy in the contact springs at the last evaluation (J); the contact energy minus this
@@ -407,6 +438,7 @@ impl Contact {
     /// stored energy `½ t ℓ (k_n δ_n² + k_s δ_s²)` summed.
     fn point_forces(&mut self, u: &[f64]) -> f64 {
         let mut energy = 0.0;
+        self.ground = Vec2::zeros();
         for r in &mut self.records {
             let target = &self.edges[r.edge as usize];
             let [b1, b2] = target.ends.map(|i| self.points[i as usize]);
@@ -418,81 +450,10 @@ impl Contact {
             self.frames.push(u, &mut self.ledger, self.vertices[r.vertex as usize].element, x, force);
             if target.element != GROUND {
                 self.frames.push(u, &mut self.ledger, target.element, x, -force);
+            } else {
+                self.ground += force;
             }
             energy += 0.5 * scale * (r.k[0] * dn * dn + r.k[1] * ds * ds);
-        }
-        energy
-    }
-
-    /// Edge-to-edge contact: each boundary edge next to a contact vertex against that vertex's
-    /// target edge, as a temporary interface; returns the stored energy.
-    fn edge_forces(&mut self, u: &[f64]) -> f64 {
-        self.pairs.clear();
-        for r in &self.records {
-            for &e in &self.vertices[r.vertex as usize].edges {
-                if e != NONE {
-                    self.pairs.push((e, r.edge));
-                }
-            }
-        }
-        self.pairs.sort_unstable();
-        self.pairs.dedup();
-        let mut energy = 0.0;
-        for p in 0..self.pairs.len() {
-            let (e, target) = self.pairs[p];
-            // Two edges pressed into each other from both sides form one interface: the one
-            // with the lower source edge carries it.
-            if self.edges[target as usize].element != GROUND && target < e && self.pairs.binary_search(&(target, e)).is_ok() {
-                continue;
-            }
-            energy += self.edge_pair(u, e, target);
-        }
-        energy
-    }
-
-    /// The temporary interface between source edge `e` and target edge `target`: the tractions
-    /// `t_n = k_n δ_n`, `t_s` (linear along the edge) over the part of `e` that is inside and
-    /// within the span of `target`, integrated by 2-point Gauss (exact: the tractions are
-    /// linear, the moment quadratic). Returns the stored energy `½ t ∫ (t_n δ_n − t_s δ_s) dℓ`
-    /// (`½ t ∫ (t_n²/k_n + t_s²/k_s) dℓ` when both ends are in contact).
-    fn edge_pair(&mut self, u: &[f64], e: u32, target: u32) -> f64 {
-        let (src, tgt) = (self.edges[e as usize], self.edges[target as usize]);
-        let [q1, q2] = src.ends.map(|i| self.points[i as usize]);
-        let [b1, b2] = tgt.ends.map(|i| self.points[i as usize]);
-        let (s, n, lt) = frame(b1, b2);
-        let k = [0, 1].map(|c| self.factor / (src.compliance[c] + tgt.compliance[c]));
-        // Penetration and position along the target at both ends, both linear along the edge.
-        let depth = [q1, q2].map(|q| -(q - b1).dot(&n));
-        let along = [q1, q2].map(|q| (q - b1).dot(&s) / lt);
-        // Tangential slip at the ends: δ_s of a contact record; an end without one takes the
-        // other end's (a rigid edge slides as a whole). The traction is −k_s δ_s at an end with a
-        // record; at an end without one it is the other end's ratio t_s / t_n times this end's
-        // t_n, so that t_s vanishes with t_n where the edge leaves the target (like t_n, it
-        // then follows the penetration profile, and the Coulomb limit checked at the record
-        // holds along the whole edge).
-        let rec = src.ends.map(|v| self.find(v, target));
-        let slip_of = |i: Option<usize>| i.map(|i| self.records[i].gap[1]);
-        let (slip, shear) = match rec.map(slip_of) {
-            [Some(a), Some(b)] => ([a, b], [-k[1] * a, -k[1] * b]),
-            [Some(a), None] => ([a, a], [-k[1] * a, -k[1] * a * depth[1] / depth[0]]),
-            [None, Some(b)] => ([b, b], [-k[1] * b * depth[0] / depth[1], -k[1] * b]),
-            [None, None] => return 0.0,
-        };
-        let Some((xa, xb)) = clip(depth, along) else { return 0.0 };
-        let lerp = |v: [f64; 2], xi: f64| v[0] + xi * (v[1] - v[0]);
-        let half = 0.5 * (xb - xa);
-        let w = half * (q2 - q1).norm() * self.thickness;
-        let mut energy = 0.0;
-        for g in [-1.0, 1.0] {
-            let xi = xa + half * (1.0 + g / 3f64.sqrt());
-            let (tn, ts) = (k[0] * lerp(depth, xi), lerp(shear, xi));
-            let x = q1 + xi * (q2 - q1);
-            let force = w * (tn * n + ts * s);
-            self.frames.push(u, &mut self.ledger, src.element, x, force);
-            if tgt.element != GROUND {
-                self.frames.push(u, &mut self.ledger, tgt.element, x, -force);
-            }
-            energy += 0.5 * w * (tn * lerp(depth, xi) - ts * lerp(slip, xi));
         }
         energy
     }
@@ -513,6 +474,31 @@ impl Frames {
         current_position(self.formulation, self.centroids[e], &u[e * nd..(e + 1) * nd], d)
     }
 
+    /// [`Frames::place`] for several offsets of one element.
+    fn place_all(&self, u: &[f64], e: usize, offsets: &[Vec2], out: &mut [Vec2]) {
+        let nd = self.formulation.ndof();
+        let ue = &u[e * nd..(e + 1) * nd];
+        let (c, r) = (self.centroids[e] + Vec2::new(ue[0], ue[1]), rotation(ue[2]));
+        for (x, &d) in out.iter_mut().zip(offsets) {
+            *x = c + r * (d + strain(self.formulation, ue, d));
+        }
+    }
+
+    /// How far the material point of element `e` now at `x` moved over the last step, the
+    /// element's DOFs having moved by `Δt v` (to first order in that increment).
+    fn increment(&self, u: &[f64], velocity: &[f64], dt: f64, e: usize, x: Vec2) -> Vec2 {
+        let nd = self.formulation.ndof();
+        let (ue, ve) = (&u[e * nd..(e + 1) * nd], &velocity[e * nd..(e + 1) * nd]);
+        let r = rotation(ue[2]);
+        let arm = x - self.centroids[e] - Vec2::new(ue[0], ue[1]);
+        let mut du = [0.0; 6];
+        for (d, v) in du.iter_mut().zip(ve) {
+            *d = dt * v;
+        }
+        let d = r.transpose() * arm;
+        Vec2::new(du[0], du[1]) + du[2] * Vec2::new(-arm.y, arm.x) + r * strain(self.formulation, &du[..nd], d)
+    }
+
     /// `f_c += N_eᵀ F` for a force `F` at the current point `x` of element `e`, through the
     /// element's current position and rotation.
     fn push(&self, u: &[f64], ledger: &mut Ledger, e: u32, x: Vec2, force: Vec2) {
@@ -528,29 +514,6 @@ impl Frames {
         q[1] = force.y;
         ledger.add(e, &q[..nd]);
     }
-}
-
-/// The fraction interval of an edge that is inside (`depth ≥ 0`) and within the target's span
-/// (`0 ≤ along ≤ 1`), both linear along the edge; `None` if empty.
-fn clip(depth: [f64; 2], along: [f64; 2]) -> Option<(f64, f64)> {
-    let (mut a, mut b) = (0.0f64, 1.0f64);
-    // Where a linear function `v0 + ξ (v1 − v0)` is ≥ `lo` (and ≤ `hi`).
-    let mut keep = |v: [f64; 2], lo: f64, hi: f64| {
-        let dv = v[1] - v[0];
-        if dv == 0.0 {
-            if v[0] < lo || v[0] > hi {
-                b = a - 1.0;
-            }
-            return;
-        }
-        let (x_lo, x_hi) = ((lo - v[0]) / dv, (hi - v[0]) / dv);
-        let (p, q) = if dv > 0.0 { (x_lo, x_hi) } else { (x_hi, x_lo) };
-        a = a.max(p);
-        b = b.min(q);
-    };
-    keep(depth, 0.0, f64::INFINITY);
-    keep(along, 0.0, 1.0);
-    (b > a).then_some((a, b))
 }
 
 /// The point with the same coordinates in the frame of the edge `b1 → b2` as `p` has in the

@@ -55,6 +55,11 @@ impl Ledger {
         }
     }
 
+    /// `f_c` on element `e` (zero where no contact acts).
+    pub fn on(&self, e: usize) -> &[f64] {
+        &self.now[e * self.nd..(e + 1) * self.nd]
+    }
+
     /// `f −= f_c` (the contact forces join the right-hand side).
     pub fn subtract_from(&self, f: &mut [f64]) {
         for &e in &self.touched_now {
