@@ -58,12 +58,17 @@ pub struct ContactSummary {
     pub model: String,
     /// Coulomb `μ`; `null` is no slip limit.
     pub friction: Option<f64>,
-    /// Vertex–edge contacts per step, mean and largest.
+    /// Live contacts per step, mean: vertex–edge contacts (point), pieces of boundary edges
+    /// inside another body or below the ground (edge-to-edge).
     pub mean_pairs: f64,
-    /// Largest number of vertex–edge contacts in one step.
+    /// Largest number of live contacts in one step.
     pub max_pairs: usize,
-    /// Narrow-phase tests (vertex path against a nearby edge) per step.
+    /// Narrow-phase tests per step: vertex path against a nearby edge (point), boundary edge
+    /// against a nearby element or ground strip (edge-to-edge).
     pub tests_per_step: f64,
+    /// Builds of the candidate lists: every step (point), or when a corner moved half the
+    /// neighbour list's skin (edge-to-edge).
+    pub rebuilds: u64,
     /// Wall time spent in contact (s).
     pub time_s: f64,
 }

@@ -205,6 +205,7 @@ pub fn run(scene: &Scene, opts: &RunOptions, out: &Path, monitor: &mut dyn Monit
             mean_pairs: c.stats.pairs as f64 / c.stats.steps.max(1) as f64,
             max_pairs: c.stats.max_pairs,
             tests_per_step: c.stats.tests as f64 / c.stats.steps.max(1) as f64,
+            rebuilds: c.stats.rebuilds,
             time_s: c.stats.time_s,
         }),
     };

@@ -1,7 +1,12 @@
 //! Contact between bodies and with rigid ground (DESIGN.md §6, eqs. 17–20).
 //!
-//! Every boundary edge of a body, and every ground segment, is a surface that other bodies'
-//! vertices can enter. Each step:
+//! Every boundary edge of a body, and every ground segment, is a surface that other bodies can
+//! enter. [`ContactModel::EdgeToEdge`] (the paper's, `overlap.rs`) treats the part of each
+//! boundary edge that lies inside an element of another body, or below a ground segment, as a
+//! temporary interface: tractions `k δ` per unit length with `δ_n` the depth below the nearest
+//! surface face, integrated exactly by 2-point Gauss on each piece; the normal tractions are the
+//! gradient of one energy, and a neighbour list with a skin keeps the search local.
+//! [`ContactModel::Point`] is classic DEM, each step:
 //! 1. the boundary vertices are placed with the finite rotation of their element
 //!    (`x = x_e + u_e + R(θ_e)(d + E_e d)`, `E_e d` the strain part of a hybrid element);
 //! 2. a broad phase (a bucket grid of the edges, rebuilt each step) lists the edges near each
@@ -11,15 +16,12 @@
 //! 3. each contact's gap `δ_n`, `δ_s` (eq. 17) is measured; the contact is released when the
 //!    gap opens (`δ_n ≤ 0`) or the vertex leaves the edge's span; with a Coulomb limit `μ` the
 //!    crossing point slides so that `k_s |δ_s| ≤ μ k_n δ_n`;
-//! 4. the forces: [`ContactModel::EdgeToEdge`] treats the penetrating part of each edge next to
-//!    a contact vertex as a temporary interface with the target edge (tractions `k δ` per unit
-//!    length, integrated exactly over the overlap by 2-point Gauss on the clipped interval);
-//!    [`ContactModel::Point`] puts one spring `k ℓ_trib` at each contact vertex, the DEM way.
-//!    Equal and opposite forces act on both bodies at the same points, so momentum is kept.
+//! 4. one spring `k ℓ_trib` acts at each contact vertex.
 //!
-//! The springs are those of eq. 12 with the two sides' `h` (`h = 0` for the ground), in series
-//! when the materials differ, times the hybrid penalty. A scene without `contact` builds none of
-//! this and the integrator does no contact work.
+//! Equal and opposite forces act on both bodies at the same points, so momentum is kept. The
+//! springs are those of eq. 12 with the two sides' `h` (`h = 0` for the ground), in series when
+//! the materials differ, times the hybrid penalty. A scene without `contact` builds none of this
+//! and the integrator does no contact work.
 
 mod detect;
 mod overlap;
