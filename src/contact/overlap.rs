@@ -101,10 +101,24 @@ pub(super) struct Overlap {
     /// Live pieces, sorted by `(source, face)`, and those of this step being found.
     pieces: Vec<Piece>,
     next: Vec<Piece>,
+    /// Room for the faces of one target (no allocation in the step).
+    scratch: Vec<FaceNow>,
     thickness: f64,
     factor: f64,
     friction: Option<f64>,
     fresh: bool,
+}
+
+/// A face of the target at hand, in the current configuration.
+#[derive(Debug, Clone, Copy, Default)]
+struct FaceNow {
+    /// Depth below its line at both ends of the source edge (linear along it).
+    depth: [f64; 2],
+    /// Its unit tangent and outward normal.
+    axes: (Vec2, Vec2),
+    /// Normal and tangential springs against the source edge (Pa/m).
+    spring: [f64; 2],
+    surface: bool,
 }
 
 impl Overlap {
@@ -179,6 +193,7 @@ impl Overlap {
         }
         let corners = offsets.clone();
         let n_sources = sources.len();
+        let targets_max = targets.iter().map(|t| t.count as usize).max().unwrap_or(0);
         Overlap {
             anchors: vec![Vec2::repeat(f64::INFINITY); corners.len()],
             corners,
@@ -191,6 +206,7 @@ impl Overlap {
             skin,
             rebuilds: 0,
             ground: Vec2::zeros(),
+            scratch: Vec::with_capacity(targets_max),
             pieces: Vec::with_capacity(4 * n_sources),
             next: Vec::with_capacity(4 * n_sources),
             thickness: model.thickness,
@@ -294,42 +310,58 @@ impl Overlap {
         let src = self.sources[si as usize];
         let tgt = self.targets[ti as usize];
         let [q1, q2] = src.ends.map(|i| self.corners[i as usize]);
+        let mut faces = std::mem::take(&mut self.scratch);
+        faces.clear();
+        faces.resize(tgt.count as usize, FaceNow::default());
+        let energy = self.pieces_of(frames, u, velocity, dt, ledger, si, &src, &tgt, [q1, q2], &mut faces);
+        self.scratch = faces;
+        energy
+    }
+
+    /// [`Overlap::pair`] with room for the target's faces in `now`.
+    #[allow(clippy::too_many_arguments)]
+    fn pieces_of(
+        &mut self,
+        frames: &Frames,
+        u: &[f64],
+        velocity: &[f64],
+        dt: f64,
+        ledger: &mut Ledger,
+        si: u32,
+        src: &Source,
+        tgt: &Target,
+        [q1, q2]: [Vec2; 2],
+        now: &mut [FaceNow],
+    ) -> f64 {
         let m = tgt.count as usize;
         let corner = |k: usize| self.corners[tgt.first as usize + k % m];
         // Depth below each face line at both ends of the source edge (linear along it), and
         // the face's frame.
-        let mut depth = [[0.0; 2]; 12];
-        let mut axes = [(Vec2::zeros(), Vec2::zeros()); 12];
-        if m > depth.len() {
-            return 0.0;
-        }
-        for k in 0..m {
+        for (k, f) in now.iter_mut().enumerate() {
             let (a, b) = (corner(k), corner(k + 1));
             let (s, n, _) = frame(a, b);
-            depth[k] = [q1, q2].map(|q| -(q - a).dot(&n));
-            axes[k] = (s, n);
+            f.depth = [q1, q2].map(|q| -(q - a).dot(&n));
+            f.axes = (s, n);
         }
         // Quick reject: the whole edge outside one face.
-        if (0..m).any(|k| depth[k][0] <= 0.0 && depth[k][1] <= 0.0) {
+        if now.iter().any(|f| f.depth[0] <= 0.0 && f.depth[1] <= 0.0) {
             return 0.0;
         }
         // The springs of eq. 12 with both sides' compliances, per face, and whether each face
         // is a surface.
         let half = if tgt.element == GROUND { 1.0 } else { 0.5 };
-        let mut springs = [[0.0; 2]; 12];
-        let mut surface = [false; 12];
-        for k in 0..m {
+        for (k, f) in now.iter_mut().enumerate() {
             let face = self.faces[tgt.first as usize + k];
-            springs[k] = [0, 1].map(|i| half * self.factor / (src.compliance[i] + face.compliance[i]));
-            surface[k] = face.surface;
+            f.spring = [0, 1].map(|i| half * self.factor / (src.compliance[i] + face.compliance[i]));
+            f.surface = face.surface;
         }
         let length = (q2 - q1).norm();
         let mut energy = 0.0;
         for i in 0..m {
-            if !surface[i] {
+            if !now[i].surface {
                 continue;
             }
-            let ki = springs[i];
+            let ki = now[i].spring;
             let ri = ki[0].sqrt();
             let (mut a, mut b) = (0.0f64, 1.0f64);
             let mut keep = |v: [f64; 2]| {
@@ -345,20 +377,20 @@ impl Overlap {
                     b = b.min(-v[0] / dv);
                 }
             };
-            keep(depth[i]);
-            for j in (0..m).filter(|&j| j != i) {
-                if surface[j] {
+            keep(now[i].depth);
+            for (_, f) in now.iter().enumerate().filter(|&(j, _)| j != i) {
+                if f.surface {
                     // √k_j δ_j − √k_i δ_i ≥ 0: nearer to face i in the weighted sense.
-                    let rj = springs[j][0].sqrt();
-                    keep([0, 1].map(|e| rj * depth[j][e] - ri * depth[i][e]));
+                    let rj = f.spring[0].sqrt();
+                    keep([0, 1].map(|e| rj * f.depth[e] - ri * now[i].depth[e]));
                 } else {
-                    keep(depth[j]);
+                    keep(f.depth);
                 }
             }
             if b <= a {
                 continue;
             }
-            energy += self.piece(frames, u, velocity, dt, ledger, &src, &tgt, si, i, ki, [q1, q2], depth[i], axes[i], (a, b), length);
+            energy += self.piece(frames, u, velocity, dt, ledger, src, tgt, si, i, ki, [q1, q2], now[i].depth, now[i].axes, (a, b), length);
         }
         energy
     }
