@@ -129,7 +129,9 @@ pub struct ContactStats {
     /// Builds of the candidate lists: every step for point contact; for edge-to-edge, only when
     /// something moved beyond the neighbour list's skin.
     pub rebuilds: u64,
-    /// Wall time spent in contact (s).
+    /// Wall time spent in contact (s), over the steps that had contact work to do (edge-to-edge
+    /// does not time a step whose neighbour list is empty and whose bodies stayed within its
+    /// skin: a body in flight).
     pub time_s: f64,
 }
 
@@ -256,9 +258,13 @@ impl Contact {
     /// same forces. Allocation-free once the buffers have grown.
     pub fn apply(&mut self, step: u64, u: &[f64], velocity: &[f64], dt: f64, f: &mut [f64]) -> f64 {
         if self.step != Some(step) {
-            let clock = Instant::now();
+            // A step with nothing to do (bodies in flight) is not timed: two clock readings would
+            // cost more than it.
+            let idle = self.overlap.as_ref().is_some_and(|o| o.idle(u));
+            let clock = (!idle).then(Instant::now);
             self.ledger.next();
             self.stored = match self.overlap.as_mut() {
+                Some(_) if idle => 0.0,
                 Some(o) => o.forces(&self.frames, u, velocity, dt, &mut self.ledger, &mut self.stats.tests),
                 None => {
                     self.place(u);
@@ -273,15 +279,19 @@ impl Contact {
                 // energy that no work of this run put in.
                 None => self.ledger.work = -self.stored,
             }
-            let n = self.vertices.len();
-            self.previous.copy_from_slice(&self.points[..n]);
+            if self.overlap.is_none() {
+                let n = self.vertices.len();
+                self.previous.copy_from_slice(&self.points[..n]);
+            }
             self.step = Some(step);
             self.stats.steps += 1;
             let live = self.live();
             self.stats.pairs += live as u64;
             self.stats.max_pairs = self.stats.max_pairs.max(live);
             self.stats.rebuilds = self.overlap.as_ref().map_or(self.stats.steps, |o| o.rebuilds);
-            self.stats.time_s += clock.elapsed().as_secs_f64();
+            if let Some(clock) = clock {
+                self.stats.time_s += clock.elapsed().as_secs_f64();
+            }
         }
         self.ledger.subtract_from(f);
         -self.ledger.work
@@ -491,30 +501,46 @@ impl Frames {
     fn increment(&self, u: &[f64], velocity: &[f64], dt: f64, e: usize, x: Vec2) -> Vec2 {
         let nd = self.formulation.ndof();
         let (ue, ve) = (&u[e * nd..(e + 1) * nd], &velocity[e * nd..(e + 1) * nd]);
-        let r = rotation(ue[2]);
         let arm = x - self.centroids[e] - Vec2::new(ue[0], ue[1]);
         let mut du = [0.0; 6];
         for (d, v) in du.iter_mut().zip(ve) {
             *d = dt * v;
         }
-        let d = r.transpose() * arm;
-        Vec2::new(du[0], du[1]) + du[2] * Vec2::new(-arm.y, arm.x) + r * strain(self.formulation, &du[..nd], d)
+        let rigid = Vec2::new(du[0], du[1]) + du[2] * Vec2::new(-arm.y, arm.x);
+        match self.formulation {
+            Formulation::Rigid => rigid,
+            Formulation::Hybrid { .. } => {
+                let r = rotation(ue[2]);
+                rigid + r * strain(self.formulation, &du[..nd], r.transpose() * arm)
+            }
+        }
     }
 
     /// `f_c += N_eᵀ F` for a force `F` at the current point `x` of element `e`, through the
     /// element's current position and rotation.
     fn push(&self, u: &[f64], ledger: &mut Ledger, e: u32, x: Vec2, force: Vec2) {
+        ledger.add(e as usize, &self.generalised(u, e, x, force)[..self.formulation.ndof()]);
+    }
+
+    /// `N_eᵀ F` for a force `F` at the current point `x` of element `e` (the first `ndof`
+    /// entries), through the element's current position and rotation.
+    fn generalised(&self, u: &[f64], e: u32, x: Vec2, force: Vec2) -> [f64; 6] {
         let nd = self.formulation.ndof();
         let e = e as usize;
         let ue = &u[e * nd..(e + 1) * nd];
-        let r = rotation(ue[2]);
-        let d = r.transpose() * (x - self.centroids[e] - Vec2::new(ue[0], ue[1]));
+        let arm = x - self.centroids[e] - Vec2::new(ue[0], ue[1]);
         let mut q = [0.0; 6];
-        self.formulation.add_point_force(&mut q[..nd], d, r.transpose() * force);
+        if self.formulation == Formulation::Rigid {
+            // The moment about the current centroid: (R d) × F = d × (Rᵀ F).
+            q[..3].copy_from_slice(&[force.x, force.y, arm.perp(&force)]);
+            return q;
+        }
+        let r = rotation(ue[2]);
+        self.formulation.add_point_force(&mut q[..nd], r.transpose() * arm, r.transpose() * force);
         // The translation entries hold Rᵀ F, in the element's frame: back to global axes.
         q[0] = force.x;
         q[1] = force.y;
-        ledger.add(e, &q[..nd]);
+        q
     }
 }
 

@@ -31,6 +31,7 @@ use super::{frame, Frames, Ledger, NONE};
 use crate::buckets::{BucketLists, Buckets};
 use crate::geometry::Vec2;
 use crate::model::{Model, GROUND};
+use rayon::prelude::*;
 use std::collections::HashSet;
 
 /// A region that boundary edges can enter: an element with an edge on its body's boundary (a
@@ -85,8 +86,14 @@ pub(super) struct Overlap {
     offsets: Vec<Vec2>,
     /// Current corners.
     corners: Vec<Vec2>,
+    /// Current face lines: a point, the unit tangent and the outward normal.
+    lines: Vec<(Vec2, Vec2, Vec2)>,
     /// Corners at the last rebuild of the neighbour list.
     anchors: Vec<Vec2>,
+    /// Per target, its farthest corner from the centroid (m) and its element's `(u, v, θ)` at
+    /// the last rebuild (rigid formulation).
+    reach: Vec<(f64, [f64; 3])>,
+    rigid: bool,
     sources: Vec<Source>,
     /// Pairs `(source, target)` whose boxes, widened by the skin, overlapped at the last
     /// rebuild; sorted.
@@ -101,12 +108,64 @@ pub(super) struct Overlap {
     /// Live pieces, sorted by `(source, face)`, and those of this step being found.
     pieces: Vec<Piece>,
     next: Vec<Piece>,
-    /// Room for the faces of one target (no allocation in the step).
-    scratch: Vec<FaceNow>,
+    /// The narrow phase's work, block by block (kept: no allocation in the step).
+    blocks: Vec<Block>,
     thickness: f64,
     factor: f64,
     friction: Option<f64>,
     fresh: bool,
+}
+
+/// Candidates per block of the narrow phase (a rayon task).
+const BLOCK: usize = 1024;
+
+/// What one step's narrow phase reads.
+struct Step<'a> {
+    frames: &'a Frames,
+    u: &'a [f64],
+    /// `v^{n−½}`: the step that led here moved the bodies by `Δt v^{n−½}`.
+    velocity: &'a [f64],
+    dt: f64,
+}
+
+/// What a block of candidates gives: generalised forces on elements, live pieces, the ground's
+/// force and the stored energy.
+#[derive(Debug, Clone, Default)]
+struct Block {
+    faces: Vec<FaceNow>,
+    /// Where the last step's pieces reach this block's keys.
+    cursor: usize,
+    forces: Vec<(u32, [f64; 6])>,
+    pieces: Vec<Piece>,
+    ground: Vec2,
+    energy: f64,
+}
+
+impl Block {
+    /// Empties the block for `candidates` candidates, with room for two pieces each (a source
+    /// edge rarely lies in more than two faces' parts of one target) and their forces.
+    fn clear(&mut self, candidates: usize) {
+        self.forces.clear();
+        self.pieces.clear();
+        self.forces.reserve(8 * candidates);
+        self.pieces.reserve(2 * candidates);
+        self.ground = Vec2::zeros();
+        self.energy = 0.0;
+    }
+}
+
+/// A piece of a source edge in one face's part of a target: the face, its springs, the depth
+/// below it at both ends of the source edge and its axes `(s, n)`, the source edge's ends, the
+/// piece's range of the edge parameter `ξ` and the edge's length.
+#[derive(Debug, Clone, Copy)]
+struct Span {
+    face: usize,
+    k: [f64; 2],
+    depth: [f64; 2],
+    axes: (Vec2, Vec2),
+    ends: [Vec2; 2],
+    range: (f64, f64),
+    length: f64,
 }
 
 /// A face of the target at hand, in the current configuration.
@@ -116,8 +175,9 @@ struct FaceNow {
     depth: [f64; 2],
     /// Its unit tangent and outward normal.
     axes: (Vec2, Vec2),
-    /// Normal and tangential springs against the source edge (Pa/m).
+    /// Normal and tangential springs against the source edge (Pa/m), and `√k_n`.
     spring: [f64; 2],
+    root: f64,
     surface: bool,
 }
 
@@ -156,7 +216,7 @@ impl Overlap {
                 targets.push(Target { element: element as u32, body: bi as u32, first, count: cell.len() as u32 });
             }
         }
-        let skin = 0.25 * edge_length / sources.len().max(1) as f64;
+        let skin = 0.1 * edge_length / sources.len().max(1) as f64;
         for (gi, g) in model.ground.iter().enumerate() {
             // The strip below the segment, stored `to → from` as a body's boundary is (solid on
             // the left), closed at each end by a wall: perpendicular at a free end, the bisector
@@ -192,11 +252,21 @@ impl Overlap {
             targets.push(Target { element: GROUND, body: NONE, first, count: 4 });
         }
         let corners = offsets.clone();
+        let lines = vec![(Vec2::zeros(), Vec2::zeros(), Vec2::zeros()); corners.len()];
+        let reach = targets
+            .iter()
+            .map(|t| {
+                let r = offsets[t.first as usize..(t.first + t.count) as usize].iter().map(|d| d.norm()).fold(0.0, f64::max);
+                (r, [0.0; 3])
+            })
+            .collect();
         let n_sources = sources.len();
-        let targets_max = targets.iter().map(|t| t.count as usize).max().unwrap_or(0);
-        Overlap {
+        let mut overlap = Overlap {
             anchors: vec![Vec2::repeat(f64::INFINITY); corners.len()],
             corners,
+            lines,
+            reach,
+            rigid: model.formulation == crate::formulation::Formulation::Rigid,
             offsets,
             faces,
             buckets: BucketLists::with_capacity(targets.len()),
@@ -206,14 +276,16 @@ impl Overlap {
             skin,
             rebuilds: 0,
             ground: Vec2::zeros(),
-            scratch: Vec::with_capacity(targets_max),
+            blocks: Vec::new(),
             pieces: Vec::with_capacity(4 * n_sources),
             next: Vec::with_capacity(4 * n_sources),
             thickness: model.thickness,
             factor: model.formulation.spring_factor(),
             friction,
             fresh: true,
-        }
+        };
+        overlap.place_lines(true);
+        overlap
     }
 
     /// The contact forces of state `u` into `ledger`; `velocity` is `v^{n−½}`, so that the step
@@ -223,16 +295,50 @@ impl Overlap {
     pub fn forces(&mut self, frames: &Frames, u: &[f64], velocity: &[f64], dt: f64, ledger: &mut Ledger, tests: &mut u64) -> f64 {
         self.place(frames, u);
         if self.moved_beyond_skin() {
-            self.rebuild();
+            self.rebuild(u);
             self.rebuilds += 1;
+        }
+        if self.candidates.is_empty() {
+            self.pieces.clear();
+            self.ground = Vec2::zeros();
+            self.fresh = false;
+            return 0.0;
+        }
+        self.place_lines(false);
+        // The narrow phase in blocks of candidates, in parallel; the blocks' forces, pieces and
+        // energies then join in block order, so the sums do not depend on the thread count.
+        let n = self.candidates.len().div_ceil(BLOCK);
+        if self.blocks.len() < n {
+            self.blocks.resize_with(n, Block::default);
+        }
+        let mut blocks = std::mem::take(&mut self.blocks);
+        let at = Step { frames, u, velocity, dt };
+        let this = &*self;
+        let work = |(block, chunk): (&mut Block, &[(u32, u32)])| {
+            block.clear(chunk.len());
+            block.cursor = this.pieces.partition_point(|p| p.source < chunk[0].0);
+            for &(source, target) in chunk {
+                this.pair(&at, block, source, target);
+            }
+        };
+        if n > 1 {
+            blocks[..n].par_iter_mut().zip(self.candidates.par_chunks(BLOCK)).for_each(work);
+        } else {
+            blocks[..n].iter_mut().zip(self.candidates.chunks(BLOCK)).for_each(work);
         }
         self.next.clear();
         self.ground = Vec2::zeros();
         let mut energy = 0.0;
-        for c in 0..self.candidates.len() {
-            let (source, target) = self.candidates[c];
-            energy += self.pair(frames, u, velocity, dt, ledger, source, target);
+        let nd = frames.formulation.ndof();
+        for block in &blocks[..n] {
+            for (e, q) in &block.forces {
+                ledger.add(*e as usize, &q[..nd]);
+            }
+            self.next.extend_from_slice(&block.pieces);
+            self.ground += block.ground;
+            energy += block.energy;
         }
+        self.blocks = blocks;
         *tests += self.candidates.len() as u64;
         std::mem::swap(&mut self.pieces, &mut self.next);
         self.fresh = false;
@@ -244,14 +350,41 @@ impl Overlap {
         self.pieces.len()
     }
 
+    /// Whether this step has nothing to do: no candidates, and no rigid target can have moved
+    /// half the skin since the last rebuild (`|Δu| + r |Δθ|`, `r` its farthest corner), so
+    /// that not even the corners need placing (a body in flight).
+    pub fn idle(&self, u: &[f64]) -> bool {
+        if !self.candidates.is_empty() || self.fresh || !self.rigid {
+            return false;
+        }
+        let limit = 0.5 * self.skin;
+        self.targets.iter().zip(&self.reach).all(|(t, &(r, a))| {
+            let e = t.element as usize;
+            t.element == GROUND || {
+                let (du, dv, dth) = (u[3 * e] - a[0], u[3 * e + 1] - a[1], u[3 * e + 2] - a[2]);
+                (du * du + dv * dv).sqrt() + r * dth.abs() <= limit
+            }
+        })
+    }
+
     /// Current corners of every body target (the ground's are fixed).
     fn place(&mut self, frames: &Frames, u: &[f64]) {
-        for t in &self.targets {
-            if t.element == GROUND {
-                continue;
-            }
+        for t in self.targets.iter().filter(|t| t.element != GROUND) {
             let r = t.first as usize..(t.first + t.count) as usize;
             frames.place_all(u, t.element as usize, &self.offsets[r.clone()], &mut self.corners[r]);
+        }
+    }
+
+    /// Current face lines of the body targets, or with `ground`, of the ground's (fixed).
+    fn place_lines(&mut self, ground: bool) {
+        for t in self.targets.iter().filter(|t| (t.element == GROUND) == ground) {
+            let r = t.first as usize..(t.first + t.count) as usize;
+            let (corners, m) = (&self.corners[r.clone()], t.count as usize);
+            for (k, line) in self.lines[r].iter_mut().enumerate() {
+                let (a, b) = (corners[k], corners[(k + 1) % m]);
+                let (s, n, _) = frame(a, b);
+                *line = (a, s, n);
+            }
         }
     }
 
@@ -262,8 +395,14 @@ impl Overlap {
 
     /// The neighbour list: every source edge against every target of another body whose box,
     /// widened by the skin, its own widened box overlaps.
-    fn rebuild(&mut self) {
+    fn rebuild(&mut self, u: &[f64]) {
         self.anchors.copy_from_slice(&self.corners);
+        if self.rigid {
+            for (t, reach) in self.targets.iter().zip(&mut self.reach).filter(|(t, _)| t.element != GROUND) {
+                let e = t.element as usize;
+                reach.1 = [u[3 * e], u[3 * e + 1], u[3 * e + 2]];
+            }
+        }
         let widen = Vec2::repeat(self.skin);
         let boxes = |t: &Target| {
             let c = &self.corners[t.first as usize..(t.first + t.count) as usize];
@@ -303,49 +442,32 @@ impl Overlap {
         self.candidates.dedup();
     }
 
-    /// The pieces of source edge `si` inside target `ti`: forces into `ledger`, the stored
-    /// energy returned.
-    #[allow(clippy::too_many_arguments)]
-    fn pair(&mut self, frames: &Frames, u: &[f64], velocity: &[f64], dt: f64, ledger: &mut Ledger, si: u32, ti: u32) -> f64 {
+    /// The pieces of source edge `si` inside target `ti`: their forces, pieces and stored
+    /// energy into `block`.
+    fn pair(&self, at: &Step, block: &mut Block, si: u32, ti: u32) {
         let src = self.sources[si as usize];
         let tgt = self.targets[ti as usize];
         let [q1, q2] = src.ends.map(|i| self.corners[i as usize]);
-        let mut faces = std::mem::take(&mut self.scratch);
-        faces.clear();
-        faces.resize(tgt.count as usize, FaceNow::default());
-        let energy = self.pieces_of(frames, u, velocity, dt, ledger, si, &src, &tgt, [q1, q2], &mut faces);
-        self.scratch = faces;
-        energy
+        let mut now = std::mem::take(&mut block.faces);
+        now.clear();
+        now.resize(tgt.count as usize, FaceNow::default());
+        self.pieces_of(at, block, si, &src, &tgt, [q1, q2], &mut now);
+        block.faces = now;
     }
 
     /// [`Overlap::pair`] with room for the target's faces in `now`.
     #[allow(clippy::too_many_arguments)]
-    fn pieces_of(
-        &mut self,
-        frames: &Frames,
-        u: &[f64],
-        velocity: &[f64],
-        dt: f64,
-        ledger: &mut Ledger,
-        si: u32,
-        src: &Source,
-        tgt: &Target,
-        [q1, q2]: [Vec2; 2],
-        now: &mut [FaceNow],
-    ) -> f64 {
+    fn pieces_of(&self, at: &Step, block: &mut Block, si: u32, src: &Source, tgt: &Target, [q1, q2]: [Vec2; 2], now: &mut [FaceNow]) {
         let m = tgt.count as usize;
-        let corner = |k: usize| self.corners[tgt.first as usize + k % m];
         // Depth below each face line at both ends of the source edge (linear along it), and
         // the face's frame.
-        for (k, f) in now.iter_mut().enumerate() {
-            let (a, b) = (corner(k), corner(k + 1));
-            let (s, n, _) = frame(a, b);
+        for (f, &(a, s, n)) in now.iter_mut().zip(&self.lines[tgt.first as usize..]) {
             f.depth = [q1, q2].map(|q| -(q - a).dot(&n));
             f.axes = (s, n);
         }
         // Quick reject: the whole edge outside one face.
         if now.iter().any(|f| f.depth[0] <= 0.0 && f.depth[1] <= 0.0) {
-            return 0.0;
+            return;
         }
         // The springs of eq. 12 with both sides' compliances, per face, and whether each face
         // is a surface.
@@ -353,16 +475,16 @@ impl Overlap {
         for (k, f) in now.iter_mut().enumerate() {
             let face = self.faces[tgt.first as usize + k];
             f.spring = [0, 1].map(|i| half * self.factor / (src.compliance[i] + face.compliance[i]));
+            f.root = f.spring[0].sqrt();
             f.surface = face.surface;
         }
         let length = (q2 - q1).norm();
-        let mut energy = 0.0;
         for i in 0..m {
             if !now[i].surface {
                 continue;
             }
             let ki = now[i].spring;
-            let ri = ki[0].sqrt();
+            let ri = now[i].root;
             let (mut a, mut b) = (0.0f64, 1.0f64);
             let mut keep = |v: [f64; 2]| {
                 // Where `v0 + ξ (v1 − v0) ≥ 0`.
@@ -381,8 +503,7 @@ impl Overlap {
             for (_, f) in now.iter().enumerate().filter(|&(j, _)| j != i) {
                 if f.surface {
                     // √k_j δ_j − √k_i δ_i ≥ 0: nearer to face i in the weighted sense.
-                    let rj = f.spring[0].sqrt();
-                    keep([0, 1].map(|e| rj * f.depth[e] - ri * now[i].depth[e]));
+                    keep([0, 1].map(|e| f.root * f.depth[e] - ri * now[i].depth[e]));
                 } else {
                     keep(f.depth);
                 }
@@ -390,31 +511,14 @@ impl Overlap {
             if b <= a {
                 continue;
             }
-            energy += self.piece(frames, u, velocity, dt, ledger, src, tgt, si, i, ki, [q1, q2], now[i].depth, now[i].axes, (a, b), length);
+            let piece = Span { face: i, k: ki, depth: now[i].depth, axes: now[i].axes, ends: [q1, q2], range: (a, b), length };
+            self.piece(at, block, src, tgt, si, &piece);
         }
-        energy
     }
 
-    /// One piece `ξ ∈ [a, b]` of source edge `si` in the part of face `i` of `tgt`.
-    #[allow(clippy::too_many_arguments)]
-    fn piece(
-        &mut self,
-        frames: &Frames,
-        u: &[f64],
-        velocity: &[f64],
-        dt: f64,
-        ledger: &mut Ledger,
-        src: &Source,
-        tgt: &Target,
-        si: u32,
-        i: usize,
-        k: [f64; 2],
-        [q1, q2]: [Vec2; 2],
-        depth: [f64; 2],
-        (s, n): (Vec2, Vec2),
-        (a, b): (f64, f64),
-        length: f64,
-    ) -> f64 {
+    /// One piece of source edge `si` in the part of one face of `tgt`.
+    fn piece(&self, at: &Step, block: &mut Block, src: &Source, tgt: &Target, si: u32, p: &Span) {
+        let Span { face: i, k, depth, axes: (s, n), ends: [q1, q2], range: (a, b), length } = *p;
         let face = tgt.first + i as u32;
         let lerp = |v: [f64; 2], xi: f64| v[0] + xi * (v[1] - v[0]);
         let half = 0.5 * (b - a);
@@ -424,16 +528,22 @@ impl Overlap {
         let mean = 0.5 * (d[0] + d[1]);
         // The slip: carried over from the last step, plus the relative tangential motion of
         // the step at the centre of pressure; Coulomb's limit by return mapping.
-        let mut slip = match self.pieces.binary_search_by_key(&(si, face), |p| (p.source, p.face)) {
-            Ok(p) => self.pieces[p].slip,
-            Err(_) => 0.0,
+        // A block's pieces come in `(source, face)` order, as the last step's do: a cursor
+        // finds the last step's piece.
+        let key = (si, face);
+        let last = &self.pieces[block.cursor..];
+        let ahead = last.iter().take_while(|p| (p.source, p.face) < key).count();
+        block.cursor += ahead;
+        let mut slip = match self.pieces.get(block.cursor) {
+            Some(p) if (p.source, p.face) == key => p.slip,
+            _ => 0.0,
         };
         if mean > 0.0 && !self.fresh {
             let centre = (d[0] * gauss[0] + d[1] * gauss[1]) / (d[0] + d[1]);
             let x = q1 + centre * (q2 - q1);
-            let mut step = frames.increment(u, velocity, dt, src.element as usize, x);
+            let mut step = at.frames.increment(at.u, at.velocity, at.dt, src.element as usize, x);
             if tgt.element != GROUND {
-                step -= frames.increment(u, velocity, dt, tgt.element as usize, x);
+                step -= at.frames.increment(at.u, at.velocity, at.dt, tgt.element as usize, x);
             }
             slip += step.dot(&s);
         }
@@ -441,21 +551,19 @@ impl Overlap {
             let limit = mu * k[0] * mean / k[1];
             slip = slip.clamp(-limit, limit);
         }
-        self.next.push(Piece { source: si, face, slip });
-        let mut energy = 0.0;
+        block.pieces.push(Piece { source: si, face, slip });
         for (xi, di) in gauss.into_iter().zip(d) {
             let stretch = if mean > 0.0 { slip * di / mean } else { 0.0 };
             let (tn, ts) = (k[0] * di, -k[1] * stretch);
             let x = q1 + xi * (q2 - q1);
             let force = w * (tn * n + ts * s);
-            frames.push(u, ledger, src.element, x, force);
+            block.forces.push((src.element, at.frames.generalised(at.u, src.element, x, force)));
             if tgt.element != GROUND {
-                frames.push(u, ledger, tgt.element, x, -force);
+                block.forces.push((tgt.element, at.frames.generalised(at.u, tgt.element, x, -force)));
             } else {
-                self.ground += force;
+                block.ground += force;
             }
-            energy += 0.5 * w * (k[0] * di * di + k[1] * stretch * stretch);
+            block.energy += 0.5 * w * (k[0] * di * di + k[1] * stretch * stretch);
         }
-        energy
     }
 }
