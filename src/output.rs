@@ -66,8 +66,7 @@ pub struct ContactSummary {
     /// Narrow-phase tests per step: vertex path against a nearby edge (point), boundary edge
     /// against a nearby element or ground strip (edge-to-edge).
     pub tests_per_step: f64,
-    /// Builds of the candidate lists: every step (point), or when a corner moved half the
-    /// neighbour list's skin (edge-to-edge).
+    /// Builds of the neighbour lists: when a corner moved half their skin.
     pub rebuilds: u64,
     /// Wall time spent in contact (s).
     pub time_s: f64,

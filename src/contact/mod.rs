@@ -9,9 +9,9 @@
 //! [`ContactModel::Point`] is classic DEM, each step:
 //! 1. the boundary vertices are placed with the finite rotation of their element
 //!    (`x = x_e + u_e + R(θ_e)(d + E_e d)`, `E_e d` the strain part of a hybrid element);
-//! 2. a broad phase (a bucket grid of the edges, rebuilt each step) lists the edges near each
-//!    vertex's path `p → m` over the step, and eqs. 18–19 find the paths that enter an edge of
-//!    another body; the crossing point `c` (eq. 20) is kept with the contact as a fraction of the
+//! 2. a neighbour list (from a bucket grid of the edges, rebuilt only when a vertex has moved
+//!    half its skin) holds the edges near each vertex, and eqs. 18–19 find the paths `p → m`
+//!    over the step that enter an edge of another body; the crossing point `c` (eq. 20) is kept with the contact as a fraction of the
 //!    target edge, so it moves with it;
 //! 3. each contact's gap `δ_n`, `δ_s` (eq. 17) is measured; the contact is released when the
 //!    gap opens (`δ_n ≤ 0`) or the vertex leaves the edge's span; with a Coulomb limit `μ` the
@@ -126,8 +126,7 @@ pub struct ContactStats {
     /// Narrow-phase tests summed over the steps: vertex path against edge (point), source edge
     /// against target element or ground strip (edge-to-edge).
     pub tests: u64,
-    /// Builds of the candidate lists: every step for point contact; for edge-to-edge, only when
-    /// something moved beyond the neighbour list's skin.
+    /// Builds of the neighbour lists: only when something moved more than half their skin.
     pub rebuilds: u64,
     /// Wall time spent in contact (s), over the steps that had contact work to do (edge-to-edge
     /// does not time a step whose neighbour list is empty and whose bodies stayed within its
@@ -154,6 +153,16 @@ pub struct Contact {
     /// Contacts found this step.
     fresh: Vec<Record>,
     buckets: BucketLists,
+    /// Point contact's neighbour list: the edges near vertex `v` are
+    /// `near[near_start[v]..near_start[v + 1]]`.
+    near_start: Vec<u32>,
+    near: Vec<u32>,
+    /// The vertices at the last rebuild of the neighbour list.
+    anchors: Vec<Vec2>,
+    /// The neighbour list is rebuilt when a vertex has moved more than half of this (m): a tenth
+    /// of the mean boundary edge, and at least the depth within which a vertex placed inside
+    /// an edge counts as touching it.
+    skin: f64,
     /// Per edge, the last vertex that tested it (each pair is tested once per step).
     stamp: Vec<u32>,
     /// Edge-to-edge contact's targets, neighbour list and pieces (`None` for point contact).
@@ -216,6 +225,9 @@ impl Contact {
             edges.push(Edge { element: GROUND, body: NONE, ends: [at, at + 1], compliance: [0.0; 2], length: (g[1] - g[0]).norm() });
         }
         let (nv, ne) = (vertices.len(), edges.len());
+        let body_edges = edges.iter().filter(|e| e.element != GROUND);
+        let (total, longest) = body_edges.clone().fold((0.0, 0.0f64), |(t, l), e| (t + e.length, l.max(e.length)));
+        let skin = (0.1 * total / body_edges.count().max(1) as f64).max(0.05 * longest);
         Some(Contact {
             settings,
             frames: Frames { formulation: model.formulation, centroids: model.elements.iter().map(|e| e.props.centroid).collect() },
@@ -230,6 +242,10 @@ impl Contact {
             records: Vec::with_capacity(2 * nv),
             fresh: Vec::with_capacity(2 * nv),
             buckets: BucketLists::with_capacity(ne),
+            near_start: Vec::with_capacity(nv + 1),
+            near: Vec::with_capacity(4 * nv),
+            anchors: vec![Vec2::repeat(f64::INFINITY); nv],
+            skin,
             overlap: (settings.model == ContactModel::EdgeToEdge).then(|| Overlap::new(model, settings.friction)),
             ledger: Ledger::new(model.elements.len(), model.formulation.ndof()),
             stored: 0.0,
@@ -288,7 +304,9 @@ impl Contact {
             let live = self.live();
             self.stats.pairs += live as u64;
             self.stats.max_pairs = self.stats.max_pairs.max(live);
-            self.stats.rebuilds = self.overlap.as_ref().map_or(self.stats.steps, |o| o.rebuilds);
+            if let Some(o) = &self.overlap {
+                self.stats.rebuilds = o.rebuilds;
+            }
             if let Some(clock) = clock {
                 self.stats.time_s += clock.elapsed().as_secs_f64();
             }
@@ -326,45 +344,30 @@ impl Contact {
     /// at the first step, vertices that start just inside an edge.
     fn detect(&mut self) {
         let n = self.vertices.len();
-        let (mut lo, mut hi) = (self.points[0], self.points[0]);
-        for x in self.points[..n].iter().chain(&self.previous) {
-            lo = lo.inf(x);
-            hi = hi.sup(x);
+        let limit = 0.25 * self.skin * self.skin;
+        if self.points[..n].iter().zip(&self.anchors).any(|(x, a)| (x - a).norm_squared() > limit) {
+            self.rebuild_near();
         }
-        let grid = Buckets::new(lo, hi, self.edges.len());
-        let (points, edges) = (&self.points, &self.edges);
-        self.buckets.fill(&grid, edges.len(), |k| {
-            let [a, b] = edges[k].ends.map(|i| points[i as usize]);
-            (a.inf(&b), a.sup(&b))
-        });
-        self.stamp.fill(NONE);
         self.fresh.clear();
         for v in 0..n {
             let (p, m) = (self.previous[v], self.points[v]);
-            let vertex = self.vertices[v];
             let mut best: Option<(f64, u32, f64)> = None;
-            for k in grid.covering(p.inf(&m), p.sup(&m)) {
-                for &e in self.buckets.bucket(k) {
-                    let edge = &self.edges[e as usize];
-                    if edge.body == vertex.body || self.stamp[e as usize] == v as u32 {
-                        continue;
-                    }
-                    self.stamp[e as usize] = v as u32;
-                    self.stats.tests += 1;
-                    let [b1, b2] = edge.ends.map(|i| self.points[i as usize]);
-                    let found = if self.step.is_some() {
-                        // The path relative to the edge: where `p` was with respect to the edge's
-                        // previous position, carried to its current one (`p` itself for ground).
-                        let [a1, a2] = edge.ends.map(|i| if (i as usize) < n { self.previous[i as usize] } else { self.points[i as usize] });
-                        let p = relative_start(p, a1, a2, b1, b2);
-                        entry(p, m, b1, b2).map(|lambda| (gap(m, b1, b2, lambda).normal, lambda))
-                    } else {
-                        start_inside(m, b1, b2, self.size(v))
-                    };
-                    if let Some((depth, lambda)) = found {
-                        if best.is_none_or(|b| depth < b.0) {
-                            best = Some((depth, e, lambda));
-                        }
+            for &e in &self.near[self.near_start[v] as usize..self.near_start[v + 1] as usize] {
+                let edge = &self.edges[e as usize];
+                self.stats.tests += 1;
+                let [b1, b2] = edge.ends.map(|i| self.points[i as usize]);
+                let found = if self.step.is_some() {
+                    // The path relative to the edge: where `p` was with respect to the edge's
+                    // previous position, carried to its current one (`p` itself for ground).
+                    let [a1, a2] = edge.ends.map(|i| if (i as usize) < n { self.previous[i as usize] } else { self.points[i as usize] });
+                    let p = relative_start(p, a1, a2, b1, b2);
+                    entry(p, m, b1, b2).map(|lambda| (gap(m, b1, b2, lambda).normal, lambda))
+                } else {
+                    start_inside(m, b1, b2, self.size(v))
+                };
+                if let Some((depth, lambda)) = found {
+                    if best.is_none_or(|b| depth < b.0) {
+                        best = Some((depth, e, lambda));
                     }
                 }
             }
@@ -378,6 +381,50 @@ impl Contact {
         if !self.fresh.is_empty() {
             self.records.extend_from_slice(&self.fresh);
             self.records.sort_unstable_by_key(|r| (r.vertex, r.edge));
+        }
+    }
+
+    /// The neighbour list of point contact: for each vertex, the edges of other bodies (and the
+    /// ground segments) whose boxes, widened by the skin, reach its own widened box. It holds
+    /// every edge that the vertex's path can cross until some vertex has moved half the skin.
+    fn rebuild_near(&mut self) {
+        let n = self.vertices.len();
+        self.anchors.copy_from_slice(&self.points[..n]);
+        self.stats.rebuilds += 1;
+        let widen = Vec2::repeat(self.skin);
+        let (mut lo, mut hi) = (self.points[0], self.points[0]);
+        for x in &self.points[..n] {
+            lo = lo.inf(x);
+            hi = hi.sup(x);
+        }
+        let grid = Buckets::new(lo - widen, hi + widen, self.edges.len());
+        let (points, edges) = (&self.points, &self.edges);
+        let boxes = |k: usize| {
+            let [a, b] = edges[k].ends.map(|i| points[i as usize]);
+            (a.inf(&b) - widen, a.sup(&b) + widen)
+        };
+        self.buckets.fill(&grid, edges.len(), boxes);
+        self.stamp.fill(NONE);
+        self.near.clear();
+        self.near_start.clear();
+        self.near_start.push(0);
+        for v in 0..n {
+            let (x, body) = (self.points[v], self.vertices[v].body);
+            let (vlo, vhi) = (x - widen, x + widen);
+            for k in grid.touching(vlo, vhi) {
+                for &e in self.buckets.bucket(k) {
+                    if self.edges[e as usize].body == body || self.stamp[e as usize] == v as u32 {
+                        continue;
+                    }
+                    self.stamp[e as usize] = v as u32;
+                    let (elo, ehi) = boxes(e as usize);
+                    if elo.x <= vhi.x && vlo.x <= ehi.x && elo.y <= vhi.y && vlo.y <= ehi.y {
+                        self.near.push(e);
+                    }
+                }
+            }
+            self.near[*self.near_start.last().unwrap() as usize..].sort_unstable();
+            self.near_start.push(self.near.len() as u32);
         }
     }
 
