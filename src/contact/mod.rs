@@ -549,14 +549,14 @@ impl Frames {
         let nd = self.formulation.ndof();
         let (ue, ve) = (&u[e * nd..(e + 1) * nd], &velocity[e * nd..(e + 1) * nd]);
         let arm = x - self.centroids[e] - Vec2::new(ue[0], ue[1]);
-        let mut du = [0.0; 6];
-        for (d, v) in du.iter_mut().zip(ve) {
-            *d = dt * v;
-        }
-        let rigid = Vec2::new(du[0], du[1]) + du[2] * Vec2::new(-arm.y, arm.x);
+        let rigid = Vec2::new(dt * ve[0], dt * ve[1]) + (dt * ve[2]) * Vec2::new(-arm.y, arm.x);
         match self.formulation {
             Formulation::Rigid => rigid,
             Formulation::Hybrid { .. } => {
+                let mut du = [0.0; 6];
+                for (d, v) in du.iter_mut().zip(ve) {
+                    *d = dt * v;
+                }
                 let r = rotation(ue[2]);
                 rigid + r * strain(self.formulation, &du[..nd], r.transpose() * arm)
             }

@@ -136,12 +136,41 @@ struct Block {
     /// Where the last step's pieces reach this block's keys.
     cursor: usize,
     forces: Vec<(u32, [f64; 6])>,
+    /// The force on the source element of the last pieces, still open to the next ones.
+    pending: Option<(u32, [f64; 6])>,
     pieces: Vec<Piece>,
     ground: Vec2,
     energy: f64,
 }
 
+/// `a += b`.
+fn add(a: &mut [f64; 6], b: &[f64; 6]) {
+    for (a, b) in a.iter_mut().zip(b) {
+        *a += b;
+    }
+}
+
 impl Block {
+    /// Adds `q` to the force on source element `element`, kept open while the pieces of that
+    /// element follow one another (they do: the candidates run in source order).
+    fn add_source(&mut self, element: u32, q: &[f64; 6]) {
+        match &mut self.pending {
+            Some((e, open)) if *e == element => add(open, q),
+            pending => {
+                if let Some(done) = pending.replace((element, *q)) {
+                    self.forces.push(done);
+                }
+            }
+        }
+    }
+
+    /// Closes the open source force at the end of the block.
+    fn finish(&mut self) {
+        if let Some(done) = self.pending.take() {
+            self.forces.push(done);
+        }
+    }
+
     /// Empties the block for `candidates` candidates, with room for two pieces each (a source
     /// edge rarely lies in more than two faces' parts of one target) and their forces.
     fn clear(&mut self, candidates: usize) {
@@ -175,8 +204,8 @@ struct FaceNow {
     depth: [f64; 2],
     /// Its unit tangent and outward normal.
     axes: (Vec2, Vec2),
-    /// Normal and tangential springs against the source edge (Pa/m), and `√k_n`.
-    spring: [f64; 2],
+    /// Normal spring against the source edge (Pa/m), and its square root (surface faces).
+    spring: f64,
     root: f64,
     surface: bool,
 }
@@ -320,6 +349,7 @@ impl Overlap {
             for &(source, target) in chunk {
                 this.pair(&at, block, source, target);
             }
+            block.finish();
         };
         if n > 1 {
             blocks[..n].par_iter_mut().zip(self.candidates.par_chunks(BLOCK)).for_each(work);
@@ -448,10 +478,12 @@ impl Overlap {
         let src = self.sources[si as usize];
         let tgt = self.targets[ti as usize];
         let [q1, q2] = src.ends.map(|i| self.corners[i as usize]);
+        // Every field that `pieces_of` reads it writes first: the room is only grown.
         let mut now = std::mem::take(&mut block.faces);
-        now.clear();
-        now.resize(tgt.count as usize, FaceNow::default());
-        self.pieces_of(at, block, si, &src, &tgt, [q1, q2], &mut now);
+        if now.len() < tgt.count as usize {
+            now.resize(tgt.count as usize, FaceNow::default());
+        }
+        self.pieces_of(at, block, si, &src, &tgt, [q1, q2], &mut now[..tgt.count as usize]);
         block.faces = now;
     }
 
@@ -469,48 +501,57 @@ impl Overlap {
         if now.iter().any(|f| f.depth[0] <= 0.0 && f.depth[1] <= 0.0) {
             return;
         }
-        // The springs of eq. 12 with both sides' compliances, per face, and whether each face
-        // is a surface.
+        // The normal spring of eq. 12 with both sides' compliances on each surface face (the
+        // tangential one only where a piece forms).
         let half = if tgt.element == GROUND { 1.0 } else { 0.5 };
+        let spring = |face: &Face, c: usize| half * self.factor / (src.compliance[c] + face.compliance[c]);
         for (k, f) in now.iter_mut().enumerate() {
-            let face = self.faces[tgt.first as usize + k];
-            f.spring = [0, 1].map(|i| half * self.factor / (src.compliance[i] + face.compliance[i]));
-            f.root = f.spring[0].sqrt();
+            let face = &self.faces[tgt.first as usize + k];
             f.surface = face.surface;
+            if face.surface {
+                f.spring = spring(face, 0);
+                f.root = f.spring.sqrt();
+            }
         }
         let length = (q2 - q1).norm();
         for i in 0..m {
             if !now[i].surface {
                 continue;
             }
-            let ki = now[i].spring;
             let ri = now[i].root;
             let (mut a, mut b) = (0.0f64, 1.0f64);
+            // Keeps where `v0 + ξ (v1 − v0) ≥ 0`; false once nothing is left. A constraint
+            // that holds at both ends (or at neither) needs no division.
             let mut keep = |v: [f64; 2]| {
-                // Where `v0 + ξ (v1 − v0) ≥ 0`.
+                if v[0] >= 0.0 && v[1] >= 0.0 {
+                    return true;
+                }
+                if v[0] < 0.0 && v[1] < 0.0 {
+                    return false;
+                }
                 let dv = v[1] - v[0];
-                if dv == 0.0 {
-                    if v[0] < 0.0 {
-                        b = a - 1.0;
-                    }
-                } else if dv > 0.0 {
+                if dv > 0.0 {
                     a = a.max(-v[0] / dv);
                 } else {
                     b = b.min(-v[0] / dv);
                 }
+                b > a
             };
-            keep(now[i].depth);
-            for (_, f) in now.iter().enumerate().filter(|&(j, _)| j != i) {
-                if f.surface {
-                    // √k_j δ_j − √k_i δ_i ≥ 0: nearer to face i in the weighted sense.
-                    keep([0, 1].map(|e| f.root * f.depth[e] - ri * now[i].depth[e]));
-                } else {
-                    keep(f.depth);
-                }
-            }
-            if b <= a {
+            let depth_i = now[i].depth;
+            let inside = keep(depth_i)
+                && now.iter().enumerate().all(|(j, f)| {
+                    j == i
+                        || if f.surface {
+                            // √k_j δ_j − √k_i δ_i ≥ 0: nearer to face i in the weighted sense.
+                            keep([0, 1].map(|e| f.root * f.depth[e] - ri * depth_i[e]))
+                        } else {
+                            keep(f.depth)
+                        }
+                });
+            if !inside || b <= a {
                 continue;
             }
+            let ki = [now[i].spring, spring(&self.faces[tgt.first as usize + i], 1)];
             let piece = Span { face: i, k: ki, depth: now[i].depth, axes: now[i].axes, ends: [q1, q2], range: (a, b), length };
             self.piece(at, block, src, tgt, si, &piece);
         }
@@ -552,18 +593,23 @@ impl Overlap {
             slip = slip.clamp(-limit, limit);
         }
         block.pieces.push(Piece { source: si, face, slip });
+        let (mut on_source, mut on_target) = ([0.0; 6], [0.0; 6]);
         for (xi, di) in gauss.into_iter().zip(d) {
             let stretch = if mean > 0.0 { slip * di / mean } else { 0.0 };
             let (tn, ts) = (k[0] * di, -k[1] * stretch);
             let x = q1 + xi * (q2 - q1);
             let force = w * (tn * n + ts * s);
-            block.forces.push((src.element, at.frames.generalised(at.u, src.element, x, force)));
+            add(&mut on_source, &at.frames.generalised(at.u, src.element, x, force));
             if tgt.element != GROUND {
-                block.forces.push((tgt.element, at.frames.generalised(at.u, tgt.element, x, -force)));
+                add(&mut on_target, &at.frames.generalised(at.u, tgt.element, x, -force));
             } else {
                 block.ground += force;
             }
             block.energy += 0.5 * w * (k[0] * di * di + k[1] * stretch * stretch);
+        }
+        block.add_source(src.element, &on_source);
+        if tgt.element != GROUND {
+            block.forces.push((tgt.element, on_target));
         }
     }
 }
