@@ -311,6 +311,42 @@ impl<'a> CentralDifference<'a> {
         self.t = self.step as f64 * dt;
     }
 
+    /// Runs `steps` steps in chunks of `every`, calling `each` with the integrator (its contact
+    /// state included) and the energies at the end of every chunk; returns at the first chunk
+    /// that does not end `Ok`.
+    pub fn run_chunks(&mut self, steps: u64, every: u64, mut each: impl FnMut(&Self, &Energy)) -> Result<Status> {
+        let mut left = steps;
+        while left > 0 {
+            let n = every.clamp(1, left);
+            let mut last = None;
+            let status = self.run(
+                n,
+                n,
+                |_, e| {
+                    last = Some(*e);
+                    Ok(())
+                },
+                |_| {},
+            )?;
+            left -= n;
+            if status != Status::Ok {
+                return Ok(status);
+            }
+            if let Some(e) = last {
+                each(self, &e);
+            }
+        }
+        Ok(Status::Ok)
+    }
+
+    /// The total energy of `e` with the contact term taken as what the contact springs store
+    /// now instead of minus the work of the contact forces: it is conserved where contact is
+    /// (frictionless edge-to-edge contact derives from a potential), and what it loses is what
+    /// contact dissipated. Equal to `e.total` without contact.
+    pub fn total_with_stored_contact(&self, e: &Energy) -> f64 {
+        self.contact.as_ref().map_or(e.total, |c| e.total - e.contact + c.stored())
+    }
+
     /// Runs `steps` steps with no energies, guard or outputs: the bare cost of the explicit
     /// step, for benchmarks. `run` does the same between its checks.
     pub fn step_only(&mut self, steps: u64) {

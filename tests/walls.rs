@@ -55,32 +55,15 @@ fn settle(scene: &Scene, every: u64) -> Settled {
     let p = Prepared::new(scene, &RunOptions::default()).expect("model");
     let mut cd = p.integrator(p.dt);
     let (mut first, mut worst, mut scale) = (None, 0.0f64, 0.0f64);
-    let mut left = p.steps;
-    while left > 0 {
-        let n = every.min(left);
-        let mut energy = None;
-        let status = cd
-            .run(
-                n,
-                n,
-                |_, e| {
-                    energy = Some(*e);
-                    Ok(())
-                },
-                |_| {},
-            )
-            .unwrap();
-        assert_eq!(status, Status::Ok, "{}", scene.name);
-        left -= n;
-        let e = energy.unwrap();
-        let stored = cd.contact.as_ref().unwrap().stored();
-        // The integrator's total (with the kinetic energy that central difference conserves),
-        // its contact term (minus the work of the contact forces) replaced by what is stored.
-        let total = e.total - e.contact + stored;
-        let e0 = *first.get_or_insert(total);
-        worst = worst.max((total - e0).abs());
-        scale = scale.max(e.kinetic + stored + e.potential.abs());
-    }
+    let status = cd
+        .run_chunks(p.steps, every, |cd, e| {
+            let total = cd.total_with_stored_contact(e);
+            let e0 = *first.get_or_insert(total);
+            worst = worst.max((total - e0).abs());
+            scale = scale.max(e.kinetic + cd.contact.as_ref().unwrap().stored() + e.potential.abs());
+        })
+        .unwrap();
+    assert_eq!(status, Status::Ok, "{}", scene.name);
     let c = cd.contact.as_ref().unwrap();
     let r = c.ground_reaction();
     Settled {

@@ -365,31 +365,17 @@ fn wall_run(json: &str, every: u64) -> WallRun {
     let weight: f64 = p.model.elements.iter().map(|e| e.rho * e.props.area * p.model.thickness).sum::<f64>() * G;
     let mut cd = p.integrator(p.dt);
     let (mut history, mut first, mut worst, mut scale) = (Vec::new(), None, 0.0f64, 0.0f64);
-    let mut left = p.steps;
-    while left > 0 {
-        let n = every.min(left);
-        let mut energy = None;
-        let status = cd
-            .run(
-                n,
-                n,
-                |_, e| {
-                    energy = Some(*e);
-                    Ok(())
-                },
-                |_| {},
-            )
-            .unwrap();
-        assert_eq!(status, Status::Ok, "wall run diverged");
-        left -= n;
-        let e = energy.unwrap();
-        let c = cd.contact.as_ref().unwrap();
-        let total = e.total - e.contact + c.stored();
-        let e0 = *first.get_or_insert(total);
-        worst = worst.max((total - e0).abs());
-        scale = scale.max(e.kinetic + c.stored() + e.potential.abs());
-        history.push([e.t, e.kinetic, c.stored(), e.contact, e.potential, c.ground_reaction().y / weight]);
-    }
+    let status = cd
+        .run_chunks(p.steps, every, |cd, e| {
+            let c = cd.contact.as_ref().unwrap();
+            let total = cd.total_with_stored_contact(e);
+            let e0 = *first.get_or_insert(total);
+            worst = worst.max((total - e0).abs());
+            scale = scale.max(e.kinetic + c.stored() + e.potential.abs());
+            history.push([e.t, e.kinetic, c.stored(), e.contact, e.potential, c.ground_reaction().y / weight]);
+        })
+        .unwrap();
+    assert_eq!(status, Status::Ok, "wall run diverged");
     let c = cd.contact.as_ref().unwrap();
     let tests_per_body_step = c.stats.tests as f64 / c.stats.steps as f64 / p.model.bodies.len() as f64;
     WallRun { history, drift: worst / scale, u: cd.u.clone(), tests_per_body_step, model: p.model }
