@@ -49,9 +49,11 @@
 //! is the largest eigenvalue of $K \phi = \omega^2 M \phi$. See [`integrator`], [`eigen`] and
 //! [`stability`].
 //!
-//! **Contact** (eqs. 17–20). A vertex that crosses an edge of another body is found by its
-//! crossing point and held by a temporary interface: edge-to-edge or DEM point contact. See
-//! [`contact`].
+//! **Contact** (eqs. 17–20). Edge-to-edge contact (the paper's) holds the part of a boundary
+//! edge that lies inside another body by a temporary interface, with the depth measured to the
+//! nearest surface face, so that its normal tractions derive from one energy; DEM point contact
+//! finds a vertex that crosses an edge of another body by its crossing point and holds it by
+//! one spring. Both search neighbour lists kept within a skin. See [`contact`].
 //!
 //! ## Architecture
 //!
@@ -61,7 +63,7 @@
 //! | --- | --- |
 //! | input | [`scene`] (the JSON scene file), [`mesh`] (grid, Voronoi, polygons, gmsh), [`checks`] (warnings for extreme inputs) |
 //! | model | [`model`] (elements, interfaces, loads), [`geometry`], [`formulation`] (rigid or hybrid $N_e$), [`mass`], [`loads`] |
-//! | forces | [`evaluator`] (assembled or element-wise $f_{\rm int}$), [`contact`] with [`buckets`] (broad phase), [`parallel`] |
+//! | forces | [`evaluator`] (assembled or element-wise $f_{\rm int}$), [`contact`] with [`buckets`] (building its neighbour lists), [`parallel`] |
 //! | time | [`integrator`] (central difference, energies, divergence guard), [`run`] (a scene from start to outputs) |
 //! | outputs | [`output`] (summary, history, final state), [`vtk`] (ParaView), [`drawing`] (SVG of a model or a mode), [`plot`] (SVG histories) |
 //! | analyses | [`statics`], [`system`] (free DOFs), [`rigid_modes`] (mechanisms), [`eigen`], [`stability`], [`tradeoff`], [`extremes`], [`hopping`], [`report`] |
