@@ -93,6 +93,7 @@ pub(super) struct Overlap {
     /// Per target, its farthest corner from the centroid (m) and its element's `(u, v, θ)` at
     /// the last rebuild (rigid formulation).
     reach: Vec<(f64, [f64; 3])>,
+    /// Whether the formulation is rigid (the idle test bounds rigid motion only).
     rigid: bool,
     sources: Vec<Source>,
     /// Pairs `(source, target)` whose boxes, widened by the skin, overlapped at the last
@@ -113,6 +114,7 @@ pub(super) struct Overlap {
     thickness: f64,
     factor: f64,
     friction: Option<f64>,
+    /// No evaluation yet: no step to measure slips over, and the neighbour list to build.
     fresh: bool,
 }
 
