@@ -88,6 +88,11 @@ fn unsupported_files_and_names_are_refused_clearly() {
     assert!(e.contains("Tri6") && e.contains("not supported") && e.contains("element 1"), "{e}");
     let e = error_for(&write("junk.msh", "hello"), "left");
     assert!(e.contains("not a gmsh MSH file"), "{e}");
+    // A data size the MSH reader panicked on (found by fuzzing), and a header cut short.
+    let e = error_for(&write("size.msh", "$MeshFormat\n4.1 0 4294967296\n$EndMeshFormat\n"), "left");
+    assert!(e.contains("4.1 0 4294967296") && e.contains("data size 8"), "{e}");
+    let e = error_for(&write("short.msh", "$MeshFormat\n4.1\n$EndMeshFormat\n"), "left");
+    assert!(e.contains("file type 0"), "{e}");
     let msh = format!("{}/examples/meshes/cantilever.msh", env!("CARGO_MANIFEST_DIR"));
     let e = error_for(std::path::Path::new(&msh), "clmap");
     assert!(e.contains("clmap") && e.contains("clamp, tip"), "{e}");

@@ -26,11 +26,20 @@ pub fn read(body: &str, path: &Path) -> Result<Mesh> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
     let field = format!("mesh `{body}` ({})", path.display());
     let fail = |message: String| Error::scene(field.clone(), message);
-    let version = format_version(&bytes).ok_or_else(|| fail("not a gmsh MSH file: no `$MeshFormat` header".into()))?;
+    let header = format_header(&bytes).ok_or_else(|| fail("not a gmsh MSH file: no `$MeshFormat` header".into()))?;
+    let [version, file_type, data_size] = [0, 1, 2].map(|i| header.get(i).map_or("", String::as_str));
     if version != "4.1" {
         return Err(fail(format!("MSH version {version} is not supported; save the mesh as MSH 4.1 (`gmsh -2 -format msh41 file.geo`)")));
     }
-    let msh = mshio::parse_msh_bytes(&bytes).map_err(|e| fail(format!("cannot parse the MSH 4.1 file: {e}")))?;
+    if !matches!(file_type, "0" | "1") || data_size != "8" {
+        return Err(fail(format!(
+            "the `$MeshFormat` line reads `{}`: MSH 4.1 has file type 0 (ASCII) or 1 (binary) and data size 8",
+            header.join(" ")
+        )));
+    }
+    // The reader panics on some malformed files; that is an error in the file, not a crash.
+    let parsed = std::panic::catch_unwind(|| mshio::parse_msh_bytes(&bytes)).map_err(|_| fail("the MSH 4.1 reader failed on malformed data in this file".into()))?;
+    let msh = parsed.map_err(|e| fail(format!("cannot parse the MSH 4.1 file: {e}")))?;
     let nodes = msh.data.nodes.as_ref().ok_or_else(|| fail("the file has no `$Nodes` section".into()))?;
     let elements = msh.data.elements.as_ref().ok_or_else(|| fail("the file has no `$Elements` section".into()))?;
     // Node tag → coordinates. Without a tag map a block's tags run on from the smallest tag.
@@ -114,12 +123,14 @@ pub fn read(body: &str, path: &Path) -> Result<Mesh> {
     Ok(mesh)
 }
 
-/// The version in the `$MeshFormat` header, e.g. `4.1` (the header is text in binary files too).
-fn format_version(bytes: &[u8]) -> Option<String> {
+/// The words of the `$MeshFormat` line: version, file type, data size (the header is text in
+/// binary files too).
+fn format_header(bytes: &[u8]) -> Option<Vec<String>> {
     let head = String::from_utf8_lossy(&bytes[..bytes.len().min(256)]).into_owned();
     let mut lines = head.lines().map(str::trim);
     lines.find(|l| *l == "$MeshFormat")?;
-    lines.next()?.split_whitespace().next().map(str::to_string)
+    let words: Vec<String> = lines.next()?.split_whitespace().map(str::to_string).collect();
+    (!words.is_empty()).then_some(words)
 }
 
 /// `(dimension, tag) → name` from the `$PhysicalNames` section (text in binary files too),
