@@ -165,6 +165,22 @@ pub struct ArraySpec {
     pub row_offset: f64,
 }
 
+/// The largest scene file read (bytes): a scene names its meshes and repeats its bodies with
+/// `array`, so a larger file is not a scene (`/dev/zero`, a mesh given as the scene).
+pub const MAX_SCENE_BYTES: u64 = 256 << 20;
+
+/// The text of `path`, refused with an error past `limit` bytes instead of read to the end.
+fn read_limited(path: &Path, limit: u64) -> Result<String> {
+    use std::io::Read;
+    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let mut text = String::new();
+    file.take(limit + 1).read_to_string(&mut text).map_err(|e| Error::io(path, e))?;
+    if text.len() as u64 > limit {
+        return Err(Error::io(path, std::io::Error::other(format!("larger than {} MiB: not a scene file", limit >> 20))));
+    }
+    Ok(text)
+}
+
 /// Most bodies one scene may make with `array`.
 pub const MAX_BODIES: usize = 1_000_000;
 
@@ -513,7 +529,7 @@ impl Scene {
     /// Reads and validates a scene file.
     pub fn from_file(path: impl AsRef<Path>) -> Result<Scene> {
         let path = path.as_ref();
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let text = read_limited(path, MAX_SCENE_BYTES)?;
         Scene::parse(&text, path.parent()).map_err(|e| match e {
             Error::Parse { message, .. } => Error::Parse { path: path.display().to_string(), message },
             other => other,

@@ -190,3 +190,32 @@ fn pointer<'v>(v: &'v mut Value, path: &[Value]) -> &'v mut Value {
         _ => unreachable!(),
     })
 }
+
+/// A file that never ends is refused after the largest scene size, not read into memory.
+#[cfg(unix)]
+#[test]
+fn an_endless_file_is_not_a_scene() {
+    let e = Scene::from_file("/dev/zero").unwrap_err().to_string();
+    assert!(e.contains("/dev/zero") && e.contains("larger than 256 MiB"), "{e}");
+}
+
+/// `array` copies a body on a pattern, each copy a body of its own; bad counts name the key.
+#[test]
+fn array_makes_named_shifted_copies() {
+    let scene = |array: &str| {
+        Scene::from_json(&format!(
+            r#"{{"name": "a", "thickness": 1.0, "formulation": {{"kind": "rigid"}}, "materials": {{"m": {{"E": 1e9, "nu": 0.2, "rho": 1000}}}},
+                "bodies": [{{"name": "b", "material": "m", "mesh": {{"kind": "grid", "origin": [1, 2], "size": [1, 1], "cells": [1, 1]}}, "array": {array}}}],
+                "time": {{"dt": 1e-6, "steps": 1}}}}"#
+        ))
+    };
+    let s = scene(r#"{"count": [3, 2], "pitch": [1.5, 1.0], "row_offset": 0.25}"#).unwrap();
+    assert_eq!(s.bodies.len(), 6);
+    assert_eq!(s.bodies[4].name, "b[1,1]");
+    match &s.bodies[4].mesh {
+        rbsm::scene::MeshSpec::Grid(g) => assert_eq!(g.origin, [1.0 + 1.5 + 0.25, 3.0]),
+        other => panic!("{other:?}"),
+    }
+    let e = scene(r#"{"count": [0, 2], "pitch": [1, 1]}"#).unwrap_err().to_string();
+    assert!(e.contains("bodies[0].array.count") && e.contains("≥ 1"), "{e}");
+}
