@@ -15,6 +15,30 @@ use crate::vtk::VtkSeries;
 use std::path::Path;
 use std::time::Instant;
 
+/// Removes what an earlier run left in `out` of the files a run writes (`summary.json`,
+/// `final_state.json`, `series.pvd` and the frames `vtk/step_*.vtk`), so that a run that stops
+/// early never leaves an earlier run's results beside its own. Other files are left alone;
+/// `history.csv` is rewritten from its first line anyway.
+fn clear_previous(out: &Path) -> Result<()> {
+    let remove = |path: &Path| match std::fs::remove_file(path) {
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(Error::io(path, e)),
+        _ => Ok(()),
+    };
+    for name in ["summary.json", "final_state.json", "series.pvd"] {
+        remove(&out.join(name))?;
+    }
+    let frames = out.join("vtk");
+    let Ok(entries) = std::fs::read_dir(&frames) else { return Ok(()) };
+    for entry in entries {
+        let path = entry.map_err(|e| Error::io(&frames, e))?.path();
+        let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("");
+        if name.starts_with("step_") && name.ends_with(".vtk") {
+            remove(&path)?;
+        }
+    }
+    Ok(())
+}
+
 /// Command-line overrides of the scene.
 #[derive(Debug, Clone, Default)]
 pub struct RunOptions {
@@ -131,6 +155,7 @@ pub fn run(scene: &Scene, opts: &RunOptions, out: &Path, monitor: &mut dyn Monit
     let p = Prepared::new(scene, opts)?;
     let model = &p.model;
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    clear_previous(out)?;
     monitor.info(&format!(
         "{}: {} elements, {} interfaces, {} free DOFs ({} formulation, {} evaluator, {} threads)",
         model.name,

@@ -89,6 +89,26 @@ fn unstable_run_stops_with_reason_and_keeps_its_outputs() {
     assert!(u.as_array().unwrap().iter().all(|x| x.as_f64().is_some_and(f64::is_finite)));
 }
 
+/// A run into a folder that holds an earlier run's outputs removes them first: a shorter run
+/// leaves none of the earlier frames, and had it stopped early, no earlier summary.
+#[test]
+fn a_run_clears_an_earlier_runs_outputs() {
+    let mut s = scene("cantilever");
+    s.output.every = 100;
+    s.output.vtk = true;
+    let dir = tempfile::tempdir().unwrap();
+    let frames = |dir: &std::path::Path| std::fs::read_dir(dir.join("vtk")).unwrap().count();
+    run::run(&s, &RunOptions { steps: Some(1000), ..Default::default() }, dir.path(), &mut Silent).unwrap();
+    assert_eq!(frames(dir.path()), 11);
+    std::fs::write(dir.path().join("notes.txt"), "mine").unwrap();
+    std::fs::write(dir.path().join("vtk").join("mine.vtk"), "mine").unwrap();
+    let summary = run::run(&s, &RunOptions { steps: Some(300), ..Default::default() }, dir.path(), &mut Silent).unwrap();
+    assert_eq!(summary.steps, 300);
+    // Frames of steps 0 … 300 and the user's own file; the earlier run's 400 … 1000 are gone.
+    assert_eq!(frames(dir.path()), 5);
+    assert!(dir.path().join("notes.txt").exists() && dir.path().join("vtk").join("mine.vtk").exists());
+}
+
 /// The files of DESIGN.md §9 with their exact keys, header and element order.
 #[test]
 fn outputs_follow_the_contract() {
