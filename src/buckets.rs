@@ -111,3 +111,16 @@ impl BucketLists {
         &self.items[self.start[k] as usize..self.start[k + 1] as usize]
     }
 }
+
+/// Whether two boxes `(lo, hi)` meet (touching counts).
+pub fn boxes_meet((alo, ahi): (Vec2, Vec2), (blo, bhi): (Vec2, Vec2)) -> bool {
+    alo.x <= bhi.x && blo.x <= ahi.x && alo.y <= bhi.y && blo.y <= ahi.y
+}
+
+/// Whether any point has moved more than `half_skin` from where it was at the last rebuild of a
+/// neighbour list (`anchors`): the list, built with boxes widened by twice that, may then miss a
+/// pair, and must be rebuilt.
+pub fn moved_beyond(points: &[Vec2], anchors: &[Vec2], half_skin: f64) -> bool {
+    let limit = half_skin * half_skin;
+    points.iter().zip(anchors).any(|(x, a)| (x - a).norm_squared() > limit)
+}

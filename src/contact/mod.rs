@@ -29,7 +29,7 @@ mod work;
 
 pub use detect::{entry, frame, gap, Gap};
 
-use crate::buckets::{BucketLists, Buckets};
+use crate::buckets::{boxes_meet, moved_beyond, BucketLists, Buckets};
 use crate::evaluator::Evaluator;
 use crate::formulation::Formulation;
 use crate::geometry::Vec2;
@@ -225,9 +225,12 @@ impl Contact {
             edges.push(Edge { element: GROUND, body: NONE, ends: [at, at + 1], compliance: [0.0; 2], length: (g[1] - g[0]).norm() });
         }
         let (nv, ne) = (vertices.len(), edges.len());
+        // Both neighbour lists keep a skin of a tenth of the mean boundary edge; point contact's
+        // also holds the depth within which a vertex placed inside an edge touches it.
         let body_edges = edges.iter().filter(|e| e.element != GROUND);
         let (total, longest) = body_edges.clone().fold((0.0, 0.0f64), |(t, l), e| (t + e.length, l.max(e.length)));
-        let skin = (0.1 * total / body_edges.count().max(1) as f64).max(0.05 * longest);
+        let tenth = 0.1 * total / body_edges.count().max(1) as f64;
+        let skin = tenth.max(0.05 * longest);
         Some(Contact {
             settings,
             frames: Frames { formulation: model.formulation, centroids: model.elements.iter().map(|e| e.props.centroid).collect() },
@@ -246,7 +249,7 @@ impl Contact {
             near: Vec::with_capacity(4 * nv),
             anchors: vec![Vec2::repeat(f64::INFINITY); nv],
             skin,
-            overlap: (settings.model == ContactModel::EdgeToEdge).then(|| Overlap::new(model, settings.friction)),
+            overlap: (settings.model == ContactModel::EdgeToEdge).then(|| Overlap::new(model, settings.friction, tenth)),
             ledger: Ledger::new(model.elements.len(), model.formulation.ndof()),
             stored: 0.0,
             ground: Vec2::zeros(),
@@ -344,8 +347,7 @@ impl Contact {
     /// at the first step, vertices that start just inside an edge.
     fn detect(&mut self) {
         let n = self.vertices.len();
-        let limit = 0.25 * self.skin * self.skin;
-        if self.points[..n].iter().zip(&self.anchors).any(|(x, a)| (x - a).norm_squared() > limit) {
+        if moved_beyond(&self.points[..n], &self.anchors, 0.5 * self.skin) {
             self.rebuild_near();
         }
         self.fresh.clear();
@@ -417,8 +419,7 @@ impl Contact {
                         continue;
                     }
                     self.stamp[e as usize] = v as u32;
-                    let (elo, ehi) = boxes(e as usize);
-                    if elo.x <= vhi.x && vlo.x <= ehi.x && elo.y <= vhi.y && vlo.y <= ehi.y {
+                    if boxes_meet(boxes(e as usize), (vlo, vhi)) {
                         self.near.push(e);
                     }
                 }

@@ -28,7 +28,7 @@
 //! limit `k_s |s| ≤ μ k_n δ̄_n` (a return mapping on `s`) holds at every point of the piece.
 
 use super::{frame, Frames, Ledger, NONE};
-use crate::buckets::{BucketLists, Buckets};
+use crate::buckets::{boxes_meet, moved_beyond, BucketLists, Buckets};
 use crate::geometry::Vec2;
 use crate::model::{Model, GROUND};
 use rayon::prelude::*;
@@ -213,12 +213,12 @@ struct FaceNow {
 }
 
 impl Overlap {
-    pub fn new(model: &Model, friction: Option<f64>) -> Overlap {
+    /// `skin` (m): the neighbour list is rebuilt when a corner has moved half of it.
+    pub fn new(model: &Model, friction: Option<f64>, skin: f64) -> Overlap {
         let mut targets = Vec::new();
         let mut faces = Vec::new();
         let mut offsets = Vec::new();
         let mut sources = Vec::new();
-        let mut edge_length = 0.0;
         for (bi, body) in model.bodies.iter().enumerate() {
             let mesh = &body.mesh;
             let on_boundary: HashSet<(u32, u32)> = mesh.boundary.iter().map(|e| (e.cell, e.v1)).collect();
@@ -232,7 +232,7 @@ impl Overlap {
                 let first = offsets.len() as u32;
                 for (k, &v) in cell.iter().enumerate() {
                     let (p1, p2) = (mesh.vertices[v as usize], mesh.vertices[cell[(k + 1) % cell.len()] as usize]);
-                    let (_, n, length) = frame(p1, p2);
+                    let (_, n, _) = frame(p1, p2);
                     let h = (p1 - centroid).dot(&n).abs();
                     let compliance = [h / body.moduli[0], h / body.moduli[1]];
                     let surface = on_boundary.contains(&(c, v));
@@ -241,13 +241,11 @@ impl Overlap {
                     if surface {
                         let ends = [first + k as u32, first + ((k + 1) % cell.len()) as u32];
                         sources.push(Source { element: element as u32, body: bi as u32, ends, compliance });
-                        edge_length += length;
                     }
                 }
                 targets.push(Target { element: element as u32, body: bi as u32, first, count: cell.len() as u32 });
             }
         }
-        let skin = 0.1 * edge_length / sources.len().max(1) as f64;
         for (gi, g) in model.ground.iter().enumerate() {
             // The strip below the segment, stored `to → from` as a body's boundary is (solid on
             // the left), closed at each end by a wall: perpendicular at a free end, the bisector
@@ -325,7 +323,7 @@ impl Overlap {
     /// `tests` counts the narrow-phase tests (source edge against target).
     pub fn forces(&mut self, frames: &Frames, u: &[f64], velocity: &[f64], dt: f64, ledger: &mut Ledger, tests: &mut u64) -> f64 {
         self.place(frames, u);
-        if self.moved_beyond_skin() {
+        if moved_beyond(&self.corners, &self.anchors, 0.5 * self.skin) {
             self.rebuild(u);
             self.rebuilds += 1;
         }
@@ -420,11 +418,6 @@ impl Overlap {
         }
     }
 
-    fn moved_beyond_skin(&self) -> bool {
-        let limit = 0.25 * self.skin * self.skin;
-        self.corners.iter().zip(&self.anchors).any(|(x, a)| (x - a).norm_squared() > limit)
-    }
-
     /// The neighbour list: every source edge against every target of another body whose box,
     /// widened by the skin, its own widened box overlaps.
     fn rebuild(&mut self, u: &[f64]) {
@@ -462,8 +455,7 @@ impl Overlap {
                     if target.body == s.body {
                         continue;
                     }
-                    let (tlo, thi) = boxes(target);
-                    if tlo.x <= shi.x && slo.x <= thi.x && tlo.y <= shi.y && slo.y <= thi.y {
+                    if boxes_meet(boxes(target), (slo, shi)) {
                         self.candidates.push((si as u32, t));
                     }
                 }
