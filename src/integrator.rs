@@ -63,7 +63,8 @@ pub struct Snapshot<'a> {
 }
 
 /// The kinetic plus elastic energy may not exceed this multiple of the energy put in (the
-/// initial energy plus the work of loads and gravity) before a run counts as diverged. A mode
+/// initial energy plus the work of loads and gravity to the end of the step under way) before
+/// a run counts as diverged. A mode
 /// stepped at `f Δt_crit` holds up to `1/(1 − f²)` times its conserved energy as strain at its
 /// turning points; when the integrator knows `Δt_crit` ([`CentralDifference::set_stability_limit`])
 /// the limit is widened by that factor, so that a stable run at 0.999 `Δt_crit` is not stopped.
@@ -104,6 +105,8 @@ pub struct CentralDifference<'a> {
     external_work: f64,
     initial_total: Option<f64>,
     energy_in_max: f64,
+    /// What the guard counts as stored (kinetic, elastic and contact) at the first check (J).
+    initial_stored: Option<f64>,
     /// Largest `|total − total(0)|` so far (J).
     max_drift: f64,
     energy_scale: f64,
@@ -149,6 +152,7 @@ impl<'a> CentralDifference<'a> {
             external_work: 0.0,
             initial_total: None,
             energy_in_max: 0.0,
+            initial_stored: None,
             max_drift: 0.0,
             energy_scale: 0.0,
             good: (0, 0.0, vec![0.0; n], vec![0.0; n]),
@@ -247,6 +251,7 @@ impl<'a> CentralDifference<'a> {
                 *s = 0.5 * (*s + v);
             }
             let energy = self.energy(elastic, shadow);
+            self.book_energy_in(&energy, dt);
             if let Some(reason) = self.guard(&energy) {
                 let (step, t) = (self.step, self.t);
                 let (gs, gt, gu, gv) = std::mem::take(&mut self.good);
@@ -375,10 +380,22 @@ impl<'a> CentralDifference<'a> {
         let contact = self.contact_energy;
         let total = shadow + elastic + contact + potential - external_work;
         let initial = *self.initial_total.get_or_insert(total);
-        self.energy_in_max = self.energy_in_max.max(initial + external_work - potential);
         self.energy_scale = self.energy_scale.max(kinetic + elastic + contact + potential.abs() + external_work.abs());
         self.max_drift = self.max_drift.max((total - initial).abs());
         Energy { t: self.t, kinetic, elastic, contact, potential, external_work, total }
+    }
+
+    /// Raises the largest energy put in so far (the guard's measure) to what has been put in by
+    /// the end of the step under way, once `v` holds `v^{n+½}`: the initial kinetic, elastic and
+    /// contact energy and the work of the loads and of gravity up to `t_{n+1}` (not what contact gives to
+    /// the motion: contact stepped beyond its limit is what pumps energy in). The
+    /// step ahead counts because `v^n` already carries half of the impulse `Δt M⁻¹ P(t_n)`: a
+    /// load that rises from zero would otherwise show kinetic energy before any work is booked.
+    fn book_energy_in(&mut self, e: &Energy, dt: f64) {
+        let ahead = self.loads.work_increment(self.t, dt, &self.v) - dt * self.loads.gravity_potential(&self.v);
+        let initial = *self.initial_stored.get_or_insert(e.kinetic + e.elastic + e.contact.max(0.0));
+        let put_in = initial + e.external_work - e.potential + ahead.max(0.0);
+        self.energy_in_max = self.energy_in_max.max(put_in);
     }
 
     /// Why the run must stop, if it must.
