@@ -42,14 +42,31 @@ pub enum Error {
     },
 }
 
+/// The longest message (in characters) an error keeps: a value echoed whole, or the rest of a
+/// file a reader quotes, is cut past it.
+pub const MAX_MESSAGE: usize = 400;
+
+/// `text` cut to [`MAX_MESSAGE`] characters, with how much was left out.
+pub fn cut(text: impl Into<String>) -> String {
+    let text = text.into();
+    match text.char_indices().nth(MAX_MESSAGE) {
+        None => text,
+        Some((end, _)) => format!("{}… ({} more characters)", &text[..end], text[end..].chars().count()),
+    }
+}
+
 impl Error {
     /// A scene error for `field` with an explanation of the allowed values.
     pub fn scene(field: impl Into<String>, message: impl Into<String>) -> Self {
-        Error::Scene { field: field.into(), message: message.into() }
+        Error::Scene { field: cut(field), message: cut(message) }
     }
     /// A mesh error that names the body and the cell.
     pub fn mesh(body: &str, cell: usize, message: impl Into<String>) -> Self {
-        Error::Mesh { body: body.to_string(), cell, message: message.into() }
+        Error::Mesh { body: cut(body), cell, message: cut(message) }
+    }
+    /// A parse error in the file `path`.
+    pub fn parse(path: impl Into<String>, message: impl Into<String>) -> Self {
+        Error::Parse { path: cut(path), message: cut(message) }
     }
     /// An I/O error that names the path.
     pub fn io(path: impl AsRef<std::path::Path>, source: std::io::Error) -> Self {

@@ -71,6 +71,24 @@ pub fn segments_cross(p1: Vec2, p2: Vec2, q1: Vec2, q2: Vec2) -> bool {
     d1 * d2 < 0.0 && d3 * d4 < 0.0
 }
 
+/// Distance from `x` to the segment `a b`.
+pub fn point_segment_distance(x: Vec2, a: Vec2, b: Vec2) -> f64 {
+    let d = b - a;
+    let len2 = d.norm_squared();
+    let s = if len2 > 0.0 { ((x - a).dot(&d) / len2).clamp(0.0, 1.0) } else { 0.0 };
+    (a + s * d - x).norm()
+}
+
+/// Distance between the segments `p1 p2` and `q1 q2` (0 when they cross).
+pub fn segment_distance(p1: Vec2, p2: Vec2, q1: Vec2, q2: Vec2) -> f64 {
+    if segments_cross(p1, p2, q1, q2) {
+        return 0.0;
+    }
+    [point_segment_distance(p1, q1, q2), point_segment_distance(p2, q1, q2), point_segment_distance(q1, p1, p2), point_segment_distance(q2, p1, p2)]
+        .into_iter()
+        .fold(f64::INFINITY, f64::min)
+}
+
 /// Whether `x` lies strictly inside the polygon `pts` (even-odd rule).
 pub fn point_in_polygon(x: Vec2, pts: &[Vec2]) -> bool {
     let mut inside = false;

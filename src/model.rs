@@ -278,7 +278,7 @@ impl Model {
             }
             model.bodies.push(Body { name: spec.name.clone(), mesh, first_element: first, moduli: spring_moduli(&material, scene.plane) });
         }
-        model.check_finite()?;
+        model.check_finite(scene)?;
         model.fixed.sort_unstable();
         model.fixed.dedup();
         for (k, p) in scene.output.probes.iter().enumerate() {
@@ -315,16 +315,18 @@ impl Model {
 
     /// Masses and spring constants must be finite numbers: extreme inputs (a thickness of
     /// 1e300, say) overflow, and the solvers would then compute with infinities.
-    fn check_finite(&self) -> Result<()> {
+    fn check_finite(&self, scene: &Scene) -> Result<()> {
         let t = self.thickness;
         for (e, el) in self.elements.iter().enumerate() {
             let m = el.rho * t * el.props.area;
-            if !(m.is_finite() && m > 0.0 && (m * el.props.polar()).is_finite()) {
-                return Err(Error::scene("thickness", format!(
-                    "the mass of element {e} ({m:e} kg) is not a finite positive number; check thickness, rho and the mesh size")));
-            }
             let nd = self.formulation.ndof();
+            let massive = m.is_normal() && m > 0.0 && (m * el.props.polar()).is_normal();
             let block = nalgebra::DMatrix::from_row_slice(nd, nd, &self.formulation.mass(&el.props, el.rho * t));
+            if !massive || (block.clone().cholesky().is_none() && nd == 3) {
+                return Err(Error::scene(scene.most_extreme(el.body as usize, &["rho", "thickness"]), format!(
+                    "the mass of element {e} ({m:e} kg, rotational inertia {:e} kg m²) is not a positive normal number; \
+                     check rho, thickness and the mesh size", m * el.props.polar())));
+            }
             if block.cholesky().is_none() {
                 let body = &self.bodies[el.body as usize];
                 return Err(Error::mesh(&body.name, e - body.first_element, "its consistent mass is not positive definite in double precision: \
@@ -333,8 +335,8 @@ impl Model {
         }
         for i in &self.interfaces {
             if !((i.k_n + i.k_s) * t * i.length * (1.0 + i.length * i.length)).is_finite() {
-                return Err(Error::scene("materials", format!(
-                    "the springs between elements {} and {} overflow (k_n = {:e} Pa/m); check E, thickness and the mesh size", i.a, i.b, i.k_n)));
+                return Err(Error::scene(scene.most_extreme(self.elements[i.a as usize].body as usize, &["E", "thickness", "penalty"]), format!(
+                    "the springs between elements {} and {} overflow (k_n = {:e} Pa/m); check E, thickness, the penalty and the mesh size", i.a, i.b, i.k_n)));
             }
         }
         Ok(())

@@ -93,6 +93,9 @@ pub struct Probe {
     pub dof: usize,
 }
 
+/// The columns of `history.csv` before the probes.
+pub const HISTORY_COLUMNS: [&str; 7] = ["t", "kinetic", "elastic", "contact", "potential", "external_work", "total"];
+
 /// `history.csv`, written as the run goes.
 pub struct History {
     file: std::io::BufWriter<std::fs::File>,
@@ -106,7 +109,7 @@ impl History {
         let path = dir.join("history.csv");
         let file = std::fs::File::create(&path).map_err(|e| Error::io(&path, e))?;
         let mut h = History { file: std::io::BufWriter::new(file), path, probes };
-        let mut header = String::from("t,kinetic,elastic,contact,potential,external_work,total");
+        let mut header = HISTORY_COLUMNS.join(",");
         for p in &h.probes {
             header.push(',');
             header.push_str(&p.name);

@@ -86,8 +86,8 @@ impl Prepared {
             }
         };
         if !omega_max.is_finite() {
-            return Err(Error::scene("materials", format!(
-                "the stiffness or mass of the model overflows (ω_max = {omega_max}); check E, rho, thickness and the mesh size")));
+            return Err(Error::scene(scene.most_extreme(0, &["E", "rho", "thickness", "penalty"]), format!(
+                "the stiffness or mass of the model overflows (ω_max = {omega_max}); check E, rho, thickness, the penalty and the mesh size")));
         }
         let dt_crit = stability::critical_time_step(omega_max);
         let dt = match (opts.dt, scene.time.dt, scene.time.dt_factor) {
@@ -98,6 +98,7 @@ impl Prepared {
             (None, None, _) => return Err(Error::scene("time.dt_factor", "Δt_crit is infinite (no spring is loaded): give `time.dt` instead")),
         };
         let steps = match (opts.steps, scene.time.steps, scene.time.end) {
+            (Some(0), _, _) => return Err(Error::scene("--steps", "must be ≥ 1, like `time.steps`")),
             (Some(n), _, _) => n,
             (None, Some(n), _) => n,
             (None, None, Some(end)) => (end / dt - 1e-9).ceil().max(1.0) as u64,
@@ -143,8 +144,7 @@ pub fn probes(scene: &Scene, model: &Model) -> Result<Vec<Probe>> {
         .enumerate()
         .map(|(k, pr)| {
             let d = dof_index(&pr.dof, model.formulation, &format!("output.probes[{k}].dof"))?;
-            let name = pr.name.clone().unwrap_or_else(|| format!("e{}_{}", pr.element, pr.dof));
-            Ok(Probe { name, dof: pr.element * nd + d })
+            Ok(Probe { name: pr.column(), dof: pr.element * nd + d })
         })
         .collect()
 }

@@ -169,16 +169,70 @@ pub struct ArraySpec {
 /// `array`, so a larger file is not a scene (`/dev/zero`, a mesh given as the scene).
 pub const MAX_SCENE_BYTES: u64 = 256 << 20;
 
-/// The text of `path`, refused with an error past `limit` bytes instead of read to the end.
-fn read_limited(path: &Path, limit: u64) -> Result<String> {
+/// The bytes of `path`, refused with an error past `limit` bytes (naming `what` the file was
+/// to be) instead of read to the end.
+pub(crate) fn read_limited(path: &Path, limit: u64, what: &str) -> Result<Vec<u8>> {
     use std::io::Read;
     let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
-    let mut text = String::new();
-    file.take(limit + 1).read_to_string(&mut text).map_err(|e| Error::io(path, e))?;
-    if text.len() as u64 > limit {
-        return Err(Error::io(path, std::io::Error::other(format!("larger than {} MiB: not a scene file", limit >> 20))));
+    let mut bytes = Vec::new();
+    file.take(limit + 1).read_to_end(&mut bytes).map_err(|e| Error::io(path, e))?;
+    if bytes.len() as u64 > limit {
+        return Err(Error::io(path, std::io::Error::other(format!("larger than {} MiB: not {what}", limit >> 20))));
     }
-    Ok(text)
+    Ok(bytes)
+}
+
+/// Refuses JSON in which an object repeats a key (JSON parsers keep one of the two silently),
+/// naming the key by its path. Malformed JSON passes through, for the parser to report.
+fn refuse_duplicate_keys(text: &str) -> Result<()> {
+    use serde::de::{DeserializeSeed, Error as _, MapAccess, SeqAccess, Visitor};
+    struct Keys(String);
+    impl<'de> DeserializeSeed<'de> for Keys {
+        type Value = ();
+        fn deserialize<D: serde::Deserializer<'de>>(self, d: D) -> std::result::Result<(), D::Error> {
+            d.deserialize_any(self)
+        }
+    }
+    impl<'de> Visitor<'de> for Keys {
+        type Value = ();
+        fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+            f.write_str("any JSON value")
+        }
+        fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> std::result::Result<(), A::Error> {
+            let mut seen = std::collections::HashSet::new();
+            while let Some(key) = map.next_key::<String>()? {
+                let path = if self.0.is_empty() { key.clone() } else { format!("{}.{key}", self.0) };
+                if !seen.insert(key) {
+                    return Err(A::Error::custom(path));
+                }
+                map.next_value_seed(Keys(path))?;
+            }
+            Ok(())
+        }
+        fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> std::result::Result<(), A::Error> {
+            let mut i = 0;
+            while seq.next_element_seed(Keys(format!("{}[{i}]", self.0)))?.is_some() {
+                i += 1;
+            }
+            Ok(())
+        }
+        fn visit_bool<E>(self, _: bool) -> std::result::Result<(), E> { Ok(()) }
+        fn visit_i64<E>(self, _: i64) -> std::result::Result<(), E> { Ok(()) }
+        fn visit_u64<E>(self, _: u64) -> std::result::Result<(), E> { Ok(()) }
+        fn visit_f64<E>(self, _: f64) -> std::result::Result<(), E> { Ok(()) }
+        fn visit_str<E>(self, _: &str) -> std::result::Result<(), E> { Ok(()) }
+        fn visit_unit<E>(self) -> std::result::Result<(), E> { Ok(()) }
+    }
+    let de = &mut serde_json::Deserializer::from_str(text);
+    match Keys(String::new()).deserialize(de) {
+        Err(e) if e.classify() == serde_json::error::Category::Data => {
+            // The message is the key's path; serde_json adds the line and column.
+            let message = e.to_string();
+            let path = message.split(" at line ").next().unwrap_or(&message);
+            Err(Error::scene(path, format!("the key appears twice in one object (line {}); keep one", e.line())))
+        }
+        _ => Ok(()),
+    }
 }
 
 /// Most bodies one scene may make with `array`.
@@ -525,13 +579,21 @@ pub struct ProbeSpec {
     pub dof: String,
 }
 
+impl ProbeSpec {
+    /// The history column's header: `name`, or `e<element>_<dof>`.
+    pub fn column(&self) -> String {
+        self.name.clone().unwrap_or_else(|| format!("e{}_{}", self.element, self.dof))
+    }
+}
+
 impl Scene {
     /// Reads and validates a scene file.
     pub fn from_file(path: impl AsRef<Path>) -> Result<Scene> {
         let path = path.as_ref();
-        let text = read_limited(path, MAX_SCENE_BYTES)?;
+        let bytes = read_limited(path, MAX_SCENE_BYTES, "a scene file")?;
+        let text = String::from_utf8(bytes).map_err(|e| Error::io(path, std::io::Error::new(std::io::ErrorKind::InvalidData, e)))?;
         Scene::parse(&text, path.parent()).map_err(|e| match e {
-            Error::Parse { message, .. } => Error::Parse { path: path.display().to_string(), message },
+            Error::Parse { message, .. } => Error::parse(path.display().to_string(), message),
             other => other,
         })
     }
@@ -544,6 +606,7 @@ impl Scene {
 
     /// Parses a scene whose relative mesh paths start at `dir`, then validates it.
     fn parse(text: &str, dir: Option<&Path>) -> Result<Scene> {
+        refuse_duplicate_keys(text)?;
         let de = &mut serde_json::Deserializer::from_str(text);
         let mut scene: Scene = serde_path_to_error::deserialize(de).map_err(|e| {
             let mut path = e.path().to_string();
@@ -554,7 +617,7 @@ impl Scene {
                 inner = rest.to_string();
             }
             let message = if path == "." { inner } else { format!("at `{path}`: {inner}") };
-            Error::Parse { path: "<json>".into(), message }
+            Error::parse("<json>", message)
         })?;
         if let Some(dir) = dir {
             for body in &mut scene.bodies {
@@ -568,6 +631,30 @@ impl Scene {
         scene.validate()?;
         scene.bodies = std::mem::take(&mut scene.bodies).into_iter().flat_map(BodySpec::copies).collect();
         Ok(scene)
+    }
+
+    /// Of the inputs `names` (`rho`, `E`, `thickness`, `penalty`) of body `body`, the field
+    /// whose value lies furthest, in orders of magnitude, from its usual size (2500 kg/m³,
+    /// 30 GPa, 0.1 m, 1): the one to blame when their product overflows or underflows.
+    pub fn most_extreme(&self, body: usize, names: &[&str]) -> String {
+        let material = self.bodies.get(body).map(|b| b.material.as_str()).unwrap_or("");
+        let m = self.materials.get(material);
+        let penalty = match self.formulation {
+            FormulationSpec::Hybrid { penalty } => Some(penalty),
+            _ => None,
+        };
+        let candidates = [
+            ("rho", format!("materials.{material}.rho"), m.map(|m| m.rho), 2500.0),
+            ("E", format!("materials.{material}.E"), m.map(|m| m.e), 3e10),
+            ("thickness", "thickness".to_string(), Some(self.thickness), 0.1),
+            ("penalty", "formulation.penalty".to_string(), penalty, 1.0),
+        ];
+        candidates
+            .into_iter()
+            .filter(|(name, _, value, _)| names.contains(name) && value.is_some())
+            .map(|(_, field, value, usual)| (field, (value.unwrap_or(1.0) / usual).log10().abs()))
+            .fold((String::from("materials"), -1.0), |best, (field, d)| if d > best.1 { (field, d) } else { best })
+            .0
     }
 
     /// Checks every value against its allowed range; the error names the field.
@@ -601,6 +688,18 @@ impl Scene {
             if !self.output.probes.iter().any(|p| p.name.as_deref() == Some(probe.as_str())) {
                 return Err(Error::scene("reference.probe", format!("must name one of `output.probes`, got `{probe}`")));
             }
+        }
+        let mut columns: Vec<String> = crate::output::HISTORY_COLUMNS.iter().map(|c| c.to_string()).collect();
+        for (k, p) in self.output.probes.iter().enumerate() {
+            let (field, column) = (format!("output.probes[{k}].name"), p.column());
+            if column.is_empty() || column.chars().any(|c| c == ',' || c == '"' || c.is_control()) {
+                return Err(Error::scene(field, format!("must be a non-empty column name without commas, quotes or control characters, got {column:?}")));
+            }
+            if let Some(i) = columns.iter().position(|c| *c == column) {
+                let what = if i < crate::output::HISTORY_COLUMNS.len() { "one of the history's own columns".to_string() } else { format!("the column of `output.probes[{}]`", i - crate::output::HISTORY_COLUMNS.len()) };
+                return Err(Error::scene(field, format!("`{column}` is {what}: every column needs its own name")));
+            }
+            columns.push(column);
         }
         for (i, b) in self.bodies.iter().enumerate() {
             self.validate_body(i, b)?;
@@ -717,10 +816,10 @@ impl Scene {
 }
 
 fn positive(field: &str, x: f64) -> Result<()> {
-    if x > 0.0 && x.is_finite() {
+    if x.is_normal() && x > 0.0 {
         Ok(())
     } else {
-        Err(Error::scene(field, format!("must be a finite number > 0, got {x}")))
+        Err(Error::scene(field, format!("must be a finite number > 0 (at least {:e}, the smallest normal double), got {x:e}", f64::MIN_POSITIVE)))
     }
 }
 

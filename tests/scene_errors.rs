@@ -219,3 +219,77 @@ fn array_makes_named_shifted_copies() {
     let e = scene(r#"{"count": [0, 2], "pitch": [1, 1]}"#).unwrap_err().to_string();
     assert!(e.contains("bodies[0].array.count") && e.contains("≥ 1"), "{e}");
 }
+
+/// A key repeated inside one object is refused with its path (issue 18 item 7): JSON parsers
+/// keep one of the two silently.
+#[test]
+fn repeated_keys_are_refused_everywhere() {
+    let text = base().to_string();
+    let cases = [
+        (r#""materials":{"#, r#""materials":{"m":{"E":1.0,"nu":0.2,"rho":1.0},"#, "`materials.m`"),
+        (r#""mesh":{"#, r#""mesh":{"cells":[2,2],"#, "`bodies[0].mesh.cells`"),
+        (r#""supports":[{"#, r#""supports":[{"edge":"top","#, "`bodies[0].supports[0].edge`"),
+        (r#""name":"#, r#""name":"a","name":"#, "`bodies[0].name`"),
+    ];
+    for (at, with, field) in cases {
+        assert!(text.contains(at), "{at} not in {text}");
+        let e = Scene::from_json(&text.replacen(at, with, 1)).unwrap_err().to_string();
+        expect(&e, &[field, "appears twice"]);
+    }
+}
+
+/// Probe names become `history.csv` headers: no commas, quotes or newlines, none of the
+/// energy columns, no repeats (issue 18 item 7).
+#[test]
+fn probe_names_must_make_a_valid_header() {
+    let probe = |name: Value| serde_json::json!({"name": name, "element": 0, "dof": "u"});
+    for bad in ["a,b", "two\nlines", "", "t", "total", "say \"x\""] {
+        let e = with(|v| v["output"]["probes"] = Value::Array(vec![probe(bad.into())]));
+        expect(&e, &["output.probes[0].name"]);
+    }
+    let e = with(|v| v["output"]["probes"] = Value::Array(vec![probe("x".into()), probe("x".into())]));
+    expect(&e, &["output.probes[1].name", "`x`", "output.probes[0]"]);
+    // A default name (`e0_u`) counts too.
+    let e = with(|v| v["output"]["probes"] = serde_json::json!([{"element": 0, "dof": "u"}, {"name": "e0_u", "element": 1, "dof": "u"}]));
+    expect(&e, &["output.probes[1].name", "e0_u"]);
+}
+
+/// `--steps 0` is refused like `time.steps: 0` (issue 18 item 7).
+#[test]
+fn zero_steps_are_refused_from_the_command_line_too() {
+    let scene = Scene::from_json(&base().to_string()).unwrap();
+    let e = Prepared::new(&scene, &RunOptions { steps: Some(0), ..Default::default() }).err().unwrap().to_string();
+    expect(&e, &["--steps", "≥ 1"]);
+}
+
+/// Messages blame the input at fault (issue 18 item 8): a subnormal density or thickness is
+/// refused as such (it was blamed on the hybrid formulation's mass on a rigid grid), an
+/// overflowing penalty names the penalty (it was blamed on `materials`).
+#[test]
+fn messages_blame_the_input_at_fault() {
+    expect(&with(|v| v["materials"]["m"]["rho"] = 1e-320.into()), &["materials.m.rho", "smallest normal"]);
+    expect(&with(|v| v["thickness"] = 1e-320.into()), &["`thickness`", "smallest normal"]);
+    expect(&with(|v| v["formulation"] = serde_json::json!({"kind": "hybrid", "penalty": 1e300})), &["formulation.penalty", "overflow"]);
+    expect(&with(|v| v["materials"]["m"]["E"] = 1e300.into()), &["materials.m.E", "overflow"]);
+}
+
+/// A polygon cell shaped like an 8 (two lobes meeting at a point) is refused (issue 18 item 8).
+#[test]
+fn a_figure_eight_cell_is_refused() {
+    let e = with(|v| {
+        v["bodies"][0]["mesh"] = serde_json::json!({"kind": "polygons",
+            "vertices": [[0, 0], [2, 0], [1, 1], [2, 2], [0, 2], [1, 1]], "cells": [[0, 1, 2, 3, 4, 5]]});
+        v["bodies"][0]["supports"] = serde_json::json!([]);
+    });
+    expect(&e, &["cell 0", "touches itself"]);
+}
+
+/// Messages stay short (issue 18 item 8): a long value is echoed cut, not whole.
+#[test]
+fn messages_are_cut_to_a_useful_length() {
+    let long = "x".repeat(50_000);
+    let e = with(|v| v["bodies"][0]["material"] = long.clone().into());
+    assert!(e.len() < 2 * rbsm::error::MAX_MESSAGE + 200 && e.contains("more characters"), "{} bytes", e.len());
+    let e = with(|v| v["bodies"][0]["mesh"]["kind"] = long.clone().into());
+    assert!(e.len() < 2 * rbsm::error::MAX_MESSAGE + 200, "{} bytes", e.len());
+}

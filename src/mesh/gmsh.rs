@@ -21,9 +21,12 @@ pub struct EdgeGroup {
     pub edges: Vec<[u32; 2]>,
 }
 
+/// The largest MSH file read (bytes).
+pub const MAX_MESH_BYTES: u64 = 2 << 30;
+
 /// Reads the mesh of body `body` from the MSH 4.1 file `path`.
 pub fn read(body: &str, path: &Path) -> Result<Mesh> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = crate::scene::read_limited(path, MAX_MESH_BYTES, "a mesh file")?;
     let field = format!("mesh `{body}` ({})", path.display());
     let fail = |message: String| Error::scene(field.clone(), message);
     let header = format_header(&bytes).ok_or_else(|| fail("not a gmsh MSH file: no `$MeshFormat` header".into()))?;

@@ -13,7 +13,7 @@ pub use gmsh::EdgeGroup;
 
 use crate::buckets::{BucketLists, Buckets};
 use crate::error::{Error, Result};
-use crate::geometry::{area_properties, segments_cross, point_in_polygon, Vec2};
+use crate::geometry::{area_properties, point_in_polygon, segment_distance, segments_cross, Vec2};
 use std::collections::HashMap;
 
 /// A side of a body's bounding box, used to tag boundary edges (supports, loads).
@@ -349,8 +349,13 @@ fn check_cell(body: &str, c: usize, cell: &[u32], vertices: &[Vec2], checks: Che
                 if i == 0 && j == n - 1 {
                     continue;
                 }
-                if segments_cross(pts[i], pts[(i + 1) % n], pts[j], pts[(j + 1) % n]) {
+                let (p, q) = ((pts[i], pts[(i + 1) % n]), (pts[j], pts[(j + 1) % n]));
+                if segments_cross(p.0, p.1, q.0, q.1) {
                     return Err(Error::mesh(body, c, format!("is self-intersecting: edges {i} and {j} cross")));
+                }
+                let gap = segment_distance(p.0, p.1, q.0, q.1);
+                if gap <= 1e-9 * perimeter {
+                    return Err(Error::mesh(body, c, format!("touches itself: edges {i} and {j} meet ({gap:e} m apart), as in a figure 8; split it into two cells")));
                 }
             }
         }
@@ -414,5 +419,9 @@ mod tests {
         let v = vec![Vec2::new(0.0, 0.0), Vec2::new(1.0, 1.0), Vec2::new(1.0, 0.0), Vec2::new(0.0, 1.0)];
         let err = Mesh::from_polygons("b", v, &[vec![0, 1, 2, 3]]).unwrap_err().to_string();
         assert!(err.contains("self-intersecting") || err.contains("degenerate"), "{err}");
+        // A figure 8: two triangles that meet at (1, 1), listed as one cell.
+        let v = [(0.0, 0.0), (2.0, 0.0), (1.0, 1.0), (2.0, 2.0), (0.0, 2.0), (1.0, 1.0)].map(|(x, y)| Vec2::new(x, y)).to_vec();
+        let err = Mesh::from_polygons("b", v, &[vec![0, 1, 2, 3, 4, 5]]).unwrap_err().to_string();
+        assert!(err.contains("touches itself: edges 1 and 4"), "{err}");
     }
 }
