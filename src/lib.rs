@@ -95,6 +95,7 @@ pub mod hopping;
 pub mod integrator;
 pub mod loads;
 pub mod mass;
+pub mod memory;
 pub mod mesh;
 pub mod model;
 pub mod output;

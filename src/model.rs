@@ -3,6 +3,7 @@
 
 use crate::contact::ContactSettings;
 use crate::error::{Error, Result};
+use crate::memory;
 use crate::formulation::{elasticity, Formulation};
 use crate::geometry::{area_properties, AreaProperties, Vec2};
 use crate::mesh::{grid, voronoi, EdgeSet, Mesh};
@@ -185,9 +186,17 @@ impl Model {
             contact: scene.contact.as_ref().map(ContactSpec::settings),
             ground: scene.ground.iter().map(|g| [Vec2::new(g.from[0], g.from[1]), Vec2::new(g.to[0], g.to[1])]).collect(),
         };
+        // What the scene's meshes will make, known before meshing except for gmsh files,
+        // whose elements are counted once read.
+        let mut expected: u64 = scene.bodies.iter().filter_map(|b| memory::cells_of(&b.mesh)).sum();
+        memory::ensure_fits(scene, expected)?;
         for (bi, spec) in scene.bodies.iter().enumerate() {
             let material = scene.materials[&spec.material];
             let mut mesh = build_mesh(&spec.name, &spec.mesh)?;
+            if memory::cells_of(&spec.mesh).is_none() {
+                expected += mesh.n_cells() as u64;
+                memory::ensure_fits(scene, expected)?;
+            }
             let first = model.elements.len();
             let props: Vec<AreaProperties> = (0..mesh.n_cells()).map(|c| area_properties(&mesh.cell_points(c))).collect();
             let body_area: f64 = props.iter().map(|p| p.area).sum();

@@ -293,3 +293,26 @@ fn messages_are_cut_to_a_useful_length() {
     let e = with(|v| v["bodies"][0]["mesh"]["kind"] = long.clone().into());
     assert!(e.len() < 2 * rbsm::error::MAX_MESSAGE + 200, "{} bytes", e.len());
 }
+
+/// A model too large for the memory the process may take is refused with the estimate and
+/// what is available (issue 18 item 6), where it used to abort when an allocation failed.
+#[cfg(target_os = "linux")]
+#[test]
+fn a_model_too_large_for_memory_is_refused_before_it_is_built() {
+    let dir = tempfile::tempdir().unwrap();
+    for cells in [[2000, 2000], [1, 20_000_000]] {
+        let mut v = base();
+        v["bodies"][0]["mesh"]["cells"] = serde_json::json!(cells);
+        let path = dir.path().join("big.json");
+        std::fs::write(&path, v.to_string()).unwrap();
+        // 4 GB of address space, as `ulimit -v 4000000` gives.
+        let out = std::process::Command::new("sh")
+            .arg("-c")
+            .arg(format!("ulimit -v 4000000 && exec '{}' check '{}'", env!("CARGO_BIN_EXE_rbsm"), path.display()))
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{cells:?}: {err}");
+        expect(&err, &["`bodies`", "needs about", "GiB is available"]);
+    }
+}
