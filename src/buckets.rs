@@ -64,7 +64,7 @@ impl Buckets {
 
 /// The items of each bucket in compressed form (`start[b]..start[b + 1]` indexes `items`),
 /// rebuilt in place: no allocation once the buffers have grown to the problem's size.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
 pub struct BucketLists {
     start: Vec<u32>,
     items: Vec<u32>,

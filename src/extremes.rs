@@ -47,10 +47,7 @@ pub struct Run {
 pub fn run_at(p: &Prepared, fraction: f64, steps: u64) -> Result<Run> {
     let mut cd = p.integrator(fraction * p.dt_crit);
     let status = cd.run(steps, steps, |_, _| Ok(()), |_| ())?;
-    let status = match status {
-        Status::Ok => "ok".to_string(),
-        Status::Diverged { step, reason, .. } => format!("diverged at step {step}: {reason}"),
-    };
+    let status = status.describe();
     let finite = cd.u.iter().chain(cd.velocity()).all(|x| x.is_finite());
     Ok(Run { fraction, steps: cd.step, status, drift: cd.max_relative_drift(), finite })
 }
@@ -307,10 +304,7 @@ pub fn tumble(cells: usize, spin: f64, time: f64) -> Result<Tumble> {
         meshed_rotation = meshed_rotation.max(checks::largest_rotation(&p.model, snap.u, true));
         Ok(())
     }, |_| ())?;
-    let status = match status {
-        Status::Ok => "ok".to_string(),
-        Status::Diverged { step, reason, .. } => format!("diverged at step {step}: {reason}"),
-    };
+    let status = status.describe();
     let finite = cd.u.iter().all(|x| x.is_finite());
     let mut warnings = checks::warnings(&p.model, p.dt, p.dt_crit);
     warnings.extend(checks::rotation_warning(meshed_rotation));

@@ -200,7 +200,7 @@ pub fn elasticity(e: f64, nu: f64, plane: crate::scene::Plane) -> Matrix3<f64> {
 }
 
 /// The formulation a scene asks for, chosen at run time.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum Formulation {
     /// 3 DOF per element: `(u, v, θ)`.
     Rigid,

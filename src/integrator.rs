@@ -13,10 +13,12 @@ use crate::loads::Loads;
 use crate::mass::{Mass, Update};
 use crate::model::Model;
 use crate::parallel::for_each_chunk;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 
 /// The energies at one time (J); `total = kinetic + elastic + contact + potential − external_work`
 /// is constant for an undamped run, up to the integrator's error.
-#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Energy {
     /// Time (s).
     pub t: f64,
@@ -39,6 +41,14 @@ pub struct Energy {
 pub enum Status {
     /// Every step was taken.
     Ok,
+    /// Stopped at `step` (time `t`) because the interrupt flag was raised
+    /// ([`CentralDifference::stop_on`]); that step was recorded like a last one.
+    Interrupted {
+        /// The step reached.
+        step: u64,
+        /// Its time (s).
+        t: f64,
+    },
     /// Stopped at `step` (time `t`) for `reason`; the state is the last one that passed the guard.
     Diverged {
         /// The step at which the guard failed.
@@ -117,6 +127,46 @@ pub struct CentralDifference<'a> {
     /// `Δt / Δt_crit` when the caller knows `Δt_crit`: the guard then allows for the energy
     /// that the averaged velocity misses in stable modes near the limit.
     fraction: Option<f64>,
+    /// Raised from outside (a signal handler) to stop the run at the next step.
+    interrupt: Option<Arc<AtomicBool>>,
+}
+
+impl Status {
+    /// `ok`, `interrupted at step N (t = T s)` or `diverged at step N (t = T s): reason`.
+    pub fn describe(&self) -> String {
+        match self {
+            Status::Ok => "ok".to_string(),
+            Status::Interrupted { step, t } => format!("interrupted at step {step} (t = {t:.6e} s)"),
+            Status::Diverged { step, t, reason } => format!("diverged at step {step} (t = {t:.6e} s): {reason}"),
+        }
+    }
+}
+
+/// Everything a run needs to go on from a recorded step, bit for bit: the state after that
+/// step's check (`U^n`, `v^{n+½}`, `v^n`), the energy bookkeeping and the contact state
+/// (see [`CentralDifference::state`]). Written as a checkpoint.
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+pub struct State {
+    dt: f64,
+    step: u64,
+    u: Vec<f64>,
+    v: Vec<f64>,
+    velocity: Vec<f64>,
+    contact: Option<Contact>,
+    contact_energy: f64,
+    external_work: f64,
+    initial_total: Option<f64>,
+    energy_in_max: f64,
+    initial_stored: Option<f64>,
+    max_drift: f64,
+    energy_scale: f64,
+}
+
+impl State {
+    /// The step of the state.
+    pub fn step(&self) -> u64 {
+        self.step
+    }
 }
 
 impl<'a> CentralDifference<'a> {
@@ -158,6 +208,7 @@ impl<'a> CentralDifference<'a> {
             good: (0, 0.0, vec![0.0; n], vec![0.0; n]),
             fraction: None,
             pending: false,
+            interrupt: None,
         };
         if s.contact.is_none() {
             s.loaded = loads.loaded_elements();
@@ -188,6 +239,65 @@ impl<'a> CentralDifference<'a> {
     /// Tells the guard the stability limit `Δt_crit` of the model (see [`GROWTH_LIMIT`]).
     pub fn set_stability_limit(&mut self, dt_crit: f64) {
         self.fraction = (dt_crit > 0.0 && dt_crit.is_finite()).then(|| self.dt / dt_crit);
+    }
+
+    /// Stops the run at the next step once `flag` is raised: that step is checked and recorded,
+    /// and `run` returns [`Status::Interrupted`].
+    pub fn stop_on(&mut self, flag: Arc<AtomicBool>) {
+        self.interrupt = Some(flag);
+    }
+
+    fn interrupted(&self) -> bool {
+        self.interrupt.as_ref().is_some_and(|f| f.load(Ordering::Relaxed))
+    }
+
+    /// The state at the end of the last `run` that ended `Ok` (after its last record), from
+    /// which [`CentralDifference::restore`] goes on bit for bit.
+    pub fn state(&self) -> State {
+        assert!(self.pending, "a state is taken at the end of a run, after its last record");
+        State {
+            dt: self.dt,
+            step: self.step,
+            u: self.u.clone(),
+            v: self.v.clone(),
+            velocity: self.scratch.clone(),
+            contact: self.contact.clone(),
+            contact_energy: self.contact_energy,
+            external_work: self.external_work,
+            initial_total: self.initial_total,
+            energy_in_max: self.energy_in_max,
+            initial_stored: self.initial_stored,
+            max_drift: self.max_drift,
+            energy_scale: self.energy_scale,
+        }
+    }
+
+    /// Goes on from `state`, taken by [`CentralDifference::state`] from a run of the same model
+    /// at the same time step; `Err` names what differs.
+    pub fn restore(&mut self, state: State) -> std::result::Result<(), String> {
+        if state.dt.to_bits() != self.dt.to_bits() {
+            return Err(format!("the time step differs: {:e} s saved, {:e} s now", state.dt, self.dt));
+        }
+        if state.u.len() != self.u.len() || state.v.len() != self.v.len() || state.velocity.len() != self.u.len() {
+            return Err(format!("the model differs: {} DOFs saved, {} now", state.u.len(), self.u.len()));
+        }
+        if state.contact.is_some() != self.contact.is_some() {
+            return Err("one of the two has contact and the other not".into());
+        }
+        self.step = state.step;
+        self.t = state.step as f64 * self.dt;
+        self.good = (state.step, self.t, state.u.clone(), state.velocity.clone());
+        (self.u, self.v, self.scratch, self.contact) = (state.u, state.v, state.velocity, state.contact);
+        self.contact_energy = state.contact_energy;
+        self.external_work = state.external_work;
+        self.initial_total = state.initial_total;
+        self.energy_in_max = state.energy_in_max;
+        self.initial_stored = state.initial_stored;
+        self.max_drift = state.max_drift;
+        self.energy_scale = state.energy_scale;
+        self.force_clear = false;
+        self.pending = true;
+        Ok(())
     }
 
     /// Whole-step velocities `v^n` of the last state handed to the observer (or restored by
@@ -236,7 +346,8 @@ impl<'a> CentralDifference<'a> {
         }
         loop {
             let last = self.step == end;
-            let record = last || self.step % every == 0;
+            let interrupted = self.interrupted();
+            let record = last || interrupted || self.step % every == 0;
             let check = record || self.step % check_every == 0;
             if !check {
                 self.step_unchecked(dt, damping);
@@ -267,9 +378,9 @@ impl<'a> CentralDifference<'a> {
             self.good.1 = self.t;
             self.good.2.copy_from_slice(&self.u);
             self.good.3.copy_from_slice(&self.scratch);
-            if last {
+            if last || interrupted {
                 self.pending = true;
-                return Ok(Status::Ok);
+                return Ok(if last { Status::Ok } else { Status::Interrupted { step: self.step, t: self.t } });
             }
             self.finish_step(dt);
         }

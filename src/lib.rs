@@ -61,11 +61,11 @@
 //!
 //! | stage | modules |
 //! | --- | --- |
-//! | input | [`scene`] (the JSON scene file), [`mesh`] (grid, Voronoi, polygons, gmsh), [`checks`] (warnings for extreme inputs) |
+//! | input | [`scene`] (the JSON scene file), [`mesh`] (grid, Voronoi, polygons, gmsh), [`checks`] (warnings for extreme inputs), [`memory`] (what a model needs, checked before it is built) |
 //! | model | [`model`] (elements, interfaces, loads), [`geometry`], [`formulation`] (rigid or hybrid $N_e$), [`mass`], [`loads`] |
 //! | forces | [`evaluator`] (assembled or element-wise $f_{\rm int}$), [`contact`] with [`buckets`] (building its neighbour lists), [`parallel`] |
 //! | time | [`integrator`] (central difference, energies, divergence guard), [`run`] (a scene from start to outputs) |
-//! | outputs | [`output`] (summary, history, final state), [`vtk`] (ParaView), [`drawing`] (SVG of a model or a mode), [`plot`] (SVG histories) |
+//! | outputs | [`output`] (summary, history, final state), [`vtk`] (ParaView), [`checkpoint`] (the state for `--resume`), [`drawing`] (SVG of a model or a mode), [`plot`] (SVG histories) |
 //! | analyses | [`statics`], [`system`] (free DOFs), [`rigid_modes`] (mechanisms), [`eigen`], [`stability`], [`tradeoff`], [`extremes`], [`hopping`], [`report`] |
 //!
 //! The `rbsm` binary (`src/main.rs`) is a thin command line over [`run`] and [`report`]. Units
@@ -82,6 +82,7 @@
 //! ```
 
 pub mod buckets;
+pub mod checkpoint;
 pub mod checks;
 pub mod contact;
 pub mod drawing;

@@ -32,9 +32,13 @@ enum Command {
     Run {
         /// The scene file (JSON).
         scene: PathBuf,
-        /// Output directory (created if missing).
-        #[arg(long)]
-        out: PathBuf,
+        /// Output directory (created if missing); its earlier run outputs are removed first.
+        #[arg(long, required_unless_present = "resume", conflicts_with = "resume")]
+        out: Option<PathBuf>,
+        /// Go on with the run that stopped in DIR from its last checkpoint
+        /// (`output.checkpoint_every`); give the scene and options it was started with.
+        #[arg(long, value_name = "DIR")]
+        resume: Option<PathBuf>,
         /// Override the scene's evaluator.
         #[arg(long, value_enum)]
         evaluator: Option<EvaluatorKind>,
@@ -145,6 +149,21 @@ impl Monitor for Terminal {
     }
 }
 
+/// A flag raised by the first SIGINT, SIGTERM or SIGHUP: the run then finishes its step and
+/// writes complete outputs. A second such signal ends the process at once (exit code 130).
+/// SIGXFSZ is caught too, so that a file-size limit is a write error, not a crash.
+fn interrupt_flag() -> rbsm::error::Result<std::sync::Arc<std::sync::atomic::AtomicBool>> {
+    use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM, SIGXFSZ};
+    let flag = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let fail = |e: std::io::Error| rbsm::error::Error::io("signal handler", e);
+    for signal in [SIGINT, SIGTERM, SIGHUP] {
+        signal_hook::flag::register_conditional_shutdown(signal, 130, flag.clone()).map_err(fail)?;
+        signal_hook::flag::register(signal, flag.clone()).map_err(fail)?;
+    }
+    signal_hook::flag::register(SIGXFSZ, std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false))).map_err(fail)?;
+    Ok(flag)
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     if let Some(n) = cli.threads {
@@ -184,7 +203,7 @@ fn print(json: bool, value: &impl serde::Serialize, text: impl FnOnce() -> Strin
 fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
     match &cli.command {
         Command::Check { scene, evaluator, dt } => {
-            let r = rbsm::report::check_report(&Scene::from_file(scene)?, &RunOptions { evaluator: *evaluator, dt: *dt, steps: None })?;
+            let r = rbsm::report::check_report(&Scene::from_file(scene)?, &RunOptions { evaluator: *evaluator, dt: *dt, ..Default::default() })?;
             print(cli.json, &r, || {
                 let mut t = format!("{}: valid\n", r.scene);
                 t += &format!("  {} bodies, {} elements ({} formulation, {} evaluator)\n", r.bodies, r.elements, r.formulation, r.evaluator);
@@ -287,24 +306,24 @@ written: {}/tradeoff.{{csv,md,svg}}", dir.display())
             });
             Ok(ExitCode::SUCCESS)
         }
-        Command::Run { scene, out, evaluator, dt, steps } => {
+        Command::Run { scene, out, resume, evaluator, dt, steps } => {
             let scene = Scene::from_file(scene)?;
-            let opts = RunOptions { evaluator: *evaluator, dt: *dt, steps: *steps };
+            let opts = RunOptions { evaluator: *evaluator, dt: *dt, steps: *steps, interrupt: Some(interrupt_flag()?) };
             let mut monitor = Terminal { quiet: cli.quiet, bar: None, start: Instant::now() };
-            let summary = run::run(&scene, &opts, out, &mut monitor)?;
+            let (summary, out) = match (resume, out) {
+                (Some(dir), _) => (run::resume(&scene, &opts, dir, &mut monitor)?, dir),
+                (None, Some(dir)) => (run::run(&scene, &opts, dir, &mut monitor)?, dir),
+                (None, None) => unreachable!("clap requires --out or --resume"),
+            };
             if let Some(bar) = monitor.bar.take() {
                 bar.finish_and_clear();
             }
             if cli.json {
                 println!("{}", serde_json::to_string_pretty(&summary).expect("summary serialises"));
             } else if let Some(reason) = &summary.reason {
-                println!("{}: diverged at {reason}", summary.scene);
-                println!(
-                    "  the outputs in {} hold the run up to the last state that passed the guard: step {} (t = {:.6e} s)",
-                    out.display(),
-                    summary.steps,
-                    summary.t_end
-                );
+                println!("{}: {} at {reason}", summary.scene, summary.status);
+                let state = if summary.status == "diverged" { "the last state that passed the guard" } else { "the step reached" };
+                println!("  the outputs in {} hold the run up to {state}: step {} (t = {:.6e} s)", out.display(), summary.steps, summary.t_end);
             } else {
                 println!(
                     "{}: ok, {} steps (t = {:.6e} s) in {:.3} s; energy drift {:.3e} of the largest energy; outputs in {}",
@@ -316,8 +335,12 @@ written: {}/tradeoff.{{csv,md,svg}}", dir.display())
                     out.display()
                 );
             }
-            // A diverged run kept its outputs; the exit code tells scripts that it diverged.
-            Ok(if summary.status == "ok" { ExitCode::SUCCESS } else { ExitCode::from(3) })
+            // A diverged or interrupted run kept its outputs; the exit code tells scripts which.
+            Ok(match summary.status.as_str() {
+                "ok" => ExitCode::SUCCESS,
+                "interrupted" => ExitCode::from(130),
+                _ => ExitCode::from(3),
+            })
         }
     }
 }

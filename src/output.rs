@@ -1,5 +1,6 @@
 //! What a run writes (DESIGN.md §9): `summary.json`, `history.csv` and `final_state.json`.
-//! The history is flushed row by row, so that a run that stops early leaves a valid file.
+//! The history is written row by row, each row whole; the other files are written to a
+//! temporary name and renamed, so that a run that stops early leaves valid files.
 
 use crate::error::{Error, Result};
 use crate::integrator::{Energy, Snapshot};
@@ -96,11 +97,15 @@ pub struct Probe {
 /// The columns of `history.csv` before the probes.
 pub const HISTORY_COLUMNS: [&str; 7] = ["t", "kinetic", "elastic", "contact", "potential", "external_work", "total"];
 
-/// `history.csv`, written as the run goes.
+/// `history.csv`, written as the run goes: each row in one write, so that the file holds whole
+/// rows only, even after the process is killed; a row that fails to be written (disk full, file
+/// size limit) is cut off again before the error is returned.
 pub struct History {
-    file: std::io::BufWriter<std::fs::File>,
+    file: std::fs::File,
     path: PathBuf,
     probes: Vec<Probe>,
+    /// Bytes of whole rows written so far.
+    len: u64,
 }
 
 impl History {
@@ -108,17 +113,38 @@ impl History {
     pub fn create(dir: &Path, probes: Vec<Probe>) -> Result<History> {
         let path = dir.join("history.csv");
         let file = std::fs::File::create(&path).map_err(|e| Error::io(&path, e))?;
-        let mut h = History { file: std::io::BufWriter::new(file), path, probes };
+        let mut h = History { file, path, probes, len: 0 };
         let mut header = HISTORY_COLUMNS.join(",");
         for p in &h.probes {
             header.push(',');
             header.push_str(&p.name);
         }
-        writeln!(h.file, "{header}").map_err(|e| Error::io(&h.path, e))?;
+        h.append(header)?;
         Ok(h)
     }
 
-    /// Appends the row of one recorded step and flushes it.
+    /// Opens the history of an earlier run to go on after its first `len` bytes (the rows up to
+    /// a checkpoint); the rest is cut off.
+    pub fn resume(dir: &Path, probes: Vec<Probe>, len: u64) -> Result<History> {
+        let path = dir.join("history.csv");
+        let file = std::fs::OpenOptions::new().write(true).open(&path).map_err(|e| Error::io(&path, e))?;
+        let have = file.metadata().map_err(|e| Error::io(&path, e))?.len();
+        if have < len {
+            return Err(Error::io(&path, std::io::Error::other(format!("holds {have} bytes, shorter than the {len} the checkpoint counts"))));
+        }
+        file.set_len(len).map_err(|e| Error::io(&path, e))?;
+        let mut h = History { file, path, probes, len };
+        use std::io::Seek;
+        h.file.seek(std::io::SeekFrom::Start(len)).map_err(|e| Error::io(&h.path, e))?;
+        Ok(h)
+    }
+
+    /// Bytes of whole rows written so far.
+    pub fn len(&self) -> u64 {
+        self.len
+    }
+
+    /// Appends the row of one recorded step.
     pub fn write(&mut self, s: &Snapshot, e: &Energy) -> Result<()> {
         let mut row = format!(
             "{:e},{:e},{:e},{:e},{:e},{:e},{:e}",
@@ -127,7 +153,23 @@ impl History {
         for p in &self.probes {
             row.push_str(&format!(",{:e}", s.u[p.dof]));
         }
-        writeln!(self.file, "{row}").and_then(|_| self.file.flush()).map_err(|e| Error::io(&self.path, e))
+        self.append(row)
+    }
+
+    /// Writes `line` and a newline in one call; on failure cuts the file back to whole rows.
+    fn append(&mut self, mut line: String) -> Result<()> {
+        line.push('\n');
+        match self.file.write_all(line.as_bytes()) {
+            Ok(()) => {
+                self.len += line.len() as u64;
+                Ok(())
+            }
+            Err(e) => {
+                use std::io::Seek;
+                let _ = self.file.set_len(self.len).and_then(|_| self.file.seek(std::io::SeekFrom::Start(self.len)));
+                Err(Error::io(&self.path, e))
+            }
+        }
     }
 }
 
@@ -169,12 +211,29 @@ pub fn write_final_state(dir: &Path, model: &Model, t: f64, u: &[f64], v: &[f64]
     write_json(&dir.join("final_state.json"), &serde_json::json!({ "t": t, "elements": elements }))
 }
 
-/// Writes any serialisable value as pretty JSON.
+/// Writes any serialisable value as pretty JSON, atomically ([`write_atomic`]).
 pub fn write_json(path: &Path, value: &impl Serialize) -> Result<()> {
-    let file = std::fs::File::create(path).map_err(|e| Error::io(path, e))?;
-    let mut w = std::io::BufWriter::new(file);
-    serde_json::to_writer_pretty(&mut w, value).map_err(|e| Error::io(path, e.into()))?;
-    writeln!(w).and_then(|_| w.flush()).map_err(|e| Error::io(path, e))
+    let mut text = serde_json::to_vec_pretty(value).map_err(|e| Error::io(path, e.into()))?;
+    text.push(b'\n');
+    write_atomic(path, &text)
+}
+
+/// The temporary name beside `path` that [`write_atomic`] writes first: hidden, with the same
+/// extension (readers such as vtkio pick the format by it).
+pub fn temporary(path: &Path) -> PathBuf {
+    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    path.with_file_name(format!(".part-{name}"))
+}
+
+/// Writes `bytes` to a temporary name beside `path`, then renames it over `path`: readers, and
+/// a process killed half way, see the old file whole or the new one whole.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    let tmp = temporary(path);
+    std::fs::write(&tmp, bytes).map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        Error::io(path, e)
+    })?;
+    std::fs::rename(&tmp, path).map_err(|e| Error::io(path, e))
 }
 
 /// Writes `fraction_F.csv` (`t,total,stored`: s, J, J) for each run of a stability analysis.

@@ -1,6 +1,7 @@
 //! A whole explicit run, from a scene to its outputs: model, evaluator, `Δt_crit`, the time
 //! loop and the files of DESIGN.md §9. The command line and the tests call this one function.
 
+use crate::checkpoint::Checkpoint;
 use crate::contact::{self, Contact, WithBlocks};
 use crate::error::{Error, Result};
 use crate::evaluator::{self, Evaluator};
@@ -15,28 +16,35 @@ use crate::vtk::VtkSeries;
 use std::path::Path;
 use std::time::Instant;
 
+/// The files a run writes into its folder, beside `history.csv` and the frames `vtk/step_*.vtk`.
+const OUTPUTS: [&str; 4] = ["summary.json", "final_state.json", "series.pvd", crate::checkpoint::FILE];
+
 /// Removes what an earlier run left in `out` of the files a run writes (`summary.json`,
-/// `final_state.json`, `series.pvd` and the frames `vtk/step_*.vtk`), so that a run that stops
-/// early never leaves an earlier run's results beside its own. Other files are left alone;
-/// `history.csv` is rewritten from its first line anyway.
+/// `final_state.json`, `series.pvd`, `checkpoint.bin`, the frames `vtk/step_*.vtk` and files
+/// half written), so that a run that stops early never leaves an earlier run's results beside
+/// its own. Other files are left alone; `history.csv` is rewritten from its first line anyway.
 fn clear_previous(out: &Path) -> Result<()> {
-    let remove = |path: &Path| match std::fs::remove_file(path) {
-        Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(Error::io(path, e)),
-        _ => Ok(()),
-    };
-    for name in ["summary.json", "final_state.json", "series.pvd"] {
+    for name in OUTPUTS {
         remove(&out.join(name))?;
+        remove(&crate::output::temporary(&out.join(name)))?;
     }
     let frames = out.join("vtk");
     let Ok(entries) = std::fs::read_dir(&frames) else { return Ok(()) };
     for entry in entries {
         let path = entry.map_err(|e| Error::io(&frames, e))?.path();
-        let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("");
-        if name.starts_with("step_") && name.ends_with(".vtk") {
+        if crate::vtk::is_frame(path.file_name().and_then(|n| n.to_str()).unwrap_or("")) {
             remove(&path)?;
         }
     }
     Ok(())
+}
+
+/// Removes `path` if it is there.
+fn remove(path: &Path) -> Result<()> {
+    match std::fs::remove_file(path) {
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(Error::io(path, e)),
+        _ => Ok(()),
+    }
 }
 
 /// Command-line overrides of the scene.
@@ -48,6 +56,9 @@ pub struct RunOptions {
     pub dt: Option<f64>,
     /// Number of steps, replacing the scene's `end` or `steps`.
     pub steps: Option<u64>,
+    /// Raised from outside (a signal handler) to stop the run at the next step with a complete
+    /// set of outputs (status `interrupted`).
+    pub interrupt: Option<std::sync::Arc<std::sync::atomic::AtomicBool>>,
 }
 
 /// A model ready to step: evaluator, mass, loads and the time step.
@@ -151,11 +162,30 @@ pub fn probes(scene: &Scene, model: &Model) -> Result<Vec<Probe>> {
 
 /// Runs `scene` and writes its outputs into `out`; returns the summary (also written).
 pub fn run(scene: &Scene, opts: &RunOptions, out: &Path, monitor: &mut dyn Monitor) -> Result<Summary> {
+    execute(scene, opts, out, monitor, false)
+}
+
+/// Goes on with the run of `scene` that stopped in `out`, from its last checkpoint
+/// (`output.checkpoint_every`); the outputs end as those of a run that never stopped.
+pub fn resume(scene: &Scene, opts: &RunOptions, out: &Path, monitor: &mut dyn Monitor) -> Result<Summary> {
+    execute(scene, opts, out, monitor, true)
+}
+
+fn execute(scene: &Scene, opts: &RunOptions, out: &Path, monitor: &mut dyn Monitor, resuming: bool) -> Result<Summary> {
     let wall = Instant::now();
     let p = Prepared::new(scene, opts)?;
     let model = &p.model;
-    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
-    clear_previous(out)?;
+    let checkpoint = if resuming {
+        let c = Checkpoint::read(out, scene, opts)?;
+        // The summary and final state of the stopped run end at another step.
+        remove(&out.join("summary.json"))?;
+        remove(&out.join("final_state.json"))?;
+        Some(c)
+    } else {
+        std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+        clear_previous(out)?;
+        None
+    };
     monitor.info(&format!(
         "{}: {} elements, {} interfaces, {} free DOFs ({} formulation, {} evaluator, {} threads)",
         model.name,
@@ -168,40 +198,68 @@ pub fn run(scene: &Scene, opts: &RunOptions, out: &Path, monitor: &mut dyn Monit
     ));
     let ratio = p.dt / p.dt_crit;
     monitor.info(&format!("dt = {:.6e} s, Δt_crit = {:.6e} s, dt/Δt_crit = {ratio:.4}, {} steps", p.dt, p.dt_crit, p.steps));
-    let warnings = crate::checks::warnings(model, p.dt, p.dt_crit);
+    let mut warnings = crate::checks::warnings(model, p.dt, p.dt_crit);
     for w in &warnings {
         monitor.info(&format!("warning: {w}"));
     }
     let probes = probes(scene, model)?;
-    let mut history = History::create(out, probes)?;
-    let mut vtk = if scene.output.vtk { Some(VtkSeries::create(out)?) } else { None };
     let mut cd = p.integrator(p.dt);
-    let (mut first, mut last, mut rotation) = (None, None, 0.0f64);
+    let (mut history, mut vtk, mut first, mut rotation) = match checkpoint {
+        None => (History::create(out, probes)?, scene.output.vtk.then(|| VtkSeries::create(out)).transpose()?, None, 0.0f64),
+        Some(c) => {
+            monitor.info(&format!("resuming from the checkpoint at step {}", c.state.step()));
+            cd.restore(c.state).map_err(|why| Error::io(out.join(crate::checkpoint::FILE), std::io::Error::other(why)))?;
+            let vtk = scene.output.vtk.then(|| VtkSeries::resume(out, c.frames)).transpose()?;
+            (History::resume(out, probes, c.history_bytes)?, vtk, c.first, c.rotation)
+        }
+    };
+    if let Some(flag) = &opts.interrupt {
+        cd.stop_on(flag.clone());
+    }
+    let (end, every) = (p.steps, scene.output.every);
+    let interrupted = || opts.interrupt.as_ref().is_some_and(|f| f.load(std::sync::atomic::Ordering::Relaxed));
+    let mut last = None;
     let start = Instant::now();
-    let status = cd.run(
-        p.steps,
-        scene.output.every,
-        |s, e| {
-            first.get_or_insert(*e);
-            last = Some(*e);
-            rotation = rotation.max(crate::checks::largest_rotation(model, s.u, true));
-            history.write(s, e)?;
-            if let Some(v) = vtk.as_mut() {
-                v.write(model, s)?;
-            }
-            Ok(())
-        },
-        |step| monitor.progress(step, p.steps),
-    )?;
+    // In chunks that end at the checkpoints; a chunk's end is recorded only when it is a
+    // history row's step, the last step or the step where the run was interrupted.
+    let status = loop {
+        let step = cd.step;
+        let next = scene.output.checkpoint_every.map_or(end, |c| ((step / c + 1) * c).min(end));
+        let status = cd.run(
+            next - step,
+            every,
+            |s, e| {
+                if !(s.step % every == 0 || s.step == end || interrupted()) {
+                    return Ok(());
+                }
+                first.get_or_insert(*e);
+                last = Some(*e);
+                rotation = rotation.max(crate::checks::largest_rotation(model, s.u, true));
+                history.write(s, e)?;
+                if let Some(v) = vtk.as_mut() {
+                    v.write(model, s)?;
+                }
+                Ok(())
+            },
+            |step| monitor.progress(step, p.steps),
+        )?;
+        if status != Status::Ok || next == end {
+            break status;
+        }
+        let frames = vtk.as_ref().map_or_else(Vec::new, |v| v.frames().to_vec());
+        Checkpoint::new(scene, opts, cd.state(), history.len(), frames, first, rotation).write(out)?;
+    };
     let step_time = start.elapsed().as_secs_f64();
-    let mut warnings = warnings;
     if let Some(w) = crate::checks::rotation_warning(rotation) {
         monitor.info(&format!("warning: {w}"));
         warnings.push(w);
     }
-    let reason = match &status {
-        Status::Ok => None,
-        Status::Diverged { step, t, reason } => Some(format!("step {step}, t = {t:e} s: {reason}")),
+    let (status_name, reason) = match &status {
+        Status::Ok => ("ok", None),
+        Status::Interrupted { step, t } => ("interrupted", Some(format!(
+            "step {step}, t = {t:e} s: interrupted by a signal{}",
+            if scene.output.checkpoint_every.is_some() { "; `rbsm run SCENE --resume DIR` goes on from the last checkpoint" } else { "" }))),
+        Status::Diverged { step, t, reason } => ("diverged", Some(format!("step {step}, t = {t:e} s: {reason}"))),
     };
     // After a divergence the integrator has rolled back to its last good state.
     output::write_final_state(out, model, cd.t, &cd.u, cd.velocity())?;
@@ -217,7 +275,7 @@ pub fn run(scene: &Scene, opts: &RunOptions, out: &Path, monitor: &mut dyn Monit
         dt_crit: p.dt_crit,
         steps: cd.step,
         t_end: cd.t,
-        status: if reason.is_none() { "ok".into() } else { "diverged".into() },
+        status: status_name.into(),
         reason,
         wall_time_s: wall.elapsed().as_secs_f64(),
         step_time_s: step_time,
@@ -235,5 +293,9 @@ pub fn run(scene: &Scene, opts: &RunOptions, out: &Path, monitor: &mut dyn Monit
         }),
     };
     output::write_json(&out.join("summary.json"), &summary)?;
+    if status == Status::Ok {
+        // A finished run has nothing to resume.
+        remove(&out.join(crate::checkpoint::FILE))?;
+    }
     Ok(summary)
 }

@@ -554,11 +554,14 @@ pub struct OutputSpec {
     /// Extra history columns: one DOF of one element each.
     #[serde(default)]
     pub probes: Vec<ProbeSpec>,
+    /// Steps between checkpoints (`checkpoint.bin`, for `rbsm run --resume`); none when absent.
+    #[serde(default)]
+    pub checkpoint_every: Option<u64>,
 }
 
 impl Default for OutputSpec {
     fn default() -> Self {
-        OutputSpec { every: default_every(), vtk: false, probes: Vec::new() }
+        OutputSpec { every: default_every(), vtk: false, probes: Vec::new(), checkpoint_every: None }
     }
 }
 
@@ -737,6 +740,9 @@ impl Scene {
         }
         if self.output.every == 0 {
             return Err(Error::scene("output.every", "must be ≥ 1 (steps between history rows)"));
+        }
+        if self.output.checkpoint_every == Some(0) {
+            return Err(Error::scene("output.checkpoint_every", "must be ≥ 1 (steps between checkpoints), or absent for none"));
         }
         Ok(())
     }

@@ -317,10 +317,7 @@ fn run_point(scene: &Scene, settings: Vec<(Key, String)>, probes: &[Probe]) -> R
         (status, Measure::Histories(histories, cells.iter().map(|&e| model.elements[e].props.centroid).collect()))
     };
     let stepping_s = clock.elapsed().as_secs_f64();
-    let status = match status {
-        Status::Ok => "ok".to_string(),
-        Status::Diverged { step, t, reason } => format!("diverged at step {step} (t = {t:.6e} s): {reason}"),
-    };
+    let status = status.describe();
     let point = Point {
         settings,
         elements: model.elements.len(),

@@ -10,38 +10,93 @@ use vtkio::model::{
     Attribute, Attributes, ByteOrder, CellType, Cells, DataSet, IOBuffer, UnstructuredGridPiece, Version, VertexNumbers, Vtk,
 };
 
-/// A series of frames in `DIR/vtk/` and its collection `DIR/series.pvd`.
+/// A series of frames in `DIR/vtk/` and its collection `DIR/series.pvd`. Each frame is written
+/// whole under a temporary name and renamed; the collection then gains its entry in one write
+/// over its closing tags, so that it lists exactly the frames written, even after the process
+/// is killed, at a cost that does not grow with the number of frames.
 pub struct VtkSeries {
     dir: PathBuf,
     frames: Vec<(f64, String)>,
+    collection: std::fs::File,
+    /// Where the closing tags of the collection start.
+    tail: u64,
+}
+
+const HEAD: &str = "<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"0.1\">\n  <Collection>\n";
+const TAIL: &str = "  </Collection>\n</VTKFile>\n";
+
+fn entry(t: f64, name: &str) -> String {
+    format!("    <DataSet timestep=\"{t:e}\" part=\"0\" file=\"{name}\"/>\n")
 }
 
 impl VtkSeries {
-    /// Creates `DIR/vtk/`.
+    /// Creates `DIR/vtk/` and an empty collection.
     pub fn create(dir: &Path) -> Result<VtkSeries> {
+        Self::resume(dir, Vec::new())
+    }
+
+    /// Goes on with the frames `frames` (time, name under `DIR`) of an earlier run: removes the
+    /// frames it wrote after them and writes the collection of these.
+    pub fn resume(dir: &Path, frames: Vec<(f64, String)>) -> Result<VtkSeries> {
         let frames_dir = dir.join("vtk");
         std::fs::create_dir_all(&frames_dir).map_err(|e| Error::io(&frames_dir, e))?;
-        Ok(VtkSeries { dir: dir.to_path_buf(), frames: Vec::new() })
-    }
-
-    /// Writes the frame of one recorded step, then rewrites the collection so that it lists
-    /// every frame written so far.
-    pub fn write(&mut self, model: &Model, s: &Snapshot) -> Result<()> {
-        let name = format!("vtk/step_{:09}.vtk", s.step);
-        write_frame(&self.dir.join(&name), model, s.u, s.v, &format!("{} t = {:e} s", model.name, s.t))?;
-        self.frames.push((s.t, name));
-        self.write_collection()
-    }
-
-    fn write_collection(&self) -> Result<()> {
-        let mut xml = String::from("<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"0.1\">\n  <Collection>\n");
-        for (t, f) in &self.frames {
-            xml.push_str(&format!("    <DataSet timestep=\"{t:e}\" part=\"0\" file=\"{f}\"/>\n"));
+        let keep: std::collections::HashSet<&str> = frames.iter().map(|(_, f)| f.as_str()).collect();
+        for entry in std::fs::read_dir(&frames_dir).map_err(|e| Error::io(&frames_dir, e))? {
+            let path = entry.map_err(|e| Error::io(&frames_dir, e))?.path();
+            let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("");
+            if is_frame(name) && !keep.contains(format!("vtk/{name}").as_str()) {
+                std::fs::remove_file(&path).map_err(|e| Error::io(&path, e))?;
+            }
         }
-        xml.push_str("  </Collection>\n</VTKFile>\n");
-        let path = self.dir.join("series.pvd");
-        std::fs::write(&path, xml).map_err(|e| Error::io(&path, e))
+        let mut xml = String::from(HEAD);
+        for (t, f) in &frames {
+            xml.push_str(&entry(*t, f));
+        }
+        let tail = xml.len() as u64;
+        xml.push_str(TAIL);
+        let path = dir.join("series.pvd");
+        crate::output::write_atomic(&path, xml.as_bytes())?;
+        let collection = std::fs::OpenOptions::new().write(true).open(&path).map_err(|e| Error::io(&path, e))?;
+        Ok(VtkSeries { dir: dir.to_path_buf(), frames, collection, tail })
     }
+
+    /// The frames written so far: time and name under `DIR`.
+    pub fn frames(&self) -> &[(f64, String)] {
+        &self.frames
+    }
+
+    /// Writes the frame of one recorded step, then adds it to the collection.
+    pub fn write(&mut self, model: &Model, s: &Snapshot) -> Result<()> {
+        use std::io::{Seek, SeekFrom, Write};
+        let name = format!("vtk/step_{:09}.vtk", s.step);
+        let path = self.dir.join(&name);
+        let tmp = crate::output::temporary(&path);
+        if let Err(e) = write_frame(&tmp, model, s.u, s.v, &format!("{} t = {:e} s", model.name, s.t)) {
+            let _ = std::fs::remove_file(&tmp);
+            return Err(match e {
+                Error::Io { source, .. } => Error::io(&path, source),
+                other => other,
+            });
+        }
+        std::fs::rename(&tmp, &path).map_err(|e| Error::io(&path, e))?;
+        let line = entry(s.t, &name);
+        let pvd = self.dir.join("series.pvd");
+        let write = |file: &mut std::fs::File, at: u64, text: &str| file.seek(SeekFrom::Start(at)).and_then(|_| file.write_all(text.as_bytes()));
+        if let Err(e) = write(&mut self.collection, self.tail, &format!("{line}{TAIL}")) {
+            // Put the closing tags back where they were: the collection stays whole.
+            let _ = self.collection.set_len(self.tail).and_then(|_| write(&mut self.collection, self.tail, TAIL));
+            return Err(Error::io(&pvd, e));
+        }
+        self.tail += line.len() as u64;
+        self.frames.push((s.t, name));
+        Ok(())
+    }
+}
+
+/// Whether `name` is a frame's file name (`step_NNNNNNNNN.vtk`), or a frame half written.
+pub fn is_frame(name: &str) -> bool {
+    let name = name.strip_prefix(".part-").unwrap_or(name);
+    name.starts_with("step_") && name.ends_with(".vtk")
 }
 
 /// Writes one legacy VTK file of the element polygons displaced by `N_e(x) U_e`, with cell data

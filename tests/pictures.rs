@@ -99,7 +99,7 @@ fn a_mode_drawing_moves_the_largest_vertex_a_tenth_of_the_model_size() {
 fn plot_draws_energies_and_probes_of_a_run_and_refuses_an_empty_directory() {
     let dir = tempfile::tempdir().unwrap();
     let scene = Scene::from_file(format!("{}/examples/scenes/cantilever.json", env!("CARGO_MANIFEST_DIR"))).unwrap();
-    let opts = rbsm::run::RunOptions { evaluator: None, dt: None, steps: Some(400) };
+    let opts = rbsm::run::RunOptions { steps: Some(400), ..Default::default() };
     rbsm::run::run(&scene, &opts, dir.path(), &mut rbsm::run::Silent).unwrap();
     let written = rbsm::plot::histories(dir.path()).unwrap();
     assert_eq!(written, vec![dir.path().join("energies.svg"), dir.path().join("probes.svg")]);

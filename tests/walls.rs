@@ -133,10 +133,19 @@ fn a_frictionless_wall_keeps_its_energy() {
         let (coarse, fine) = (drift(0.2), drift(0.05));
         eprintln!("3x3 {model}, no friction: energy drift {coarse:e} at 0.2 Δt_crit, {fine:e} at 0.05");
         // Point contact is not built on a potential: a vertex that leaves its edge's span, or a
-        // corner counted from both bodies, takes or gives energy (measured 2.4e-3 at 0.05).
+        // corner counted from both bodies, takes or gives energy at events, so its drift falls
+        // with the step only as a trend (measured at 0.4, 0.2, 0.1, 0.05, 0.025 Δt_crit:
+        // 1.0e-2, 3.8e-3, 6.3e-4, 2.6e-3, 9.2e-5; a change of the inputs in their last bit moved
+        // the 0.2 figure from 6.0e-3 to 3.8e-3). Edge-to-edge falls steadily (7.5e-3, 1.7e-3,
+        // 8.5e-4, 9.6e-5, 2.3e-5).
         let bound = if model == "point" { 5e-3 } else { 1e-4 };
         assert!(fine < bound, "{model}: drift {fine:e} at 0.05 Δt_crit");
-        assert!(fine < 0.5 * coarse, "{model}: the drift does not fall with the step: {coarse:e} → {fine:e}");
+        if model == "point" {
+            let (widest, finest) = (drift(0.4), drift(0.025));
+            assert!(finest < 0.1 * widest, "point: the drift does not fall with the step: {widest:e} at 0.4 Δt_crit → {finest:e} at 0.025");
+        } else {
+            assert!(fine < 0.5 * coarse, "{model}: the drift does not fall with the step: {coarse:e} → {fine:e}");
+        }
     }
     let s = settle(&wall(20, 20, 0.5 * W, "edge-to-edge", Some(0.0), 0.0, 0.035), 100);
     eprintln!("20x20 edge-to-edge, no friction: energy drift {:e}", s.drift);

@@ -40,7 +40,7 @@ use overlap::Overlap;
 use work::Ledger;
 
 /// The contact model of a scene (`contact.model`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum ContactModel {
     /// The paper's contact: the penetrating part of the boundary is a temporary interface.
     EdgeToEdge,
@@ -59,7 +59,7 @@ impl ContactModel {
 }
 
 /// What a scene asks of contact.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ContactSettings {
     /// Edge-to-edge (eqs. 17–20) or point (DEM) contact.
     pub model: ContactModel,
@@ -71,7 +71,7 @@ pub struct ContactSettings {
 const NONE: u32 = u32::MAX;
 
 /// A vertex of an element on its body's boundary: a point that can enter another body.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, serde::Serialize, serde::Deserialize)]
 struct Vertex {
     element: u32,
     body: u32,
@@ -83,7 +83,7 @@ struct Vertex {
 
 /// A surface that vertices can enter: a boundary edge of an element (counter-clockwise, solid
 /// on its left) or a ground segment.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, serde::Serialize, serde::Deserialize)]
 struct Edge {
     /// The element it belongs to, or [`GROUND`].
     element: u32,
@@ -98,7 +98,7 @@ struct Edge {
 }
 
 /// A vertex in contact with an edge.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, serde::Serialize, serde::Deserialize)]
 pub struct Record {
     /// The vertex (index into the contact's vertices).
     pub vertex: u32,
@@ -115,7 +115,7 @@ pub struct Record {
 }
 
 /// Counters of the contact work of a run.
-#[derive(Debug, Clone, Copy, Default, serde::Serialize)]
+#[derive(Debug, Clone, Copy, Default, serde::Serialize, serde::Deserialize)]
 pub struct ContactStats {
     /// Steps evaluated.
     pub steps: u64,
@@ -135,7 +135,7 @@ pub struct ContactStats {
 }
 
 /// The contact state of a run and the forces it exerts.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct Contact {
     /// What the scene asked for.
     pub settings: ContactSettings,
@@ -520,7 +520,7 @@ impl Contact {
 }
 
 /// The current frames of the elements: where a force on a moving element acts.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 struct Frames {
     formulation: Formulation,
     /// Reference centroids (m).

@@ -36,7 +36,7 @@ use std::collections::HashSet;
 
 /// A region that boundary edges can enter: an element with an edge on its body's boundary (a
 /// convex polygon) or the strip below a ground segment.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, serde::Serialize, serde::Deserialize)]
 struct Target {
     /// The element, or [`GROUND`].
     element: u32,
@@ -49,7 +49,7 @@ struct Target {
 }
 
 /// A face of a target.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, serde::Serialize, serde::Deserialize)]
 struct Face {
     /// Compliances `h / E_n`, `h / E_s` of its side (zero for the ground).
     compliance: [f64; 2],
@@ -60,7 +60,7 @@ struct Face {
 
 /// A boundary edge of a body as the source of contact: its end points are two corners of its
 /// element's target.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, serde::Serialize, serde::Deserialize)]
 struct Source {
     element: u32,
     body: u32,
@@ -69,7 +69,7 @@ struct Source {
 }
 
 /// A piece of a source edge inside one face's part of a target, live this step.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, serde::Serialize, serde::Deserialize)]
 struct Piece {
     source: u32,
     face: u32,
@@ -78,7 +78,7 @@ struct Piece {
 }
 
 /// The state of edge-to-edge contact: targets, the neighbour list and the slips of the pieces.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub(super) struct Overlap {
     targets: Vec<Target>,
     faces: Vec<Face>,
@@ -110,6 +110,7 @@ pub(super) struct Overlap {
     pieces: Vec<Piece>,
     next: Vec<Piece>,
     /// The narrow phase's work, block by block (kept: no allocation in the step).
+    #[serde(skip)]
     blocks: Vec<Block>,
     thickness: f64,
     factor: f64,

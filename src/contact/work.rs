@@ -4,7 +4,7 @@
 /// and their work by the trapezoid rule: `W += ½ (f_c^{n−1} + f_c^n) · (U^n − U^{n−1})`.
 /// `−W` is the contact energy: what the springs store plus what friction and the release of
 /// stretched springs took from the motion.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct Ledger {
     nd: usize,
     now: Vec<f64>,
