@@ -220,7 +220,7 @@ fn extras(rss_per_element: f64, working_set: f64) -> Extras {
     let mass = Mass::new(&model);
     let ev = evaluator::build(&model, EvaluatorKind::ElementWise);
     let t0 = Instant::now();
-    std::hint::black_box(eigen::omega_max(ev.as_ref(), &mass));
+    std::hint::black_box(eigen::omega_max(&model, ev.as_ref(), &mass));
     let omega_max_s = t0.elapsed().as_secs_f64();
     let dofs = model.n_dofs();
     drop((ev, model));

@@ -2,12 +2,14 @@
 //!
 //! - **dense**: all modes from faer's `self_adjoint_eigen` of `M^{−½} K M^{−½}` (small models);
 //! - **sparse**: `ω_max` by Lanczos on `M^{−½} K M^{−½}` applied through an evaluator (no
-//!   matrix at all), and the lowest modes by faer's matrix-free `partial_self_adjoint_eigen`
-//!   (Krylov–Schur) on the shift-inverted `M^{½} (K − σ M)^{−1} M^{½}` with a sparse Cholesky.
+//!   matrix at all; long thin models end with a bisection on the inertia of `σM − K`), and the
+//!   lowest modes by faer's matrix-free `partial_self_adjoint_eigen` (Krylov–Schur) on the
+//!   shift-inverted `M^{½} (K − σ M)^{−1} M^{½}` with a sparse Cholesky.
 
 use crate::error::{Error, Result};
 use crate::evaluator::Evaluator;
 use crate::mass::Mass;
+use crate::model::{Model, GROUND};
 use crate::system::FreeSystem;
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::solvers::Solve;
@@ -56,7 +58,7 @@ pub fn modes(sys: &FreeSystem, evaluator: &dyn Evaluator, mass: &Mass, n_modes: 
     if dense {
         dense_modes(sys, mass, n_modes)
     } else {
-        let omega_max = omega_max(evaluator, mass);
+        let omega_max = top(evaluator, mass, || Graph::of_system(sys), |_| Inertia::of_system(sys));
         let (omega, shapes) = lowest_modes(sys, mass, n_modes, omega_max)?;
         Ok(Modes { omega, shapes, omega_max, method: "sparse" })
     }
@@ -117,13 +119,340 @@ pub fn symmetric_eigen(a: DMatrix<f64>) -> (Vec<f64>, DMatrix<f64>) {
 ///
 /// Without reorthogonalisation Lanczos still gives the extreme eigenvalue exactly (lost
 /// orthogonality only adds copies of converged values). We stop when the largest Ritz value has
-/// moved by less than 1e-11 (relative) over the last 20 iterations (looked at every 10). Its error is then far below
-/// what a time step needs; it never exceeds `ω_max²`, so the value converges from below. (faer's
-/// Krylov–Schur, which waits for the eigenvector's residual, took 10× longer on a 10⁵-DOF
-/// square grid, whose top eigenvalues are clustered: 9.8 s against 1.0 s, 353 s at 10⁶ DOFs.)
-pub fn omega_max(evaluator: &dyn Evaluator, mass: &Mass) -> f64 {
-    use rayon::prelude::*;
+/// moved by less than 1e-11 (relative) over the last 20 iterations (looked at every 10); it
+/// never exceeds `ω_max²`, so the value converges from below. (faer's Krylov–Schur, which waits
+/// for the eigenvector's residual, took 10× longer on a 10⁵-DOF square grid, whose top
+/// eigenvalues are clustered: 9.8 s against 1.0 s, 353 s at 10⁶ DOFs.)
+///
+/// On long thin models the top of the spectrum is a cluster of spacing `~ω²/N²` (`N` elements
+/// along) that the Ritz value creeps into as `~1/k²`: that stop took 12 600 iterations on a free
+/// 20 000-element chain and fell 2e-9 short (6.6e-9 on 300 elements, where it settled on a
+/// plateau). So after 200, 400, 800, … unsettled iterations, once a sparse Cholesky of
+/// `σM − K` (`K` probed through the evaluator on the model's element graph) is estimated to
+/// cost less than the iterations done, we bisect on its inertia instead: `σM − K` factors
+/// exactly when `σ > ω_max²`. From the Ritz value the bracket closes to 1e-12 (relative, in
+/// `ω²`) and its upper end is returned. (Against dense: ≤ 2.5e-13 on chains and strips up to
+/// 3000 DOFs.)
+pub fn omega_max(model: &Model, evaluator: &dyn Evaluator, mass: &Mass) -> f64 {
+    top(evaluator, mass, || Graph::of_model(model, mass.nd()), |g| Inertia::probed(model, g, evaluator, mass))
+}
+
+/// [`omega_max`], with the graph of `K`'s blocks and the [`Inertia`] built from it when needed.
+fn top(evaluator: &dyn Evaluator, mass: &Mass, graph: impl FnOnce() -> Graph, inertia_of: impl FnOnce(&Graph) -> Option<Inertia>) -> f64 {
     const MAX_ITER: usize = 20_000;
+    let mut history: Vec<f64> = Vec::new();
+    let mut result = None;
+    let (mut graph, mut inertia_of) = (Some(graph), Some(inertia_of));
+    let mut plan: Option<(Graph, f64, f64)> = None;
+    let mut inertia: Option<Option<Inertia>> = None;
+    lanczos(evaluator, mass, MAX_ITER, |alpha, beta, b| {
+        let j = alpha.len() - 1;
+        let a = alpha[j];
+        if !a.is_finite() {
+            result = Some(f64::NAN);
+            return true;
+        }
+        // The bisection costs O(j): look every 10 iterations (or at breakdown or the end), so
+        // that the tridiagonal work stays well below the operator's on large models.
+        let breakdown = b <= 1e-14 * a.abs().max(history.last().copied().unwrap_or(0.0));
+        if j % 10 == 0 || breakdown || j + 1 == MAX_ITER.min(mass.n()) {
+            let top = largest_tridiagonal_eigenvalue(alpha, beta);
+            history.push(top);
+            let k = history.len();
+            let settled = k > 2 && (top - history[k - 3]).abs() <= 1e-11 * top;
+            if settled || breakdown {
+                result = Some(top.max(0.0).sqrt());
+                return true;
+            }
+        }
+        // Unsettled after 200 · 2^m iterations: switch if the factorisations would cost less
+        // than the iterations done, first by the banded bound, then by the symbolic Cholesky.
+        let done = j + 1;
+        if done % INERTIA_FROM == 0 && (done / INERTIA_FROM).is_power_of_two() {
+            let (g, banded, per_iteration) = plan.get_or_insert_with(|| {
+                let g = graph.take().expect("built once")();
+                let (banded, per_iteration) = g.costs();
+                (g, banded, per_iteration)
+            });
+            let budget = done as f64 * *per_iteration / INERTIA_FACTORISATIONS;
+            if *banded <= budget {
+                let inertia = inertia.get_or_insert_with(|| inertia_of.take().and_then(|f| f(g)));
+                if let Some(l) = inertia.as_ref().filter(|x| x.flops <= budget).and_then(|x| x.bisect(largest_tridiagonal_eigenvalue(alpha, beta))) {
+                    result = Some(l.sqrt());
+                    return true;
+                }
+            }
+        }
+        false
+    });
+    result.unwrap_or_else(|| history.last().copied().unwrap_or(0.0).max(0.0).sqrt())
+}
+
+/// Which blocks of `K` may be non-zero: `nd × nd` blocks between nodes (elements, or single
+/// DOFs) and their neighbours.
+struct Graph {
+    nd: usize,
+    neighbours: Vec<Vec<usize>>,
+}
+
+impl Graph {
+    /// Elements and the interfaces between them.
+    fn of_model(model: &Model, nd: usize) -> Graph {
+        let mut neighbours = vec![Vec::new(); model.elements.len()];
+        for i in model.interfaces.iter().filter(|i| i.a != GROUND && i.b != GROUND && i.a != i.b) {
+            neighbours[i.a as usize].push(i.b as usize);
+            neighbours[i.b as usize].push(i.a as usize);
+        }
+        for l in neighbours.iter_mut() {
+            l.sort_unstable();
+            l.dedup();
+        }
+        Graph { nd, neighbours }
+    }
+
+    /// The free DOFs and the pattern of `K_ff`.
+    fn of_system(sys: &FreeSystem) -> Graph {
+        let neighbours = (0..sys.n()).map(|j| sys.k.symbolic().row_idx_of_col_raw(j).iter().copied().filter(|&i| i != j).collect()).collect();
+        Graph { nd: 1, neighbours }
+    }
+
+    /// Flops of one Cholesky factorisation in breadth-first level order from a far node of each
+    /// component (a banded factor: a DOF of level `ℓ` has at most `nd (w_ℓ + w_{ℓ+1})`
+    /// entries), and of one Lanczos iteration (`2 nnz(K)` and the vector work).
+    fn costs(&self) -> (f64, f64) {
+        let n = self.neighbours.len();
+        let nd = self.nd as f64;
+        let mut level = vec![usize::MAX; n];
+        let mut seen = vec![false; n];
+        let mut queue = Vec::new();
+        let mut banded = 0.0;
+        for root in 0..n {
+            if seen[root] {
+                continue;
+            }
+            // A breadth-first pass to the component's farthest node, then levels from it.
+            queue.clear();
+            queue.push(root);
+            seen[root] = true;
+            let mut head = 0;
+            while head < queue.len() {
+                let v = queue[head];
+                head += 1;
+                for &w in &self.neighbours[v] {
+                    if !seen[w] {
+                        seen[w] = true;
+                        queue.push(w);
+                    }
+                }
+            }
+            let far = *queue.last().expect("the root is queued");
+            queue.clear();
+            queue.push(far);
+            level[far] = 0;
+            let mut widths = vec![0usize];
+            let mut head = 0;
+            while head < queue.len() {
+                let v = queue[head];
+                head += 1;
+                widths[level[v]] += 1;
+                for &w in &self.neighbours[v] {
+                    if level[w] == usize::MAX {
+                        level[w] = level[v] + 1;
+                        if widths.len() <= level[w] {
+                            widths.push(0);
+                        }
+                        queue.push(w);
+                    }
+                }
+            }
+            widths.push(0);
+            banded += widths.windows(2).map(|w| w[0] as f64 * nd * (nd * (w[0] + w[1]) as f64).powi(2)).sum::<f64>();
+        }
+        let blocks: usize = self.neighbours.iter().map(|l| 1 + l.len()).sum();
+        (banded, 2.0 * blocks as f64 * nd * nd + 12.0 * n as f64 * nd)
+    }
+}
+
+/// Lanczos iterations before the first look at [`Inertia`], and the factorisations its cost
+/// estimate allows for (the bisection takes about 25).
+const INERTIA_FROM: usize = 200;
+const INERTIA_FACTORISATIONS: f64 = 40.0;
+
+/// `σ M_ff − K_ff` for any `σ`, and its symbolic Cholesky (fill-reducing order, computed once):
+/// by Sylvester's law of inertia it is positive definite exactly when `σ > ω_max²`, so one
+/// numeric factorisation tells on which side of `ω_max²` a shift lies.
+struct Inertia {
+    /// `K_ff` and `M_ff` values (lower triangle) in the order of `argsort`.
+    k: Vec<f64>,
+    m: Vec<f64>,
+    pattern: faer::sparse::SymbolicSparseColMat<usize>,
+    argsort: faer::sparse::Argsort<usize>,
+    symbolic: faer::sparse::linalg::cholesky::SymbolicCholesky<usize>,
+    /// Estimated flops of one numeric factorisation.
+    flops: f64,
+}
+
+impl Inertia {
+    /// Probes `K_ff` through the evaluator: elements are coloured so that no two of a colour
+    /// are neighbours or share one (interfaces), so one evaluation per colour and DOF gives
+    /// those elements' columns without overlap. `None` when there are no free DOFs.
+    fn probed(model: &Model, graph: &Graph, evaluator: &dyn Evaluator, mass: &Mass) -> Option<Inertia> {
+        use faer::sparse::Pair;
+        let (nd, ne) = (mass.nd(), mass.n() / mass.nd());
+        let mut index = vec![0usize; mass.n()];
+        for &d in &model.fixed {
+            index[d] = usize::MAX;
+        }
+        let mut n = 0;
+        for i in index.iter_mut().filter(|i| **i == 0) {
+            *i = n;
+            n += 1;
+        }
+        let neighbours = &graph.neighbours;
+        // Greedy distance-2 colouring.
+        let mut colour = vec![usize::MAX; ne];
+        let mut taken: Vec<usize> = Vec::new();
+        let mut colours = 0;
+        for e in 0..ne {
+            taken.clear();
+            for &f in &neighbours[e] {
+                taken.push(colour[f]);
+                taken.extend(neighbours[f].iter().map(|&g| colour[g]));
+            }
+            taken.sort_unstable();
+            let c = (0..).find(|c| taken.binary_search(c).is_err()).expect("a free colour");
+            colour[e] = c;
+            colours = colours.max(c + 1);
+        }
+        let mut members = vec![Vec::new(); colours];
+        for (e, &c) in colour.iter().enumerate() {
+            members[c].push(e);
+        }
+        let (mut x, mut kx) = (vec![0.0; mass.n()], vec![0.0; mass.n()]);
+        let (mut entries, mut k, mut m) = (Vec::new(), Vec::new(), Vec::new());
+        for group in &members {
+            for i in 0..nd {
+                for &e in group {
+                    x[e * nd + i] = 1.0;
+                }
+                evaluator.internal_force(&x, &mut kx);
+                for &e in group {
+                    x[e * nd + i] = 0.0;
+                    let col = index[e * nd + i];
+                    if col == usize::MAX {
+                        continue;
+                    }
+                    for f in std::iter::once(e).chain(neighbours[e].iter().copied()) {
+                        for r in f * nd..(f + 1) * nd {
+                            if index[r] != usize::MAX && index[r] >= col {
+                                entries.push(Pair::new(index[r], col));
+                                k.push(kx[r]);
+                                m.push(0.0);
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        for (r, c, v) in mass.triplets() {
+            if index[r] != usize::MAX && index[c] != usize::MAX && index[r] >= index[c] && v != 0.0 {
+                entries.push(Pair::new(index[r], index[c]));
+                k.push(0.0);
+                m.push(v);
+            }
+        }
+        Inertia::new(n, &entries, k, m)
+    }
+
+    /// From `K_ff` and `M_ff` of a [`FreeSystem`].
+    fn of_system(sys: &FreeSystem) -> Option<Inertia> {
+        let (mut entries, mut k, mut m) = (Vec::new(), Vec::new(), Vec::new());
+        for (mat, is_k) in [(&sys.k, true), (&sys.m, false)] {
+            for j in 0..sys.n() {
+                for (&i, &v) in mat.symbolic().row_idx_of_col_raw(j).iter().zip(mat.val_of_col(j)) {
+                    if i >= j {
+                        entries.push(faer::sparse::Pair::new(i, j));
+                        k.push(if is_k { v } else { 0.0 });
+                        m.push(if is_k { 0.0 } else { v });
+                    }
+                }
+            }
+        }
+        Inertia::new(sys.n(), &entries, k, m)
+    }
+
+    /// The symbolic Cholesky of the pattern `entries` (lower triangle, `n` free DOFs).
+    fn new(n: usize, entries: &[faer::sparse::Pair<usize, usize>], k: Vec<f64>, m: Vec<f64>) -> Option<Inertia> {
+        use faer::sparse::{linalg::cholesky, SymbolicSparseColMat};
+        if n == 0 {
+            return None;
+        }
+        let (pattern, argsort) = SymbolicSparseColMat::try_new_from_indices(n, n, entries).ok()?;
+        let symbolic = cholesky::factorize_symbolic_cholesky(pattern.as_ref(), faer::Side::Lower, Default::default(), Default::default()).ok()?;
+        let flops = match symbolic.raw() {
+            cholesky::SymbolicCholeskyRaw::Simplicial(s) => s.col_ptr().windows(2).map(|w| ((w[1] - w[0]) as f64).powi(2)).sum(),
+            cholesky::SymbolicCholeskyRaw::Supernodal(s) => {
+                let rows = s.col_ptr_for_row_idx();
+                (0..s.n_supernodes())
+                    .map(|j| {
+                        let w = (s.supernode_end()[j] - s.supernode_begin()[j]) as f64;
+                        w * (w + (rows[j + 1] - rows[j]) as f64).powi(2)
+                    })
+                    .sum()
+            }
+        };
+        Some(Inertia { k, m, pattern, argsort, symbolic, flops })
+    }
+
+    /// Whether `σ M − K` is positive definite (its Cholesky factorisation succeeds; sequential,
+    /// so the answer does not depend on the thread count).
+    fn above(&self, sigma: f64) -> bool {
+        let values: Vec<f64> = self.k.iter().zip(&self.m).map(|(k, m)| sigma * m - k).collect();
+        let Ok(a) = faer::sparse::SparseColMat::new_from_argsort(self.pattern.clone(), &self.argsort, &values) else { return false };
+        let mut l = vec![0.0; self.symbolic.len_val()];
+        let par = Par::Seq;
+        let mut mem = MemBuffer::new(self.symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default()));
+        self.symbolic
+            .factorize_numeric_llt(&mut l, a.as_ref(), faer::Side::Lower, Default::default(), par, MemStack::new(&mut mem), Default::default())
+            .is_ok()
+    }
+
+    /// `ω_max²` from a lower bound `low > 0` (a Ritz value): a shift above it found by steps
+    /// of ×10 in `σ/low − 1` from 1e-6, then bisection until the bracket is 1e-12 (relative);
+    /// the bracket's upper end. `None` if no shift up to `low · 10⁶` factors.
+    fn bisect(&self, low: f64) -> Option<f64> {
+        if !(low > 0.0 && low.is_finite()) {
+            return None;
+        }
+        let (mut lo, mut step) = (low, 1e-6);
+        let mut hi = loop {
+            let sigma = low * (1.0 + step);
+            if self.above(sigma) {
+                break sigma;
+            }
+            lo = sigma;
+            step *= 10.0;
+            if step > 1e6 {
+                return None;
+            }
+        };
+        while hi - lo > 1e-12 * hi {
+            let mid = 0.5 * (lo + hi);
+            if self.above(mid) {
+                hi = mid;
+            } else {
+                lo = mid;
+            }
+        }
+        Some(hi)
+    }
+}
+
+/// Runs Lanczos on `L⁻¹ K L⁻ᵀ` from a fixed random start, calling `look(α, β, b)` after each
+/// step with `α` of length `j + 1`, `β` of length `j` and the new `b = β_j`; stops when `look`
+/// says so or after `max_iter` steps.
+fn lanczos(evaluator: &dyn Evaluator, mass: &Mass, max_iter: usize, mut look: impl FnMut(&[f64], &[f64], f64) -> bool) {
+    use rayon::prelude::*;
     let n = mass.n();
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
     let mut q: Vec<f64> = (0..n).map(|_| rng.random::<f64>() - 0.5).collect();
@@ -137,7 +466,7 @@ pub fn omega_max(evaluator: &dyn Evaluator, mass: &Mass) -> f64 {
     }
     let norm = q.iter().map(|x| x * x).sum::<f64>().sqrt();
     if norm == 0.0 {
-        return 0.0;
+        return;
     }
     q.iter_mut().for_each(|x| *x /= norm);
     mass.inv_factor_t(&q, &mut tmp);
@@ -147,8 +476,7 @@ pub fn omega_max(evaluator: &dyn Evaluator, mass: &Mass) -> f64 {
     let sum = |parts: Vec<f64>| parts.iter().sum::<f64>();
     let (mut q_prev, mut w, mut kx) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
     let (mut alpha, mut beta): (Vec<f64>, Vec<f64>) = (Vec::new(), Vec::new());
-    let mut history: Vec<f64> = Vec::new();
-    for j in 0..MAX_ITER.min(n) {
+    for _ in 0..max_iter.min(n) {
         evaluator.internal_force(&tmp, &mut kx);
         // w = L⁻¹ K L⁻ᵀ q and α = wᵀ q.
         let a = sum(w.par_chunks_mut(len).zip(kx.par_chunks(len)).zip(q.par_chunks(len)).enumerate()
@@ -171,20 +499,8 @@ pub fn omega_max(evaluator: &dyn Evaluator, mass: &Mass) -> f64 {
             .collect())
         .sqrt();
         alpha.push(a);
-        if !a.is_finite() {
-            return f64::NAN;
-        }
-        // The bisection costs O(j): look every 10 iterations (or at breakdown or the end), so
-        // that the tridiagonal work stays well below the operator's on large models.
-        let breakdown = b <= 1e-14 * a.abs().max(history.last().copied().unwrap_or(0.0));
-        if j % 10 == 0 || breakdown || j + 1 == MAX_ITER.min(n) {
-            let top = largest_tridiagonal_eigenvalue(&alpha, &beta);
-            history.push(top);
-            let k = history.len();
-            let settled = k > 2 && (top - history[k - 3]).abs() <= 1e-11 * top;
-            if settled || breakdown {
-                return top.max(0.0).sqrt();
-            }
+        if look(&alpha, &beta, b) {
+            return;
         }
         beta.push(b);
         // q_prev ← q, q ← w / β, and the next operand L⁻ᵀ q.
@@ -196,7 +512,6 @@ pub fn omega_max(evaluator: &dyn Evaluator, mass: &Mass) -> f64 {
             mass.apply_range(c * len, q, t, true, true);
         });
     }
-    history.last().copied().unwrap_or(0.0).max(0.0).sqrt()
 }
 
 /// The largest eigenvalue of the symmetric tridiagonal matrix with diagonal `a` and

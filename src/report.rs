@@ -145,7 +145,7 @@ pub fn stability_report(scene: &Scene, fractions: &[f64], steps: u64) -> Result<
     let mass = Mass::new(&model);
     let sys = FreeSystem::new(&model, &mass);
     let ev = evaluator::build(&model, scene.evaluator);
-    let omega_max = if sys.n() <= eigen::DENSE_LIMIT { eigen::dense_modes(&sys, &mass, 0)?.omega_max } else { eigen::omega_max(ev.as_ref(), &mass) };
+    let omega_max = if sys.n() <= eigen::DENSE_LIMIT { eigen::dense_modes(&sys, &mass, 0)?.omega_max } else { eigen::omega_max(&model, ev.as_ref(), &mass) };
     let dt_crit = stability::critical_time_step(omega_max);
     let bounds = stability::bounds(&model, &sys, &mass, dt_crit);
     let (dt, ratio) = stability::empirical_limit(&model, ev.as_ref(), &mass, dt_crit, steps, 1e-4);

@@ -90,10 +90,10 @@ impl Prepared {
         let mass = Mass::new(&model);
         let loads = Loads::new(&model);
         let omega_max = match Contact::new(&model) {
-            None => eigen::omega_max(evaluator.as_ref(), &mass),
+            None => eigen::omega_max(&model, evaluator.as_ref(), &mass),
             Some(c) => {
                 let blocks = contact::stiffness_estimate(&model, &c);
-                eigen::omega_max(&WithBlocks { inner: evaluator.as_ref(), nd: model.formulation.ndof(), blocks }, &mass)
+                eigen::omega_max(&model, &WithBlocks { inner: evaluator.as_ref(), nd: model.formulation.ndof(), blocks }, &mass)
             }
         };
         if !omega_max.is_finite() {

@@ -360,7 +360,7 @@ fn critical_time_step(r: &mut Report) {
             let mass = Mass::new(&m);
             let sys = FreeSystem::new(&m, &mass);
             let ev = evaluator::build(&m, EvaluatorKind::ElementWise);
-            let dt = stability::critical_time_step(eigen::omega_max(ev.as_ref(), &mass));
+            let dt = stability::critical_time_step(eigen::omega_max(&m, ev.as_ref(), &mass));
             let closed = h / c * ((1.0 + nu) / 3.0).sqrt();
             let b = stability::bounds(&m, &sys, &mass, dt);
             r.line(&format!(
@@ -384,7 +384,7 @@ fn critical_time_step(r: &mut Report) {
     let m = model(&body_scene(mesh, r#"[{"edge": "bottom", "kind": "ground-spring"}]"#, "[]", e, nu, rho, 1.0));
     let mass = Mass::new(&m);
     let ev = evaluator::build(&m, EvaluatorKind::ElementWise);
-    let dt = stability::critical_time_step(eigen::omega_max(ev.as_ref(), &mass));
+    let dt = stability::critical_time_step(eigen::omega_max(&m, ev.as_ref(), &mass));
     let (_, ratio) = stability::empirical_limit(&m, ev.as_ref(), &mass, dt, 2000, 1e-4);
     r.line(&format!(
         "Empirical limit (16 × 16, base on ground springs; bisection on undamped runs of 2000 steps from a random \
