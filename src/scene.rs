@@ -607,6 +607,11 @@ impl Scene {
         Scene::parse(text, None)
     }
 
+    /// Parses and validates a scene whose relative mesh paths start at `dir`.
+    pub fn from_json_in(text: &str, dir: &Path) -> Result<Scene> {
+        Scene::parse(text, Some(dir))
+    }
+
     /// Parses a scene whose relative mesh paths start at `dir`, then validates it.
     fn parse(text: &str, dir: Option<&Path>) -> Result<Scene> {
         refuse_duplicate_keys(text)?;

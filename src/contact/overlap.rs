@@ -584,7 +584,9 @@ impl Overlap {
             slip += step.dot(&s);
         }
         if let Some(mu) = self.friction {
-            let limit = mu * k[0] * mean / k[1];
+            // A depth that round-off leaves a hair below zero (bodies stacked on one another)
+            // holds no friction.
+            let limit = if k[1] > 0.0 { (mu * k[0] * mean / k[1]).max(0.0) } else { 0.0 };
             slip = slip.clamp(-limit, limit);
         }
         block.pieces.push(Piece { source: si, face, slip });
