@@ -291,10 +291,7 @@ impl Model {
         model.fixed.sort_unstable();
         model.fixed.dedup();
         for (k, p) in scene.output.probes.iter().enumerate() {
-            if p.element >= model.elements.len() {
-                return Err(Error::scene(format!("output.probes[{k}].element"), format!(
-                    "must lie in 0..{} (global element index), got {}", model.elements.len(), p.element)));
-            }
+            model.probe_element(k, p)?;
             dof_index(&p.dof, formulation, &format!("output.probes[{k}].dof"))?;
         }
         Ok(model)
@@ -349,6 +346,30 @@ impl Model {
             }
         }
         Ok(())
+    }
+
+    /// The element (global index) containing the reference point `x`: the first whose polygon
+    /// holds it, inside or on its boundary.
+    pub fn element_at(&self, x: Vec2) -> Option<usize> {
+        self.bodies.iter().find_map(|b| {
+            (0..b.mesh.n_cells()).find_map(|c| {
+                let pts = b.mesh.cell_points(c);
+                let n = pts.len();
+                let on_edge = (0..n).any(|i| crate::geometry::point_segment_distance(x, pts[i], pts[(i + 1) % n]) <= 1e-12 * (pts[i] - pts[(i + 1) % n]).norm());
+                (on_edge || crate::geometry::point_in_polygon(x, &pts)).then_some(b.first_element + c)
+            })
+        })
+    }
+
+    /// The element of probe `k`: its `element`, checked, or the one containing its `at`.
+    pub fn probe_element(&self, k: usize, p: &crate::scene::ProbeSpec) -> Result<usize> {
+        match (p.element, p.at) {
+            (_, Some([x, y])) => self.element_at(Vec2::new(x, y)).ok_or_else(|| Error::scene(format!("output.probes[{k}].at"), format!(
+                "[{x}, {y}] lies in no element (a point of the reference configuration, m)"))),
+            (Some(e), None) if e < self.elements.len() => Ok(e),
+            (e, None) => Err(Error::scene(format!("output.probes[{k}].element"), format!(
+                "must lie in 0..{} (global element index), got {}", self.elements.len(), e.map_or("nothing".into(), |e| e.to_string())))),
+        }
     }
 
     /// Number of DOFs, free and fixed.

@@ -85,13 +85,33 @@ pub struct EnergySummary {
     pub max_relative_drift: f64,
 }
 
-/// One history column beyond the energies: DOF `dof` of element `element`.
+/// One history column beyond the energies: DOF `dof` of element `element`, and for `u`, `v`
+/// at the reference offset `offset` from its centroid the displacement there, `N_e(x) U_e`.
 #[derive(Debug, Clone)]
 pub struct Probe {
     /// Column header.
     pub name: String,
-    /// Global DOF index.
+    /// The element (global index).
+    pub element: usize,
+    /// The DOF within the element.
     pub dof: usize,
+    /// DOFs per element.
+    pub nd: usize,
+    /// Where in the element, for a probe placed by point.
+    pub offset: Option<crate::geometry::Vec2>,
+    /// The formulation, whose `N_e` carries the element's DOFs to the point.
+    pub formulation: crate::formulation::Formulation,
+}
+
+impl Probe {
+    /// The probe's value in the displacements `u` of all elements.
+    pub fn value(&self, u: &[f64]) -> f64 {
+        let ue = &u[self.element * self.nd..(self.element + 1) * self.nd];
+        match self.offset {
+            Some(d) if self.dof < 2 => self.formulation.displacement(ue, d)[self.dof],
+            _ => ue[self.dof],
+        }
+    }
 }
 
 /// The columns of `history.csv` before the probes.
@@ -151,7 +171,7 @@ impl History {
             e.t, e.kinetic, e.elastic, e.contact, e.potential, e.external_work, e.total
         );
         for p in &self.probes {
-            row.push_str(&format!(",{:e}", s.u[p.dof]));
+            row.push_str(&format!(",{:e}", p.value(s.u)));
         }
         self.append(row)
     }

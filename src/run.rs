@@ -155,7 +155,9 @@ pub fn probes(scene: &Scene, model: &Model) -> Result<Vec<Probe>> {
         .enumerate()
         .map(|(k, pr)| {
             let d = dof_index(&pr.dof, model.formulation, &format!("output.probes[{k}].dof"))?;
-            Ok(Probe { name: pr.column(), dof: pr.element * nd + d })
+            let element = model.probe_element(k, pr)?;
+            let offset = pr.at.map(|[x, y]| crate::geometry::Vec2::new(x, y) - model.elements[element].props.centroid);
+            Ok(Probe { name: pr.column(), element, dof: d, nd, offset, formulation: model.formulation })
         })
         .collect()
 }

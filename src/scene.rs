@@ -569,23 +569,31 @@ fn default_every() -> u64 {
     100
 }
 
-/// A history column: DOF `dof` (`u`, `v`, `theta`, ...) of element `element` (global index).
+/// A history column: DOF `dof` (`u`, `v`, `theta`, ...) of element `element` (global index),
+/// or at the point `at`: of the element containing it, `u` and `v` there through `N_e`.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ProbeSpec {
     #[serde(default)]
-    /// Column header; `e<element>_<dof>` when absent.
+    /// Column header; `e<element>_<dof>` or `<dof>_at_<x>_<y>` when absent.
     pub name: Option<String>,
-    /// Element (global index).
-    pub element: usize,
+    /// Element (global index); give this or `at`.
+    #[serde(default)]
+    pub element: Option<usize>,
+    /// A point of the reference configuration (m); give this or `element`.
+    #[serde(default)]
+    pub at: Option<[f64; 2]>,
     /// DOF name: `u`, `v`, `theta`, and hybrid `ex`, `ey`, `gxy`.
     pub dof: String,
 }
 
 impl ProbeSpec {
-    /// The history column's header: `name`, or `e<element>_<dof>`.
+    /// The history column's header: `name`, or `e<element>_<dof>`, or `<dof>_at_<x>_<y>`.
     pub fn column(&self) -> String {
-        self.name.clone().unwrap_or_else(|| format!("e{}_{}", self.element, self.dof))
+        self.name.clone().unwrap_or_else(|| match (self.element, self.at) {
+            (_, Some([x, y])) => format!("{}_at_{x}_{y}", self.dof),
+            (e, None) => format!("e{}_{}", e.unwrap_or(0), self.dof),
+        })
     }
 }
 
@@ -699,6 +707,11 @@ impl Scene {
         }
         let mut columns: Vec<String> = crate::output::HISTORY_COLUMNS.iter().map(|c| c.to_string()).collect();
         for (k, p) in self.output.probes.iter().enumerate() {
+            match (p.element, p.at) {
+                (Some(_), None) => {}
+                (None, Some(at)) => finite_all(&format!("output.probes[{k}].at"), &at)?,
+                _ => return Err(Error::scene(format!("output.probes[{k}].element"), "give exactly one of `element` (global index) and `at` ([x, y], m)")),
+            }
             let (field, column) = (format!("output.probes[{k}].name"), p.column());
             if column.is_empty() || column.chars().any(|c| c == ',' || c == '"' || c.is_control()) {
                 return Err(Error::scene(field, format!("must be a non-empty column name without commas, quotes or control characters, got {column:?}")));

@@ -174,9 +174,12 @@ pub fn sweep(json: &str, sweeps: &[Sweep], mut progress: impl FnMut(&Point)) -> 
         .iter()
         .enumerate()
         .map(|(k, p)| {
-            let name = p.name.clone().unwrap_or_else(|| format!("{}_{}", p.dof, p.element));
             let dof = dof_index(&p.dof, base_model.formulation, &format!("output.probes[{k}].dof"))?;
-            Ok(Probe { name, point: base_model.elements[p.element].props.centroid, dof })
+            let point = match p.at {
+                Some([x, y]) => Vec2::new(x, y),
+                None => base_model.elements[base_model.probe_element(k, p)?].props.centroid,
+            };
+            Ok(Probe { name: p.column(), point, dof })
         })
         .collect::<Result<_>>()?;
     if scene.reference.is_none() && probes.is_empty() {

@@ -154,3 +154,38 @@ fn no_vtk_unless_asked() {
     let history = std::fs::read_to_string(dir.path().join("history.csv")).unwrap();
     assert!(history.lines().next().unwrap().ends_with(",u_tip,u_mid"));
 }
+
+/// Probes placed by point (`"at": [x, y]`, issue 19): at an element's centroid the same column
+/// as the element's own DOF; at a corner of the plate `N_e(x) U_e` of the element holding it;
+/// a point outside every element is an error naming the probe.
+#[test]
+fn probes_by_point_read_the_displacement_there() {
+    let path = format!("{}/examples/scenes/cantilever.json", env!("CARGO_MANIFEST_DIR"));
+    let mut v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+    let model = rbsm::model::Model::build(&Scene::from_json(&v.to_string()).unwrap()).unwrap();
+    let c = model.elements[79].props.centroid;
+    v["output"]["probes"] = serde_json::json!([
+        {"element": 79, "dof": "v"},
+        {"at": [c.x, c.y], "dof": "v"},
+        {"name": "corner_v", "at": [2.0, 0.0], "dof": "v"},
+        {"at": [2.0, 0.0], "dof": "theta"}
+    ]);
+    let dir = tempfile::tempdir().unwrap();
+    let s = Scene::from_json(&v.to_string()).unwrap();
+    run::run(&s, &RunOptions { steps: Some(2000), ..Default::default() }, dir.path(), &mut Silent).unwrap();
+    let history = std::fs::read_to_string(dir.path().join("history.csv")).unwrap();
+    let header: Vec<&str> = history.lines().next().unwrap().split(',').collect();
+    assert_eq!(header[7..], ["e79_v", &format!("v_at_{}_{}", c.x, c.y), "corner_v", "theta_at_2_0"]);
+    let last: Vec<f64> = history.lines().last().unwrap().split(',').map(|x| x.parse().unwrap()).collect();
+    assert_eq!(last[7], last[8], "at the centroid, the element's own v");
+    let corner = model.element_at(rbsm::geometry::Vec2::new(2.0, 0.0)).unwrap();
+    let state: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.path().join("final_state.json")).unwrap()).unwrap();
+    let u: Vec<f64> = state["elements"][corner]["U"].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect();
+    let d = rbsm::geometry::Vec2::new(2.0, 0.0) - model.elements[corner].props.centroid;
+    let expected = model.formulation.displacement(&u, d).y;
+    assert!((last[9] - expected).abs() <= 1e-12 * expected.abs() && expected != last[8], "{} against {expected}", last[9]);
+    assert_eq!(last[10], u[2], "θ is the element's own");
+    v["output"]["probes"] = serde_json::json!([{"at": [5.0, 0.0], "dof": "u"}]);
+    let e = Scene::from_json(&v.to_string()).and_then(|s| rbsm::model::Model::build(&s)).unwrap_err().to_string();
+    assert!(e.contains("output.probes[0].at") && e.contains("lies in no element"), "{e}");
+}
