@@ -273,6 +273,26 @@ impl Formulation {
         }
     }
 
+    /// Where the point at reference offset `d` from the centroid `x_e` of an element with DOFs
+    /// `ue` is, with the element's finite rotation: `x_e + u_e + R(θ_e)(d + E_e d)`, `E_e d` the
+    /// strain part (zero for rigid). The springs stay small-rotation (eq. 5); this places
+    /// contact points and draws the elements.
+    pub fn current_position(self, centroid: Vec2, ue: &[f64], d: Vec2) -> Vec2 {
+        centroid + Vec2::new(ue[0], ue[1]) + rotation(ue[2]) * (d + self.strain_part(ue, d))
+    }
+
+    /// The strain part `E_e d` of an element's displacement at offset `d` (zero for rigid).
+    pub fn strain_part(self, ue: &[f64], d: Vec2) -> Vec2 {
+        match self {
+            Formulation::Rigid => Vec2::zeros(),
+            Formulation::Hybrid { .. } => {
+                let mut w = [0.0; 6];
+                w[3..].copy_from_slice(&ue[3..6]);
+                self.displacement(&w, d)
+            }
+        }
+    }
+
     /// The element mass block, row-major `ndof × ndof`.
     pub fn mass(self, props: &AreaProperties, rho_t: f64) -> Vec<f64> {
         match self {
@@ -364,4 +384,10 @@ mod tests {
         Rigid::add_linear(&mut g, d, force);
         assert_eq!(g, [0.0, 0.0, via_nt[2]]);
     }
+}
+
+/// The rotation matrix of angle `theta`.
+pub fn rotation(theta: f64) -> nalgebra::Matrix2<f64> {
+    let (s, c) = theta.sin_cos();
+    nalgebra::Matrix2::new(c, -s, s, c)
 }

@@ -1,7 +1,6 @@
 //! The hopping block of the paper (§4, DESIGN.md §10): a block dropped flat on rigid ground,
 //! the theory of its bounces, and a tracker that measures them from a run.
 
-use crate::contact::current_position;
 use crate::geometry::Vec2;
 use crate::model::Model;
 
@@ -119,7 +118,7 @@ pub fn lowest_point(model: &Model, u: &[f64]) -> f64 {
             let el = body.first_element + e.cell as usize;
             let c = model.elements[el].props.centroid;
             for v in [e.v1, e.v2] {
-                let x = current_position(model.formulation, c, &u[el * nd..(el + 1) * nd], mesh.vertices[v as usize] - c);
+                let x = model.formulation.current_position(c, &u[el * nd..(el + 1) * nd], mesh.vertices[v as usize] - c);
                 low = low.min(x.y);
             }
         }

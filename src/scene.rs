@@ -548,7 +548,7 @@ pub struct OutputSpec {
     /// A history row (and a VTK frame) every this many steps.
     #[serde(default = "default_every")]
     pub every: u64,
-    /// ParaView output: legacy `.vtk` frames and a `.pvd` series.
+    /// ParaView output: VTK XML frames (`.vtu`) and a `.pvd` series.
     #[serde(default)]
     pub vtk: bool,
     /// Extra history columns: one DOF of one element each.

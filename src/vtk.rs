@@ -1,6 +1,9 @@
-//! ParaView output (`output.vtk`): one legacy `.vtk` file of element polygons per recorded
-//! step, written with `vtkio`, and a `.pvd` collection that ParaView opens as a time series.
-//! Elements are drawn separately (their vertices are not shared), displaced by `N_e(x) U_e`.
+//! ParaView output (`output.vtk`): one VTK XML unstructured grid (`.vtu`) of the elements per
+//! recorded step, written with `vtkio`, and a `.pvd` collection that ParaView opens as a time
+//! series (its reader takes XML files only). Elements are drawn separately (their vertices are
+//! not shared) in their current place, rigid elements with their finite rotation
+//! ([`Formulation::current_position`](crate::formulation::Formulation::current_position)), as
+//! triangles, quadrilaterals or polygons.
 
 use crate::error::{Error, Result};
 use crate::integrator::Snapshot;
@@ -68,10 +71,10 @@ impl VtkSeries {
     /// Writes the frame of one recorded step, then adds it to the collection.
     pub fn write(&mut self, model: &Model, s: &Snapshot) -> Result<()> {
         use std::io::{Seek, SeekFrom, Write};
-        let name = format!("vtk/step_{:09}.vtk", s.step);
+        let name = format!("vtk/step_{:09}.vtu", s.step);
         let path = self.dir.join(&name);
         let tmp = crate::output::temporary(&path);
-        if let Err(e) = write_frame(&tmp, model, s.u, s.v, &format!("{} t = {:e} s", model.name, s.t)) {
+        if let Err(e) = write_frame(&tmp, model, s.u, s.v, Placement::Current) {
             let _ = std::fs::remove_file(&tmp);
             return Err(match e {
                 Error::Io { source, .. } => Error::io(&path, source),
@@ -93,17 +96,28 @@ impl VtkSeries {
     }
 }
 
-/// Whether `name` is a frame's file name (`step_NNNNNNNNN.vtk`), or a frame half written.
+/// Whether `name` is a frame's file name (`step_NNNNNNNNN.vtu`, or `.vtk` as earlier versions
+/// wrote them), or a frame half written.
 pub fn is_frame(name: &str) -> bool {
     let name = name.strip_prefix(".part-").unwrap_or(name);
-    name.starts_with("step_") && name.ends_with(".vtk")
+    name.starts_with("step_") && (name.ends_with(".vtu") || name.ends_with(".vtk"))
 }
 
-/// Writes one legacy VTK file of the element polygons displaced by `N_e(x) U_e`, with cell data
-/// `displacement`, `velocity`, `rotation` and `body`.
-pub fn write_frame(path: &Path, model: &Model, u: &[f64], v: &[f64], title: &str) -> Result<()> {
+/// Where a frame draws the elements.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Placement {
+    /// In their current place, with finite rotations (the frames of a run).
+    Current,
+    /// Moved by the linear `N_e(x) U_e` (a mode shape, linear by definition).
+    Linear,
+}
+
+/// Writes one VTK XML unstructured grid (`.vtu`) of the elements placed by `placement`, with
+/// cell data `displacement`, `velocity`, `rotation` and `body` (hybrid: `strain`, `stress`).
+/// Cells of 3 and 4 vertices are written as VTK triangles and quadrilaterals, others as polygons.
+pub fn write_frame(path: &Path, model: &Model, u: &[f64], v: &[f64], placement: Placement) -> Result<()> {
     let nd = model.formulation.ndof();
-    let (mut points, mut conn) = (Vec::new(), Vec::new());
+    let (mut points, mut conn, mut offsets, mut types) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     let (mut disp, mut vel, mut rot, mut body) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     let (mut strain, mut stress): (Vec<f64>, Vec<f64>) = (Vec::new(), Vec::new());
     for b in &model.bodies {
@@ -116,20 +130,27 @@ pub fn write_frame(path: &Path, model: &Model, u: &[f64], v: &[f64], title: &str
             }
             let xe = model.elements[e].props.centroid;
             let cell = b.mesh.cell(c);
-            conn.push(cell.len() as u32);
             for &k in cell {
                 let x = b.mesh.vertices[k as usize];
-                let p = x + model.formulation.displacement(ue, x - xe);
-                conn.push((points.len() / 3) as u32);
+                let p = match placement {
+                    Placement::Current => model.formulation.current_position(xe, ue, x - xe),
+                    Placement::Linear => x + model.formulation.displacement(ue, x - xe),
+                };
+                conn.push((points.len() / 3) as u64);
                 points.extend([p.x, p.y, 0.0]);
             }
+            offsets.push(conn.len() as u64);
+            types.push(match cell.len() {
+                3 => CellType::Triangle,
+                4 => CellType::Quad,
+                _ => CellType::Polygon,
+            });
             disp.extend([ue[0], ue[1], 0.0]);
             vel.extend([ve[0], ve[1], 0.0]);
             rot.push(ue[2]);
             body.push(model.elements[e].body as f64);
         }
     }
-    let n_cells = model.elements.len();
     let mut cell = vec![
         Attribute::vectors("displacement").with_data(disp),
         Attribute::vectors("velocity").with_data(vel),
@@ -142,24 +163,29 @@ pub fn write_frame(path: &Path, model: &Model, u: &[f64], v: &[f64], title: &str
         cell.push(Attribute::scalars("stress", 3).with_data(stress));
     }
     let vtk = Vtk {
-        version: Version::new((4, 2)),
-        title: title.to_string(),
-        byte_order: ByteOrder::BigEndian,
+        version: Version::new((1, 0)),
+        title: String::new(),
+        byte_order: ByteOrder::LittleEndian,
         file_path: None,
         data: DataSet::inline(UnstructuredGridPiece {
             points: IOBuffer::F64(points),
-            cells: Cells {
-                cell_verts: VertexNumbers::Legacy { num_cells: n_cells as u32, vertices: conn },
-                types: vec![CellType::Polygon; n_cells],
-            },
+            cells: Cells { cell_verts: VertexNumbers::XML { connectivity: conn, offsets }, types },
             data: Attributes { point: Vec::new(), cell },
         }),
     };
-    vtk.export_be(path).map_err(|e| Error::io(path, std::io::Error::other(e.to_string())))
+    let fail = |e: String| Error::io(path, std::io::Error::other(e));
+    let xml = vtkio::xml::VTKFile::try_from(vtk).map_err(|e| fail(e.to_string()))?.to_string();
+    // vtkio declares connectivity and offsets `UInt64`, which meshio cannot subtract from for
+    // polygons; `Int64` has the same bytes for these values and every reader takes it.
+    let xml = xml
+        .replacen(r#"type="UInt64" Name="connectivity""#, r#"type="Int64" Name="connectivity""#, 1)
+        .replacen(r#"type="UInt64" Name="offsets""#, r#"type="Int64" Name="offsets""#, 1);
+    std::fs::write(path, xml).map_err(|e| Error::io(path, e))
 }
 
-/// Writes each mode shape as `DIR/mode_NNN.vtk`, scaled so that the largest translation is a
-/// tenth of the model's size (shapes are `M`-normalised, their scale is arbitrary).
+/// Writes each mode shape as `DIR/mode_NNN.vtu` and the collection `DIR/modes.pvd` (one time
+/// step per mode: its number), scaled so that the largest translation is a tenth of
+/// the model's size (shapes are `M`-normalised, their scale is arbitrary).
 pub fn write_mode_shapes(dir: &Path, model: &Model, modes: &crate::eigen::Modes) -> Result<()> {
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
     let (mut lo, mut hi) = (crate::geometry::Vec2::repeat(f64::INFINITY), crate::geometry::Vec2::repeat(f64::NEG_INFINITY));
@@ -170,12 +196,15 @@ pub fn write_mode_shapes(dir: &Path, model: &Model, modes: &crate::eigen::Modes)
     }
     let size = (hi - lo).norm();
     let nd = model.formulation.ndof();
-    for (k, (shape, omega)) in modes.shapes.iter().zip(&modes.omega).enumerate() {
+    let mut xml = String::from(HEAD);
+    for (k, shape) in modes.shapes.iter().enumerate() {
         let max = (0..model.elements.len()).map(|e| shape[e * nd].hypot(shape[e * nd + 1])).fold(0.0, f64::max);
         let scale = if max > 0.0 { 0.1 * size / max } else { 1.0 };
         let u: Vec<f64> = shape.iter().map(|x| x * scale).collect();
-        let title = format!("{} mode {} f = {:e} Hz", model.name, k + 1, omega / (2.0 * std::f64::consts::PI));
-        write_frame(&dir.join(format!("mode_{:03}.vtk", k + 1)), model, &u, &vec![0.0; u.len()], &title)?;
+        let name = format!("mode_{:03}.vtu", k + 1);
+        write_frame(&dir.join(&name), model, &u, &vec![0.0; u.len()], Placement::Linear)?;
+        xml.push_str(&entry((k + 1) as f64, &name));
     }
-    Ok(())
+    xml.push_str(TAIL);
+    crate::output::write_atomic(&dir.join("modes.pvd"), xml.as_bytes())
 }

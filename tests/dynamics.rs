@@ -109,7 +109,7 @@ fn a_run_clears_an_earlier_runs_outputs() {
     assert!(dir.path().join("notes.txt").exists() && dir.path().join("vtk").join("mine.vtk").exists());
 }
 
-/// The files of DESIGN.md §9 with their exact keys, header and element order.
+/// The files of a run (README, Outputs) with their exact keys, header and element order.
 #[test]
 fn outputs_follow_the_contract() {
     let dir = tempfile::tempdir().unwrap();
@@ -138,8 +138,8 @@ fn outputs_follow_the_contract() {
     // The scene asks for VTK: a frame per row and a collection that lists them.
     let pvd = std::fs::read_to_string(dir.path().join("series.pvd")).unwrap();
     assert_eq!(pvd.matches("<DataSet").count(), 3);
-    let frame = std::fs::read(dir.path().join("vtk/step_000000200.vtk")).unwrap();
-    assert!(frame.starts_with(b"# vtk DataFile Version"));
+    let frame = std::fs::read_to_string(dir.path().join("vtk/step_000000200.vtu")).unwrap();
+    assert!(frame.starts_with("<VTKFile type=\"UnstructuredGrid\""));
 }
 
 /// Without `output.vtk` no VTK is written: an output nobody asked for is not computed.

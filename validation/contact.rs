@@ -392,7 +392,7 @@ fn draw_wall(path: &Path, title: &str, w: &WallRun) {
             let c = m.elements[e].props.centroid;
             let ue = &w.u[3 * e..3 * e + 3];
             let pts = b.mesh.cell_points(0).into_iter().map(|x| {
-                let p = rbsm::contact::current_position(m.formulation, c, ue, x - c);
+                let p = m.formulation.current_position(c, ue, x - c);
                 (p.x, p.y)
             });
             (pts.collect(), ue[1])

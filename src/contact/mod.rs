@@ -31,7 +31,7 @@ pub use detect::{entry, frame, gap, Gap};
 
 use crate::buckets::{boxes_meet, moved_beyond, BucketLists, Buckets};
 use crate::evaluator::Evaluator;
-use crate::formulation::Formulation;
+use crate::formulation::{rotation, Formulation};
 use crate::geometry::Vec2;
 use crate::model::{Model, GROUND};
 use crate::scene::EvaluatorKind;
@@ -531,7 +531,7 @@ impl Frames {
     /// Current position of the point at reference offset `d` of element `e`.
     fn place(&self, u: &[f64], e: usize, d: Vec2) -> Vec2 {
         let nd = self.formulation.ndof();
-        current_position(self.formulation, self.centroids[e], &u[e * nd..(e + 1) * nd], d)
+        self.formulation.current_position(self.centroids[e], &u[e * nd..(e + 1) * nd], d)
     }
 
     /// [`Frames::place`] for several offsets of one element.
@@ -540,7 +540,7 @@ impl Frames {
         let ue = &u[e * nd..(e + 1) * nd];
         let (c, r) = (self.centroids[e] + Vec2::new(ue[0], ue[1]), rotation(ue[2]));
         for (x, &d) in out.iter_mut().zip(offsets) {
-            *x = c + r * (d + strain(self.formulation, ue, d));
+            *x = c + r * (d + self.formulation.strain_part(ue, d));
         }
     }
 
@@ -559,7 +559,7 @@ impl Frames {
                     *d = dt * v;
                 }
                 let r = rotation(ue[2]);
-                rigid + r * strain(self.formulation, &du[..nd], r.transpose() * arm)
+                rigid + r * self.formulation.strain_part(&du[..nd], r.transpose() * arm)
             }
         }
     }
@@ -613,29 +613,6 @@ fn start_inside(m: Vec2, b1: Vec2, b2: Vec2, tol: f64) -> Option<(f64, f64)> {
     (depth > 0.0 && depth <= 0.05 * tol && (0.0..=1.0).contains(&along)).then_some((depth, along))
 }
 
-/// Where the point at reference offset `d` from the centroid `x_e` of an element with DOFs `ue`
-/// is, with the finite rotation of the element: `x_e + u_e + R(θ_e)(d + E_e d)`.
-pub fn current_position(formulation: Formulation, centroid: Vec2, ue: &[f64], d: Vec2) -> Vec2 {
-    centroid + Vec2::new(ue[0], ue[1]) + rotation(ue[2]) * (d + strain(formulation, ue, d))
-}
-
-/// The rotation matrix of angle `theta`.
-fn rotation(theta: f64) -> nalgebra::Matrix2<f64> {
-    let (s, c) = theta.sin_cos();
-    nalgebra::Matrix2::new(c, -s, s, c)
-}
-
-/// The strain part `E_e d` of an element's displacement at offset `d` (zero for rigid).
-fn strain(formulation: Formulation, ue: &[f64], d: Vec2) -> Vec2 {
-    match formulation {
-        Formulation::Rigid => Vec2::zeros(),
-        Formulation::Hybrid { .. } => {
-            let mut w = [0.0; 6];
-            w[3..].copy_from_slice(&ue[3..6]);
-            formulation.displacement(&w, d)
-        }
-    }
-}
 
 /// The stiffness of every contact closed at once against rigid ground, per element (row-major
 /// `ndof × ndof` blocks): each boundary edge pressed with `k_n` in every direction
