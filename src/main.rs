@@ -131,7 +131,7 @@ struct Terminal {
 impl Monitor for Terminal {
     fn info(&mut self, line: &str) {
         if !self.quiet {
-            eprintln!("{line}");
+            tell(line);
         }
     }
     fn progress(&mut self, step: u64, total: u64) {
@@ -168,17 +168,54 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     if let Some(n) = cli.threads {
         if let Err(e) = rayon::ThreadPoolBuilder::new().num_threads(n).build_global() {
-            eprintln!("error: --threads: {e}");
+            tell(&format!("error: --threads: {e}"));
             return ExitCode::from(2);
         }
     }
     match execute(&cli) {
         Ok(code) => code,
+        // The reader of standard output went away (`| head`): nothing is wrong with the run.
+        Err(rbsm::error::Error::Io { path, source }) if path == STDOUT && source.kind() == std::io::ErrorKind::BrokenPipe => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {e}");
+            if cli.json {
+                // Best effort: standard output may be what failed.
+                let _ = say(&serde_json::to_string_pretty(&error_json(&e)).expect("errors serialise"));
+            }
+            tell(&format!("error: {e}"));
             ExitCode::from(1)
         }
     }
+}
+
+/// How errors on standard output are named.
+const STDOUT: &str = "standard output";
+
+/// Writes `text` and a newline on standard output; an error (a closed pipe) is returned, not a
+/// panic as `println!` gives.
+fn say(text: &str) -> rbsm::error::Result<()> {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    writeln!(out, "{text}").and_then(|_| out.flush()).map_err(|e| rbsm::error::Error::io(STDOUT, e))
+}
+
+/// Writes `text` and a newline on standard error, ignoring a closed stream (`eprintln!` would
+/// panic).
+fn tell(text: &str) {
+    use std::io::Write;
+    let _ = writeln!(std::io::stderr().lock(), "{text}");
+}
+
+/// An error as `--json` prints it: `{"error": {"kind", "key", "message"}}`, `key` being the
+/// scene key, the mesh's body and cell, or the file at fault.
+fn error_json(e: &rbsm::error::Error) -> serde_json::Value {
+    use rbsm::error::Error;
+    let (kind, key, message) = match e {
+        Error::Scene { field, message } => ("scene", field.clone(), message.clone()),
+        Error::Mesh { body, cell, message } => ("mesh", format!("{body}, cell {cell}"), message.clone()),
+        Error::Parse { path, message } => ("parse", path.clone(), message.clone()),
+        Error::Io { path, source } => ("io", path.clone(), source.to_string()),
+    };
+    serde_json::json!({"error": {"kind": kind, "key": key, "message": message}})
 }
 
 /// `1.2 MB`, `35.0 kB`, `512 B`.
@@ -192,11 +229,11 @@ fn human_bytes(b: usize) -> String {
 }
 
 /// Prints a report as JSON, or as the text `text` gives.
-fn print(json: bool, value: &impl serde::Serialize, text: impl FnOnce() -> String) {
+fn print(json: bool, value: &impl serde::Serialize, text: impl FnOnce() -> String) -> rbsm::error::Result<()> {
     if json {
-        println!("{}", serde_json::to_string_pretty(value).expect("reports serialise"));
+        say(&serde_json::to_string_pretty(value).expect("reports serialise"))
     } else {
-        println!("{}", text());
+        say(&text())
     }
 }
 
@@ -223,20 +260,20 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
                     t += &format!("\n  warning: {w}");
                 }
                 t
-            });
+            })?;
             Ok(ExitCode::SUCCESS)
         }
         Command::Draw { scene, out } => {
             let model = rbsm::model::Model::build(&Scene::from_file(scene)?)?;
             let svg = rbsm::drawing::model_svg(&model);
             std::fs::write(out, svg).map_err(|e| rbsm::error::Error::io(out, e))?;
-            println!("written: {}", out.display());
+            print(cli.json, &serde_json::json!({"written": [out]}), || format!("written: {}", out.display()))?;
             Ok(ExitCode::SUCCESS)
         }
         Command::Plot { dir } => {
-            for path in rbsm::plot::histories(dir)? {
-                println!("written: {}", path.display());
-            }
+            let written = rbsm::plot::histories(dir)?;
+            let lines: Vec<String> = written.iter().map(|p| format!("written: {}", p.display())).collect();
+            print(cli.json, &serde_json::json!({ "written": written }), || lines.join("\n"))?;
             Ok(ExitCode::SUCCESS)
         }
         Command::Static { scene } => {
@@ -244,7 +281,7 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
             print(cli.json, &r, || {
                 let max = r.elements.iter().map(|e| e.u[0].hypot(e.u[1])).fold(0.0, f64::max);
                 format!("{} elements, {} interfaces; strain energy {:.6e} J; largest displacement {:.6e} m", r.elements.len(), r.interfaces.len(), r.energy, max)
-            });
+            })?;
             Ok(ExitCode::SUCCESS)
         }
         Command::Eigen { scene, modes, method, vtk, svg } => {
@@ -261,7 +298,7 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
                     t.push_str(&format!("  mode {:>3}: {:.6e} Hz\n", i + 1, f));
                 }
                 t.trim_end().to_string()
-            });
+            })?;
             Ok(ExitCode::SUCCESS)
         }
         Command::Stability { scene, fractions, steps, out } => {
@@ -282,7 +319,7 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
                     t.push_str(&format!("  run at {:.3} Δt_crit: {} after {} steps, energy drift {:.3e}\n", f.fraction, f.status, f.steps, f.max_relative_drift));
                 }
                 t.trim_end().to_string()
-            });
+            })?;
             Ok(ExitCode::SUCCESS)
         }
         Command::Tradeoff { scene, sweeps, out } => {
@@ -295,7 +332,7 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
             let report = rbsm::tradeoff::sweep(&text, &sweeps, |p| {
                 done += 1;
                 if !cli.quiet {
-                    eprintln!("[{done}/{total}] {}: {} steps in {:.3} s, {}", rbsm::tradeoff::describe(&p.settings), p.steps, p.wall_s, p.status);
+                    tell(&format!("[{done}/{total}] {}: {} steps in {:.3} s, {}", rbsm::tradeoff::describe(&p.settings), p.steps, p.wall_s, p.status));
                 }
             })?;
             report.write(&dir)?;
@@ -303,7 +340,7 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
                 let md = std::fs::read_to_string(dir.join("tradeoff.md")).unwrap_or_default();
                 format!("{md}
 written: {}/tradeoff.{{csv,md,svg}}", dir.display())
-            });
+            })?;
             Ok(ExitCode::SUCCESS)
         }
         Command::Run { scene, out, resume, evaluator, dt, steps } => {
@@ -318,23 +355,19 @@ written: {}/tradeoff.{{csv,md,svg}}", dir.display())
             if let Some(bar) = monitor.bar.take() {
                 bar.finish_and_clear();
             }
-            if cli.json {
-                println!("{}", serde_json::to_string_pretty(&summary).expect("summary serialises"));
-            } else if let Some(reason) = &summary.reason {
-                println!("{}: {} at {reason}", summary.scene, summary.status);
-                let state = if summary.status == "diverged" { "the last state that passed the guard" } else { "the step reached" };
-                println!("  the outputs in {} hold the run up to {state}: step {} (t = {:.6e} s)", out.display(), summary.steps, summary.t_end);
-            } else {
-                println!(
+            print(cli.json, &summary, || match &summary.reason {
+                Some(reason) => {
+                    let state = if summary.status == "diverged" { "the last state that passed the guard" } else { "the step reached" };
+                    format!(
+                        "{}: {} at {reason}\n  the outputs in {} hold the run up to {state}: step {} (t = {:.6e} s)",
+                        summary.scene, summary.status, out.display(), summary.steps, summary.t_end
+                    )
+                }
+                None => format!(
                     "{}: ok, {} steps (t = {:.6e} s) in {:.3} s; energy drift {:.3e} of the largest energy; outputs in {}",
-                    summary.scene,
-                    summary.steps,
-                    summary.t_end,
-                    summary.wall_time_s,
-                    summary.energy.max_relative_drift,
-                    out.display()
-                );
-            }
+                    summary.scene, summary.steps, summary.t_end, summary.wall_time_s, summary.energy.max_relative_drift, out.display()
+                ),
+            })?;
             // A diverged or interrupted run kept its outputs; the exit code tells scripts which.
             Ok(match summary.status.as_str() {
                 "ok" => ExitCode::SUCCESS,

@@ -1,0 +1,71 @@
+//! The command line as scripts use it (issue 19 items 6, 7): `--json` gives JSON on standard
+//! output for every command, results and errors alike; a reader that closes the pipe early
+//! ends the process cleanly, with no panic.
+
+use serde_json::Value;
+use std::process::{Command, Stdio};
+
+const RBSM: &str = env!("CARGO_BIN_EXE_rbsm");
+
+fn scene(name: &str) -> String {
+    format!("{}/examples/scenes/{name}.json", env!("CARGO_MANIFEST_DIR"))
+}
+
+/// Runs `rbsm ARGS --json`; its exit code and standard output parsed as JSON.
+fn json(args: &[&str]) -> (Option<i32>, Value) {
+    let out = Command::new(RBSM).args(args).args(["--json", "--quiet"]).output().unwrap();
+    let text = String::from_utf8(out.stdout).unwrap();
+    let value = serde_json::from_str(&text).unwrap_or_else(|e| panic!("{args:?}: not JSON ({e}): {text:?}"));
+    (out.status.code(), value)
+}
+
+#[test]
+fn every_command_answers_json_with_json() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().to_str().unwrap();
+    let cantilever = scene("cantilever");
+    let (code, v) = json(&["check", &cantilever]);
+    assert_eq!(code, Some(0));
+    assert!(v["dt_crit"].as_f64().unwrap() > 0.0);
+    let (code, v) = json(&["run", &cantilever, "--steps", "50", "--out", &format!("{dir}/run")]);
+    assert_eq!((code, v["status"].as_str()), (Some(0), Some("ok")));
+    let (code, v) = json(&["plot", &format!("{dir}/run")]);
+    assert_eq!(code, Some(0));
+    assert!(v["written"].as_array().unwrap().iter().any(|p| p.as_str().unwrap().ends_with("energies.svg")));
+    let (code, v) = json(&["draw", &cantilever, "--out", &format!("{dir}/model.svg")]);
+    assert_eq!((code, v["written"][0].as_str().map(|p| p.ends_with("model.svg"))), (Some(0), Some(true)));
+    let (code, v) = json(&["static", &cantilever]);
+    assert_eq!(code, Some(0));
+    assert!(v["energy"].as_f64().unwrap() > 0.0);
+    let (code, v) = json(&["eigen", &cantilever, "--modes", "2"]);
+    assert_eq!(code, Some(0));
+    assert_eq!(v["frequencies_hz"].as_array().unwrap().len(), 2);
+    // Errors too: the key at fault and the message, on standard output.
+    let bad = tmp.path().join("bad.json");
+    std::fs::write(&bad, r#"{"name": "x", "thickness": -1}"#).unwrap();
+    let (code, v) = json(&["check", bad.to_str().unwrap()]);
+    assert_eq!(code, Some(1));
+    assert_eq!(v["error"]["kind"], "parse");
+    assert!(v["error"]["message"].as_str().unwrap().contains("missing field"));
+    let (code, v) = json(&["check", "/no/such/scene.json"]);
+    assert_eq!((code, v["error"]["kind"].as_str(), v["error"]["key"].as_str()), (Some(1), Some("io"), Some("/no/such/scene.json")));
+}
+
+#[test]
+fn a_reader_that_closes_early_ends_the_process_cleanly() {
+    let tmp = tempfile::tempdir().unwrap();
+    for args in [vec!["run", &scene("cantilever"), "--steps", "200", "--json"], vec!["eigen", &scene("cantilever"), "--modes", "3"]] {
+        let mut child = Command::new(RBSM)
+            .args(&args)
+            .args(["--out", tmp.path().join("out").to_str().unwrap()].iter().filter(|_| args[0] == "run"))
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        drop(child.stdout.take()); // `| head -c 0`
+        let out = child.wait_with_output().unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(0), "{args:?}: {stderr}");
+        assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
+    }
+}
