@@ -37,7 +37,7 @@ pub struct Checkpoint {
 /// A hash (FNV-1a, 64 bits) of everything that decides a run: the scene as parsed (its `Debug`
 /// form, which prints every number exactly) and the command-line overrides.
 pub fn fingerprint(scene: &Scene, opts: &RunOptions) -> u64 {
-    let text = format!("{scene:?}|{:?}|{:?}|{:?}", opts.evaluator, opts.dt.map(f64::to_bits), opts.steps);
+    let text = format!("{scene:?}|{:?}|{:?}|{:?}|{:?}", opts.evaluator, opts.dt.map(f64::to_bits), opts.dt_factor.map(f64::to_bits), opts.steps);
     text.bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| (h ^ b as u64).wrapping_mul(0x0100_0000_01b3))
 }
 
@@ -68,7 +68,7 @@ impl Checkpoint {
             return Err(bad(format!("checkpoint format {} (this rbsm reads {FORMAT})", checkpoint.format)));
         }
         if checkpoint.fingerprint != fingerprint(scene, opts) {
-            return Err(bad("written by a run of another scene or other options (--evaluator, --dt, --steps): resume with the scene and options the run was started with".into()));
+            return Err(bad("written by a run of another scene or other options (--evaluator, --dt, --dt-factor, --steps): resume with the scene and options the run was started with".into()));
         }
         Ok(checkpoint)
     }

@@ -27,7 +27,7 @@ pub const DENSE_LIMIT: usize = 500;
 /// How to solve.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum Method {
-    /// Dense up to `DENSE_LIMIT` free DOFs, sparse above.
+    /// Dense up to 500 free DOFs (`DENSE_LIMIT`), sparse above.
     Auto,
     /// Dense symmetric eigensolver (nalgebra), all modes.
     Dense,

@@ -43,8 +43,11 @@ enum Command {
         #[arg(long, value_enum)]
         evaluator: Option<EvaluatorKind>,
         /// Override the time step (s).
-        #[arg(long)]
+        #[arg(long, conflicts_with = "dt_factor")]
         dt: Option<f64>,
+        /// Override the time step as a fraction of Δt_crit.
+        #[arg(long)]
+        dt_factor: Option<f64>,
         /// Override the number of steps.
         #[arg(long)]
         steps: Option<u64>,
@@ -53,6 +56,7 @@ enum Command {
     /// interfaces, DOFs, supports, loads, contact, Δt_crit, the time step and the memory.
     /// Exit code 0 only for a valid scene.
     Check {
+        /// The scene file (JSON; see docs/scene.md).
         scene: PathBuf,
         /// Override the scene's evaluator.
         #[arg(long, value_enum)]
@@ -63,10 +67,12 @@ enum Command {
     },
     /// Static solution K_ff U_f = P_f (sparse Cholesky); loads at their full value.
     Static {
+        /// The scene file (JSON; see docs/scene.md).
         scene: PathBuf,
     },
     /// Lowest modes and ω_max of K φ = ω² M φ.
     Eigen {
+        /// The scene file (JSON; see docs/scene.md).
         scene: PathBuf,
         /// Number of lowest modes.
         #[arg(long, default_value_t = 10)]
@@ -83,6 +89,7 @@ enum Command {
     },
     /// Draw a scene's model as SVG: elements, interface springs, supports, loads, ground.
     Draw {
+        /// The scene file (JSON; see docs/scene.md).
         scene: PathBuf,
         /// The SVG file to write.
         #[arg(long)]
@@ -95,6 +102,7 @@ enum Command {
     },
     /// Exact Δt_crit, cheap bounds, the empirical limit and runs at fractions of Δt_crit.
     Stability {
+        /// The scene file (JSON; see docs/scene.md).
         scene: PathBuf,
         /// Fractions of Δt_crit to run at.
         #[arg(long, value_delimiter = ',', default_value = "0.9,0.99,1.01")]
@@ -109,6 +117,7 @@ enum Command {
     /// Speed against accuracy: runs the scene at every combination of the sweeps and writes
     /// tradeoff.csv, tradeoff.md and tradeoff.svg (error against wall time, Pareto front).
     Tradeoff {
+        /// The scene file (JSON; see docs/scene.md).
         scene: PathBuf,
         /// KEY=V1,V2,... with KEY one of dt, dt_factor, refine, formulation, penalty, evaluator,
         /// contact; repeat for a product of sweeps.
@@ -139,8 +148,12 @@ impl Monitor for Terminal {
             return;
         }
         if self.bar.is_none() && self.start.elapsed() > Duration::from_secs(2) {
-            let bar = ProgressBar::with_draw_target(Some(total), ProgressDrawTarget::stderr());
+            let bar = ProgressBar::with_draw_target(Some(total), ProgressDrawTarget::stderr()).with_elapsed(self.start.elapsed());
             bar.set_style(ProgressStyle::with_template("{bar:40} {pos}/{len} steps, {elapsed} elapsed, eta {eta}").expect("valid template"));
+            // The bar appears late: its rate is measured from here, not from a jump of `step`
+            // steps in no time (which showed an ETA of 0 s).
+            bar.set_position(step);
+            bar.reset_eta();
             self.bar = Some(bar);
         }
         if let Some(bar) = &self.bar {
@@ -218,6 +231,11 @@ fn error_json(e: &rbsm::error::Error) -> serde_json::Value {
     serde_json::json!({"error": {"kind": kind, "key": key, "message": message}})
 }
 
+/// `1 body`, `2 bodies`.
+fn count(n: usize, one: &str, many: &str) -> String {
+    format!("{n} {}", if n == 1 { one } else { many })
+}
+
 /// `1.2 MB`, `35.0 kB`, `512 B`.
 fn human_bytes(b: usize) -> String {
     match b {
@@ -243,8 +261,8 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
             let r = rbsm::report::check_report(&Scene::from_file(scene)?, &RunOptions { evaluator: *evaluator, dt: *dt, ..Default::default() })?;
             print(cli.json, &r, || {
                 let mut t = format!("{}: valid\n", r.scene);
-                t += &format!("  {} bodies, {} elements ({} formulation, {} evaluator)\n", r.bodies, r.elements, r.formulation, r.evaluator);
-                t += &format!("  {} interfaces, {} ground springs; {} DOFs, {} fixed\n", r.interfaces, r.ground_springs, r.dofs, r.fixed_dofs);
+                t += &format!("  {}, {} ({} formulation, {} evaluator)\n", count(r.bodies, "body", "bodies"), count(r.elements, "element", "elements"), r.formulation, r.evaluator);
+                t += &format!("  {} between elements, {}; {} DOFs, {} fixed\n", count(r.interfaces, "interface", "interfaces"), count(r.ground_springs, "ground spring", "ground springs"), r.dofs, r.fixed_dofs);
                 t += &format!("  {} point loads; gravity ({}, {}) m/s²\n", r.loads, r.gravity[0], r.gravity[1]);
                 t += &match &r.contact {
                     None => "  contact: none declared (no contact search)\n".to_string(),
@@ -343,9 +361,9 @@ written: {}/tradeoff.{{csv,md,svg}}", dir.display())
             })?;
             Ok(ExitCode::SUCCESS)
         }
-        Command::Run { scene, out, resume, evaluator, dt, steps } => {
+        Command::Run { scene, out, resume, evaluator, dt, dt_factor, steps } => {
             let scene = Scene::from_file(scene)?;
-            let opts = RunOptions { evaluator: *evaluator, dt: *dt, steps: *steps, interrupt: Some(interrupt_flag()?) };
+            let opts = RunOptions { evaluator: *evaluator, dt: *dt, dt_factor: *dt_factor, steps: *steps, interrupt: Some(interrupt_flag()?) };
             let mut monitor = Terminal { quiet: cli.quiet, bar: None, start: Instant::now() };
             let (summary, out) = match (resume, out) {
                 (Some(dir), _) => (run::resume(&scene, &opts, dir, &mut monitor)?, dir),

@@ -50,6 +50,18 @@ pub struct Summary {
     /// Contact figures; only for scenes with contact.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub contact: Option<ContactSummary>,
+    /// The probe columns of `history.csv` with their units (`rbsm plot` labels its axes so).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub probes: Vec<ProbeColumn>,
+}
+
+/// A probe column of `history.csv` and its unit.
+#[derive(Debug, Clone, Serialize)]
+pub struct ProbeColumn {
+    /// The column's header.
+    pub name: String,
+    /// `m` (`u`, `v`), `rad` (`theta`) or `1` (strains).
+    pub unit: String,
 }
 
 /// The contact figures of `summary.json`.
@@ -104,6 +116,15 @@ pub struct Probe {
 }
 
 impl Probe {
+    /// The unit of the probe's values: `m`, `rad` or `1` (a strain).
+    pub fn unit(&self) -> &'static str {
+        match self.dof {
+            0 | 1 => "m",
+            2 => "rad",
+            _ => "1",
+        }
+    }
+
     /// The probe's value in the displacements `u` of all elements.
     pub fn value(&self, u: &[f64]) -> f64 {
         let ue = &u[self.element * self.nd..(self.element + 1) * self.nd];

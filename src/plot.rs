@@ -30,7 +30,7 @@ pub fn log_log(path: &Path, title: &str, x_label: &str, y_label: &str, series: &
             .y_label_area_size(70)
             .build_cartesian_2d(range(all().map(|p| p.0), 1.3).log_scale(), range(all().map(|p| p.1), 2.0).log_scale())
             .map_err(|e| failed(path, e))?;
-        chart.configure_mesh().x_desc(x_label).y_desc(y_label).y_label_formatter(&|y| format!("{y:.0e}")).draw().map_err(|e| failed(path, e))?;
+        chart.configure_mesh().x_desc(x_label).y_desc(y_label).x_label_formatter(&|x| tick(*x)).y_label_formatter(&|y| tick(*y)).draw().map_err(|e| failed(path, e))?;
         for (i, (name, pts)) in series.iter().enumerate() {
             let color = Palette99::pick(i).to_rgba();
             let pts: Vec<_> = pts.iter().copied().filter(|p| p.0 > 0.0 && p.1 > 0.0).collect();
@@ -61,7 +61,8 @@ pub fn pareto(path: &Path, title: &str, points: &[(f64, f64, bool, String)]) -> 
             .configure_mesh()
             .x_desc("wall time (s)")
             .y_desc("relative error")
-            .y_label_formatter(&|y| format!("{y:.0e}"))
+            .x_label_formatter(&|x| tick(*x))
+            .y_label_formatter(&|y| tick(*y))
             .draw()
             .map_err(|e| failed(path, e))?;
         chart
@@ -122,13 +123,19 @@ pub fn read_csv(path: &Path) -> Result<Vec<Column>> {
     Ok(columns)
 }
 
-/// A tick label: plain decimals between 1e-3 and 1e4, else scientific with three digits.
+/// A tick label with at most six significant digits and no trailing zeros, so that float noise
+/// (`0.30000000000000004`) never shows and close ticks stay apart: plain decimals between 1e-3
+/// and 1e4, else scientific.
 fn tick(x: f64) -> String {
     if x == 0.0 || (1e-3..1e4).contains(&x.abs()) {
-        let s = format!("{x:.4}");
-        s.trim_end_matches('0').trim_end_matches('.').to_string()
+        let decimals = (5 - x.abs().log10().floor() as i32).max(0) as usize;
+        let s = format!("{x:.decimals$}");
+        if s.contains('.') { s.trim_end_matches('0').trim_end_matches('.').to_string() } else { s }
     } else {
-        format!("{x:.2e}")
+        let s = format!("{x:.5e}");
+        let (mantissa, exponent) = s.split_once('e').unwrap_or((&s, "0"));
+        let mantissa = if mantissa.contains('.') { mantissa.trim_end_matches('0').trim_end_matches('.') } else { mantissa };
+        format!("{mantissa}e{exponent}")
     }
 }
 
@@ -157,7 +164,9 @@ fn panel(area: &DrawingArea<SVGBackend, plotters::coord::Shift>, path: &Path, ti
         .y_label_area_size(80)
         .build_cartesian_2d(x0..x1, y0..y1)
         .map_err(|e| failed(path, e))?;
-    let y_format = |y: &f64| if log_y { format!("{:.1e}", 10f64.powf(*y)) } else { tick(*y) };
+    // On a log axis the ticks fall between round values: three significant digits suffice.
+    let round3 = |v: f64| if v > 0.0 { let k = 10f64.powi(v.log10().floor() as i32 - 2); (v / k).round() * k } else { v };
+    let y_format = |y: &f64| if log_y { tick(round3(10f64.powf(*y))) } else { tick(*y) };
     chart.configure_mesh().x_desc(x_label).y_desc(y_label).x_label_formatter(&|x| tick(*x)).y_label_formatter(&y_format).draw().map_err(|e| failed(path, e))?;
     for (i, (name, pts)) in series.iter().enumerate() {
         let color = Palette99::pick(i).to_rgba();
@@ -186,7 +195,7 @@ const ENERGIES: [&str; 6] = ["kinetic", "elastic", "contact", "potential", "exte
 /// - `history.csv` of `rbsm run`: `energies.svg` (each energy that is not zero throughout, J,
 ///   against `t`) and `probes.svg` (one panel per probe);
 /// - `fraction_F.csv` of `rbsm stability --out`: `stability.svg`, the stored (kinetic +
-///   elastic) energy of each run relative to its start, on a log scale: bounded below
+///   elastic) energy of each run relative to the first it stored, on a log scale: bounded below
 ///   `Δt_crit`, growing geometrically (a straight line) above it until the guard stops the run.
 pub fn histories(dir: &Path) -> Result<Vec<std::path::PathBuf>> {
     let mut written = Vec::new();
@@ -202,10 +211,20 @@ pub fn histories(dir: &Path) -> Result<Vec<std::path::PathBuf>> {
         written.push(path);
         let probes: Vec<&Column> = columns[1..].iter().filter(|c| !ENERGIES.contains(&c.name.as_str())).collect();
         if !probes.is_empty() {
+            // The units from the run's summary, when it is there.
+            let summary: serde_json::Value = std::fs::read_to_string(dir.join("summary.json")).ok().and_then(|t| serde_json::from_str(&t).ok()).unwrap_or_default();
+            let unit = |name: &str| {
+                let listed = summary["probes"].as_array().into_iter().flatten().find(|p| p["name"] == name);
+                match listed.and_then(|p| p["unit"].as_str()) {
+                    Some("1") => "strain".to_string(),
+                    Some(u) => format!("({u})"),
+                    None => "(m, rad or strain)".to_string(),
+                }
+            };
             let path = dir.join("probes.svg");
             svg_file(&path, (820, 260 * probes.len() as u32), |root| {
                 for (area, c) in root.split_evenly((probes.len(), 1)).iter().zip(&probes) {
-                    panel(area, &path, &format!("probe {}", c.name), "t (s)", "DOF value (m or rad)", &[(c.name.as_str(), pairs(c))], false)?;
+                    panel(area, &path, &format!("probe {}", c.name), "t (s)", &format!("{} {}", c.name, unit(&c.name)), &[(c.name.as_str(), pairs(c))], false)?;
                 }
                 Ok(())
             })?;
@@ -226,16 +245,41 @@ pub fn histories(dir: &Path) -> Result<Vec<std::path::PathBuf>> {
         for (f, p) in &fractions {
             let c = read_csv(p)?;
             let stored = c.iter().find(|c| c.name == "stored").ok_or_else(|| invalid(p, "expected the columns t,total,stored"))?;
-            let s0 = stored.values.first().copied().unwrap_or(1.0);
+            // Relative to the first energy stored: a run loaded from rest starts at 0 J.
+            let s0 = stored.values.iter().copied().find(|e| *e > 0.0).unwrap_or(1.0);
             series.push((format!("dt = {f} Δt_crit"), c[0].values.iter().zip(&stored.values).map(|(t, e)| (*t, e / s0)).collect::<Vec<_>>()));
         }
         let series: Vec<(&str, Vec<(f64, f64)>)> = series.iter().map(|(n, s)| (n.as_str(), s.clone())).collect();
+        // A run above the limit stops within a few steps: the second panel shows those steps.
+        let shortest = series.iter().map(|s| s.1.last().map_or(0.0, |p| p.0)).fold(f64::INFINITY, f64::min);
+        let early: Vec<(&str, Vec<(f64, f64)>)> = series.iter().map(|(n, s)| (*n, s.iter().copied().filter(|p| p.0 <= 1.5 * shortest).collect())).collect();
         let path = dir.join("stability.svg");
-        svg_file(&path, (820, 480), |root| panel(root, &path, "kinetic + elastic energy at fractions of Δt_crit", "t (s)", "E / E(0)", &series, true))?;
+        svg_file(&path, (820, 900), |root| {
+            let areas = root.split_evenly((2, 1));
+            panel(&areas[0], &path, "kinetic + elastic energy at fractions of Δt_crit", "t (s)", "E / E(first stored)", &series, true)?;
+            panel(&areas[1], &path, "the first steps, until the shortest run stopped", "t (s)", "E / E(first stored)", &early, true)
+        })?;
         written.push(path);
     }
     if written.is_empty() {
         return Err(invalid(dir, "holds neither history.csv (from `rbsm run`) nor fraction_F.csv files (from `rbsm stability --out`)"));
     }
     Ok(written)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::tick;
+
+    #[test]
+    fn ticks_show_no_float_noise_and_stay_distinct() {
+        assert_eq!(tick(0.1 + 0.2), "0.3");
+        assert_eq!(tick(0.0), "0");
+        assert_eq!(tick(1500.0), "1500");
+        assert_eq!(tick(2.5e-7), "2.5e-7");
+        assert_eq!(tick(-0.00125), "-0.00125");
+        // Ticks 1e-5 apart near 1e-3 used to print alike at four decimals.
+        assert_ne!(tick(0.00121), tick(0.00122));
+        assert_ne!(tick(1.0e-4), tick(1.5e-4));
+    }
 }

@@ -9,7 +9,7 @@ use crate::integrator::{CentralDifference, Status};
 use crate::loads::Loads;
 use crate::mass::Mass;
 use crate::model::{dof_index, Model};
-use crate::output::{self, ContactSummary, EnergySummary, History, Probe, Summary};
+use crate::output::{self, ContactSummary, EnergySummary, History, Probe, ProbeColumn, Summary};
 use crate::scene::{EvaluatorKind, Scene};
 use crate::{eigen, stability};
 use crate::vtk::VtkSeries;
@@ -54,6 +54,8 @@ pub struct RunOptions {
     pub evaluator: Option<EvaluatorKind>,
     /// Time step (s), replacing the scene's `dt` or `dt_factor`.
     pub dt: Option<f64>,
+    /// Time step as a fraction of `Δt_crit`, replacing the scene's `dt` or `dt_factor`.
+    pub dt_factor: Option<f64>,
     /// Number of steps, replacing the scene's `end` or `steps`.
     pub steps: Option<u64>,
     /// Raised from outside (a signal handler) to stop the run at the next step with a complete
@@ -102,8 +104,14 @@ impl Prepared {
         }
         let dt_crit = stability::critical_time_step(omega_max);
         let dt = match (opts.dt, scene.time.dt, scene.time.dt_factor) {
+            (Some(_), ..) if opts.dt_factor.is_some() => return Err(Error::scene("--dt-factor", "give --dt or --dt-factor, not both")),
             (Some(dt), _, _) if dt > 0.0 && dt.is_finite() => dt,
             (Some(dt), _, _) => return Err(Error::scene("--dt", format!("must be a finite number > 0, got {dt}"))),
+            (None, ..) if opts.dt_factor.is_some() => match opts.dt_factor {
+                Some(f) if !(f > 0.0 && f.is_finite()) => return Err(Error::scene("--dt-factor", format!("must be a finite number > 0, got {f}"))),
+                Some(f) if dt_crit.is_finite() => f * dt_crit,
+                _ => return Err(Error::scene("--dt-factor", "Δt_crit is infinite (no spring is loaded): give --dt instead")),
+            },
             (None, Some(dt), _) => dt,
             (None, None, Some(f)) if dt_crit.is_finite() => f * dt_crit,
             (None, None, _) => return Err(Error::scene("time.dt_factor", "Δt_crit is infinite (no spring is loaded): give `time.dt` instead")),
@@ -188,11 +196,13 @@ fn execute(scene: &Scene, opts: &RunOptions, out: &Path, monitor: &mut dyn Monit
         clear_previous(out)?;
         None
     };
+    let ground_springs = model.interfaces.iter().filter(|i| i.b == crate::model::GROUND).count();
     monitor.info(&format!(
-        "{}: {} elements, {} interfaces, {} free DOFs ({} formulation, {} evaluator, {} threads)",
+        "{}: {} elements, {} interfaces between elements and {} ground springs, {} free DOFs ({} formulation, {} evaluator, {} threads)",
         model.name,
         model.elements.len(),
-        model.interfaces.len(),
+        model.interfaces.len() - ground_springs,
+        ground_springs,
         model.n_free_dofs(),
         model.formulation.name(),
         p.evaluator.kind().name(),
@@ -205,6 +215,7 @@ fn execute(scene: &Scene, opts: &RunOptions, out: &Path, monitor: &mut dyn Monit
         monitor.info(&format!("warning: {w}"));
     }
     let probes = probes(scene, model)?;
+    let probe_columns: Vec<ProbeColumn> = probes.iter().map(|p| ProbeColumn { name: p.name.clone(), unit: p.unit().into() }).collect();
     let mut cd = p.integrator(p.dt);
     let (mut history, mut vtk, mut first, mut rotation) = match checkpoint {
         None => (History::create(out, probes)?, scene.output.vtk.then(|| VtkSeries::create(out)).transpose()?, None, 0.0f64),
@@ -293,6 +304,7 @@ fn execute(scene: &Scene, opts: &RunOptions, out: &Path, monitor: &mut dyn Monit
             rebuilds: c.stats.rebuilds,
             time_s: c.stats.time_s,
         }),
+        probes: probe_columns,
     };
     output::write_json(&out.join("summary.json"), &summary)?;
     if status == Status::Ok {

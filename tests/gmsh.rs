@@ -104,3 +104,25 @@ fn unsupported_files_and_names_are_refused_clearly() {
     .to_string();
     assert!(missing.contains("bodies[0].mesh.path") && missing.contains("nowhere.msh"), "{missing}");
 }
+
+/// A `.geo` with physical curves but no `Physical Surface` makes gmsh save the curves alone:
+/// the error says to add the surface (issue 19 item 7), not to mesh in 2D.
+#[test]
+fn a_mesh_saved_without_its_physical_surface_is_explained() {
+    let root = env!("CARGO_MANIFEST_DIR");
+    let text = std::fs::read_to_string(format!("{root}/examples/meshes/cantilever.msh")).unwrap();
+    // Drop the block of 640 quadrilaterals (entity 2 1, type 3); 16 boundary lines remain.
+    let lines: Vec<&str> = text.lines().collect();
+    let at = lines.iter().position(|l| l.trim() == "2 1 3 640").unwrap();
+    let mut kept: Vec<&str> = lines[..at].iter().chain(&lines[at + 641..]).copied().collect();
+    let header = kept.iter().position(|l| *l == "$Elements").unwrap() + 1;
+    kept[header] = "2 16 1 16";
+    let dir = tempfile::tempdir().unwrap();
+    let msh = dir.path().join("curves_only.msh");
+    std::fs::write(&msh, kept.join("\n") + "\n").unwrap();
+    let scene = std::fs::read_to_string(format!("{root}/examples/scenes/cantilever_gmsh.json")).unwrap();
+    let mut v: serde_json::Value = serde_json::from_str(&scene).unwrap();
+    v["bodies"][0]["mesh"]["path"] = msh.to_string_lossy().into_owned().into();
+    let e = rbsm::scene::Scene::from_json(&v.to_string()).and_then(|s| rbsm::model::Model::build(&s)).unwrap_err().to_string();
+    assert!(e.contains("Physical Surface") && !e.contains("gmsh -2"), "{e}");
+}

@@ -89,6 +89,11 @@ pub fn read(body: &str, path: &Path) -> Result<Mesh> {
             }
         }
     }
+    if cells.is_empty() && (!lines.is_empty() || !names.is_empty()) {
+        // gmsh saves only the elements of physical groups once any is defined.
+        return Err(fail("the file has no triangles or quadrilaterals, only elements of physical groups: \
+            add a `Physical Surface(\"body\") = {...};` for the meshed surface to the .geo (gmsh saves only the elements of physical groups once one is defined)".into()));
+    }
     if cells.is_empty() {
         return Err(fail("the file has no triangles or quadrilaterals: mesh the surface in 2D (`gmsh -2`)".into()));
     }
