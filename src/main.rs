@@ -67,6 +67,10 @@ enum Command {
     },
     /// Static solution K_ff U_f = P_f (sparse Cholesky); loads at their full value.
     Static {
+        /// Write summary.json, final_state.json, probes.csv and static.vtu with series.pvd
+        /// into this directory.
+        #[arg(long)]
+        out: Option<PathBuf>,
         /// The scene file (JSON; see docs/scene.md).
         scene: PathBuf,
     },
@@ -86,6 +90,10 @@ enum Command {
         /// Draw the mode shapes as SVG (deformed mesh over the reference) into this directory.
         #[arg(long)]
         svg: Option<PathBuf>,
+        /// Write summary.json, probes.csv and the shapes as mode_NNN.vtu with modes.pvd into
+        /// this directory.
+        #[arg(long)]
+        out: Option<PathBuf>,
     },
     /// Draw a scene's model as SVG: elements, interface springs, supports, loads, ground.
     Draw {
@@ -294,16 +302,24 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
             print(cli.json, &serde_json::json!({ "written": written }), || lines.join("\n"))?;
             Ok(ExitCode::SUCCESS)
         }
-        Command::Static { scene } => {
-            let r = rbsm::report::static_report(&Scene::from_file(scene)?)?;
+        Command::Static { scene, out } => {
+            let scene = Scene::from_file(scene)?;
+            let (r, model, u) = rbsm::report::static_report(&scene)?;
+            if let Some(dir) = out {
+                rbsm::report::write_static(dir, &scene, &r, &model, &u)?;
+            }
             print(cli.json, &r, || {
                 let max = r.elements.iter().map(|e| e.u[0].hypot(e.u[1])).fold(0.0, f64::max);
                 format!("{} elements, {} interfaces; strain energy {:.6e} J; largest displacement {:.6e} m", r.elements.len(), r.interfaces.len(), r.energy, max)
             })?;
             Ok(ExitCode::SUCCESS)
         }
-        Command::Eigen { scene, modes, method, vtk, svg } => {
-            let (r, model, shapes) = rbsm::report::eigen_report(&Scene::from_file(scene)?, *modes, *method)?;
+        Command::Eigen { scene, modes, method, vtk, svg, out } => {
+            let scene = Scene::from_file(scene)?;
+            let (r, model, shapes) = rbsm::report::eigen_report(&scene, *modes, *method)?;
+            if let Some(dir) = out {
+                rbsm::report::write_eigen(dir, &scene, &r, &model, &shapes)?;
+            }
             if let Some(dir) = vtk {
                 rbsm::vtk::write_mode_shapes(dir, &model, &shapes)?;
             }

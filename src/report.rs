@@ -1,7 +1,7 @@
 //! The JSON answers of the analysis commands (DESIGN.md §9): `check`, `static`, `eigen`,
 //! `stability`.
 
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::eigen::{self, Method, Modes};
 use crate::evaluator;
 use crate::mass::Mass;
@@ -11,6 +11,7 @@ use crate::stability::{self, Bound, FractionRun};
 use crate::statics;
 use crate::system::FreeSystem;
 use serde::Serialize;
+use std::path::Path;
 
 #[derive(Serialize)]
 /// One element of `rbsm static --json`.
@@ -51,8 +52,8 @@ pub struct StaticReport {
     pub energy: f64,
 }
 
-/// Solves the static problem of a scene.
-pub fn static_report(scene: &Scene) -> Result<StaticReport> {
+/// Solves the static problem of a scene; the report, the model and its displacements `U`.
+pub fn static_report(scene: &Scene) -> Result<(StaticReport, Model, Vec<f64>)> {
     let model = Model::build(scene)?;
     let sol = statics::solve(&model)?;
     let nd = model.formulation.ndof();
@@ -76,7 +77,53 @@ pub fn static_report(scene: &Scene) -> Result<StaticReport> {
             traction: statics::midpoint_traction(&model, i, &sol.u),
         })
         .collect();
-    Ok(StaticReport { elements, interfaces, energy: sol.energy })
+    Ok((StaticReport { elements, interfaces, energy: sol.energy }, model, sol.u))
+}
+
+/// Writes what `rbsm static --out DIR` gives: `summary.json` (the report), `final_state.json`
+/// (`U`, zero `V`), `probes.csv` (`probe,value,unit` for the scene's probes) and the frame
+/// `static.vtu` with its collection `series.pvd`.
+pub fn write_static(dir: &Path, scene: &Scene, report: &StaticReport, model: &Model, u: &[f64]) -> Result<()> {
+    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    crate::output::write_json(&dir.join("summary.json"), report)?;
+    let v = vec![0.0; u.len()];
+    crate::output::write_final_state(dir, model, 0.0, u, &v)?;
+    write_probe_rows(dir, scene, model, &["case"], &[(vec!["static".to_string()], u)])?;
+    crate::vtk::write_frame(&dir.join("static.vtu"), model, u, &v, crate::vtk::Placement::Linear)?;
+    crate::vtk::write_collection(&dir.join("series.pvd"), &[(0.0, "static.vtu".into())])
+}
+
+/// Writes what `rbsm eigen --out DIR` gives: `summary.json` (the report), the shapes as
+/// `mode_NNN.vtu` with `modes.pvd`, and `probes.csv` (per mode its number, frequency and each
+/// probe of the `M`-normalised shape).
+pub fn write_eigen(dir: &Path, scene: &Scene, report: &EigenReport, model: &Model, modes: &Modes) -> Result<()> {
+    crate::vtk::write_mode_shapes(dir, model, modes)?;
+    crate::output::write_json(&dir.join("summary.json"), report)?;
+    let rows: Vec<(Vec<String>, &[f64])> =
+        modes.shapes.iter().zip(&report.frequencies_hz).enumerate().map(|(k, (shape, f))| (vec![(k + 1).to_string(), format!("{f:e}")], shape.as_slice())).collect();
+    write_probe_rows(dir, scene, model, &["mode", "frequency_hz"], &rows)
+}
+
+/// `probes.csv`: the columns `keys`, then one column per probe of `scene` (its unit in the
+/// header, `name (m)`), a row per `(key values, displacements)`.
+fn write_probe_rows(dir: &Path, scene: &Scene, model: &Model, keys: &[&str], rows: &[(Vec<String>, &[f64])]) -> Result<()> {
+    let probes = crate::run::probes(scene, model)?;
+    if probes.is_empty() {
+        return Ok(());
+    }
+    let mut text = keys.join(",");
+    for p in &probes {
+        text.push_str(&format!(",{} ({})", p.name, p.unit()));
+    }
+    text.push('\n');
+    for (key, u) in rows {
+        text.push_str(&key.join(","));
+        for p in &probes {
+            text.push_str(&format!(",{:e}", p.value(u)));
+        }
+        text.push('\n');
+    }
+    crate::output::write_atomic(&dir.join("probes.csv"), text.as_bytes())
 }
 
 /// `rbsm eigen --json`.

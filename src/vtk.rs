@@ -51,14 +51,9 @@ impl VtkSeries {
                 std::fs::remove_file(&path).map_err(|e| Error::io(&path, e))?;
             }
         }
-        let mut xml = String::from(HEAD);
-        for (t, f) in &frames {
-            xml.push_str(&entry(*t, f));
-        }
-        let tail = xml.len() as u64;
-        xml.push_str(TAIL);
         let path = dir.join("series.pvd");
-        crate::output::write_atomic(&path, xml.as_bytes())?;
+        write_collection(&path, &frames)?;
+        let tail = (HEAD.len() + frames.iter().map(|(t, f)| entry(*t, f).len()).sum::<usize>()) as u64;
         let collection = std::fs::OpenOptions::new().write(true).open(&path).map_err(|e| Error::io(&path, e))?;
         Ok(VtkSeries { dir: dir.to_path_buf(), frames, collection, tail })
     }
@@ -196,15 +191,24 @@ pub fn write_mode_shapes(dir: &Path, model: &Model, modes: &crate::eigen::Modes)
     }
     let size = (hi - lo).norm();
     let nd = model.formulation.ndof();
-    let mut xml = String::from(HEAD);
+    let mut frames = Vec::new();
     for (k, shape) in modes.shapes.iter().enumerate() {
         let max = (0..model.elements.len()).map(|e| shape[e * nd].hypot(shape[e * nd + 1])).fold(0.0, f64::max);
         let scale = if max > 0.0 { 0.1 * size / max } else { 1.0 };
         let u: Vec<f64> = shape.iter().map(|x| x * scale).collect();
         let name = format!("mode_{:03}.vtu", k + 1);
         write_frame(&dir.join(&name), model, &u, &vec![0.0; u.len()], Placement::Linear)?;
-        xml.push_str(&entry((k + 1) as f64, &name));
+        frames.push(((k + 1) as f64, name));
+    }
+    write_collection(&dir.join("modes.pvd"), &frames)
+}
+
+/// Writes a collection listing `frames` (time, file name relative to the collection).
+pub fn write_collection(path: &Path, frames: &[(f64, String)]) -> Result<()> {
+    let mut xml = String::from(HEAD);
+    for (t, f) in frames {
+        xml.push_str(&entry(*t, f));
     }
     xml.push_str(TAIL);
-    crate::output::write_atomic(&dir.join("modes.pvd"), xml.as_bytes())
+    crate::output::write_atomic(path, xml.as_bytes())
 }

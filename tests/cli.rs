@@ -69,3 +69,31 @@ fn a_reader_that_closes_early_ends_the_process_cleanly() {
         assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
     }
 }
+
+/// `static` and `eigen` write files like `run` (issue 19 item 9): a summary, VTK a ParaView
+/// series opens, and the scene's probes.
+#[test]
+fn static_and_eigen_write_their_outputs() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (s, e) = (tmp.path().join("static"), tmp.path().join("eigen"));
+    let cantilever = scene("cantilever");
+    let (code, _) = json(&["static", &cantilever, "--out", s.to_str().unwrap()]);
+    assert_eq!(code, Some(0));
+    let summary: Value = serde_json::from_str(&std::fs::read_to_string(s.join("summary.json")).unwrap()).unwrap();
+    assert!(summary["energy"].as_f64().unwrap() > 0.0);
+    assert!(std::fs::read_to_string(s.join("series.pvd")).unwrap().contains(r#"file="static.vtu""#));
+    assert!(vtkio::Vtk::import(s.join("static.vtu")).is_ok());
+    let probes = std::fs::read_to_string(s.join("probes.csv")).unwrap();
+    assert_eq!(probes.lines().next(), Some("case,tip_v (m)"));
+    let tip: f64 = probes.lines().nth(1).unwrap().split(',').nth(1).unwrap().parse().unwrap();
+    let state: Value = serde_json::from_str(&std::fs::read_to_string(s.join("final_state.json")).unwrap()).unwrap();
+    assert_eq!(tip, state["elements"][79]["U"][1].as_f64().unwrap());
+    let (code, _) = json(&["eigen", &cantilever, "--modes", "3", "--out", e.to_str().unwrap()]);
+    assert_eq!(code, Some(0));
+    let summary: Value = serde_json::from_str(&std::fs::read_to_string(e.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(summary["frequencies_hz"].as_array().unwrap().len(), 3);
+    assert_eq!(std::fs::read_to_string(e.join("modes.pvd")).unwrap().matches("<DataSet").count(), 3);
+    let probes = std::fs::read_to_string(e.join("probes.csv")).unwrap();
+    assert_eq!(probes.lines().count(), 4);
+    assert!(probes.starts_with("mode,frequency_hz,tip_v (m)\n1,"));
+}
