@@ -53,7 +53,7 @@ pub struct Scene {
 }
 
 /// A closed form or theory for the error of `rbsm tradeoff`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize)]
 #[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
 pub enum ReferenceSpec {
     /// The first bounce of a body dropped on horizontal ground: its apex returns to the drop
@@ -80,7 +80,7 @@ pub enum Plane {
 }
 
 /// Which displacement field an element carries.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 #[serde(tag = "kind", rename_all = "lowercase", deny_unknown_fields)]
 pub enum FormulationSpec {
     /// Plain RBSM: `(u, v, θ)` per element (eq. 10).
@@ -90,6 +90,49 @@ pub enum FormulationSpec {
         /// The penalty factor `p > 0`.
         penalty: f64,
     },
+}
+
+/// The keys of a `kind` that has none: an object with only `kind` (serde's internally tagged
+/// unit variants would accept and drop any other key, so `{"kind": "rigid", "penalty": 100}`
+/// would pass silently).
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct NoKeys {}
+
+/// The keys of `{"kind": "hybrid", ...}`.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct HybridKeys {
+    penalty: f64,
+}
+
+/// The keys of `{"kind": "bar-step", ...}`.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct BarStepKeys {
+    probe: String,
+}
+
+impl<'de> Deserialize<'de> for FormulationSpec {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        let (kind, rest) = split_kind(d)?;
+        match kind.as_str() {
+            "rigid" => variant(rest).map(|NoKeys {}| FormulationSpec::Rigid),
+            "hybrid" => variant(rest).map(|HybridKeys { penalty }| FormulationSpec::Hybrid { penalty }),
+            other => Err(unknown_kind(other, &["rigid", "hybrid"])),
+        }
+    }
+}
+
+impl<'de> Deserialize<'de> for ReferenceSpec {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        let (kind, rest) = split_kind(d)?;
+        match kind.as_str() {
+            "hopping-block" => variant(rest).map(|NoKeys {}| ReferenceSpec::HoppingBlock),
+            "bar-step" => variant(rest).map(|BarStepKeys { probe }| ReferenceSpec::BarStep { probe }),
+            other => Err(unknown_kind(other, &["hopping-block", "bar-step"])),
+        }
+    }
 }
 
 /// Which evaluator computes the internal forces (DESIGN.md §5).
