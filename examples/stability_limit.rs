@@ -9,7 +9,7 @@
 //! at the step where its guard sees the energy grow.
 //!
 //! **Equations.**
-//! - Central difference (DESIGN.md §7) on the free motion of eq. 7, `M Ü + K U = 0`:
+//! - Central difference (`src/integrator.rs`) on the free motion of eq. 7, `M Ü + K U = 0`:
 //!   `v^{n+½} = v^{n−½} − Δt M⁻¹ K U^n`, then `U^{n+1} = U^n + Δt v^{n+½}`.
 //!   For one mode of frequency `ω` this is `U^{n+1} = (2 − ω²Δt²) U^n − U^{n−1}`.
 //! - The amplification factors `z` solve `z² − (2 − ω²Δt²) z + 1 = 0`. They stay on the unit

@@ -1,4 +1,4 @@
-//! Eigen analysis (DESIGN.md §8): `K φ = ω² M φ` over the free DOFs.
+//! Eigen analysis (`rbsm eigen`, the README's *Commands*): `K φ = ω² M φ` over the free DOFs.
 //!
 //! - **dense**: all modes from faer's `self_adjoint_eigen` of `M^{−½} K M^{−½}` (small models);
 //! - **sparse**: `ω_max` by Lanczos on `M^{−½} K M^{−½}` applied through an evaluator (no

@@ -1,4 +1,5 @@
-//! Formulations: which displacement field an element carries (eq. 5, DESIGN.md §2).
+//! Formulations: which displacement field an element carries (eq. 5; the crate documentation's
+//! *Kinematics*).
 //!
 //! A formulation is a [`Kinematics`] with `N` DOFs per element: the shape matrix `N_e(x)`
 //! evaluated at an offset `d = x − x_e` from the element's centroid, and its transpose acting on
@@ -310,7 +311,7 @@ impl Formulation {
     }
 }
 
-/// All DOF names, in the order of `U_e` (DESIGN.md §9).
+/// All DOF names, in the order of `U_e` (as scenes name them: `docs/scene.md`).
 pub const DOF_NAMES: [&str; 6] = ["u", "v", "theta", "ex", "ey", "gxy"];
 
 #[cfg(test)]

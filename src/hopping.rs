@@ -1,4 +1,4 @@
-//! The hopping block of the paper (§4, DESIGN.md §10): a block dropped flat on rigid ground,
+//! The hopping block of the paper (§4; `validation/report.md` §8): a block dropped flat on rigid ground,
 //! the theory of its bounces, and a tracker that measures them from a run.
 
 use crate::geometry::Vec2;
@@ -138,7 +138,7 @@ pub fn centre_velocity(model: &Model, v: &[f64]) -> Vec2 {
     p / m
 }
 
-/// The paper's brick (§4; DESIGN.md §10) as a scene, and the theory of its flat landing: the
+/// The paper's brick (§4; `validation/report.md` §8) as a scene, and the theory of its flat landing: the
 /// one definition the tests, the validation report and the examples use.
 pub mod brick {
     use super::Theory;

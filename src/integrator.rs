@@ -1,4 +1,4 @@
-//! Explicit central difference in velocity form (DESIGN.md §7), with energy bookkeeping and a
+//! Explicit central difference in velocity form (paper_notes.md item 9), with energy bookkeeping and a
 //! divergence guard:
 //!
 //! `v^{n+½} = v^{n−½} + Δt M⁻¹ (P(t_n) − f_int(U^n) + f_c^n)`, `U^{n+1} = U^n + Δt v^{n+½}`,

@@ -43,7 +43,7 @@
 //! $$M_e \ddot U_e = t \oint_{\partial \Omega_e} N_e^T \tau_e \, d\ell + P_e.$$
 //! See [`evaluator::ElementWise`]; `examples/element_force.rs` traces it for one element.
 //!
-//! **Central difference** (DESIGN.md §7), with $f = f_{\rm int}(U^n) - P^n - f_c^n$:
+//! **Central difference** (velocity form; `paper_notes.md` item 9), with $f = f_{\rm int}(U^n) - P^n - f_c^n$:
 //! $$v^{n+1/2} = v^{n-1/2} - \Delta t M^{-1} f, \qquad U^{n+1} = U^n + \Delta t v^{n+1/2}.$$
 //! It is stable for $\Delta t \le \Delta t_{\rm crit} = 2/\omega_{\max}$, where $\omega_{\max}^2$
 //! is the largest eigenvalue of $K \phi = \omega^2 M \phi$. See [`integrator`], [`eigen`] and

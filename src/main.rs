@@ -135,6 +135,9 @@ enum Command {
         #[arg(long)]
         out: Option<PathBuf>,
     },
+    /// Print the JSON Schema of scene files on standard output (docs/scene.md describes every
+    /// key); an editor given it checks and completes scenes.
+    Schema,
 }
 
 /// Information lines and a progress bar on standard error; the bar appears only on a terminal,
@@ -265,6 +268,10 @@ fn print(json: bool, value: &impl serde::Serialize, text: impl FnOnce() -> Strin
 
 fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
     match &cli.command {
+        Command::Schema => {
+            say(&serde_json::to_string_pretty(&rbsm::scene::schema()).expect("the schema serialises"))?;
+            Ok(ExitCode::SUCCESS)
+        }
         Command::Check { scene, evaluator, dt } => {
             let r = rbsm::report::check_report(&Scene::from_file(scene)?, &RunOptions { evaluator: *evaluator, dt: *dt, ..Default::default() })?;
             print(cli.json, &r, || {

@@ -7,7 +7,7 @@ use crate::model::Model;
 use crate::parallel::{for_each_chunk_pair, CHUNK};
 use std::ops::Range;
 
-/// The explicit update of a step (DESIGN.md §7): `M`, `Δt` and the damping factors, for
+/// The explicit update of a step ([`crate::integrator`]): `M`, `Δt` and the damping factors, for
 /// evaluators that fuse it with the evaluation ([`crate::evaluator::Evaluator::advance`]) and
 /// apply it element by element ([`Update::resolve`]).
 #[derive(Debug, Clone, Copy)]
@@ -222,7 +222,7 @@ impl Mass {
         }
     }
 
-    /// One explicit update from the net force `f = f_int − P − f_c` (DESIGN.md §7):
+    /// One explicit update from the net force `f = f_int − P − f_c` ([`crate::integrator`]):
     /// `v ← (c₁ v − Δt M⁻¹ f) c₂`, then `u ← u + Δt v` unless `u` is empty. Element-local and
     /// in parallel, one pass over the vectors; the result does not depend on the thread count.
     pub fn advance(&self, f: &[f64], v: &mut [f64], u: &mut [f64], dt: f64, (c1, c2): (f64, f64)) {

@@ -58,7 +58,7 @@ pub struct Interface {
 
 impl Interface {
     /// The two Gauss points of the edge and their weight (`L/2` each): exact for the quadratic
-    /// integrand of the interface energy (DESIGN.md §3).
+    /// integrand of the interface energy (the crate documentation's *Assembled form*).
     pub fn gauss_points(&self) -> ([Vec2; 2], f64) {
         let m = 0.5 * (self.p1 + self.p2);
         let half = 0.5 * (self.p2 - self.p1) / 3f64.sqrt();

@@ -1,4 +1,5 @@
-//! What a run writes (DESIGN.md §9): `summary.json`, `history.csv` and `final_state.json`.
+//! What a run writes (the README's *Outputs* section): `summary.json`, `history.csv` and
+//! `final_state.json`.
 //! The history is written row by row, each row whole; the other files are written to a
 //! temporary name and renamed, so that a run that stops early leaves valid files.
 

@@ -1,4 +1,4 @@
-//! The JSON answers of the analysis commands (DESIGN.md §9): `check`, `static`, `eigen`,
+//! The JSON answers of the analysis commands (the README's *Commands*): `check`, `static`, `eigen`,
 //! `stability`.
 
 use crate::error::{Error, Result};

@@ -1,5 +1,5 @@
 //! A whole explicit run, from a scene to its outputs: model, evaluator, `Δt_crit`, the time
-//! loop and the files of DESIGN.md §9. The command line and the tests call this one function.
+//! loop and the files of [`crate::output`]. The command line and the tests call this one function.
 
 use crate::checkpoint::Checkpoint;
 use crate::contact::{self, Contact, WithBlocks};

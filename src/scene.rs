@@ -1,39 +1,54 @@
-//! The scene file (DESIGN.md §9): one JSON document, key names fixed, unknown keys refused.
+//! The scene file: one JSON document, key names fixed, unknown keys refused. Every key, with
+//! its type, unit, default and range, is in `docs/scene.md`; [`schema`] (`rbsm
+//! schema`) is the JSON Schema of the same types, generated from them and their doc comments.
 //!
 //! Parsing names the JSON path of an unknown or mistyped key (`bodies[0].mesh.cels`);
 //! [`Scene::validate`] then checks every value against its allowed range.
 
 use crate::error::{Error, Result};
 use crate::mesh::{grid::Cell, EdgeSet};
+use schemars::{json_schema, JsonSchema, Schema, SchemaGenerator};
 use serde::{Deserialize, Serialize};
+use std::borrow::Cow;
 use std::collections::BTreeMap;
 use std::path::Path;
 
-/// A whole scene.
-#[derive(Debug, Clone, Deserialize)]
+/// A scene of `rbsm` (a 2D Rigid-Bodies-Spring Model run with explicit dynamics): one JSON
+/// object; units SI (m, kg, s, N, Pa). Every key is described in the repository's
+/// `docs/scene.md`; `rbsm schema` prints this schema.
+#[derive(Debug, Clone, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
+#[schemars(title = "rbsm scene")]
 pub struct Scene {
+    /// The JSON Schema the file follows, for editors (`rbsm schema > scene.schema.json`);
+    /// ignored by `rbsm`.
+    #[serde(rename = "$schema", default)]
+    pub schema: Option<String>,
     /// Name of the scene, used in outputs.
     pub name: String,
     #[serde(default)]
     /// `stress` (default) or `strain`.
     pub plane: Plane,
-    /// Out-of-plane thickness `t` (m).
+    /// Out-of-plane thickness `t` (m), > 0.
+    #[schemars(extend("exclusiveMinimum" = 0))]
     pub thickness: f64,
     /// `rigid` or `hybrid` with its penalty.
     pub formulation: FormulationSpec,
     #[serde(default)]
     /// `assembled` (default) or `element-wise`.
     pub evaluator: EvaluatorKind,
-    /// Gravitational acceleration (m/s²), global components.
+    /// Gravitational acceleration `[g_x, g_y]` (m/s²), global components; none when absent.
     #[serde(default)]
     pub gravity: Option<[f64; 2]>,
-    /// Mass-proportional damping coefficient `α` (1/s): `C = α M`. Optional, default none.
+    /// Mass-proportional damping coefficient `α` (1/s), ≥ 0: `C = α M`. Optional, default none.
     #[serde(default)]
+    #[schemars(range(min = 0))]
     pub damping: Option<f64>,
-    /// Materials by name.
+    /// Materials by name (at least one).
+    #[schemars(extend("minProperties" = 1))]
     pub materials: BTreeMap<String, MaterialSpec>,
-    /// The meshed bodies.
+    /// The meshed bodies (at least one).
+    #[schemars(length(min = 1))]
     pub bodies: Vec<BodySpec>,
     #[serde(default)]
     /// Rigid ground segments for contact.
@@ -52,12 +67,13 @@ pub struct Scene {
     pub reference: Option<ReferenceSpec>,
 }
 
-/// A closed form or theory for the error of `rbsm tradeoff`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+/// A closed form or theory for the error of `rbsm tradeoff` (`kind`: `hopping-block` or
+/// `bar-step`).
+#[derive(Debug, Clone, PartialEq, Serialize, JsonSchema)]
 #[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
 pub enum ReferenceSpec {
     /// The first bounce of a body dropped on horizontal ground: its apex returns to the drop
-    /// height (the hopping block, DESIGN.md §10).
+    /// height (the paper's hopping block, module `hopping`).
     HoppingBlock,
     /// An axial bar (the first body, a grid from `origin.x` to `origin.x + size.x`) held by a
     /// ground spring on its left edge, loaded at `t = 0` by the traction of its right edge: the
@@ -69,7 +85,7 @@ pub enum ReferenceSpec {
 }
 
 /// Plane stress or plane strain (eq. 12 and its plane-strain form).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "lowercase")]
 pub enum Plane {
     #[default]
@@ -79,21 +95,66 @@ pub enum Plane {
     Strain,
 }
 
-/// Which displacement field an element carries.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+/// Which displacement field an element carries (`kind`: `rigid` or `hybrid`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, JsonSchema)]
 #[serde(tag = "kind", rename_all = "lowercase", deny_unknown_fields)]
 pub enum FormulationSpec {
     /// Plain RBSM: `(u, v, θ)` per element (eq. 10).
     Rigid,
     /// Rigid plus constant strain (eqs. 5, 8), springs `penalty` times eq. 12.
     Hybrid {
-        /// The penalty factor `p > 0`.
+        /// The penalty factor `p > 0` (dimensionless): larger is more accurate (error O(1/p))
+        /// and costs time step (`Δt_crit ∝ 1/√p`).
+        #[schemars(extend("exclusiveMinimum" = 0))]
         penalty: f64,
     },
 }
 
-/// Which evaluator computes the internal forces (DESIGN.md §5).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+/// The keys of a `kind` that has none: an object with only `kind` (serde's internally tagged
+/// unit variants would accept and drop any other key, so `{"kind": "rigid", "penalty": 100}`
+/// would pass silently).
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct NoKeys {}
+
+/// The keys of `{"kind": "hybrid", ...}`.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct HybridKeys {
+    penalty: f64,
+}
+
+/// The keys of `{"kind": "bar-step", ...}`.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct BarStepKeys {
+    probe: String,
+}
+
+impl<'de> Deserialize<'de> for FormulationSpec {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        let (kind, rest) = split_kind(d)?;
+        match kind.as_str() {
+            "rigid" => variant(rest).map(|NoKeys {}| FormulationSpec::Rigid),
+            "hybrid" => variant(rest).map(|HybridKeys { penalty }| FormulationSpec::Hybrid { penalty }),
+            other => Err(unknown_kind(other, &["rigid", "hybrid"])),
+        }
+    }
+}
+
+impl<'de> Deserialize<'de> for ReferenceSpec {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        let (kind, rest) = split_kind(d)?;
+        match kind.as_str() {
+            "hopping-block" => variant(rest).map(|NoKeys {}| ReferenceSpec::HoppingBlock),
+            "bar-step" => variant(rest).map(|BarStepKeys { probe }| ReferenceSpec::BarStep { probe }),
+            other => Err(unknown_kind(other, &["hopping-block", "bar-step"])),
+        }
+    }
+}
+
+/// Which evaluator computes the internal forces (module `evaluator`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum, JsonSchema)]
 #[serde(rename_all = "kebab-case")]
 pub enum EvaluatorKind {
     /// Global sparse `K`, `f = K U` (eqs. 7–13).
@@ -114,20 +175,23 @@ impl EvaluatorKind {
 }
 
 /// An isotropic linear-elastic material.
-#[derive(Debug, Clone, Copy, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct MaterialSpec {
-    /// Young's modulus (Pa).
+    /// Young's modulus (Pa), > 0.
     #[serde(rename = "E")]
+    #[schemars(extend("exclusiveMinimum" = 0))]
     pub e: f64,
-    /// Poisson's ratio.
+    /// Poisson's ratio (dimensionless), in (−1, 0.5).
+    #[schemars(extend("exclusiveMinimum" = -1, "exclusiveMaximum" = 0.5))]
     pub nu: f64,
-    /// Density (kg/m³).
+    /// Density (kg/m³), > 0.
+    #[schemars(extend("exclusiveMinimum" = 0))]
     pub rho: f64,
 }
 
 /// One body: a meshed region of one material.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct BodySpec {
     /// Name of the body, used in messages.
@@ -153,10 +217,11 @@ pub struct BodySpec {
 /// `count = [nx, ny]` copies of a body: copy `(i, j)` is shifted by
 /// `(i · pitch[0] + (j odd ? row_offset : 0), j · pitch[1])` and named `name[i,j]`. A running-bond
 /// wall of bricks is one brick with `row_offset` half a brick.
-#[derive(Debug, Clone, Copy, Deserialize)]
+#[derive(Debug, Clone, Copy, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ArraySpec {
-    /// Copies along x and y.
+    /// Copies along x and y, each ≥ 1, their product ≤ `MAX_BODIES` (1 000 000).
+    #[schemars(inner(range(min = 1, max = MAX_BODIES)))]
     pub count: [usize; 2],
     /// Shift between neighbouring copies along x and y (m).
     pub pitch: [f64; 2],
@@ -279,7 +344,7 @@ pub enum MeshSpec {
 
 /// A gmsh MSH 4.1 file of triangles and quadrilaterals; a relative `path` is taken from the
 /// scene file's directory. Its physical groups of lines name edges for supports and loads.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct GmshSpec {
     /// The MSH file.
@@ -287,14 +352,16 @@ pub struct GmshSpec {
 }
 
 /// `cells = [nx, ny]` rectangles (or twice as many triangles) over `origin .. origin + size`.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct GridSpec {
     /// Lower-left corner (m).
     pub origin: [f64; 2],
-    /// Width and height (m).
+    /// Width and height (m), each > 0.
+    #[schemars(transform = items_positive)]
     pub size: [f64; 2],
-    /// Cells along x and y.
+    /// Cells along x and y, each ≥ 1, their product ≤ `MAX_CELLS` (20 000 000).
+    #[schemars(inner(range(min = 1, max = MAX_CELLS)))]
     pub cells: [usize; 2],
     #[serde(default = "default_cell")]
     /// `rect` (default) or `tri`.
@@ -302,30 +369,35 @@ pub struct GridSpec {
 }
 
 /// `sites` centroidal Voronoi cells clipped to the rectangle, after `lloyd` iterations.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct VoronoiSpec {
     /// Lower-left corner (m).
     pub origin: [f64; 2],
-    /// Width and height (m).
+    /// Width and height (m), each > 0.
+    #[schemars(transform = items_positive)]
     pub size: [f64; 2],
-    /// Number of cells.
+    /// Number of cells, 2 to `MAX_CELLS` (20 000 000).
+    #[schemars(range(min = 2, max = MAX_CELLS))]
     pub sites: usize,
     #[serde(default)]
-    /// Random seed of the sites.
+    /// Random seed of the sites (default 0).
     pub seed: u64,
     #[serde(default)]
-    /// Lloyd iterations towards centroidal cells.
+    /// Lloyd iterations towards centroidal cells, 0 to 10 000 (default 0).
+    #[schemars(range(max = 10_000))]
     pub lloyd: usize,
 }
 
 /// Explicit polygons, vertex lists counter-clockwise.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct PolygonsSpec {
-    /// Vertex coordinates (m).
+    /// Vertex coordinates `[x, y]` (m), at least 3.
+    #[schemars(length(min = 3))]
     pub vertices: Vec<[f64; 2]>,
-    /// Cells as vertex indices, counter-clockwise.
+    /// Cells as lists of vertex indices (from 0), counter-clockwise; at least 1.
+    #[schemars(length(min = 1))]
     pub cells: Vec<Vec<usize>>,
 }
 
@@ -339,6 +411,23 @@ impl<'de> Deserialize<'de> for MeshSpec {
             "gmsh" => variant(rest).map(MeshSpec::Gmsh),
             other => Err(unknown_kind(other, &["grid", "voronoi", "polygons", "gmsh"])),
         }
+    }
+}
+
+/// One object per kind, as [`MeshSpec`]'s `Deserialize` reads them (keep the two in step).
+impl JsonSchema for MeshSpec {
+    fn schema_name() -> Cow<'static, str> {
+        "MeshSpec".into()
+    }
+
+    fn json_schema(generator: &mut SchemaGenerator) -> Schema {
+        let variants = [
+            kind_variant::<GridSpec>(generator, "grid"),
+            kind_variant::<VoronoiSpec>(generator, "voronoi"),
+            kind_variant::<PolygonsSpec>(generator, "polygons"),
+            kind_variant::<GmshSpec>(generator, "gmsh"),
+        ];
+        one_of_kinds("How a body is cut into elements (`kind`: `grid`, `voronoi`, `polygons` or `gmsh`).", variants)
     }
 }
 
@@ -359,24 +448,26 @@ pub enum SupportSpec {
 }
 
 /// The edges of a side tied to fixed ground by springs with `h_b = 0`.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct GroundSpringSpec {
     /// Where: a side or a gmsh group.
     pub edge: EdgeSet,
-    /// `["n", "s"]` by default; `["n"]` is a roller.
+    /// `["n", "s"]` by default; `["n"]` is a roller. Not empty.
     #[serde(default = "both_components")]
+    #[schemars(length(min = 1))]
     pub components: Vec<Component>,
 }
 
 /// The listed DOFs (default all) of the elements with an edge on that side are fixed.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ClampSpec {
     /// Where: a side or a gmsh group.
     pub edge: EdgeSet,
     #[serde(default)]
-    /// DOF names (`u`, `v`, `theta`, ...); all when absent.
+    /// DOF names (`u`, `v`, `theta`; hybrid also `ex`, `ey`, `gxy`); all when absent.
+    #[schemars(transform = items_dof_names)]
     pub dofs: Option<Vec<String>>,
 }
 
@@ -391,12 +482,24 @@ impl<'de> Deserialize<'de> for SupportSpec {
     }
 }
 
+/// One object per kind, as [`SupportSpec`]'s `Deserialize` reads them (keep the two in step).
+impl JsonSchema for SupportSpec {
+    fn schema_name() -> Cow<'static, str> {
+        "SupportSpec".into()
+    }
+
+    fn json_schema(generator: &mut SchemaGenerator) -> Schema {
+        let variants = [kind_variant::<GroundSpringSpec>(generator, "ground-spring"), kind_variant::<ClampSpec>(generator, "clamp")];
+        one_of_kinds("A support on an edge set of the body (`kind`: `ground-spring` or `clamp`).", variants)
+    }
+}
+
 fn both_components() -> Vec<Component> {
     vec![Component::N, Component::S]
 }
 
 /// A spring component of a ground support: normal or shear.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "lowercase")]
 pub enum Component {
     /// Normal.
@@ -415,21 +518,23 @@ pub enum LoadSpec {
 }
 
 /// Uniform traction (N/m², global components) on the edges of one side.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct TractionSpec {
     /// Where: a side or a gmsh group.
     pub edge: EdgeSet,
     /// `[t_x, t_y]` (N/m², global).
     pub value: [f64; 2],
-    /// Piecewise-linear factor in time, `[[t, factor], ...]`; constant 1 when absent.
+    /// Piecewise-linear factor in time, `[[t, factor], ...]` (s, dimensionless) with strictly
+    /// increasing `t`, held constant outside its range; constant 1 when absent.
     #[serde(default)]
+    #[schemars(length(min = 1))]
     pub amplitude: Option<Vec<[f64; 2]>>,
 }
 
 /// `[F_x, F_y, M]` (N, N, N·m) at the centroid of one element of the body (index within
 /// the body).
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ForceSpec {
     /// Element index within the body.
@@ -437,7 +542,9 @@ pub struct ForceSpec {
     /// `[F_x, F_y, M]` (N, N, N·m).
     pub value: [f64; 3],
     #[serde(default)]
-    /// Piecewise-linear factor in time, `[[t, factor], ...]`; constant 1 when absent.
+    /// Piecewise-linear factor in time, `[[t, factor], ...]` (s, dimensionless) with strictly
+    /// increasing `t`, held constant outside its range; constant 1 when absent.
+    #[schemars(length(min = 1))]
     pub amplitude: Option<Vec<[f64; 2]>>,
 }
 
@@ -450,6 +557,83 @@ impl<'de> Deserialize<'de> for LoadSpec {
             other => Err(unknown_kind(other, &["traction", "force"])),
         }
     }
+}
+
+/// One object per kind, as [`LoadSpec`]'s `Deserialize` reads them (keep the two in step).
+impl JsonSchema for LoadSpec {
+    fn schema_name() -> Cow<'static, str> {
+        "LoadSpec".into()
+    }
+
+    fn json_schema(generator: &mut SchemaGenerator) -> Schema {
+        let variants = [kind_variant::<TractionSpec>(generator, "traction"), kind_variant::<ForceSpec>(generator, "force")];
+        one_of_kinds("A load on a body (`kind`: `traction` or `force`).", variants)
+    }
+}
+
+/// The schema of one kind of a `kind`-keyed object (read by [`split_kind`] and [`variant`]):
+/// the variant's own object schema with the key `kind`, a constant, added and required.
+fn kind_variant<T: JsonSchema>(generator: &mut SchemaGenerator, kind: &str) -> Schema {
+    let mut schema = T::json_schema(generator);
+    let object = schema.ensure_object();
+    let properties = object.entry("properties").or_insert_with(|| serde_json::json!({}));
+    if let Some(properties) = properties.as_object_mut() {
+        properties.insert("kind".into(), serde_json::json!({"type": "string", "const": kind}));
+    }
+    let required = object.entry("required").or_insert_with(|| serde_json::json!([]));
+    if let Some(required) = required.as_array_mut() {
+        required.insert(0, "kind".into());
+    }
+    schema
+}
+
+/// Exactly one of `variants`, each told by its `kind`.
+fn one_of_kinds<const N: usize>(description: &str, variants: [Schema; N]) -> Schema {
+    let variants: Vec<Schema> = variants.into();
+    json_schema!({
+        "description": description,
+        "type": "object",
+        "required": ["kind"],
+        "oneOf": variants,
+    })
+}
+
+/// Every item of an array schema > 0 (`[f64; 2]` sizes).
+fn items_positive(schema: &mut Schema) {
+    if let Some(items) = schema.get_mut("items").and_then(|i| i.as_object_mut()) {
+        items.insert("exclusiveMinimum".into(), 0.into());
+    }
+}
+
+/// Every item of an array schema (or of an array-or-null) one of the DOF names.
+fn items_dof_names(schema: &mut Schema) {
+    if let Some(items) = schema.get_mut("items").and_then(|i| i.as_object_mut()) {
+        items.insert("enum".into(), crate::formulation::DOF_NAMES.as_slice().into());
+    }
+}
+
+/// Exactly one of the two keys `a` and `b` given with a value other than `null` (as
+/// [`Scene::validate`] asks of `time.dt`/`dt_factor`, `time.end`/`steps` and a probe's
+/// `element`/`at`).
+fn exactly_one_of(schema: &mut Schema, a: &str, b: &str) {
+    let given = |key: &str| serde_json::json!({"required": [key], "properties": {key: {"not": {"type": "null"}}}});
+    let rule = serde_json::json!({"oneOf": [given(a), given(b)]});
+    let object = schema.ensure_object();
+    match object.get_mut("allOf").and_then(|all| all.as_array_mut()) {
+        Some(all) => all.push(rule),
+        None => {
+            object.insert("allOf".into(), serde_json::json!([rule]));
+        }
+    }
+}
+
+fn time_exactly_one(schema: &mut Schema) {
+    exactly_one_of(schema, "dt", "dt_factor");
+    exactly_one_of(schema, "end", "steps");
+}
+
+fn probe_exactly_one(schema: &mut Schema) {
+    exactly_one_of(schema, "element", "at");
 }
 
 /// Splits an object with a `kind` key into the kind and the other keys. Dispatching by hand,
@@ -479,7 +663,7 @@ fn unknown_kind<E: serde::de::Error>(kind: &str, allowed: &[&str]) -> E {
 }
 
 /// Initial placement and motion of a body.
-#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+#[derive(Debug, Clone, Default, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct InitialSpec {
     /// Velocity of the body's centroid (m/s).
@@ -494,23 +678,25 @@ pub struct InitialSpec {
 }
 
 /// A rigid ground segment (for contact).
-#[derive(Debug, Clone, Serialize, Deserialize)]
+#[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct GroundSpec {
     /// Start point (m).
     pub from: [f64; 2],
-    /// End point (m); the free side is on the left of `from → to`.
+    /// End point (m), not `from`; the free side is on the left of `from → to`.
     pub to: [f64; 2],
 }
 
-/// Contact between bodies (DESIGN.md §6).
-#[derive(Debug, Clone, Serialize, Deserialize)]
+/// Contact between bodies and with the ground (module `contact`, paper eqs. 17–20).
+#[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ContactSpec {
-    /// `edge-to-edge` or `point`.
+    /// `edge-to-edge` (the paper's) or `point` (one spring per penetrating vertex, DEM).
+    #[schemars(extend("enum" = ["edge-to-edge", "point"]))]
     pub model: String,
-    /// Coulomb friction coefficient `μ ≥ 0`; `null` is no slip limit.
+    /// Coulomb friction coefficient `μ ≥ 0` (dimensionless); `null` or absent is no slip limit.
     #[serde(default)]
+    #[schemars(range(min = 0))]
     pub friction: Option<f64>,
 }
 
@@ -524,38 +710,46 @@ impl ContactSpec {
 }
 
 /// Time step and duration; exactly one of `dt`, `dt_factor` and one of `end`, `steps`.
-#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+#[derive(Debug, Clone, Default, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
+#[schemars(transform = time_exactly_one)]
 pub struct TimeSpec {
     #[serde(default)]
-    /// Time step (s).
+    /// Time step (s), > 0.
+    #[schemars(extend("exclusiveMinimum" = 0))]
     pub dt: Option<f64>,
     #[serde(default)]
-    /// Time step as a fraction of `Δt_crit`.
+    /// Time step as a fraction of the computed `Δt_crit` (dimensionless), > 0.
+    #[schemars(extend("exclusiveMinimum" = 0))]
     pub dt_factor: Option<f64>,
     #[serde(default)]
-    /// End time (s).
+    /// End time (s), > 0.
+    #[schemars(extend("exclusiveMinimum" = 0))]
     pub end: Option<f64>,
     #[serde(default)]
-    /// Number of steps.
+    /// Number of steps, ≥ 1.
+    #[schemars(range(min = 1))]
     pub steps: Option<u64>,
 }
 
 /// What a run writes.
-#[derive(Debug, Clone, Serialize, Deserialize)]
+#[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct OutputSpec {
-    /// A history row (and a VTK frame) every this many steps.
+    /// A history row (and a VTK frame) every this many steps, ≥ 1 (default 100).
     #[serde(default = "default_every")]
+    #[schemars(range(min = 1))]
     pub every: u64,
     /// ParaView output: VTK XML frames (`.vtu`) and a `.pvd` series.
     #[serde(default)]
     pub vtk: bool,
-    /// Extra history columns: one DOF of one element each.
+    /// Extra history columns: one DOF of one element (or at one point) each.
     #[serde(default)]
     pub probes: Vec<ProbeSpec>,
-    /// Steps between checkpoints (`checkpoint.bin`, for `rbsm run --resume`); none when absent.
+    /// Steps between checkpoints (`checkpoint.bin`, for `rbsm run --resume`), ≥ 1; none when
+    /// absent.
     #[serde(default)]
+    #[schemars(range(min = 1))]
     pub checkpoint_every: Option<u64>,
 }
 
@@ -571,11 +765,14 @@ fn default_every() -> u64 {
 
 /// A history column: DOF `dof` (`u`, `v`, `theta`, ...) of element `element` (global index),
 /// or at the point `at`: of the element containing it, `u` and `v` there through `N_e`.
-#[derive(Debug, Clone, Serialize, Deserialize)]
+#[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
+#[schemars(transform = probe_exactly_one)]
 pub struct ProbeSpec {
     #[serde(default)]
-    /// Column header; `e<element>_<dof>` or `<dof>_at_<x>_<y>` when absent.
+    /// Column header: no commas, quotes or control characters, none of the history's own
+    /// columns, no two alike; `e<element>_<dof>` or `<dof>_at_<x>_<y>` when absent.
+    #[schemars(length(min = 1))]
     pub name: Option<String>,
     /// Element (global index); give this or `at`.
     #[serde(default)]
@@ -584,6 +781,7 @@ pub struct ProbeSpec {
     #[serde(default)]
     pub at: Option<[f64; 2]>,
     /// DOF name: `u`, `v`, `theta`, and hybrid `ex`, `ey`, `gxy`.
+    #[schemars(extend("enum" = crate::formulation::DOF_NAMES))]
     pub dof: String,
 }
 
@@ -595,6 +793,15 @@ impl ProbeSpec {
             (e, None) => format!("e{}_{}", e.unwrap_or(0), self.dof),
         })
     }
+}
+
+/// The JSON Schema (draft 2020-12) of a scene file, generated from the scene types and their
+/// doc comments (`rbsm schema` prints it). It names every key the parser accepts, each object
+/// closed (`additionalProperties: false`), with the simple ranges of [`Scene::validate`]; the
+/// checks that need the whole scene (material names, probe columns, mesh files, products of
+/// counts) are left to `validate`.
+pub fn schema() -> serde_json::Value {
+    serde_json::Value::from(schemars::schema_for!(Scene))
 }
 
 impl Scene {

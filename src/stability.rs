@@ -1,4 +1,4 @@
-//! The stability limit of central difference (DESIGN.md §7, §8): `Δt_crit = 2 / ω_max`, the cheap
+//! The stability limit of central difference ([`crate::integrator`]; `rbsm stability`): `Δt_crit = 2 / ω_max`, the cheap
 //! bounds that codes use instead of `ω_max`, each with its ratio to the exact value, and the
 //! limit found empirically by running.
 

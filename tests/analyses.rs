@@ -1,4 +1,4 @@
-//! Static, eigen and stability analyses against closed forms (DESIGN.md §10).
+//! Static, eigen and stability analyses against closed forms (`validation/report.md` §1–5).
 
 mod common;
 use rbsm::eigen::{self, Method};

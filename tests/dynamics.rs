@@ -1,5 +1,5 @@
 //! Explicit runs: the two evaluators give the same trajectory, energy is kept, the guard stops
-//! an unstable run, and the outputs follow DESIGN.md §9.
+//! an unstable run, and the outputs follow the README's *Outputs*.
 
 mod common;
 use rbsm::integrator::Status;
@@ -109,7 +109,7 @@ fn a_run_clears_an_earlier_runs_outputs() {
     assert!(dir.path().join("notes.txt").exists() && dir.path().join("vtk").join("mine.vtk").exists());
 }
 
-/// The files of a run (README, Outputs) with their exact keys, header and element order.
+/// The files of the README's *Outputs* with their exact keys, header and element order.
 #[test]
 fn outputs_follow_the_contract() {
     let dir = tempfile::tempdir().unwrap();

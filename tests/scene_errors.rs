@@ -41,6 +41,17 @@ fn unknown_keys_are_named_with_their_path() {
     expect(&with(|v| v["time"]["tend"] = 3.into()), &["time", "tend"]);
 }
 
+/// A kind without keys of its own refuses any (serde's internally tagged unit variants would
+/// drop them: `{"kind": "rigid", "penalty": 100}` ran rigid without a word).
+#[test]
+fn kinds_without_keys_refuse_keys() {
+    expect(&with(|v| v["formulation"] = serde_json::json!({"kind": "rigid", "penalty": 100})), &["formulation", "penalty"]);
+    expect(&with(|v| v["reference"] = serde_json::json!({"kind": "hopping-block", "height": 1})), &["reference", "height"]);
+    expect(&with(|v| v["formulation"] = serde_json::json!({"kind": "hybrid", "penalty": 1, "p": 2})), &["formulation", "`p`"]);
+    expect(&with(|v| v["formulation"] = serde_json::json!({"kind": "hybrid"})), &["formulation", "penalty"]);
+    expect(&with(|v| v["formulation"] = serde_json::json!({"kind": "elastic"})), &["formulation", "elastic", "rigid, hybrid"]);
+}
+
 #[test]
 fn material_values_out_of_range_name_field_and_range() {
     expect(&with(|v| v["materials"]["m"]["E"] = 0.0.into()), &["materials.m.E", "> 0"]);

@@ -1,4 +1,5 @@
-//! Contact between bodies and with rigid ground (DESIGN.md §6, eqs. 17–20).
+//! Contact between bodies and with rigid ground (eqs. 17–20; the scene's `contact` key in
+//! `docs/scene.md`).
 //!
 //! Every boundary edge of a body, and every ground segment, is a surface that other bodies can
 //! enter. [`ContactModel::EdgeToEdge`] (the paper's, `overlap.rs`) treats the part of each

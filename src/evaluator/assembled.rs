@@ -10,7 +10,8 @@ use nalgebra::{Matrix2, SMatrix};
 use std::marker::PhantomData;
 
 /// The stiffness of one interface, `K_ab = t ∫ Bᵀ diag(k_n, k_s) B dℓ` with
-/// `B = [n s]ᵀ [−N_a(x), N_b(x)]`, integrated exactly by 2-point Gauss (DESIGN.md §3).
+/// `B = [n s]ᵀ [−N_a(x), N_b(x)]`, integrated exactly by 2-point Gauss
+/// ([`Interface::gauss_points`]).
 /// Returns the blocks `(aa, ab, ba, bb)`; for a ground interface only `aa` is non-zero.
 pub fn interface_stiffness<K: Kinematics<N>, const N: usize>(
     i: &Interface,

@@ -1,4 +1,5 @@
-//! Evaluators: `U ↦ f_int(U)`, the internal forces of the model (DESIGN.md §5).
+//! Evaluators: `U ↦ f_int(U)`, the internal forces of the model (eqs. 7–16;
+//! the crate documentation's *Assembled form* and *Element-wise form*).
 //!
 //! Two implementations of one contract, which the integrator cannot tell apart:
 //! [`Assembled`] multiplies by the global stiffness `K` of eq. 7; [`ElementWise`] sums, per
@@ -28,7 +29,7 @@ pub trait Evaluator: Send + Sync {
     fn fuses(&self) -> bool {
         false
     }
-    /// One explicit step fused with the evaluation (DESIGN.md §7): with `force` holding the
+    /// One explicit step fused with the evaluation (central difference, [`crate::integrator`]): with `force` holding the
     /// rest of the net force, `−P − f_c`, each element gets `f_int(U^n) + force` and is advanced
     /// by `update` as soon as its force is complete; `force` is left zero. `loaded` lists, in
     /// order, the only elements where `force` may be non-zero (`None`: any element), so that a

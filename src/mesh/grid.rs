@@ -5,7 +5,7 @@ use crate::error::Result;
 use crate::geometry::Vec2;
 
 /// The cell shape of a structured grid (`mesh.cell` in the scene).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "lowercase")]
 pub enum Cell {
     /// One rectangle per grid cell.

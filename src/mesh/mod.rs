@@ -53,6 +53,22 @@ impl<'de> serde::Deserialize<'de> for EdgeSet {
     }
 }
 
+/// A string: a side name or the name of a gmsh physical group (any string parses).
+impl schemars::JsonSchema for EdgeSet {
+    fn schema_name() -> std::borrow::Cow<'static, str> {
+        "EdgeSet".into()
+    }
+
+    fn json_schema(_: &mut schemars::SchemaGenerator) -> schemars::Schema {
+        schemars::json_schema!({
+            "type": "string",
+            "minLength": 1,
+            "description": "A side of the body's bounding box (`left`, `right`, `bottom`, `top`) or, any other name, a physical group of lines of the body's gmsh mesh.",
+            "examples": ["left", "right", "bottom", "top"]
+        })
+    }
+}
+
 impl std::fmt::Display for EdgeSet {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
