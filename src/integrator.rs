@@ -110,16 +110,8 @@ pub struct CentralDifference<'a> {
     /// The elements where `−P − f_c` can be non-zero, when the loads name them (no gravity, no
     /// contact): a fused step reads `force` only there.
     loaded: Option<Vec<u32>>,
-    /// Contact energy at `t_n`: minus the work of the contact forces (`Contact::apply`).
-    contact_energy: f64,
-    external_work: f64,
-    initial_total: Option<f64>,
-    energy_in_max: f64,
-    /// What the guard counts as stored (kinetic, elastic and contact) at the first check (J).
-    initial_stored: Option<f64>,
-    /// Largest `|total − total(0)|` so far (J).
-    max_drift: f64,
-    energy_scale: f64,
+    /// The energy bookkeeping: what was put in and taken out so far.
+    ledger: EnergyLedger,
     good: (u64, f64, Vec<f64>, Vec<f64>),
     /// Whether `v` already holds `v^{n+½}` of the current step `n`: a run ended there after its
     /// last record, and the next step only has `U` left to move.
@@ -142,6 +134,26 @@ impl Status {
     }
 }
 
+/// The energy bookkeeping of a run (J): the contact energy and the loads' work so far, and
+/// what the guard and the drift measure keep.
+#[derive(Debug, Clone, Copy, Default, serde::Serialize, serde::Deserialize)]
+struct EnergyLedger {
+    /// Contact energy at `t_n`: minus the work of the contact forces (`Contact::apply`).
+    contact_energy: f64,
+    /// Work of the applied loads since the start.
+    external_work: f64,
+    /// The total energy at the first check.
+    initial_total: Option<f64>,
+    /// The largest energy put in so far (the guard's measure).
+    energy_in_max: f64,
+    /// What the guard counts as stored (kinetic, elastic and contact) at the first check.
+    initial_stored: Option<f64>,
+    /// Largest `|total − total(0)|` so far.
+    max_drift: f64,
+    /// Largest energy seen, the scale of the drift.
+    energy_scale: f64,
+}
+
 /// Everything a run needs to go on from a recorded step, bit for bit: the state after that
 /// step's check (`U^n`, `v^{n+½}`, `v^n`), the energy bookkeeping and the contact state
 /// (see [`CentralDifference::state`]). Written as a checkpoint.
@@ -153,13 +165,7 @@ pub struct State {
     v: Vec<f64>,
     velocity: Vec<f64>,
     contact: Option<Contact>,
-    contact_energy: f64,
-    external_work: f64,
-    initial_total: Option<f64>,
-    energy_in_max: f64,
-    initial_stored: Option<f64>,
-    max_drift: f64,
-    energy_scale: f64,
+    ledger: EnergyLedger,
 }
 
 impl State {
@@ -198,13 +204,7 @@ impl<'a> CentralDifference<'a> {
             scratch: vec![0.0; n],
             contact: Contact::new(model),
             loaded: None,
-            contact_energy: 0.0,
-            external_work: 0.0,
-            initial_total: None,
-            energy_in_max: 0.0,
-            initial_stored: None,
-            max_drift: 0.0,
-            energy_scale: 0.0,
+            ledger: EnergyLedger::default(),
             good: (0, 0.0, vec![0.0; n], vec![0.0; n]),
             fraction: None,
             pending: false,
@@ -231,7 +231,7 @@ impl<'a> CentralDifference<'a> {
     /// `force −= f_c^n + P(t_n)`.
     fn subtract_external(&mut self) {
         if let Some(c) = self.contact.as_mut() {
-            self.contact_energy = c.apply(self.step, &self.u, &self.v, self.dt, &mut self.force);
+            self.ledger.contact_energy = c.apply(self.step, &self.u, &self.v, self.dt, &mut self.force);
         }
         self.loads.subtract(self.t, &mut self.force);
     }
@@ -262,13 +262,7 @@ impl<'a> CentralDifference<'a> {
             v: self.v.clone(),
             velocity: self.scratch.clone(),
             contact: self.contact.clone(),
-            contact_energy: self.contact_energy,
-            external_work: self.external_work,
-            initial_total: self.initial_total,
-            energy_in_max: self.energy_in_max,
-            initial_stored: self.initial_stored,
-            max_drift: self.max_drift,
-            energy_scale: self.energy_scale,
+            ledger: self.ledger,
         }
     }
 
@@ -288,13 +282,7 @@ impl<'a> CentralDifference<'a> {
         self.t = state.step as f64 * self.dt;
         self.good = (state.step, self.t, state.u.clone(), state.velocity.clone());
         (self.u, self.v, self.scratch, self.contact) = (state.u, state.v, state.velocity, state.contact);
-        self.contact_energy = state.contact_energy;
-        self.external_work = state.external_work;
-        self.initial_total = state.initial_total;
-        self.energy_in_max = state.energy_in_max;
-        self.initial_stored = state.initial_stored;
-        self.max_drift = state.max_drift;
-        self.energy_scale = state.energy_scale;
+        self.ledger = state.ledger;
         self.force_clear = false;
         self.pending = true;
         Ok(())
@@ -309,8 +297,8 @@ impl<'a> CentralDifference<'a> {
     /// Largest `|total − total(0)|` so far divided by the largest energy seen in the run
     /// (`kinetic + elastic + |potential| + |external_work|`); 0 while nothing has moved.
     pub fn max_relative_drift(&self) -> f64 {
-        if self.energy_scale > 0.0 {
-            self.max_drift / self.energy_scale
+        if self.ledger.energy_scale > 0.0 {
+            self.ledger.max_drift / self.ledger.energy_scale
         } else {
             0.0
         }
@@ -389,7 +377,7 @@ impl<'a> CentralDifference<'a> {
     /// `U^{n+1} = U^n + Δt v^{n+½}` once `v` holds `v^{n+½}`; the loads' work of the step.
     fn finish_step(&mut self, dt: f64) {
         self.pending = false;
-        self.external_work += self.loads.work_increment(self.t, dt, &self.v);
+        self.ledger.external_work += self.loads.work_increment(self.t, dt, &self.v);
         for_each_chunk(&mut self.u, |first, u| {
             let v = &self.v[first..first + u.len()];
             for (u, v) in u.iter_mut().zip(v) {
@@ -422,7 +410,7 @@ impl<'a> CentralDifference<'a> {
             self.evaluator.advance(&mut self.u, &mut self.v, &mut self.force, self.loaded.as_deref(), &update);
             self.force_clear = true;
         }
-        self.external_work += self.loads.work_increment(self.t, dt, &self.v);
+        self.ledger.external_work += self.loads.work_increment(self.t, dt, &self.v);
         self.step += 1;
         self.t = self.step as f64 * dt;
     }
@@ -487,12 +475,12 @@ impl<'a> CentralDifference<'a> {
     fn energy(&mut self, elastic: f64, shadow: f64) -> Energy {
         let kinetic = self.mass.kinetic_energy(&self.scratch);
         let potential = self.loads.gravity_potential(&self.u);
-        let external_work = self.external_work;
-        let contact = self.contact_energy;
+        let external_work = self.ledger.external_work;
+        let contact = self.ledger.contact_energy;
         let total = shadow + elastic + contact + potential - external_work;
-        let initial = *self.initial_total.get_or_insert(total);
-        self.energy_scale = self.energy_scale.max(kinetic + elastic + contact + potential.abs() + external_work.abs());
-        self.max_drift = self.max_drift.max((total - initial).abs());
+        let initial = *self.ledger.initial_total.get_or_insert(total);
+        self.ledger.energy_scale = self.ledger.energy_scale.max(kinetic + elastic + contact + potential.abs() + external_work.abs());
+        self.ledger.max_drift = self.ledger.max_drift.max((total - initial).abs());
         Energy { t: self.t, kinetic, elastic, contact, potential, external_work, total }
     }
 
@@ -504,9 +492,9 @@ impl<'a> CentralDifference<'a> {
     /// load that rises from zero would otherwise show kinetic energy before any work is booked.
     fn book_energy_in(&mut self, e: &Energy, dt: f64) {
         let ahead = self.loads.work_increment(self.t, dt, &self.v) - dt * self.loads.gravity_potential(&self.v);
-        let initial = *self.initial_stored.get_or_insert(e.kinetic + e.elastic + e.contact.max(0.0));
+        let initial = *self.ledger.initial_stored.get_or_insert(e.kinetic + e.elastic + e.contact.max(0.0));
         let put_in = initial + e.external_work - e.potential + ahead.max(0.0);
-        self.energy_in_max = self.energy_in_max.max(put_in);
+        self.ledger.energy_in_max = self.ledger.energy_in_max.max(put_in);
     }
 
     /// Why the run must stop, if it must.
@@ -525,11 +513,11 @@ impl<'a> CentralDifference<'a> {
         let limit = GROWTH_LIMIT * widen;
         // Before any energy is put in (the first steps of a run loaded from zero, a damped start
         // whose `v^{−½}` leaves 1e-40 J of round-off), growth has no measure: only a NaN stops it.
-        if self.energy_in_max > 0.0 && stored > limit * self.energy_in_max {
+        if self.ledger.energy_in_max > 0.0 && stored > limit * self.ledger.energy_in_max {
             return Some(format!(
                 "energy growth: kinetic + elastic + contact = {stored:.6e} J exceeds {limit:.4} × the energy put in ({:.6e} J); \
                  the time step is likely above the stability limit",
-                self.energy_in_max
+                self.ledger.energy_in_max
             ));
         }
         None
