@@ -412,10 +412,10 @@ fn critical_time_step(r: &mut Report) {
     rbsm::output::write_fraction_histories(&histories, &runs).unwrap();
     rbsm::plot::histories(&histories).unwrap();
     r.line("\n![stored energy of the runs at fractions of Δt_crit](stability_16x16/stability.svg)\n");
-    r.line("The stored (kinetic + elastic) energy of each run over its start, every tenth step: bounded at 0.9 and 0.99. The \
-            run at 1.01 is stopped by the guard (table above) before its growth shows at this sampling; \
-            `examples/stability_limit.rs` steps the same kind of run without the guard and measures the growth per step \
-            against the closed form.\n");
+    r.line("The stored (kinetic + elastic) energy of each run over the first it stored: every tenth step below the limit, \
+            bounded at 0.9 and 0.99; every step at 1.01, which grows until the guard stops it (table above; the lower panel \
+            shows those first steps). `examples/stability_limit.rs` steps the same kind of run without the guard and measures \
+            the growth per step against the closed form.\n");
     r.line("\nThe drift of the stable runs is large because a random start puts most of the energy into the highest modes, where \
             the averaged-velocity kinetic energy differs most from the energy central difference conserves (`⅛ Δt² aᵀ M a`).\n");
 }
