@@ -166,8 +166,10 @@ fn panel(area: &DrawingArea<SVGBackend, plotters::coord::Shift>, path: &Path, ti
         .map_err(|e| failed(path, e))?;
     // On a log axis the ticks fall between round values: three significant digits suffice.
     let round3 = |v: f64| if v > 0.0 { let k = 10f64.powi(v.log10().floor() as i32 - 2); (v / k).round() * k } else { v };
-    let y_format = |y: &f64| if log_y { tick(round3(10f64.powf(*y))) } else { tick(*y) };
-    chart.configure_mesh().x_desc(x_label).y_desc(y_label).x_label_formatter(&|x| tick(*x)).y_label_formatter(&y_format).draw().map_err(|e| failed(path, e))?;
+    // A tick meant to be 0 can come out as round-off (-6.9e-18 on a span of 0.05): snap it.
+    let snap = |v: f64, span: f64| if v.abs() <= 1e-9 * span { 0.0 } else { v };
+    let y_format = |y: &f64| if log_y { tick(round3(10f64.powf(*y))) } else { tick(snap(*y, y1 - y0)) };
+    chart.configure_mesh().x_desc(x_label).y_desc(y_label).x_label_formatter(&|x| tick(snap(*x, x1 - x0))).y_label_formatter(&y_format).draw().map_err(|e| failed(path, e))?;
     for (i, (name, pts)) in series.iter().enumerate() {
         let color = Palette99::pick(i).to_rgba();
         chart
