@@ -187,9 +187,14 @@ fn execute(scene: &Scene, opts: &RunOptions, out: &Path, monitor: &mut dyn Monit
     let model = &p.model;
     let checkpoint = if resuming {
         let c = Checkpoint::read(out, scene, opts)?;
-        // The summary and final state of the stopped run end at another step.
-        remove(&out.join("summary.json"))?;
-        remove(&out.join("final_state.json"))?;
+        // The summary and final state of the stopped run end at another step; files it was
+        // writing when killed are half written.
+        for name in ["summary.json", "final_state.json"] {
+            remove(&out.join(name))?;
+        }
+        for name in OUTPUTS {
+            remove(&crate::output::temporary(&out.join(name)))?;
+        }
         Some(c)
     } else {
         std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
