@@ -29,7 +29,9 @@ fn mesh_json(kind: &str, n: usize) -> String {
             let k = (n as f64).sqrt().round() as usize;
             format!(r#"{{"kind": "grid", "origin": [0, 0], "size": [1, 1], "cells": [{k}, {k}]}}"#)
         }
-        _ => format!(r#"{{"kind": "voronoi", "origin": [0, 0], "size": [1, 1], "sites": {n}, "seed": 1, "lloyd": 2}}"#),
+        _ => format!(
+            r#"{{"kind": "voronoi", "origin": [0, 0], "size": [1, 1], "sites": {n}, "seed": 1, "lloyd": 2}}"#
+        ),
     }
 }
 
@@ -45,7 +47,10 @@ fn scene(mesh: &str, formulation: &str) -> Scene {
     Scene::from_json(&json).expect("the bench scene is valid")
 }
 
-const FORMULATIONS: [(&str, &str); 2] = [("rigid", r#"{"kind": "rigid"}"#), ("hybrid", r#"{"kind": "hybrid", "penalty": 10}"#)];
+const FORMULATIONS: [(&str, &str); 2] = [
+    ("rigid", r#"{"kind": "rigid"}"#),
+    ("hybrid", r#"{"kind": "hybrid", "penalty": 10}"#),
+];
 
 /// Median and quartiles of the per-step times recorded by the last criterion run (its last
 /// `keep` samples; its warm-up comes first).
@@ -64,11 +69,18 @@ const LARGE: usize = 500_000;
 /// of load from elsewhere can last a second or two, so the 10⁶-element cases, at 10–150 ms per
 /// step, take 30 samples of equal length over 8 s (or 30 steps, when longer) and not 10 over 2.
 fn sampling(elements: usize) -> (usize, Duration) {
-    if elements >= LARGE { (30, Duration::from_secs(8)) } else { (10, Duration::from_secs(2)) }
+    if elements >= LARGE {
+        (30, Duration::from_secs(8))
+    } else {
+        (10, Duration::from_secs(2))
+    }
 }
 
 fn pool(threads: usize) -> rayon::ThreadPool {
-    rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("a thread pool")
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .expect("a thread pool")
 }
 
 /// `a = b + s c` over arrays far larger than the caches; returns bytes moved per second
@@ -84,11 +96,14 @@ fn triad(c: &mut Criterion, threads: usize) -> f64 {
             let e = pool.install(|| {
                 let t0 = Instant::now();
                 for _ in 0..iters {
-                    a.par_chunks_mut(1 << 16).zip(b.par_chunks(1 << 16)).zip(cc.par_chunks(1 << 16)).for_each(|((a, b), c)| {
-                        for ((a, b), c) in a.iter_mut().zip(b).zip(c) {
-                            *a = b + 3.0 * c;
-                        }
-                    });
+                    a.par_chunks_mut(1 << 16)
+                        .zip(b.par_chunks(1 << 16))
+                        .zip(cc.par_chunks(1 << 16))
+                        .for_each(|((a, b), c)| {
+                            for ((a, b), c) in a.iter_mut().zip(b).zip(c) {
+                                *a = b + 3.0 * c;
+                            }
+                        });
                 }
                 t0.elapsed()
             });
@@ -115,10 +130,21 @@ struct Row {
 }
 
 fn main() {
-    let max: usize = std::env::var("RBSM_BENCH_MAX").ok().and_then(|s| s.parse::<f64>().ok()).map_or(usize::MAX, |x| x as usize);
-    let mut c = Criterion::default().sample_size(10).warm_up_time(Duration::from_millis(300)).measurement_time(Duration::from_secs(2)).configure_from_args();
+    let max: usize = std::env::var("RBSM_BENCH_MAX")
+        .ok()
+        .and_then(|s| s.parse::<f64>().ok())
+        .map_or(usize::MAX, |x| x as usize);
+    let mut c = Criterion::default()
+        .sample_size(10)
+        .warm_up_time(Duration::from_millis(300))
+        .measurement_time(Duration::from_secs(2))
+        .configure_from_args();
     // First, in a fresh process: what a ready-to-step 10⁶-element model occupies.
-    let memory = if max >= 1_000_000 { Some(memory()) } else { None };
+    let memory = if max >= 1_000_000 {
+        Some(memory())
+    } else {
+        None
+    };
     let bandwidth: Vec<f64> = THREADS.iter().map(|&t| triad(&mut c, t)).collect();
     let mut rows = Vec::new();
     let mut builds = Vec::new();
@@ -126,11 +152,21 @@ fn main() {
         for n in SIZES.into_iter().filter(|&n| n <= max) {
             for (fname, fjson) in FORMULATIONS {
                 let t0 = Instant::now();
-                let model = Model::build(&scene(&mesh_json(mesh, n), fjson)).expect("the bench model builds");
-                builds.push((mesh, fname, model.elements.len(), t0.elapsed().as_secs_f64()));
+                let model = Model::build(&scene(&mesh_json(mesh, n), fjson))
+                    .expect("the bench model builds");
+                builds.push((
+                    mesh,
+                    fname,
+                    model.elements.len(),
+                    t0.elapsed().as_secs_f64(),
+                ));
                 let (mass, loads) = (Mass::new(&model), Loads::new(&model));
                 let nd = model.formulation.ndof();
-                let inv_bytes = if mass.is_diagonal() { 8 * nd } else { 8 * nd * nd };
+                let inv_bytes = if mass.is_diagonal() {
+                    8 * nd
+                } else {
+                    8 * nd * nd
+                };
                 for kind in [EvaluatorKind::Assembled, EvaluatorKind::ElementWise] {
                     let ev = evaluator::build(&model, kind);
                     let ne = model.elements.len();
@@ -139,8 +175,10 @@ fn main() {
                     // forces stay in the sweep's rings, and this scene (no gravity, no contact)
                     // reads −P only at its loaded elements.
                     let vectors = if ev.fuses() { 4 } else { 7 };
-                    let bytes = ev.bytes() as f64 / ne as f64 + (8 * nd * vectors + inv_bytes) as f64;
-                    let mut integrator = CentralDifference::new(&model, ev.as_ref(), &mass, &loads, 1e-9);
+                    let bytes =
+                        ev.bytes() as f64 / ne as f64 + (8 * nd * vectors + inv_bytes) as f64;
+                    let mut integrator =
+                        CentralDifference::new(&model, ev.as_ref(), &mass, &loads, 1e-9);
                     let (sample_size, time) = sampling(ne);
                     let mut group = c.benchmark_group("step");
                     group.sample_size(sample_size).measurement_time(time);
@@ -151,21 +189,36 @@ fn main() {
                     for (ti, &threads) in THREADS.iter().enumerate() {
                         let samples = RefCell::new(Vec::new());
                         let pool = pool(threads);
-                        group.bench_function(format!("{mesh}/{fname}/{}/{threads}thr/{ne}", kind.name()), |b| {
-                            b.iter_custom(|iters| {
-                                let e = pool.install(|| {
-                                    let t0 = Instant::now();
-                                    integrator.step_only(iters);
-                                    t0.elapsed()
-                                });
-                                samples.borrow_mut().push(e.as_secs_f64() / iters as f64);
-                                e
-                            })
-                        });
-                        let [q1, ns, q3] = quartiles(&samples, sample_size).map(|t| t / ne as f64 * 1e9);
+                        group.bench_function(
+                            format!("{mesh}/{fname}/{}/{threads}thr/{ne}", kind.name()),
+                            |b| {
+                                b.iter_custom(|iters| {
+                                    let e = pool.install(|| {
+                                        let t0 = Instant::now();
+                                        integrator.step_only(iters);
+                                        t0.elapsed()
+                                    });
+                                    samples.borrow_mut().push(e.as_secs_f64() / iters as f64);
+                                    e
+                                })
+                            },
+                        );
+                        let [q1, ns, q3] =
+                            quartiles(&samples, sample_size).map(|t| t / ne as f64 * 1e9);
                         let bound_ns = bytes / bandwidth[ti] * 1e9;
                         let (evaluator, spread, samples) = (kind.name(), (q1, q3), sample_size);
-                        rows.push(Row { mesh, formulation: fname, evaluator, elements: ne, threads, ns, spread, samples, bytes, bound_ns });
+                        rows.push(Row {
+                            mesh,
+                            formulation: fname,
+                            evaluator,
+                            elements: ne,
+                            threads,
+                            ns,
+                            spread,
+                            samples,
+                            bytes,
+                            bound_ns,
+                        });
                     }
                     group.finish();
                 }
@@ -174,10 +227,14 @@ fn main() {
     }
     c.final_summary();
     if max < 1_000_000 || rows.iter().any(|r| r.ns.is_nan()) {
-        eprintln!("a partial run (RBSM_BENCH_MAX or a filter): benches/summary.md is left as it was");
+        eprintln!(
+            "a partial run (RBSM_BENCH_MAX or a filter): benches/summary.md is left as it was"
+        );
         return;
     }
-    let Some((rss_per_element, working_set)) = memory else { return };
+    let Some((rss_per_element, working_set)) = memory else {
+        return;
+    };
     let extras = extras(rss_per_element, working_set);
     let summary = render(&bandwidth, &rows, &builds, &extras);
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/benches/summary.md");
@@ -197,14 +254,20 @@ struct Extras {
 
 fn rss_bytes() -> f64 {
     let statm = std::fs::read_to_string("/proc/self/statm").unwrap_or_default();
-    statm.split_whitespace().nth(1).and_then(|p| p.parse::<f64>().ok()).unwrap_or(f64::NAN) * 4096.0
+    statm
+        .split_whitespace()
+        .nth(1)
+        .and_then(|p| p.parse::<f64>().ok())
+        .unwrap_or(f64::NAN)
+        * 4096.0
 }
 
 /// The growth of the resident memory from nothing to a 10⁶-element rigid grid ready to step
 /// with the element-wise evaluator, and the working set of its steps, both per element.
 fn memory() -> (f64, f64) {
     let before = rss_bytes();
-    let model = Model::build(&scene(&mesh_json("grid", 1_000_000), FORMULATIONS[0].1)).expect("the bench model builds");
+    let model = Model::build(&scene(&mesh_json("grid", 1_000_000), FORMULATIONS[0].1))
+        .expect("the bench model builds");
     let (mass, loads) = (Mass::new(&model), Loads::new(&model));
     let ev = evaluator::build(&model, EvaluatorKind::ElementWise);
     let integrator = CentralDifference::new(&model, ev.as_ref(), &mass, &loads, 1e-9);
@@ -212,11 +275,15 @@ fn memory() -> (f64, f64) {
     let rss_per_element = (rss_bytes() - before) / ne;
     drop(integrator);
     // u, v, force, scratch and the guard's last good u and v; M⁻¹ (lumped: 8 B per DOF).
-    (rss_per_element, ev.bytes() as f64 / ne + (6 + 1) as f64 * 8.0 * 3.0)
+    (
+        rss_per_element,
+        ev.bytes() as f64 / ne + (6 + 1) as f64 * 8.0 * 3.0,
+    )
 }
 
 fn extras(rss_per_element: f64, working_set: f64) -> Extras {
-    let model = Model::build(&scene(&mesh_json("grid", 1_000_000), FORMULATIONS[0].1)).expect("the bench model builds");
+    let model = Model::build(&scene(&mesh_json("grid", 1_000_000), FORMULATIONS[0].1))
+        .expect("the bench model builds");
     let mass = Mass::new(&model);
     let ev = evaluator::build(&model, EvaluatorKind::ElementWise);
     let t0 = Instant::now();
@@ -246,18 +313,44 @@ fn extras(rss_per_element: f64, working_set: f64) -> Extras {
         times.sort_by(f64::total_cmp);
         contact_ns[k] = times[3];
     }
-    Extras { rss_per_element, working_set, omega_max_s, dofs, contact_ns }
+    Extras {
+        rss_per_element,
+        working_set,
+        omega_max_s,
+        dofs,
+        contact_ns,
+    }
 }
 
 fn machine() -> String {
     let cpu = std::fs::read_to_string("/proc/cpuinfo").unwrap_or_default();
-    let model = cpu.lines().find(|l| l.starts_with("model name")).and_then(|l| l.split(':').nth(1)).unwrap_or("unknown").trim().to_string();
+    let model = cpu
+        .lines()
+        .find(|l| l.starts_with("model name"))
+        .and_then(|l| l.split(':').nth(1))
+        .unwrap_or("unknown")
+        .trim()
+        .to_string();
     let mem = std::fs::read_to_string("/proc/meminfo").unwrap_or_default();
-    let total = mem.lines().next().and_then(|l| l.split_whitespace().nth(1)).and_then(|k| k.parse::<f64>().ok()).unwrap_or(0.0) / 1048576.0;
-    format!("{model}, {} cores, {total:.1} GiB; rustc release profile", std::thread::available_parallelism().map_or(0, |n| n.get()))
+    let total = mem
+        .lines()
+        .next()
+        .and_then(|l| l.split_whitespace().nth(1))
+        .and_then(|k| k.parse::<f64>().ok())
+        .unwrap_or(0.0)
+        / 1048576.0;
+    format!(
+        "{model}, {} cores, {total:.1} GiB; rustc release profile",
+        std::thread::available_parallelism().map_or(0, |n| n.get())
+    )
 }
 
-fn render(bandwidth: &[f64], rows: &[Row], builds: &[(&str, &str, usize, f64)], x: &Extras) -> String {
+fn render(
+    bandwidth: &[f64],
+    rows: &[Row],
+    builds: &[(&str, &str, usize, f64)],
+    x: &Extras,
+) -> String {
     let mut s = String::new();
     let _ = writeln!(s, "# Step benchmark summary\n\nRegenerate with `cargo bench --bench step` (about 10 minutes). Machine: {}.\n", machine());
     let _ = writeln!(s, "Triad bandwidth `a = b + s c` (3 × 8 bytes per entry): {} GB/s on 1 thread, {} GB/s on 2.\n",
@@ -268,32 +361,100 @@ fn render(bandwidth: &[f64], rows: &[Row], builds: &[(&str, &str, usize, f64)], 
     let _ = writeln!(s, "and `f` written, then `f`, `M⁻¹` read and `v`, `U` updated; element-wise, whose sweep advances each element as soon as");
     let _ = writeln!(s, "its force is complete, the evaluator's data (its rings of pending forces included) and `M⁻¹` read, `U` and `v` read and");
     let _ = writeln!(s, "written; the bench scene has no gravity and no contact, so `−P` is read only at its loaded elements. *Limit* is bytes /");
-    let _ = writeln!(s, "triad bandwidth, and *× limit* how far the step is from that memory bound.\n");
+    let _ = writeln!(
+        s,
+        "triad bandwidth, and *× limit* how far the step is from that memory bound.\n"
+    );
     let _ = writeln!(s, "| mesh | formulation | evaluator | elements | bytes/elt | 1 thr ns | × limit | 2 thr ns | × limit |\n|---|---|---|---:|---:|---:|---:|---:|---:|");
     for pair in rows.chunks(2) {
         let (a, b) = (&pair[0], &pair[1]);
-        let _ = writeln!(s, "| {} | {} | {} | {} | {:.0} | {} | {} | {} | {} |", a.mesh, a.formulation, a.evaluator, a.elements, a.bytes,
-            fmt(a.ns, 1), fmt(a.ns / a.bound_ns, 2), fmt(b.ns, 1), fmt(b.ns / b.bound_ns, 2));
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {} | {:.0} | {} | {} | {} | {} |",
+            a.mesh,
+            a.formulation,
+            a.evaluator,
+            a.elements,
+            a.bytes,
+            fmt(a.ns, 1),
+            fmt(a.ns / a.bound_ns, 2),
+            fmt(b.ns, 1),
+            fmt(b.ns / b.bound_ns, 2)
+        );
     }
-    let find = |ev: &str, thr: usize| rows.iter().find(|r| r.mesh == "grid" && r.formulation == "rigid" && r.evaluator == ev && r.elements == 1_000_000 && r.threads == thr);
-    let voronoi_build = builds.iter().filter(|b| b.0 == "voronoi" && b.1 == "rigid").map(|b| (b.2, b.3)).last().unwrap_or((0, f64::NAN));
-    let _ = writeln!(s, "\n## Targets (issue 6), 10⁶ rigid elements on a square grid\n");
+    let find = |ev: &str, thr: usize| {
+        rows.iter().find(|r| {
+            r.mesh == "grid"
+                && r.formulation == "rigid"
+                && r.evaluator == ev
+                && r.elements == 1_000_000
+                && r.threads == thr
+        })
+    };
+    let voronoi_build = builds
+        .iter()
+        .filter(|b| b.0 == "voronoi" && b.1 == "rigid")
+        .map(|b| (b.2, b.3))
+        .last()
+        .unwrap_or((0, f64::NAN));
+    let _ = writeln!(
+        s,
+        "\n## Targets (issue 6), 10⁶ rigid elements on a square grid\n"
+    );
     let _ = writeln!(s, "A step time is the median of its samples, and beside it the middle half of them (first to third quartile).\n");
     let _ = writeln!(s, "| target | measured | met |\n|---|---|---|");
     let mut target = |what: &str, measured: f64, limit: f64, unit: &str, spread: &str| {
         let met = if measured <= limit { "yes" } else { "**no**" };
-        let _ = writeln!(s, "| {what} ≤ {limit} {unit} | {} {unit}{spread} | {met} |", fmt(measured, 1));
+        let _ = writeln!(
+            s,
+            "| {what} ≤ {limit} {unit} | {} {unit}{spread} | {met} |",
+            fmt(measured, 1)
+        );
     };
-    for (ev, thr, limit) in [("element-wise", 1, 15.0), ("element-wise", 2, 10.0), ("assembled", 1, 30.0), ("assembled", 2, 18.0)] {
+    for (ev, thr, limit) in [
+        ("element-wise", 1, 15.0),
+        ("element-wise", 2, 10.0),
+        ("assembled", 1, 30.0),
+        ("assembled", 2, 18.0),
+    ] {
         let what = format!("{ev}, {thr} thread{}", if thr > 1 { "s" } else { "" });
         match find(ev, thr) {
-            Some(r) => target(&what, r.ns, limit, "ns", &format!(" ({}–{}, {} samples)", fmt(r.spread.0, 1), fmt(r.spread.1, 1), r.samples)),
+            Some(r) => target(
+                &what,
+                r.ns,
+                limit,
+                "ns",
+                &format!(
+                    " ({}–{}, {} samples)",
+                    fmt(r.spread.0, 1),
+                    fmt(r.spread.1, 1),
+                    r.samples
+                ),
+            ),
             None => target(&what, f64::NAN, limit, "ns", ""),
         }
     }
-    target("element-wise working set per element", x.working_set, 500.0, "B", "");
-    target(&format!("Voronoi model build, {} elements", voronoi_build.0), voronoi_build.1, 10.0, "s", "");
-    target(&format!("ω_max of {} DOFs (Lanczos, element-wise)", x.dofs), x.omega_max_s, 60.0, "s", "");
+    target(
+        "element-wise working set per element",
+        x.working_set,
+        500.0,
+        "B",
+        "",
+    );
+    target(
+        &format!("Voronoi model build, {} elements", voronoi_build.0),
+        voronoi_build.1,
+        10.0,
+        "s",
+        "",
+    );
+    target(
+        &format!("ω_max of {} DOFs (Lanczos, element-wise)", x.dofs),
+        x.omega_max_s,
+        60.0,
+        "s",
+        "",
+    );
     let _ = writeln!(s, "\nThe working set is the evaluator's data, `M⁻¹` and the integrator's six vectors (`U`, `v`, `f`, the averaged");
     let _ = writeln!(s, "velocity and the guard's last good `U`, `v`). The whole process grows by {} bytes per element from nothing to", fmt(x.rss_per_element, 0));
     let _ = writeln!(s, "ready to step (resident memory, measured first in the bench process; this adds the model itself: meshes, elements,
@@ -310,7 +471,11 @@ interfaces, and what the allocator keeps of the build).\n");
 /// How many samples [`sampling`] takes, in words.
 fn sampling_text() -> String {
     let ((few, short), (many, long)) = (sampling(1), sampling(usize::MAX));
-    format!("{few} over {} s; from {LARGE} elements, {many} over {} s", short.as_secs(), long.as_secs())
+    format!(
+        "{few} over {} s; from {LARGE} elements, {many} over {} s",
+        short.as_secs(),
+        long.as_secs()
+    )
 }
 
 fn fmt(x: f64, digits: usize) -> String {

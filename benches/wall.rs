@@ -28,8 +28,14 @@ fn wall(n: usize, model: &str) -> Scene {
         .replace("\"count\": [10, 10]", &format!("\"count\": [{n}, {n}]"))
         .replace("\"origin\": [0.0, 1e-5]", "\"origin\": [0.0, 0.0]")
         .replace("\"pitch\": [0.20001, 0.10001]", "\"pitch\": [0.2, 0.1]")
-        .replace("\"to\": [3.0, 0.0]", &format!("\"to\": [{}, 0.0]", 0.2001 * n as f64 + 1.0))
-        .replace("\"model\": \"edge-to-edge\"", &format!("\"model\": \"{model}\""));
+        .replace(
+            "\"to\": [3.0, 0.0]",
+            &format!("\"to\": [{}, 0.0]", 0.2001 * n as f64 + 1.0),
+        )
+        .replace(
+            "\"model\": \"edge-to-edge\"",
+            &format!("\"model\": \"{model}\""),
+        );
     Scene::from_json(&json).expect("the wall scene is valid")
 }
 
@@ -42,7 +48,10 @@ struct Ours {
 }
 
 fn pool(threads: usize) -> rayon::ThreadPool {
-    rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("a thread pool")
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .expect("a thread pool")
 }
 
 /// Median µs per body-step over the rounds, after the warm-up.
@@ -67,7 +76,12 @@ fn ours(p: &Prepared, threads: usize) -> Ours {
         }
         times.sort_by(f64::total_cmp);
         let per = (ROUNDS as u64 * STEPS) as f64 * bodies;
-        Ours { us: times[ROUNDS / 2], tests: tests / per, live: live / (ROUNDS as f64 * bodies), contact_share: contact / total }
+        Ours {
+            us: times[ROUNDS / 2],
+            tests: tests / per,
+            live: live / (ROUNDS as f64 * bodies),
+            contact_share: contact / total,
+        }
     })
 }
 
@@ -75,25 +89,48 @@ fn ours(p: &Prepared, threads: usize) -> Ours {
 fn peer(n: usize, threads: usize, dt: f64) -> Result<f64, String> {
     let script = concat!(env!("CARGO_MANIFEST_DIR"), "/benches/peer_pymunk.py");
     let args = [n, n, WARMUP as usize, STEPS as usize, threads].map(|a| a.to_string());
-    let out = Command::new("python3").arg(script).args(&args).arg(dt.to_string()).arg("0").output().map_err(|e| format!("python3: {e}"))?;
+    let out = Command::new("python3")
+        .arg(script)
+        .args(&args)
+        .arg(dt.to_string())
+        .arg("0")
+        .output()
+        .map_err(|e| format!("python3: {e}"))?;
     if !out.status.success() {
-        return Err(String::from_utf8_lossy(&out.stderr).lines().last().unwrap_or("failed").to_string());
+        return Err(String::from_utf8_lossy(&out.stderr)
+            .lines()
+            .last()
+            .unwrap_or("failed")
+            .to_string());
     }
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).map_err(|e| e.to_string())?;
-    v["us_per_body_step"].as_f64().ok_or_else(|| "no figure".into())
+    v["us_per_body_step"]
+        .as_f64()
+        .ok_or_else(|| "no figure".into())
 }
 
 /// The hopping block's share of its step spent in contact (in flight and bouncing): its step
 /// time against that of the same block falling without ground or contact, 2 × 10⁶ steps each on
 /// 1 thread, the median of seven such pairs.
 fn hopping_share() -> f64 {
-    let json = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/examples/scenes/hopping_block.json")).unwrap();
+    let json = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/examples/scenes/hopping_block.json"
+    ))
+    .unwrap();
     let mut bare: serde_json::Value = serde_json::from_str(&json).unwrap();
     let map = bare.as_object_mut().unwrap();
     map.remove("ground");
     map.remove("contact");
     let time = |json: &str| {
-        let p = Prepared::new(&Scene::from_json(json).unwrap(), &RunOptions { dt: Some(1e-6), ..Default::default() }).unwrap();
+        let p = Prepared::new(
+            &Scene::from_json(json).unwrap(),
+            &RunOptions {
+                dt: Some(1e-6),
+                ..Default::default()
+            },
+        )
+        .unwrap();
         pool(1).install(|| {
             let mut cd = p.integrator(p.dt);
             let clock = Instant::now();
@@ -129,7 +166,15 @@ fn main() {
                 "{model}, {threads} thread(s): {:.3} µs per body-step, {:.2} tests and {:.2} contacts per body-step, contact {:.0} % of the step; pymunk {q_text} (ratio {ratio})",
                 o.us, o.tests, o.live, 100.0 * o.contact_share
             );
-            writeln!(table, "| {model} | {threads} | {:.3} | {:.2} | {:.2} | {:.0} % | {q_text} | {ratio} |", o.us, o.tests, o.live, 100.0 * o.contact_share).unwrap();
+            writeln!(
+                table,
+                "| {model} | {threads} | {:.3} | {:.2} | {:.2} | {:.0} % | {q_text} | {ratio} |",
+                o.us,
+                o.tests,
+                o.live,
+                100.0 * o.contact_share
+            )
+            .unwrap();
         }
     }
     let share = hopping_share();

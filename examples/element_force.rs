@@ -47,7 +47,16 @@ fn scene() -> Scene {
 /// Some displacements of every element, neither rigid nor smooth, so that every spring works:
 /// `U_e = 1e-4 (sin(e + 1), cos(2e + 1), sin(3e + 2))` (m, m, rad).
 fn displacements(n_elements: usize) -> Vec<f64> {
-    (0..n_elements).flat_map(|e| [(e as f64 + 1.0).sin(), (2.0 * e as f64 + 1.0).cos(), (3.0 * e as f64 + 2.0).sin()]).map(|x| 1e-4 * x).collect()
+    (0..n_elements)
+        .flat_map(|e| {
+            [
+                (e as f64 + 1.0).sin(),
+                (2.0 * e as f64 + 1.0).cos(),
+                (3.0 * e as f64 + 2.0).sin(),
+            ]
+        })
+        .map(|x| 1e-4 * x)
+        .collect()
 }
 
 /// What the example prints and the test checks.
@@ -73,17 +82,28 @@ fn compute() -> Outcome {
     let ue = &u[3 * TRACED..3 * TRACED + 3];
     let mut resultant = vec![0.0; 3];
     let (mut trace, mut edges) = (Vec::new(), 0);
-    for i in model.interfaces.iter().filter(|i| i.a as usize == TRACED || i.b as usize == TRACED) {
+    for i in model
+        .interfaces
+        .iter()
+        .filter(|i| i.a as usize == TRACED || i.b as usize == TRACED)
+    {
         edges += 1;
         // Seen from the traced element: the other side, and the normal pointing out of it.
-        let (other, outward) = if i.a as usize == TRACED { (i.b, i.normal) } else { (i.a, -i.normal) };
+        let (other, outward) = if i.a as usize == TRACED {
+            (i.b, i.normal)
+        } else {
+            (i.a, -i.normal)
+        };
         let s_dir = Vec2::new(-outward.y, outward.x);
         let (points, w) = i.gauss_points();
         for x in points {
             let own = f.displacement(ue, x - xe);
             let theirs = match other {
                 GROUND => Vec2::zeros(),
-                o => f.displacement(&u[3 * o as usize..3 * o as usize + 3], x - model.elements[o as usize].props.centroid),
+                o => f.displacement(
+                    &u[3 * o as usize..3 * o as usize + 3],
+                    x - model.elements[o as usize].props.centroid,
+                ),
             };
             let delta = theirs - own;
             let (d_n, d_s) = (outward.dot(&delta), s_dir.dot(&delta));
@@ -108,11 +128,23 @@ fn compute() -> Outcome {
     let force = |kind| {
         let mut f_int = vec![0.0; u.len()];
         evaluator::build(&model, kind).internal_force(&u, &mut f_int);
-        [f_int[3 * TRACED], f_int[3 * TRACED + 1], f_int[3 * TRACED + 2]]
+        [
+            f_int[3 * TRACED],
+            f_int[3 * TRACED + 1],
+            f_int[3 * TRACED + 2],
+        ]
     };
-    let (element_wise, assembled) = (force(EvaluatorKind::ElementWise), force(EvaluatorKind::Assembled));
+    let (element_wise, assembled) = (
+        force(EvaluatorKind::ElementWise),
+        force(EvaluatorKind::Assembled),
+    );
     let size = resultant.iter().map(|x| x * x).sum::<f64>().sqrt();
-    let diff = |g: &[f64; 3]| (0..3).map(|k| (resultant[k] + g[k]).abs()).fold(0.0, f64::max) / size;
+    let diff = |g: &[f64; 3]| {
+        (0..3)
+            .map(|k| (resultant[k] + g[k]).abs())
+            .fold(0.0, f64::max)
+            / size
+    };
     Outcome {
         trace,
         resultant: [resultant[0], resultant[1], resultant[2]],
@@ -125,14 +157,29 @@ fn compute() -> Outcome {
 
 fn main() {
     let o = compute();
-    println!("element {TRACED} (bottom middle) of a 3 x 3 grid, {} edges, two Gauss points each:", o.edges);
+    println!(
+        "element {TRACED} (bottom middle) of a 3 x 3 grid, {} edges, two Gauss points each:",
+        o.edges
+    );
     for line in &o.trace {
         println!("  {line}");
     }
-    println!("traced resultant R_e       = ({:+.6e} N, {:+.6e} N, {:+.6e} N·m)", o.resultant[0], o.resultant[1], o.resultant[2]);
-    println!("-f_int,e, element-wise     = ({:+.6e} N, {:+.6e} N, {:+.6e} N·m)", -o.element_wise[0], -o.element_wise[1], -o.element_wise[2]);
-    println!("-(K U)_e, assembled        = ({:+.6e} N, {:+.6e} N, {:+.6e} N·m)", -o.assembled[0], -o.assembled[1], -o.assembled[2]);
-    println!("largest |R_e + f_int,e| / |R_e|: element-wise {:.3e}, assembled {:.3e}", o.difference[0], o.difference[1]);
+    println!(
+        "traced resultant R_e       = ({:+.6e} N, {:+.6e} N, {:+.6e} N·m)",
+        o.resultant[0], o.resultant[1], o.resultant[2]
+    );
+    println!(
+        "-f_int,e, element-wise     = ({:+.6e} N, {:+.6e} N, {:+.6e} N·m)",
+        -o.element_wise[0], -o.element_wise[1], -o.element_wise[2]
+    );
+    println!(
+        "-(K U)_e, assembled        = ({:+.6e} N, {:+.6e} N, {:+.6e} N·m)",
+        -o.assembled[0], -o.assembled[1], -o.assembled[2]
+    );
+    println!(
+        "largest |R_e + f_int,e| / |R_e|: element-wise {:.3e}, assembled {:.3e}",
+        o.difference[0], o.difference[1]
+    );
 }
 
 #[cfg(test)]
@@ -141,8 +188,20 @@ mod tests {
     fn the_traced_resultant_is_the_evaluators_force() {
         let o = super::compute();
         assert_eq!(o.edges, 4);
-        assert_eq!(o.trace.iter().filter(|l| l.contains("ground")).count(), 2, "one edge on ground, two Gauss points");
-        assert!(o.resultant.iter().all(|r| r.abs() > 1e3), "every spring works: {:?}", o.resultant);
-        assert!(o.difference[0] < 1e-15 && o.difference[1] < 1e-14, "{:?}", o.difference);
+        assert_eq!(
+            o.trace.iter().filter(|l| l.contains("ground")).count(),
+            2,
+            "one edge on ground, two Gauss points"
+        );
+        assert!(
+            o.resultant.iter().all(|r| r.abs() > 1e3),
+            "every spring works: {:?}",
+            o.resultant
+        );
+        assert!(
+            o.difference[0] < 1e-15 && o.difference[1] < 1e-14,
+            "{:?}",
+            o.difference
+        );
     }
 }

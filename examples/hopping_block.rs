@@ -37,8 +37,23 @@ struct Outcome {
 }
 
 fn compute() -> Outcome {
-    let scene = Scene::from_json(&brick::scene([1, 1], "edge-to-edge", None, 0.0, HEIGHT, 0.0)).expect("the brick scene");
-    let p = Prepared::new(&scene, &RunOptions { dt: Some(DT), ..Default::default() }).expect("it builds");
+    let scene = Scene::from_json(&brick::scene(
+        [1, 1],
+        "edge-to-edge",
+        None,
+        0.0,
+        HEIGHT,
+        0.0,
+    ))
+    .expect("the brick scene");
+    let p = Prepared::new(
+        &scene,
+        &RunOptions {
+            dt: Some(DT),
+            ..Default::default()
+        },
+    )
+    .expect("it builds");
     let theory = brick::theory(HEIGHT);
     // Fall, contact and climb back: the apex comes one period (impact to impact) after the
     // start; run a little beyond it.
@@ -49,25 +64,61 @@ fn compute() -> Outcome {
         steps,
         1,
         |s, _| {
-            tracker.push(s.t, lowest_point(&p.model, s.u), centre_velocity(&p.model, s.v).y);
+            tracker.push(
+                s.t,
+                lowest_point(&p.model, s.u),
+                centre_velocity(&p.model, s.v).y,
+            );
             Ok(())
         },
         |_| {},
     )
     .expect("the observer cannot fail");
-    Outcome { theory, bounce: tracker.bounces[0], steps: cd.step }
+    Outcome {
+        theory,
+        bounce: tracker.bounces[0],
+        steps: cd.step,
+    }
 }
 
 fn main() {
     let o = compute();
     let (th, b) = (&o.theory, &o.bounce);
-    println!("brick of {:.3} kg on K_c = {:.4e} N/m, dropped from {HEIGHT} m; {} steps of {DT:e} s", th.mass, th.stiffness, o.steps);
+    println!(
+        "brick of {:.3} kg on K_c = {:.4e} N/m, dropped from {HEIGHT} m; {} steps of {DT:e} s",
+        th.mass, th.stiffness, o.steps
+    );
     println!("                     measured        theory          ratio");
-    println!("impact time (s)      {:<15.8} {:<15.8} {:.6}", b.impact, th.impact_time(), b.impact / th.impact_time());
-    println!("impact speed (m/s)   {:<15.8} {:<15.8} {:.6}", b.impact_speed, th.impact_speed(), b.impact_speed / th.impact_speed());
-    println!("contact time (us)    {:<15.4} {:<15.4} {:.4}", 1e6 * (b.release - b.impact), 1e6 * th.contact_time(), (b.release - b.impact) / th.contact_time());
-    println!("rebound speed (m/s)  {:<15.8} {:<15.8} {:.6}", b.rebound_speed, th.impact_speed(), b.rebound_speed / th.impact_speed());
-    println!("apex (m)             {:<15.8} {:<15.8} {:.6}", b.apex, HEIGHT, b.apex / HEIGHT);
+    println!(
+        "impact time (s)      {:<15.8} {:<15.8} {:.6}",
+        b.impact,
+        th.impact_time(),
+        b.impact / th.impact_time()
+    );
+    println!(
+        "impact speed (m/s)   {:<15.8} {:<15.8} {:.6}",
+        b.impact_speed,
+        th.impact_speed(),
+        b.impact_speed / th.impact_speed()
+    );
+    println!(
+        "contact time (us)    {:<15.4} {:<15.4} {:.4}",
+        1e6 * (b.release - b.impact),
+        1e6 * th.contact_time(),
+        (b.release - b.impact) / th.contact_time()
+    );
+    println!(
+        "rebound speed (m/s)  {:<15.8} {:<15.8} {:.6}",
+        b.rebound_speed,
+        th.impact_speed(),
+        b.rebound_speed / th.impact_speed()
+    );
+    println!(
+        "apex (m)             {:<15.8} {:<15.8} {:.6}",
+        b.apex,
+        HEIGHT,
+        b.apex / HEIGHT
+    );
 }
 
 #[cfg(test)]
@@ -76,9 +127,25 @@ mod tests {
     fn the_first_bounce_follows_the_spring_theory() {
         let o = super::compute();
         let (th, b) = (&o.theory, &o.bounce);
-        assert!((b.impact / th.impact_time() - 1.0).abs() < 1e-5, "impact at {}", b.impact);
-        assert!(((b.release - b.impact) / th.contact_time() - 1.0).abs() < 0.01, "contact {} s", b.release - b.impact);
-        assert!((b.rebound_speed / th.impact_speed() - 1.0).abs() < 0.01, "rebound {}", b.rebound_speed);
-        assert!((b.apex / super::HEIGHT - 1.0).abs() < 0.01, "apex {}", b.apex);
+        assert!(
+            (b.impact / th.impact_time() - 1.0).abs() < 1e-5,
+            "impact at {}",
+            b.impact
+        );
+        assert!(
+            ((b.release - b.impact) / th.contact_time() - 1.0).abs() < 0.01,
+            "contact {} s",
+            b.release - b.impact
+        );
+        assert!(
+            (b.rebound_speed / th.impact_speed() - 1.0).abs() < 0.01,
+            "rebound {}",
+            b.rebound_speed
+        );
+        assert!(
+            (b.apex / super::HEIGHT - 1.0).abs() < 0.01,
+            "apex {}",
+            b.apex
+        );
     }
 }

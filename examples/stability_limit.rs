@@ -64,23 +64,46 @@ fn elastic_history(p: &Prepared, u0: &[f64], dt: f64, steps: usize) -> Vec<f64> 
 }
 
 fn compute() -> Outcome {
-    let path = format!("{}/examples/scenes/cantilever.json", env!("CARGO_MANIFEST_DIR"));
-    let p = Prepared::new(&Scene::from_file(path).expect("the bundled scene"), &RunOptions::default()).expect("it builds");
-    assert!(p.model.fixed.is_empty(), "the loop above does not hold fixed DOFs");
+    let path = format!(
+        "{}/examples/scenes/cantilever.json",
+        env!("CARGO_MANIFEST_DIR")
+    );
+    let p = Prepared::new(
+        &Scene::from_file(path).expect("the bundled scene"),
+        &RunOptions::default(),
+    )
+    .expect("it builds");
+    assert!(
+        p.model.fixed.is_empty(),
+        "the loop above does not hold fixed DOFs"
+    );
     // A reproducible random start of about 1 µm.
-    let u0: Vec<f64> = (0..p.model.n_dofs()).map(|k| 1e-6 * (((k as f64 + 1.0) * 12.9898).sin() * 43758.5453).fract()).collect();
+    let u0: Vec<f64> = (0..p.model.n_dofs())
+        .map(|k| 1e-6 * (((k as f64 + 1.0) * 12.9898).sin() * 43758.5453).fract())
+        .collect();
     let mut runs = Vec::new();
     let mut unstable = Vec::new();
     for (fraction, steps) in [(0.9, 4000), (0.99, 4000), (1.01, 100)] {
         let e = elastic_history(&p, &u0, fraction * p.dt_crit, steps);
-        runs.push((fraction, steps, e.iter().fold(0.0, |m: f64, x| m.max(*x)) / e[0]));
+        runs.push((
+            fraction,
+            steps,
+            e.iter().fold(0.0, |m: f64, x| m.max(*x)) / e[0],
+        ));
         if fraction > 1.0 {
             unstable = e;
         }
     }
     let n = unstable.len() - 1;
     let measured_growth = (unstable[n] / unstable[n - 20]).powf(1.0 / 20.0);
-    let guarded = run_at_fraction(&p.model, p.evaluator.as_ref(), &p.mass, p.dt_crit, 1.01, 2000);
+    let guarded = run_at_fraction(
+        &p.model,
+        p.evaluator.as_ref(),
+        &p.mass,
+        p.dt_crit,
+        1.01,
+        2000,
+    );
     Outcome {
         omega_max: p.omega_max,
         dt_crit: p.dt_crit,
@@ -88,13 +111,20 @@ fn compute() -> Outcome {
         unstable: unstable.into_iter().step_by(10).collect(),
         measured_growth,
         predicted_growth: energy_growth_per_step(2.02),
-        guarded_steps: if guarded.status == "diverged" { guarded.steps } else { 0 },
+        guarded_steps: if guarded.status == "diverged" {
+            guarded.steps
+        } else {
+            0
+        },
     }
 }
 
 fn main() {
     let o = compute();
-    println!("cantilever: omega_max = {:.6e} rad/s, dt_crit = 2/omega_max = {:.6e} s", o.omega_max, o.dt_crit);
+    println!(
+        "cantilever: omega_max = {:.6e} rad/s, dt_crit = 2/omega_max = {:.6e} s",
+        o.omega_max, o.dt_crit
+    );
     for (fraction, steps, largest) in &o.runs {
         println!("  dt = {fraction:.2} dt_crit, {steps} steps: largest elastic energy = {largest:.3e} x the initial");
     }
@@ -102,7 +132,10 @@ fn main() {
     for (k, e) in o.unstable.iter().enumerate() {
         println!("  step {:>3}: {e:.6e}", 10 * k);
     }
-    println!("energy growth per step at 1.01 dt_crit: measured {:.4}, closed form z^2 = {:.4}", o.measured_growth, o.predicted_growth);
+    println!(
+        "energy growth per step at 1.01 dt_crit: measured {:.4}, closed form z^2 = {:.4}",
+        o.measured_growth, o.predicted_growth
+    );
     println!("the library's integrator at 1.01 dt_crit stops after {} steps: its guard saw the energy grow", o.guarded_steps);
 }
 
@@ -113,10 +146,19 @@ mod tests {
         let o = super::compute();
         // Stable runs from rest keep their elastic energy below the bound of a mode stepped at
         // f Δt_crit, 1/(1 − f²) times its energy; the unstable one has grown by orders of magnitude.
-        assert!(o.runs[0].2 < 1.0 / (1.0 - 0.81) && o.runs[1].2 < 1.0 / (1.0 - 0.98), "{:?}", o.runs);
+        assert!(
+            o.runs[0].2 < 1.0 / (1.0 - 0.81) && o.runs[1].2 < 1.0 / (1.0 - 0.98),
+            "{:?}",
+            o.runs
+        );
         assert!(o.runs[2].2 > 1e10, "{:?}", o.runs);
         assert!((o.predicted_growth - 1.7600).abs() < 1e-3);
-        assert!((o.measured_growth / o.predicted_growth - 1.0).abs() < 1e-3, "measured {} predicted {}", o.measured_growth, o.predicted_growth);
+        assert!(
+            (o.measured_growth / o.predicted_growth - 1.0).abs() < 1e-3,
+            "measured {} predicted {}",
+            o.measured_growth,
+            o.predicted_growth
+        );
         assert!(o.guarded_steps > 0 && o.guarded_steps < 2000);
     }
 }

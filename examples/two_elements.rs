@@ -81,20 +81,47 @@ fn compute() -> Outcome {
     let difference = (by_hand - library).abs().max() / scale;
     // Rigid motions of the pair about the origin: U_e = (u − θ y_e, v + θ x_e, θ).
     let centroids = [(0.5, 0.5), (1.5, 0.5)];
-    let rigid = |u: f64, v: f64, th: f64| SVector::<f64, 6>::from_iterator(centroids.iter().flat_map(|&(x, y)| [u - th * y, v + th * x, th]));
-    let rigid_residual = [rigid(1.0, 0.0, 0.0), rigid(0.0, 1.0, 0.0), rigid(0.0, 0.0, 1.0)]
-        .iter()
-        .map(|u| (library * u).abs().max() / (scale * u.abs().max()))
-        .fold(0.0, f64::max);
-    Outcome { by_hand, library, difference, rigid_residual }
+    let rigid = |u: f64, v: f64, th: f64| {
+        SVector::<f64, 6>::from_iterator(
+            centroids
+                .iter()
+                .flat_map(|&(x, y)| [u - th * y, v + th * x, th]),
+        )
+    };
+    let rigid_residual = [
+        rigid(1.0, 0.0, 0.0),
+        rigid(0.0, 1.0, 0.0),
+        rigid(0.0, 0.0, 1.0),
+    ]
+    .iter()
+    .map(|u| (library * u).abs().max() / (scale * u.abs().max()))
+    .fold(0.0, f64::max);
+    Outcome {
+        by_hand,
+        library,
+        difference,
+        rigid_residual,
+    }
 }
 
 fn main() {
     let o = compute();
-    println!("K by hand (N/m, N, N·m; DOFs u_a v_a θ_a u_b v_b θ_b):{:.6e}", o.by_hand);
-    println!("K from rbsm::evaluator::stiffness_triplets:{:.6e}", o.library);
-    println!("largest |K_hand - K_lib| / largest |K| = {:.3e}", o.difference);
-    println!("largest |K U| over the rigid motions, relative = {:.3e}", o.rigid_residual);
+    println!(
+        "K by hand (N/m, N, N·m; DOFs u_a v_a θ_a u_b v_b θ_b):{:.6e}",
+        o.by_hand
+    );
+    println!(
+        "K from rbsm::evaluator::stiffness_triplets:{:.6e}",
+        o.library
+    );
+    println!(
+        "largest |K_hand - K_lib| / largest |K| = {:.3e}",
+        o.difference
+    );
+    println!(
+        "largest |K U| over the rigid motions, relative = {:.3e}",
+        o.rigid_residual
+    );
 }
 
 #[cfg(test)]
@@ -103,6 +130,10 @@ mod tests {
     fn the_hand_built_stiffness_is_the_library_one() {
         let o = super::compute();
         assert!(o.difference < 1e-14, "difference {:e}", o.difference);
-        assert!(o.rigid_residual < 1e-14, "rigid residual {:e}", o.rigid_residual);
+        assert!(
+            o.rigid_residual < 1e-14,
+            "rigid residual {:e}",
+            o.rigid_residual
+        );
     }
 }

@@ -22,7 +22,12 @@ impl Buckets {
         } else {
             (((n as f64 * extent.x / extent.y).ceil() as usize).max(1), n)
         };
-        Buckets { lo, size: Vec2::new(extent.x / nx as f64, extent.y / ny as f64), nx, ny }
+        Buckets {
+            lo,
+            size: Vec2::new(extent.x / nx as f64, extent.y / ny as f64),
+            nx,
+            ny,
+        }
     }
 
     /// Number of buckets.
@@ -32,8 +37,12 @@ impl Buckets {
 
     /// The bucket `(i, j)` holding point `x` (m); points outside go to the nearest bucket.
     pub fn cell_of(&self, x: Vec2) -> (usize, usize) {
-        let i = ((x.x - self.lo.x) / self.size.x).floor().clamp(0.0, (self.nx - 1) as f64) as usize;
-        let j = ((x.y - self.lo.y) / self.size.y).floor().clamp(0.0, (self.ny - 1) as f64) as usize;
+        let i = ((x.x - self.lo.x) / self.size.x)
+            .floor()
+            .clamp(0.0, (self.nx - 1) as f64) as usize;
+        let j = ((x.y - self.lo.y) / self.size.y)
+            .floor()
+            .clamp(0.0, (self.ny - 1) as f64) as usize;
         (i, j)
     }
 
@@ -76,7 +85,11 @@ impl BucketLists {
     /// buckets: `fill` then does not allocate unless the items spread over many more.
     pub fn with_capacity(items: usize) -> BucketLists {
         let buckets = items + 4 * (items as f64).sqrt().ceil() as usize + 4;
-        BucketLists { start: Vec::with_capacity(buckets + 1), items: Vec::with_capacity(4 * items), cursor: Vec::with_capacity(buckets) }
+        BucketLists {
+            start: Vec::with_capacity(buckets + 1),
+            items: Vec::with_capacity(4 * items),
+            cursor: Vec::with_capacity(buckets),
+        }
     }
 
     /// Files item `i` under every bucket that its box `boxes(i)` touches (query with
@@ -122,5 +135,8 @@ pub fn boxes_meet((alo, ahi): (Vec2, Vec2), (blo, bhi): (Vec2, Vec2)) -> bool {
 /// pair, and must be rebuilt.
 pub fn moved_beyond(points: &[Vec2], anchors: &[Vec2], half_skin: f64) -> bool {
     let limit = half_skin * half_skin;
-    points.iter().zip(anchors).any(|(x, a)| (x - a).norm_squared() > limit)
+    points
+        .iter()
+        .zip(anchors)
+        .any(|(x, a)| (x - a).norm_squared() > limit)
 }

@@ -37,20 +37,45 @@ pub struct Checkpoint {
 /// A hash (FNV-1a, 64 bits) of everything that decides a run: the scene as parsed (its `Debug`
 /// form, which prints every number exactly) and the command-line overrides.
 pub fn fingerprint(scene: &Scene, opts: &RunOptions) -> u64 {
-    let text = format!("{scene:?}|{:?}|{:?}|{:?}|{:?}", opts.evaluator, opts.dt.map(f64::to_bits), opts.dt_factor.map(f64::to_bits), opts.steps);
-    text.bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| (h ^ b as u64).wrapping_mul(0x0100_0000_01b3))
+    let text = format!(
+        "{scene:?}|{:?}|{:?}|{:?}|{:?}",
+        opts.evaluator,
+        opts.dt.map(f64::to_bits),
+        opts.dt_factor.map(f64::to_bits),
+        opts.steps
+    );
+    text.bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| {
+        (h ^ b as u64).wrapping_mul(0x0100_0000_01b3)
+    })
 }
 
 impl Checkpoint {
     /// A checkpoint of a run of `scene` with `opts`.
-    pub fn new(scene: &Scene, opts: &RunOptions, state: State, history_bytes: u64, frames: Vec<(f64, String)>, first: Option<Energy>, rotation: f64) -> Self {
-        Checkpoint { format: FORMAT, fingerprint: fingerprint(scene, opts), state, history_bytes, frames, first, rotation }
+    pub fn new(
+        scene: &Scene,
+        opts: &RunOptions,
+        state: State,
+        history_bytes: u64,
+        frames: Vec<(f64, String)>,
+        first: Option<Energy>,
+        rotation: f64,
+    ) -> Self {
+        Checkpoint {
+            format: FORMAT,
+            fingerprint: fingerprint(scene, opts),
+            state,
+            history_bytes,
+            frames,
+            first,
+            rotation,
+        }
     }
 
     /// Writes `DIR/checkpoint.bin` atomically.
     pub fn write(&self, dir: &Path) -> Result<()> {
         let path = dir.join(FILE);
-        let bytes = postcard::to_stdvec(self).map_err(|e| Error::io(&path, std::io::Error::other(e.to_string())))?;
+        let bytes = postcard::to_stdvec(self)
+            .map_err(|e| Error::io(&path, std::io::Error::other(e.to_string())))?;
         output::write_atomic(&path, &bytes)
     }
 
@@ -63,9 +88,13 @@ impl Checkpoint {
             _ => Error::io(&path, e),
         })?;
         let bad = |why: String| Error::io(&path, std::io::Error::other(why));
-        let checkpoint: Checkpoint = postcard::from_bytes(&bytes).map_err(|e| bad(format!("not a checkpoint of this version of rbsm ({e})")))?;
+        let checkpoint: Checkpoint = postcard::from_bytes(&bytes)
+            .map_err(|e| bad(format!("not a checkpoint of this version of rbsm ({e})")))?;
         if checkpoint.format != FORMAT {
-            return Err(bad(format!("checkpoint format {} (this rbsm reads {FORMAT})", checkpoint.format)));
+            return Err(bad(format!(
+                "checkpoint format {} (this rbsm reads {FORMAT})",
+                checkpoint.format
+            )));
         }
         if checkpoint.fingerprint != fingerprint(scene, opts) {
             return Err(bad("written by a run of another scene or other options (--evaluator, --dt, --dt-factor, --steps): resume with the scene and options the run was started with".into()));

@@ -31,7 +31,12 @@ pub fn warnings(model: &Model, dt: f64, dt_crit: f64) -> Vec<String> {
             ));
         }
     }
-    let (worst, e) = model.elements.iter().enumerate().map(|(e, el)| (aspect_ratio(&el.props), e)).fold((0.0, 0), |a, b| if b.0 > a.0 { b } else { a });
+    let (worst, e) = model
+        .elements
+        .iter()
+        .enumerate()
+        .map(|(e, el)| (aspect_ratio(&el.props), e))
+        .fold((0.0, 0), |a, b| if b.0 > a.0 { b } else { a });
     if worst > ASPECT_LIMIT {
         out.push(format!(
             "element {e} has an aspect ratio of {worst:.0}: its rotation is stiff and Δt_crit is set by its short side (validation §10.2)"

@@ -10,7 +10,9 @@ use crate::model::{Model, GROUND};
 use std::fmt::Write;
 
 /// Fill colours of the bodies, in body order (repeated when there are more bodies).
-const BODY_FILLS: [&str; 6] = ["#dbe7f3", "#f6e3c8", "#dcefd9", "#f2d9e6", "#e6e0f3", "#f3f0c8"];
+const BODY_FILLS: [&str; 6] = [
+    "#dbe7f3", "#f6e3c8", "#dcefd9", "#f2d9e6", "#e6e0f3", "#f3f0c8",
+];
 
 /// Maps model coordinates (m, y up) to pixels (y down) and collects the SVG elements.
 struct Canvas {
@@ -56,12 +58,19 @@ impl Canvas {
             let (x, y) = self.px(p);
             let _ = write!(coords, "{x:.2},{y:.2} ");
         }
-        let _ = writeln!(self.body, r#"<polygon points="{}" {style}/>"#, coords.trim_end());
+        let _ = writeln!(
+            self.body,
+            r#"<polygon points="{}" {style}/>"#,
+            coords.trim_end()
+        );
     }
 
     fn line(&mut self, a: Vec2, b: Vec2, style: &str) {
         let ((x1, y1), (x2, y2)) = (self.px(a), self.px(b));
-        let _ = writeln!(self.body, r#"<line x1="{x1:.2}" y1="{y1:.2}" x2="{x2:.2}" y2="{y2:.2}" {style}/>"#);
+        let _ = writeln!(
+            self.body,
+            r#"<line x1="{x1:.2}" y1="{y1:.2}" x2="{x2:.2}" y2="{y2:.2}" {style}/>"#
+        );
     }
 
     /// A line from `from` of `len_px` pixels along `dir` (model axes), with an arrow head.
@@ -94,13 +103,23 @@ impl Canvas {
         let hatch = (outward + t).normalize() * (6.0 / self.scale);
         for i in 0..marks {
             let p = p1 + (p2 - p1) * ((i as f64 + 0.5) / marks as f64);
-            self.line(p, p + hatch, &format!(r#"stroke="{colour}" stroke-width="1""#));
+            self.line(
+                p,
+                p + hatch,
+                &format!(r#"stroke="{colour}" stroke-width="1""#),
+            );
         }
     }
 
     fn text(&mut self, x: f64, y: f64, size: f64, text: &str) {
-        let text = text.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;");
-        let _ = writeln!(self.body, r#"<text x="{x:.1}" y="{y:.1}" font-family="sans-serif" font-size="{size}">{text}</text>"#);
+        let text = text
+            .replace('&', "&amp;")
+            .replace('<', "&lt;")
+            .replace('>', "&gt;");
+        let _ = writeln!(
+            self.body,
+            r#"<text x="{x:.1}" y="{y:.1}" font-family="sans-serif" font-size="{size}">{text}</text>"#
+        );
     }
 
     fn finish(self) -> String {
@@ -122,8 +141,22 @@ fn element_polygons(model: &Model, u: Option<&[f64]>) -> Vec<(usize, Vec<Vec2>, 
         for c in 0..body.mesh.n_cells() {
             let e = body.first_element + c;
             let xe = model.elements[e].props.centroid;
-            let vertices: Vec<Vec2> = body.mesh.cell(c).iter().map(|&k| body.mesh.vertices[k as usize]).collect();
-            let moved = vertices.iter().map(|&x| u.map_or(Vec2::zeros(), |u| model.formulation.displacement(&u[e * nd..(e + 1) * nd], x - xe))).collect();
+            let vertices: Vec<Vec2> = body
+                .mesh
+                .cell(c)
+                .iter()
+                .map(|&k| body.mesh.vertices[k as usize])
+                .collect();
+            let moved = vertices
+                .iter()
+                .map(|&x| {
+                    u.map_or(Vec2::zeros(), |u| {
+                        model
+                            .formulation
+                            .displacement(&u[e * nd..(e + 1) * nd], x - xe)
+                    })
+                })
+                .collect();
             polygons.push((b, vertices, moved));
         }
     }
@@ -132,7 +165,11 @@ fn element_polygons(model: &Model, u: Option<&[f64]>) -> Vec<(usize, Vec<Vec2>, 
 
 fn all_vertices(model: &Model) -> impl Iterator<Item = Vec2> + '_ {
     let ground = model.ground.iter().flat_map(|g| g.iter().copied());
-    model.bodies.iter().flat_map(|b| b.mesh.vertices.iter().copied()).chain(ground)
+    model
+        .bodies
+        .iter()
+        .flat_map(|b| b.mesh.vertices.iter().copied())
+        .chain(ground)
 }
 
 /// The model as built from its scene: elements (one fill per body), each interface as its two
@@ -144,10 +181,16 @@ pub fn model_svg(model: &Model) -> String {
     let mut cv = Canvas::fit(all_vertices(model), 800.0);
     for (b, vertices, _) in element_polygons(model, None) {
         let fill = BODY_FILLS[b % BODY_FILLS.len()];
-        cv.polygon(&vertices, &format!(r##"fill="{fill}" stroke="#555" stroke-width="0.6""##));
+        cv.polygon(
+            &vertices,
+            &format!(r##"fill="{fill}" stroke="#555" stroke-width="0.6""##),
+        );
     }
     let thin = model.interfaces.len() > 5000;
-    let spring = format!(r##"stroke="#2a5db0" stroke-width="{}""##, if thin { 0.3 } else { 0.8 });
+    let spring = format!(
+        r##"stroke="#2a5db0" stroke-width="{}""##,
+        if thin { 0.3 } else { 0.8 }
+    );
     for i in &model.interfaces {
         let (m, xa) = (i.midpoint(), model.elements[i.a as usize].props.centroid);
         if i.b == GROUND {
@@ -168,12 +211,28 @@ pub fn model_svg(model: &Model) -> String {
         if e != marked {
             marked = e;
             let (x, y) = cv.px(model.elements[e].props.centroid);
-            let _ = writeln!(cv.body, r#"<polygon points="{x:.2},{y:.2} {:.2},{:.2} {:.2},{:.2}" fill="black"/>"#, x - 4.0, y + 7.0, x + 4.0, y + 7.0);
+            let _ = writeln!(
+                cv.body,
+                r#"<polygon points="{x:.2},{y:.2} {:.2},{:.2} {:.2},{:.2}" fill="black"/>"#,
+                x - 4.0,
+                y + 7.0,
+                x + 4.0,
+                y + 7.0
+            );
         }
     }
-    let f_max = model.loads.iter().map(|l| l.force.norm()).fold(0.0, f64::max);
+    let f_max = model
+        .loads
+        .iter()
+        .map(|l| l.force.norm())
+        .fold(0.0, f64::max);
     for l in model.loads.iter().filter(|l| l.force.norm() > 0.0) {
-        cv.arrow(l.point, l.force.normalize(), 12.0 + 24.0 * l.force.norm() / f_max, "#c0392b");
+        cv.arrow(
+            l.point,
+            l.force.normalize(),
+            12.0 + 24.0 * l.force.norm() / f_max,
+            "#c0392b",
+        );
     }
     if model.gravity.norm() > 0.0 {
         let x = cv.width - cv.margin + 16.0;
@@ -190,7 +249,12 @@ pub fn model_svg(model: &Model) -> String {
         (!model.ground.is_empty(), "hatched black: contact ground"),
     ];
     let key: Vec<&str> = key.iter().filter(|k| k.0).map(|k| k.1).collect();
-    let caption = format!("{}: {} elements, {pairs} interfaces; {}", model.name, model.elements.len(), key.join(", "));
+    let caption = format!(
+        "{}: {} elements, {pairs} interfaces; {}",
+        model.name,
+        model.elements.len(),
+        key.join(", ")
+    );
     cv.text(cv.margin, 20.0, 13.0, &caption);
     cv.finish()
 }
@@ -200,32 +264,75 @@ pub fn model_svg(model: &Model) -> String {
 /// outline (grey). `caption` is printed above with the scale factor.
 pub fn displaced_svg(model: &Model, u: &[f64], caption: &str) -> String {
     let elements = element_polygons(model, Some(u));
-    let largest = elements.iter().flat_map(|p| p.2.iter()).map(|d| d.norm()).fold(0.0, f64::max);
-    let (lo, hi) = all_vertices(model).fold((Vec2::repeat(f64::MAX), Vec2::repeat(f64::MIN)), |(lo, hi), p| (lo.inf(&p), hi.sup(&p)));
-    let scale = if largest > 0.0 { 0.1 * (hi - lo).max() / largest } else { 0.0 };
-    let polygons: Vec<(usize, Vec<Vec2>, Vec<Vec2>)> =
-        elements.into_iter().map(|(b, x, d)| (b, x.clone(), x.iter().zip(&d).map(|(x, d)| x + d * scale).collect())).collect();
-    let points = polygons.iter().flat_map(|p| p.1.iter().chain(&p.2).copied()).collect::<Vec<_>>();
+    let largest = elements
+        .iter()
+        .flat_map(|p| p.2.iter())
+        .map(|d| d.norm())
+        .fold(0.0, f64::max);
+    let (lo, hi) = all_vertices(model).fold(
+        (Vec2::repeat(f64::MAX), Vec2::repeat(f64::MIN)),
+        |(lo, hi), p| (lo.inf(&p), hi.sup(&p)),
+    );
+    let scale = if largest > 0.0 {
+        0.1 * (hi - lo).max() / largest
+    } else {
+        0.0
+    };
+    let polygons: Vec<(usize, Vec<Vec2>, Vec<Vec2>)> = elements
+        .into_iter()
+        .map(|(b, x, d)| {
+            (
+                b,
+                x.clone(),
+                x.iter().zip(&d).map(|(x, d)| x + d * scale).collect(),
+            )
+        })
+        .collect();
+    let points = polygons
+        .iter()
+        .flat_map(|p| p.1.iter().chain(&p.2).copied())
+        .collect::<Vec<_>>();
     let mut cv = Canvas::fit(points.into_iter(), 800.0);
     for (_, reference, _) in &polygons {
-        cv.polygon(reference, r##"fill="none" stroke="#bbb" stroke-width="0.6""##);
+        cv.polygon(
+            reference,
+            r##"fill="none" stroke="#bbb" stroke-width="0.6""##,
+        );
     }
     for (b, _, displaced) in &polygons {
         let fill = BODY_FILLS[b % BODY_FILLS.len()];
-        cv.polygon(displaced, &format!(r##"fill="{fill}" fill-opacity="0.85" stroke="#333" stroke-width="0.6""##));
+        cv.polygon(
+            displaced,
+            &format!(r##"fill="{fill}" fill-opacity="0.85" stroke="#333" stroke-width="0.6""##),
+        );
     }
-    cv.text(cv.margin, 20.0, 13.0, &format!("{caption} (displacements × {scale:.3e}; grey: reference)"));
+    cv.text(
+        cv.margin,
+        20.0,
+        13.0,
+        &format!("{caption} (displacements × {scale:.3e}; grey: reference)"),
+    );
     cv.finish()
 }
 
 /// Writes `mode_001.svg`, ... into `dir`: each mode shape drawn by [`displaced_svg`], captioned
 /// with its frequency (Hz).
-pub fn write_mode_shapes(dir: &std::path::Path, model: &Model, modes: &crate::eigen::Modes) -> Result<()> {
+pub fn write_mode_shapes(
+    dir: &std::path::Path,
+    model: &Model,
+    modes: &crate::eigen::Modes,
+) -> Result<()> {
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
     for (k, (shape, omega)) in modes.shapes.iter().zip(&modes.omega).enumerate() {
-        let caption = format!("{} mode {}: f = {:.6e} Hz", model.name, k + 1, omega / (2.0 * std::f64::consts::PI));
+        let caption = format!(
+            "{} mode {}: f = {:.6e} Hz",
+            model.name,
+            k + 1,
+            omega / (2.0 * std::f64::consts::PI)
+        );
         let path = dir.join(format!("mode_{:03}.svg", k + 1));
-        std::fs::write(&path, displaced_svg(model, shape, &caption)).map_err(|e| Error::io(&path, e))?;
+        std::fs::write(&path, displaced_svg(model, shape, &caption))
+            .map_err(|e| Error::io(&path, e))?;
     }
     Ok(())
 }

@@ -13,7 +13,9 @@ use crate::model::{Model, GROUND};
 use crate::system::FreeSystem;
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::solvers::Solve;
-use faer::matrix_free::eigen::{partial_self_adjoint_eigen, partial_self_adjoint_eigen_scratch, PartialEigenParams};
+use faer::matrix_free::eigen::{
+    partial_self_adjoint_eigen, partial_self_adjoint_eigen_scratch, PartialEigenParams,
+};
 use faer::matrix_free::LinOp;
 use faer::{Col, Mat, MatMut, MatRef, Par};
 use nalgebra::DMatrix;
@@ -49,7 +51,13 @@ pub struct Modes {
 }
 
 /// `n_modes` lowest modes and `ω_max` of a system.
-pub fn modes(sys: &FreeSystem, evaluator: &dyn Evaluator, mass: &Mass, n_modes: usize, method: Method) -> Result<Modes> {
+pub fn modes(
+    sys: &FreeSystem,
+    evaluator: &dyn Evaluator,
+    mass: &Mass,
+    n_modes: usize,
+    method: Method,
+) -> Result<Modes> {
     let dense = match method {
         Method::Auto => sys.n() <= DENSE_LIMIT,
         Method::Dense => true,
@@ -58,9 +66,19 @@ pub fn modes(sys: &FreeSystem, evaluator: &dyn Evaluator, mass: &Mass, n_modes: 
     if dense {
         dense_modes(sys, mass, n_modes)
     } else {
-        let omega_max = top(evaluator, mass, || Graph::of_system(sys), |_| Inertia::of_system(sys));
+        let omega_max = top(
+            evaluator,
+            mass,
+            || Graph::of_system(sys),
+            |_| Inertia::of_system(sys),
+        );
         let (omega, shapes) = lowest_modes(sys, mass, n_modes, omega_max)?;
-        Ok(Modes { omega, shapes, omega_max, method: "sparse" })
+        Ok(Modes {
+            omega,
+            shapes,
+            omega_max,
+            method: "sparse",
+        })
     }
 }
 
@@ -71,7 +89,13 @@ pub fn dense_modes(sys: &FreeSystem, mass: &Mass, n_modes: usize) -> Result<Mode
     let n = sys.n();
     let mut k = DMatrix::<f64>::zeros(n, n);
     for j in 0..n {
-        for (&i, &v) in sys.k.symbolic().row_idx_of_col_raw(j).iter().zip(sys.k.val_of_col(j)) {
+        for (&i, &v) in sys
+            .k
+            .symbolic()
+            .row_idx_of_col_raw(j)
+            .iter()
+            .zip(sys.k.val_of_col(j))
+        {
             k[(i, j)] = v;
         }
     }
@@ -97,7 +121,12 @@ pub fn dense_modes(sys: &FreeSystem, mass: &Mass, n_modes: usize) -> Result<Mode
             full
         })
         .collect();
-    Ok(Modes { omega, shapes, omega_max, method: "dense" })
+    Ok(Modes {
+        omega,
+        shapes,
+        omega_max,
+        method: "dense",
+    })
 }
 
 /// Eigenvalues (ascending) and eigenvectors of a dense symmetric matrix, by nalgebra's
@@ -109,7 +138,9 @@ pub fn symmetric_eigen(a: DMatrix<f64>) -> (Vec<f64>, DMatrix<f64>) {
     let mut order: Vec<usize> = (0..eig.eigenvalues.len()).collect();
     order.sort_by(|&i, &j| eig.eigenvalues[i].total_cmp(&eig.eigenvalues[j]));
     let values = order.iter().map(|&i| eig.eigenvalues[i]).collect();
-    let vectors = DMatrix::from_fn(eig.eigenvectors.nrows(), order.len(), |r, c| eig.eigenvectors[(r, order[c])]);
+    let vectors = DMatrix::from_fn(eig.eigenvectors.nrows(), order.len(), |r, c| {
+        eig.eigenvectors[(r, order[c])]
+    });
     (values, vectors)
 }
 
@@ -134,11 +165,21 @@ pub fn symmetric_eigen(a: DMatrix<f64>) -> (Vec<f64>, DMatrix<f64>) {
 /// `ω²`) and its upper end is returned. (Against dense: ≤ 2.5e-13 on chains and strips up to
 /// 3000 DOFs.)
 pub fn omega_max(model: &Model, evaluator: &dyn Evaluator, mass: &Mass) -> f64 {
-    top(evaluator, mass, || Graph::of_model(model, mass.nd()), |g| Inertia::probed(model, g, evaluator, mass))
+    top(
+        evaluator,
+        mass,
+        || Graph::of_model(model, mass.nd()),
+        |g| Inertia::probed(model, g, evaluator, mass),
+    )
 }
 
 /// [`omega_max`], with the graph of `K`'s blocks and the [`Inertia`] built from it when needed.
-fn top(evaluator: &dyn Evaluator, mass: &Mass, graph: impl FnOnce() -> Graph, inertia_of: impl FnOnce(&Graph) -> Option<Inertia>) -> f64 {
+fn top(
+    evaluator: &dyn Evaluator,
+    mass: &Mass,
+    graph: impl FnOnce() -> Graph,
+    inertia_of: impl FnOnce(&Graph) -> Option<Inertia>,
+) -> f64 {
     const MAX_ITER: usize = 20_000;
     let mut history: Vec<f64> = Vec::new();
     let mut result = None;
@@ -177,7 +218,11 @@ fn top(evaluator: &dyn Evaluator, mass: &Mass, graph: impl FnOnce() -> Graph, in
             let budget = done as f64 * *per_iteration / INERTIA_FACTORISATIONS;
             if *banded <= budget {
                 let inertia = inertia.get_or_insert_with(|| inertia_of.take().and_then(|f| f(g)));
-                if let Some(l) = inertia.as_ref().filter(|x| x.flops <= budget).and_then(|x| x.bisect(largest_tridiagonal_eigenvalue(alpha, beta))) {
+                if let Some(l) = inertia
+                    .as_ref()
+                    .filter(|x| x.flops <= budget)
+                    .and_then(|x| x.bisect(largest_tridiagonal_eigenvalue(alpha, beta)))
+                {
                     result = Some(l.sqrt());
                     return true;
                 }
@@ -199,7 +244,11 @@ impl Graph {
     /// Elements and the interfaces between them.
     fn of_model(model: &Model, nd: usize) -> Graph {
         let mut neighbours = vec![Vec::new(); model.elements.len()];
-        for i in model.interfaces.iter().filter(|i| i.a != GROUND && i.b != GROUND && i.a != i.b) {
+        for i in model
+            .interfaces
+            .iter()
+            .filter(|i| i.a != GROUND && i.b != GROUND && i.a != i.b)
+        {
             neighbours[i.a as usize].push(i.b as usize);
             neighbours[i.b as usize].push(i.a as usize);
         }
@@ -212,7 +261,17 @@ impl Graph {
 
     /// The free DOFs and the pattern of `K_ff`.
     fn of_system(sys: &FreeSystem) -> Graph {
-        let neighbours = (0..sys.n()).map(|j| sys.k.symbolic().row_idx_of_col_raw(j).iter().copied().filter(|&i| i != j).collect()).collect();
+        let neighbours = (0..sys.n())
+            .map(|j| {
+                sys.k
+                    .symbolic()
+                    .row_idx_of_col_raw(j)
+                    .iter()
+                    .copied()
+                    .filter(|&i| i != j)
+                    .collect()
+            })
+            .collect();
         Graph { nd: 1, neighbours }
     }
 
@@ -266,7 +325,10 @@ impl Graph {
                 }
             }
             widths.push(0);
-            banded += widths.windows(2).map(|w| w[0] as f64 * nd * (nd * (w[0] + w[1]) as f64).powi(2)).sum::<f64>();
+            banded += widths
+                .windows(2)
+                .map(|w| w[0] as f64 * nd * (nd * (w[0] + w[1]) as f64).powi(2))
+                .sum::<f64>();
         }
         let blocks: usize = self.neighbours.iter().map(|l| 1 + l.len()).sum();
         (banded, 2.0 * blocks as f64 * nd * nd + 12.0 * n as f64 * nd)
@@ -296,7 +358,12 @@ impl Inertia {
     /// Probes `K_ff` through the evaluator: elements are coloured so that no two of a colour
     /// are neighbours or share one (interfaces), so one evaluation per colour and DOF gives
     /// those elements' columns without overlap. `None` when there are no free DOFs.
-    fn probed(model: &Model, graph: &Graph, evaluator: &dyn Evaluator, mass: &Mass) -> Option<Inertia> {
+    fn probed(
+        model: &Model,
+        graph: &Graph,
+        evaluator: &dyn Evaluator,
+        mass: &Mass,
+    ) -> Option<Inertia> {
         use faer::sparse::Pair;
         let (nd, ne) = (mass.nd(), mass.n() / mass.nd());
         let mut index = vec![0usize; mass.n()];
@@ -320,7 +387,9 @@ impl Inertia {
                 taken.extend(neighbours[f].iter().map(|&g| colour[g]));
             }
             taken.sort_unstable();
-            let c = (0..).find(|c| taken.binary_search(c).is_err()).expect("a free colour");
+            let c = (0..)
+                .find(|c| taken.binary_search(c).is_err())
+                .expect("a free colour");
             colour[e] = c;
             colours = colours.max(c + 1);
         }
@@ -355,7 +424,8 @@ impl Inertia {
             }
         }
         for (r, c, v) in mass.triplets() {
-            if index[r] != usize::MAX && index[c] != usize::MAX && index[r] >= index[c] && v != 0.0 {
+            if index[r] != usize::MAX && index[c] != usize::MAX && index[r] >= index[c] && v != 0.0
+            {
                 entries.push(Pair::new(index[r], index[c]));
                 k.push(0.0);
                 m.push(v);
@@ -369,7 +439,12 @@ impl Inertia {
         let (mut entries, mut k, mut m) = (Vec::new(), Vec::new(), Vec::new());
         for (mat, is_k) in [(&sys.k, true), (&sys.m, false)] {
             for j in 0..sys.n() {
-                for (&i, &v) in mat.symbolic().row_idx_of_col_raw(j).iter().zip(mat.val_of_col(j)) {
+                for (&i, &v) in mat
+                    .symbolic()
+                    .row_idx_of_col_raw(j)
+                    .iter()
+                    .zip(mat.val_of_col(j))
+                {
                     if i >= j {
                         entries.push(faer::sparse::Pair::new(i, j));
                         k.push(if is_k { v } else { 0.0 });
@@ -382,15 +457,30 @@ impl Inertia {
     }
 
     /// The symbolic Cholesky of the pattern `entries` (lower triangle, `n` free DOFs).
-    fn new(n: usize, entries: &[faer::sparse::Pair<usize, usize>], k: Vec<f64>, m: Vec<f64>) -> Option<Inertia> {
+    fn new(
+        n: usize,
+        entries: &[faer::sparse::Pair<usize, usize>],
+        k: Vec<f64>,
+        m: Vec<f64>,
+    ) -> Option<Inertia> {
         use faer::sparse::{linalg::cholesky, SymbolicSparseColMat};
         if n == 0 {
             return None;
         }
         let (pattern, argsort) = SymbolicSparseColMat::try_new_from_indices(n, n, entries).ok()?;
-        let symbolic = cholesky::factorize_symbolic_cholesky(pattern.as_ref(), faer::Side::Lower, Default::default(), Default::default()).ok()?;
+        let symbolic = cholesky::factorize_symbolic_cholesky(
+            pattern.as_ref(),
+            faer::Side::Lower,
+            Default::default(),
+            Default::default(),
+        )
+        .ok()?;
         let flops = match symbolic.raw() {
-            cholesky::SymbolicCholeskyRaw::Simplicial(s) => s.col_ptr().windows(2).map(|w| ((w[1] - w[0]) as f64).powi(2)).sum(),
+            cholesky::SymbolicCholeskyRaw::Simplicial(s) => s
+                .col_ptr()
+                .windows(2)
+                .map(|w| ((w[1] - w[0]) as f64).powi(2))
+                .sum(),
             cholesky::SymbolicCholeskyRaw::Supernodal(s) => {
                 let rows = s.col_ptr_for_row_idx();
                 (0..s.n_supernodes())
@@ -401,19 +491,48 @@ impl Inertia {
                     .sum()
             }
         };
-        Some(Inertia { k, m, pattern, argsort, symbolic, flops })
+        Some(Inertia {
+            k,
+            m,
+            pattern,
+            argsort,
+            symbolic,
+            flops,
+        })
     }
 
     /// Whether `σ M − K` is positive definite (its Cholesky factorisation succeeds; sequential,
     /// so the answer does not depend on the thread count).
     fn above(&self, sigma: f64) -> bool {
-        let values: Vec<f64> = self.k.iter().zip(&self.m).map(|(k, m)| sigma * m - k).collect();
-        let Ok(a) = faer::sparse::SparseColMat::new_from_argsort(self.pattern.clone(), &self.argsort, &values) else { return false };
+        let values: Vec<f64> = self
+            .k
+            .iter()
+            .zip(&self.m)
+            .map(|(k, m)| sigma * m - k)
+            .collect();
+        let Ok(a) = faer::sparse::SparseColMat::new_from_argsort(
+            self.pattern.clone(),
+            &self.argsort,
+            &values,
+        ) else {
+            return false;
+        };
         let mut l = vec![0.0; self.symbolic.len_val()];
         let par = Par::Seq;
-        let mut mem = MemBuffer::new(self.symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default()));
+        let mut mem = MemBuffer::new(
+            self.symbolic
+                .factorize_numeric_llt_scratch::<f64>(par, Default::default()),
+        );
         self.symbolic
-            .factorize_numeric_llt(&mut l, a.as_ref(), faer::Side::Lower, Default::default(), par, MemStack::new(&mut mem), Default::default())
+            .factorize_numeric_llt(
+                &mut l,
+                a.as_ref(),
+                faer::Side::Lower,
+                Default::default(),
+                par,
+                MemStack::new(&mut mem),
+                Default::default(),
+            )
             .is_ok()
     }
 
@@ -451,7 +570,12 @@ impl Inertia {
 /// Runs Lanczos on `L⁻¹ K L⁻ᵀ` from a fixed random start, calling `look(α, β, b)` after each
 /// step with `α` of length `j + 1`, `β` of length `j` and the new `b = β_j`; stops when `look`
 /// says so or after `max_iter` steps.
-fn lanczos(evaluator: &dyn Evaluator, mass: &Mass, max_iter: usize, mut look: impl FnMut(&[f64], &[f64], f64) -> bool) {
+fn lanczos(
+    evaluator: &dyn Evaluator,
+    mass: &Mass,
+    max_iter: usize,
+    mut look: impl FnMut(&[f64], &[f64], f64) -> bool,
+) {
     use rayon::prelude::*;
     let n = mass.n();
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
@@ -479,7 +603,11 @@ fn lanczos(evaluator: &dyn Evaluator, mass: &Mass, max_iter: usize, mut look: im
     for _ in 0..max_iter.min(n) {
         evaluator.internal_force(&tmp, &mut kx);
         // w = L⁻¹ K L⁻ᵀ q and α = wᵀ q.
-        let a = sum(w.par_chunks_mut(len).zip(kx.par_chunks(len)).zip(q.par_chunks(len)).enumerate()
+        let a = sum(w
+            .par_chunks_mut(len)
+            .zip(kx.par_chunks(len))
+            .zip(q.par_chunks(len))
+            .enumerate()
             .map(|(c, ((w, kx), q))| {
                 mass.apply_range(c * len, kx, w, false, true);
                 w.iter().zip(q).map(|(w, q)| w * q).sum::<f64>()
@@ -487,7 +615,10 @@ fn lanczos(evaluator: &dyn Evaluator, mass: &Mass, max_iter: usize, mut look: im
             .collect());
         let b_prev = beta.last().copied().unwrap_or(0.0);
         // w −= α q + β q_prev and β = |w|.
-        let b = sum(w.par_chunks_mut(len).zip(q.par_chunks(len)).zip(q_prev.par_chunks(len))
+        let b = sum(w
+            .par_chunks_mut(len)
+            .zip(q.par_chunks(len))
+            .zip(q_prev.par_chunks(len))
             .map(|((w, q), qp)| {
                 let mut s = 0.0;
                 for ((w, q), qp) in w.iter_mut().zip(q).zip(qp) {
@@ -505,12 +636,16 @@ fn lanczos(evaluator: &dyn Evaluator, mass: &Mass, max_iter: usize, mut look: im
         beta.push(b);
         // q_prev ← q, q ← w / β, and the next operand L⁻ᵀ q.
         std::mem::swap(&mut q_prev, &mut q);
-        q.par_chunks_mut(len).zip(w.par_chunks(len)).zip(tmp.par_chunks_mut(len)).enumerate().for_each(|(c, ((q, w), t))| {
-            for (q, w) in q.iter_mut().zip(w) {
-                *q = w / b;
-            }
-            mass.apply_range(c * len, q, t, true, true);
-        });
+        q.par_chunks_mut(len)
+            .zip(w.par_chunks(len))
+            .zip(tmp.par_chunks_mut(len))
+            .enumerate()
+            .for_each(|(c, ((q, w), t))| {
+                for (q, w) in q.iter_mut().zip(w) {
+                    *q = w / b;
+                }
+                mass.apply_range(c * len, q, t, true, true);
+            });
     }
 }
 
@@ -557,12 +692,23 @@ fn largest_tridiagonal_eigenvalue(a: &[f64], b: &[f64]) -> f64 {
 fn largest(op: &dyn LinOp<f64>, k: usize, tolerance: f64) -> (Vec<f64>, Mat<f64>) {
     let n = op.nrows();
     let k = k.min(n);
-    let params = PartialEigenParams { min_dim: 2 * k + 8, max_dim: 4 * k + 24, max_restarts: 2000, ..Default::default() };
+    let params = PartialEigenParams {
+        min_dim: 2 * k + 8,
+        max_dim: 4 * k + 24,
+        max_restarts: 2000,
+        ..Default::default()
+    };
     if params.max_dim >= n {
         // faer's Krylov–Schur needs a subspace smaller than the problem: solve small ones densely.
         let mut a = Mat::<f64>::zeros(n, n);
-        op.apply(a.as_mut(), Mat::<f64>::identity(n, n).as_ref(), Par::Seq, MemStack::new(&mut MemBuffer::new(StackReq::EMPTY)));
-        let (values, vectors) = symmetric_eigen(DMatrix::from_fn(n, n, |i, j| 0.5 * (a[(i, j)] + a[(j, i)])));
+        op.apply(
+            a.as_mut(),
+            Mat::<f64>::identity(n, n).as_ref(),
+            Par::Seq,
+            MemStack::new(&mut MemBuffer::new(StackReq::EMPTY)),
+        );
+        let (values, vectors) =
+            symmetric_eigen(DMatrix::from_fn(n, n, |i, j| 0.5 * (a[(i, j)] + a[(j, i)])));
         let vals = (0..k).map(|j| values[n - 1 - j]).collect();
         let vecs = Mat::<f64>::from_fn(n, k, |i, j| vectors[(i, n - 1 - j)]);
         return (vals, vecs);
@@ -573,14 +719,28 @@ fn largest(op: &dyn LinOp<f64>, k: usize, tolerance: f64) -> (Vec<f64>, Mat<f64>
     v0 /= norm;
     // An operator that overflows would keep the Krylov–Schur restarts going on NaNs.
     let mut probe = Mat::<f64>::zeros(n, 1);
-    op.apply(probe.as_mut(), v0.as_mat(), Par::Seq, MemStack::new(&mut MemBuffer::new(StackReq::EMPTY)));
+    op.apply(
+        probe.as_mut(),
+        v0.as_mat(),
+        Par::Seq,
+        MemStack::new(&mut MemBuffer::new(StackReq::EMPTY)),
+    );
     if !(0..n).all(|i| probe[(i, 0)].is_finite()) {
         return (vec![f64::NAN; k], Mat::zeros(n, k));
     }
     let mut mem = MemBuffer::new(partial_self_adjoint_eigen_scratch(op, k, Par::Seq, params));
     let mut vecs = Mat::<f64>::zeros(n, k);
     let mut vals = vec![0.0; k];
-    let info = partial_self_adjoint_eigen(vecs.as_mut(), &mut vals, op, v0.as_ref(), tolerance, Par::Seq, MemStack::new(&mut mem), params);
+    let info = partial_self_adjoint_eigen(
+        vecs.as_mut(),
+        &mut vals,
+        op,
+        v0.as_ref(),
+        tolerance,
+        Par::Seq,
+        MemStack::new(&mut mem),
+        params,
+    );
     // Unconverged pairs are reported as NaN rather than passed off as eigenvalues.
     for v in vals.iter_mut().skip(info.n_converged_eigen) {
         *v = f64::NAN;
@@ -617,22 +777,29 @@ impl LinOp<f64> for ShiftInvert<'_> {
         let (mut col, mut y) = (vec![0.0; n], vec![0.0; n]);
         let mut x = Mat::<f64>::zeros(n, rhs.ncols());
         // `dst[:, j] = op(src[:, j])` over the free DOFs, column by column.
-        let mut columns = |src: MatRef<'_, f64>, mut dst: MatMut<'_, f64>, op: &dyn Fn(&[f64], &mut [f64])| {
-            for j in 0..src.ncols() {
-                for i in 0..n {
-                    col[i] = src[(i, j)];
+        let mut columns =
+            |src: MatRef<'_, f64>, mut dst: MatMut<'_, f64>, op: &dyn Fn(&[f64], &mut [f64])| {
+                for j in 0..src.ncols() {
+                    for i in 0..n {
+                        col[i] = src[(i, j)];
+                    }
+                    self.sys.apply_free(&col, &mut y, op);
+                    for i in 0..n {
+                        dst[(i, j)] = y[i];
+                    }
                 }
-                self.sys.apply_free(&col, &mut y, op);
-                for i in 0..n {
-                    dst[(i, j)] = y[i];
-                }
-            }
-        };
+            };
         columns(rhs, x.as_mut(), &|a, b| self.mass.factor(a, b));
         self.llt.solve_in_place(x.as_mut());
         columns(x.as_ref(), out, &|a, b| self.mass.factor_t(a, b));
     }
-    fn conj_apply(&self, out: MatMut<'_, f64>, rhs: MatRef<'_, f64>, par: Par, stack: &mut MemStack) {
+    fn conj_apply(
+        &self,
+        out: MatMut<'_, f64>,
+        rhs: MatRef<'_, f64>,
+        par: Par,
+        stack: &mut MemStack,
+    ) {
         self.apply(out, rhs, par, stack)
     }
 }
@@ -642,7 +809,12 @@ impl LinOp<f64> for ShiftInvert<'_> {
 /// positive definite (the rigid modes then come out at `ω ≈ 0`); a shift that large would
 /// crowd the lowest modes of a stiff supported model (large penalties), so it is used only
 /// there. Shapes are `φ = L⁻ᵀ y`, `M`-normalised.
-pub fn lowest_modes(sys: &FreeSystem, mass: &Mass, k: usize, omega_max: f64) -> Result<(Vec<f64>, Vec<Vec<f64>>)> {
+pub fn lowest_modes(
+    sys: &FreeSystem,
+    mass: &Mass,
+    k: usize,
+    omega_max: f64,
+) -> Result<(Vec<f64>, Vec<Vec<f64>>)> {
     let (sigma, llt) = match sys.k.sp_cholesky(faer::Side::Lower) {
         Ok(llt) => (0.0, llt),
         Err(_) => {
@@ -650,7 +822,12 @@ pub fn lowest_modes(sys: &FreeSystem, mass: &Mass, k: usize, omega_max: f64) -> 
             let llt = sys
                 .shifted(sigma)
                 .sp_cholesky(faer::Side::Lower)
-                .map_err(|e| Error::scene("eigen", format!("the shifted stiffness K − σM could not be factored: {e:?}")))?;
+                .map_err(|e| {
+                    Error::scene(
+                        "eigen",
+                        format!("the shifted stiffness K − σM could not be factored: {e:?}"),
+                    )
+                })?;
             (sigma, llt)
         }
     };

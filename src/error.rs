@@ -51,26 +51,43 @@ pub fn cut(text: impl Into<String>) -> String {
     let text = text.into();
     match text.char_indices().nth(MAX_MESSAGE) {
         None => text,
-        Some((end, _)) => format!("{}… ({} more characters)", &text[..end], text[end..].chars().count()),
+        Some((end, _)) => format!(
+            "{}… ({} more characters)",
+            &text[..end],
+            text[end..].chars().count()
+        ),
     }
 }
 
 impl Error {
     /// A scene error for `field` with an explanation of the allowed values.
     pub fn scene(field: impl Into<String>, message: impl Into<String>) -> Self {
-        Error::Scene { field: cut(field), message: cut(message) }
+        Error::Scene {
+            field: cut(field),
+            message: cut(message),
+        }
     }
     /// A mesh error that names the body and the cell.
     pub fn mesh(body: &str, cell: usize, message: impl Into<String>) -> Self {
-        Error::Mesh { body: cut(body), cell, message: cut(message) }
+        Error::Mesh {
+            body: cut(body),
+            cell,
+            message: cut(message),
+        }
     }
     /// A parse error in the file `path`.
     pub fn parse(path: impl Into<String>, message: impl Into<String>) -> Self {
-        Error::Parse { path: cut(path), message: cut(message) }
+        Error::Parse {
+            path: cut(path),
+            message: cut(message),
+        }
     }
     /// An I/O error that names the path.
     pub fn io(path: impl AsRef<std::path::Path>, source: std::io::Error) -> Self {
-        Error::Io { path: path.as_ref().display().to_string(), source }
+        Error::Io {
+            path: path.as_ref().display().to_string(),
+            source,
+        }
     }
 }
 

@@ -14,7 +14,16 @@ use crate::system::FreeSystem;
 
 /// A scene of one body; `formulation` and `mesh` are JSON objects, `supports`, `loads` arrays,
 /// `extra` more top-level keys (with a leading comma) or nothing.
-fn scene(formulation: &str, plane: &str, nu: f64, mesh: &str, supports: &str, loads: &str, initial: &str, time: &str) -> Result<Scene> {
+fn scene(
+    formulation: &str,
+    plane: &str,
+    nu: f64,
+    mesh: &str,
+    supports: &str,
+    loads: &str,
+    initial: &str,
+    time: &str,
+) -> Result<Scene> {
     Scene::from_json(&format!(
         r#"{{"name": "extreme", "plane": "{plane}", "thickness": 1.0, "formulation": {formulation}, "evaluator": "element-wise",
             "materials": {{"m": {{"E": 2e10, "nu": {nu}, "rho": 2400}}}},
@@ -49,7 +58,13 @@ pub fn run_at(p: &Prepared, fraction: f64, steps: u64) -> Result<Run> {
     let status = cd.run(steps, steps, |_, _| Ok(()), |_| ())?;
     let status = status.describe();
     let finite = cd.u.iter().chain(cd.velocity()).all(|x| x.is_finite());
-    Ok(Run { fraction, steps: cd.step, status, drift: cd.max_relative_drift(), finite })
+    Ok(Run {
+        fraction,
+        steps: cd.step,
+        status,
+        drift: cd.max_relative_drift(),
+        finite,
+    })
 }
 
 /// Largest `ω_max` by Lanczos (what the runs use) against the dense eigenvalues of the same
@@ -88,10 +103,14 @@ pub fn penalty(p: f64) -> Result<Penalty> {
     let u = statics::solve(&model)?.u;
     let (sigma, e, nu) = (1e6, 2e10, 0.2);
     let exact = |x: crate::geometry::Vec2| (sigma / e * x.x, -nu * sigma / e * x.y);
-    let scale = model.elements.iter().map(|el| {
-        let (a, b) = exact(el.props.centroid);
-        a.hypot(b)
-    }).fold(0.0, f64::max);
+    let scale = model
+        .elements
+        .iter()
+        .map(|el| {
+            let (a, b) = exact(el.props.centroid);
+            a.hypot(b)
+        })
+        .fold(0.0, f64::max);
     let patch_error = model
         .elements
         .iter()
@@ -103,11 +122,21 @@ pub fn penalty(p: f64) -> Result<Penalty> {
         .fold(0.0, f64::max)
         / scale;
     let hyb = Prepared::new(&s, &RunOptions::default())?;
-    let rigid = Prepared::new(&scene(RIGID, "stress", 0.2, PATCH, ROLLERS, TENSION, "{}", time)?, &RunOptions::default())?;
+    let rigid = Prepared::new(
+        &scene(RIGID, "stress", 0.2, PATCH, ROLLERS, TENSION, "{}", time)?,
+        &RunOptions::default(),
+    )?;
     let dt_ratio = hyb.dt_crit / rigid.dt_crit;
     let run = run_at(&hyb, 0.9, 4000)?;
     let warnings = checks::warnings(&hyb.model, hyb.dt, hyb.dt_crit);
-    Ok(Penalty { p, patch_error, dt_ratio, dt_ratio_sqrt_p: dt_ratio * p.sqrt(), run, warnings })
+    Ok(Penalty {
+        p,
+        patch_error,
+        dt_ratio,
+        dt_ratio_sqrt_p: dt_ratio * p.sqrt(),
+        run,
+        warnings,
+    })
 }
 
 /// A stable run at 0.9 and an unstable one just above the limit, the Lanczos–dense agreement and
@@ -161,7 +190,13 @@ pub fn stack_scene(ratio: f64, formulation: &str) -> String {
 
 /// 10.2: [`stack_scene`] prepared, with its limits.
 pub fn aspect(ratio: f64, formulation: &str) -> Result<Limits> {
-    limits(&Prepared::new(&Scene::from_json(&stack_scene(ratio, formulation))?, &RunOptions::default())?, 20_000)
+    limits(
+        &Prepared::new(
+            &Scene::from_json(&stack_scene(ratio, formulation))?,
+            &RunOptions::default(),
+        )?,
+        20_000,
+    )
 }
 
 /// The polygons of a quarter annulus from radius `r0` to `r0 · ratio`, 4 sectors over 90°, with
@@ -181,7 +216,11 @@ pub fn graded_quarter_annulus(r0: f64, ratio: f64) -> (Vec<[f64; 2]>, Vec<Vec<us
         }
     }
     let at = |i: usize, j: usize| i * (sectors + 1) + j;
-    let cells = (0..rings).flat_map(|i| (0..sectors).map(move |j| vec![at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)])).collect();
+    let cells = (0..rings)
+        .flat_map(|i| {
+            (0..sectors).map(move |j| vec![at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)])
+        })
+        .collect();
     (vertices, cells)
 }
 
@@ -189,8 +228,21 @@ pub fn graded_quarter_annulus(r0: f64, ratio: f64) -> (Vec<[f64; 2]>, Vec<Vec<us
 /// set moving by an initial velocity).
 pub fn size_ratio(ratio: f64) -> Result<Limits> {
     let (v, c) = graded_quarter_annulus(1e-3, ratio);
-    let mesh = format!(r#"{{"kind": "polygons", "vertices": {}, "cells": {}}}"#, serde_json::to_string(&v).expect("numbers"), serde_json::to_string(&c).expect("numbers"));
-    let s = scene(RIGID, "stress", 0.2, &mesh, ROLLERS, "[]", r#"{"velocity": [0.1, 0.2]}"#, r#"{"dt_factor": 0.9, "steps": 1}"#)?;
+    let mesh = format!(
+        r#"{{"kind": "polygons", "vertices": {}, "cells": {}}}"#,
+        serde_json::to_string(&v).expect("numbers"),
+        serde_json::to_string(&c).expect("numbers")
+    );
+    let s = scene(
+        RIGID,
+        "stress",
+        0.2,
+        &mesh,
+        ROLLERS,
+        "[]",
+        r#"{"velocity": [0.1, 0.2]}"#,
+        r#"{"dt_factor": 0.9, "steps": 1}"#,
+    )?;
     limits(&Prepared::new(&s, &RunOptions::default())?, 20_000)
 }
 
@@ -216,8 +268,21 @@ pub struct Poisson {
 
 /// Validation §10.4: the tension patch at Poisson's ratio `nu`, rigid or hybrid, in `plane` (`stress`, `strain`).
 pub fn poisson(nu: f64, hybrid: bool, plane: &str) -> Result<Poisson> {
-    let f = if hybrid { r#"{"kind": "hybrid", "penalty": 1000}"# } else { RIGID };
-    let s = scene(f, plane, nu, PATCH, ROLLERS, TENSION, "{}", r#"{"dt_factor": 0.9, "steps": 1}"#)?;
+    let f = if hybrid {
+        r#"{"kind": "hybrid", "penalty": 1000}"#
+    } else {
+        RIGID
+    };
+    let s = scene(
+        f,
+        plane,
+        nu,
+        PATCH,
+        ROLLERS,
+        TENSION,
+        "{}",
+        r#"{"dt_factor": 0.9, "steps": 1}"#,
+    )?;
     let model = Model::build(&s)?;
     let u = statics::solve(&model)?.u;
     let nd = model.formulation.ndof();
@@ -231,7 +296,11 @@ pub fn poisson(nu: f64, hybrid: bool, plane: &str) -> Result<Poisson> {
     }
     let (a, b) = (sxu / sxx, syv / syy);
     // The plane-stress continuum answer a = σ/E; plane strain has a = σ(1 − ν²)/E.
-    let e_plane = if plane == "strain" { 2e10 / (1.0 - nu * nu) } else { 2e10 };
+    let e_plane = if plane == "strain" {
+        2e10 / (1.0 - nu * nu)
+    } else {
+        2e10
+    };
     let p = Prepared::new(&s, &RunOptions::default())?;
     Ok(Poisson {
         nu,
@@ -249,8 +318,16 @@ pub fn poisson(nu: f64, hybrid: bool, plane: &str) -> Result<Poisson> {
 /// discrete energy exactly on a linear system, so only round-off moves it).
 pub fn long_run(checkpoints: &[u64]) -> Result<Vec<(u64, f64)>> {
     let mesh = r#"{"kind": "grid", "origin": [0, 0], "size": [1.0, 0.1], "cells": [10, 1]}"#;
-    let s = scene(RIGID, "stress", 0.2, mesh, r#"[{"edge": "left", "kind": "ground-spring"}]"#, "[]", r#"{"velocity": [1.0, 0.5]}"#,
-        r#"{"dt_factor": 0.9, "steps": 1}"#)?;
+    let s = scene(
+        RIGID,
+        "stress",
+        0.2,
+        mesh,
+        r#"[{"edge": "left", "kind": "ground-spring"}]"#,
+        "[]",
+        r#"{"velocity": [1.0, 0.5]}"#,
+        r#"{"dt_factor": 0.9, "steps": 1}"#,
+    )?;
     let p = Prepared::new(&s, &RunOptions::default())?;
     let mut cd = p.integrator(p.dt);
     let mut out = Vec::new();
@@ -296,14 +373,20 @@ pub fn tumble(cells: usize, spin: f64, time: f64) -> Result<Tumble> {
     let s = Scene::from_json(&json)?;
     let p = Prepared::new(&s, &RunOptions::default())?;
     let mut cd = p.integrator(p.dt);
-    let (mut max_rotation, mut meshed_rotation, mut max_elastic, mut kinetic0) = (0.0f64, 0.0f64, 0.0f64, None);
-    let status = cd.run(p.steps, 20, |snap, e| {
-        kinetic0.get_or_insert(e.kinetic);
-        max_elastic = max_elastic.max(e.elastic);
-        max_rotation = max_rotation.max(checks::largest_rotation(&p.model, snap.u, false));
-        meshed_rotation = meshed_rotation.max(checks::largest_rotation(&p.model, snap.u, true));
-        Ok(())
-    }, |_| ())?;
+    let (mut max_rotation, mut meshed_rotation, mut max_elastic, mut kinetic0) =
+        (0.0f64, 0.0f64, 0.0f64, None);
+    let status = cd.run(
+        p.steps,
+        20,
+        |snap, e| {
+            kinetic0.get_or_insert(e.kinetic);
+            max_elastic = max_elastic.max(e.elastic);
+            max_rotation = max_rotation.max(checks::largest_rotation(&p.model, snap.u, false));
+            meshed_rotation = meshed_rotation.max(checks::largest_rotation(&p.model, snap.u, true));
+            Ok(())
+        },
+        |_| (),
+    )?;
     let status = status.describe();
     let finite = cd.u.iter().all(|x| x.is_finite());
     let mut warnings = checks::warnings(&p.model, p.dt, p.dt_crit);
@@ -311,7 +394,13 @@ pub fn tumble(cells: usize, spin: f64, time: f64) -> Result<Tumble> {
     Ok(Tumble {
         cells,
         max_rotation,
-        run: Run { fraction: p.dt / p.dt_crit, steps: cd.step, status, drift: cd.max_relative_drift(), finite },
+        run: Run {
+            fraction: p.dt / p.dt_crit,
+            steps: cd.step,
+            status,
+            drift: cd.max_relative_drift(),
+            finite,
+        },
         spurious: max_elastic / kinetic0.unwrap_or(f64::NAN),
         warnings,
     })

@@ -29,7 +29,13 @@ pub trait Kinematics<const N: usize>: Send + Sync + 'static {
     /// The part of an edge's 2-point Gauss rule that is odd in the Gauss offset `g` (eq. 15,
     /// see `evaluator::element_wise`): `f += (N_e(g) − N_e(0))ᵀ S δ₁`, with
     /// `δ₁ = gradient(u_o, g) − gradient(u_e, g)` (`u_o = None` on ground).
-    fn add_edge_odd(f: &mut [f64; N], ue: &[f64; N], uo: Option<&[f64; N]>, odd: &Self::EdgeOdd, s: &Springs);
+    fn add_edge_odd(
+        f: &mut [f64; N],
+        ue: &[f64; N],
+        uo: Option<&[f64; N]>,
+        odd: &Self::EdgeOdd,
+        s: &Springs,
+    );
     /// The 2 × N shape matrix `N_e(x)` at offset `d`.
     fn shape(d: Vec2) -> SMatrix<f64, 2, N>;
     /// Consistent mass `ρ t ∫ N_eᵀ N_e dA` of an element (eqs. 8, 9).
@@ -55,7 +61,11 @@ impl Springs {
     /// `S = k_s I + (k_n − k_s) n nᵀ` for the unit normal `n`.
     pub fn new(normal: Vec2, k_n: f64, k_s: f64) -> Self {
         let dk = k_n - k_s;
-        Springs { xx: k_s + dk * normal.x * normal.x, xy: dk * normal.x * normal.y, yy: k_s + dk * normal.y * normal.y }
+        Springs {
+            xx: k_s + dk * normal.x * normal.x,
+            xy: dk * normal.x * normal.y,
+            yy: k_s + dk * normal.y * normal.y,
+        }
     }
     /// `S δ`.
     #[inline(always)]
@@ -99,7 +109,13 @@ impl Kinematics<3> for Rigid {
         s.quadratic(Vec2::new(-g.y, g.x))
     }
     #[inline(always)]
-    fn add_edge_odd(f: &mut [f64; 3], ue: &[f64; 3], uo: Option<&[f64; 3]>, k_theta: &f64, _: &Springs) {
+    fn add_edge_odd(
+        f: &mut [f64; 3],
+        ue: &[f64; 3],
+        uo: Option<&[f64; 3]>,
+        k_theta: &f64,
+        _: &Springs,
+    ) {
         f[2] += k_theta * (uo.map_or(0.0, |uo| uo[2]) - ue[2]);
     }
     fn shape(d: Vec2) -> SMatrix<f64, 2, 3> {
@@ -107,7 +123,9 @@ impl Kinematics<3> for Rigid {
     }
     /// `ρ t diag(A, A, I_p)` (eq. 9): with the centroid as reference the terms couple no DOFs.
     fn mass(props: &AreaProperties, rho_t: f64) -> SMatrix<f64, 3, 3> {
-        SMatrix::<f64, 3, 3>::from_diagonal(&(nalgebra::Vector3::new(props.area, props.area, props.polar()) * rho_t))
+        SMatrix::<f64, 3, 3>::from_diagonal(
+            &(nalgebra::Vector3::new(props.area, props.area, props.polar()) * rho_t),
+        )
     }
     fn interior_stiffness(_: &AreaProperties, _: &Matrix3<f64>, _: f64) -> SMatrix<f64, 3, 3> {
         SMatrix::zeros()
@@ -139,7 +157,10 @@ impl Kinematics<6> for Hybrid {
     }
     #[inline(always)]
     fn gradient(u: &[f64; 6], d: Vec2) -> Vec2 {
-        Vec2::new(-u[2] * d.y + u[3] * d.x + 0.5 * u[5] * d.y, u[2] * d.x + u[4] * d.y + 0.5 * u[5] * d.x)
+        Vec2::new(
+            -u[2] * d.y + u[3] * d.x + 0.5 * u[5] * d.y,
+            u[2] * d.x + u[4] * d.y + 0.5 * u[5] * d.x,
+        )
     }
     #[inline(always)]
     fn add_linear(f: &mut [f64; 6], d: Vec2, force: Vec2) {
@@ -154,12 +175,31 @@ impl Kinematics<6> for Hybrid {
         g
     }
     #[inline(always)]
-    fn add_edge_odd(f: &mut [f64; 6], ue: &[f64; 6], uo: Option<&[f64; 6]>, &g: &Vec2, s: &Springs) {
+    fn add_edge_odd(
+        f: &mut [f64; 6],
+        ue: &[f64; 6],
+        uo: Option<&[f64; 6]>,
+        &g: &Vec2,
+        s: &Springs,
+    ) {
         let delta = uo.map_or(Vec2::zeros(), |uo| Self::gradient(uo, g)) - Self::gradient(ue, g);
         Self::add_linear(f, g, s.apply(delta));
     }
     fn shape(d: Vec2) -> SMatrix<f64, 2, 6> {
-        SMatrix::<f64, 2, 6>::from_row_slice(&[1.0, 0.0, -d.y, d.x, 0.0, 0.5 * d.y, 0.0, 1.0, d.x, 0.0, d.y, 0.5 * d.x])
+        SMatrix::<f64, 2, 6>::from_row_slice(&[
+            1.0,
+            0.0,
+            -d.y,
+            d.x,
+            0.0,
+            0.5 * d.y,
+            0.0,
+            1.0,
+            d.x,
+            0.0,
+            d.y,
+            0.5 * d.x,
+        ])
     }
     /// `ρ t ∫ Nᵀ N dA`: the translations decouple (`∫ Δx dA = ∫ Δy dA = 0` about the centroid);
     /// `(θ, ε_x, ε_y, γ_xy)` couple through `I_xx = ∫ Δy²`, `I_yy = ∫ Δx²`, `I_xy = ∫ Δx Δy`.
@@ -184,7 +224,8 @@ impl Kinematics<6> for Hybrid {
     /// `t A D` on the strain DOFs.
     fn interior_stiffness(p: &AreaProperties, d: &Matrix3<f64>, t: f64) -> SMatrix<f64, 6, 6> {
         let mut k = SMatrix::<f64, 6, 6>::zeros();
-        k.fixed_view_mut::<3, 3>(3, 3).copy_from(&(d * (t * p.area)));
+        k.fixed_view_mut::<3, 3>(3, 3)
+            .copy_from(&(d * (t * p.area)));
         k
     }
     const HAS_INTERIOR: bool = true;
@@ -193,9 +234,13 @@ impl Kinematics<6> for Hybrid {
 /// The elasticity matrix `D` (Pa) for `ε = (ε_x, ε_y, γ_xy)`, plane stress or plane strain.
 pub fn elasticity(e: f64, nu: f64, plane: crate::scene::Plane) -> Matrix3<f64> {
     match plane {
-        crate::scene::Plane::Stress => e / (1.0 - nu * nu) * Matrix3::new(1.0, nu, 0.0, nu, 1.0, 0.0, 0.0, 0.0, 0.5 * (1.0 - nu)),
+        crate::scene::Plane::Stress => {
+            e / (1.0 - nu * nu)
+                * Matrix3::new(1.0, nu, 0.0, nu, 1.0, 0.0, 0.0, 0.0, 0.5 * (1.0 - nu))
+        }
         crate::scene::Plane::Strain => {
-            e / ((1.0 + nu) * (1.0 - 2.0 * nu)) * Matrix3::new(1.0 - nu, nu, 0.0, nu, 1.0 - nu, 0.0, 0.0, 0.0, 0.5 - nu)
+            e / ((1.0 + nu) * (1.0 - 2.0 * nu))
+                * Matrix3::new(1.0 - nu, nu, 0.0, nu, 1.0 - nu, 0.0, 0.0, 0.0, 0.5 - nu)
         }
     }
 }
@@ -261,16 +306,24 @@ impl Formulation {
     /// `f += N_e(d)ᵀ F` on the `ndof` entries of one element (no allocation).
     pub fn add_point_force(self, f: &mut [f64], d: Vec2, force: Vec2) {
         match self {
-            Formulation::Rigid => Rigid::add_force(f.try_into().expect("3 DOFs per rigid element"), d, force),
-            Formulation::Hybrid { .. } => Hybrid::add_force(f.try_into().expect("6 DOFs per hybrid element"), d, force),
+            Formulation::Rigid => {
+                Rigid::add_force(f.try_into().expect("3 DOFs per rigid element"), d, force)
+            }
+            Formulation::Hybrid { .. } => {
+                Hybrid::add_force(f.try_into().expect("6 DOFs per hybrid element"), d, force)
+            }
         }
     }
 
     /// `N_e(d) U_e`: the displacement at offset `d` of an element with DOFs `u`.
     pub fn displacement(self, u: &[f64], d: Vec2) -> Vec2 {
         match self {
-            Formulation::Rigid => Rigid::displacement(u.try_into().expect("3 DOFs per rigid element"), d),
-            Formulation::Hybrid { .. } => Hybrid::displacement(u.try_into().expect("6 DOFs per hybrid element"), d),
+            Formulation::Rigid => {
+                Rigid::displacement(u.try_into().expect("3 DOFs per rigid element"), d)
+            }
+            Formulation::Hybrid { .. } => {
+                Hybrid::displacement(u.try_into().expect("6 DOFs per hybrid element"), d)
+            }
         }
     }
 
@@ -298,7 +351,9 @@ impl Formulation {
     pub fn mass(self, props: &AreaProperties, rho_t: f64) -> Vec<f64> {
         match self {
             Formulation::Rigid => Rigid::mass(props, rho_t).transpose().as_slice().to_vec(),
-            Formulation::Hybrid { .. } => Hybrid::mass(props, rho_t).transpose().as_slice().to_vec(),
+            Formulation::Hybrid { .. } => {
+                Hybrid::mass(props, rho_t).transpose().as_slice().to_vec()
+            }
         }
     }
 
@@ -334,19 +389,33 @@ mod tests {
 
     #[test]
     fn hybrid_mass_is_the_integral_of_nt_n() {
-        let pts = [Vec2::new(0.1, 0.0), Vec2::new(1.3, 0.2), Vec2::new(1.1, 0.9), Vec2::new(0.4, 1.2), Vec2::new(-0.2, 0.5)];
+        let pts = [
+            Vec2::new(0.1, 0.0),
+            Vec2::new(1.3, 0.2),
+            Vec2::new(1.1, 0.9),
+            Vec2::new(0.4, 1.2),
+            Vec2::new(-0.2, 0.5),
+        ];
         let p = area_properties(&pts);
         let m = Hybrid::mass(&p, 2.5);
         for i in 0..6 {
             for j in 0..6 {
-                let exact = 2.5 * integrate(&pts, |x| {
-                    let n = Hybrid::shape(x - p.centroid);
-                    n[(0, i)] * n[(0, j)] + n[(1, i)] * n[(1, j)]
-                });
-                assert!((m[(i, j)] - exact).abs() <= 1e-13 * m.norm(), "M[{i},{j}] = {} vs {exact}", m[(i, j)]);
+                let exact = 2.5
+                    * integrate(&pts, |x| {
+                        let n = Hybrid::shape(x - p.centroid);
+                        n[(0, i)] * n[(0, j)] + n[(1, i)] * n[(1, j)]
+                    });
+                assert!(
+                    (m[(i, j)] - exact).abs() <= 1e-13 * m.norm(),
+                    "M[{i},{j}] = {} vs {exact}",
+                    m[(i, j)]
+                );
             }
         }
-        assert!(m.cholesky().is_some(), "the consistent mass is positive definite");
+        assert!(
+            m.cholesky().is_some(),
+            "the consistent mass is positive definite"
+        );
     }
 
     #[test]
@@ -362,7 +431,12 @@ mod tests {
         let via_nt = n.transpose() * force;
         assert!((0..6).all(|i| (f[i] - via_nt[i]).abs() < 1e-15));
         let at_centroid = Hybrid::shape(Vec2::zeros()) * nalgebra::SVector::<f64, 6>::from(u);
-        assert!((Hybrid::gradient(&u, d) - Vec2::new(via_n[0] - at_centroid[0], via_n[1] - at_centroid[1])).norm() < 1e-15);
+        assert!(
+            (Hybrid::gradient(&u, d)
+                - Vec2::new(via_n[0] - at_centroid[0], via_n[1] - at_centroid[1]))
+            .norm()
+                < 1e-15
+        );
         let mut g = [0.0; 6];
         Hybrid::add_linear(&mut g, d, force);
         assert!(g[..2] == [0.0, 0.0] && (2..6).all(|i| (g[i] - via_nt[i]).abs() < 1e-15));
@@ -380,7 +454,9 @@ mod tests {
         Rigid::add_force(&mut f, d, force);
         let via_nt = n.transpose() * force;
         assert_eq!(f, [via_nt[0], via_nt[1], via_nt[2]]);
-        assert!((Rigid::gradient(&u, d) - Vec2::new(via_n[0] - u[0], via_n[1] - u[1])).norm() < 1e-15);
+        assert!(
+            (Rigid::gradient(&u, d) - Vec2::new(via_n[0] - u[0], via_n[1] - u[1])).norm() < 1e-15
+        );
         let mut g = [0.0; 3];
         Rigid::add_linear(&mut g, d, force);
         assert_eq!(g, [0.0, 0.0, via_nt[2]]);

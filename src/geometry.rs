@@ -75,7 +75,11 @@ pub fn segments_cross(p1: Vec2, p2: Vec2, q1: Vec2, q2: Vec2) -> bool {
 pub fn point_segment_distance(x: Vec2, a: Vec2, b: Vec2) -> f64 {
     let d = b - a;
     let len2 = d.norm_squared();
-    let s = if len2 > 0.0 { ((x - a).dot(&d) / len2).clamp(0.0, 1.0) } else { 0.0 };
+    let s = if len2 > 0.0 {
+        ((x - a).dot(&d) / len2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
     (a + s * d - x).norm()
 }
 
@@ -84,9 +88,14 @@ pub fn segment_distance(p1: Vec2, p2: Vec2, q1: Vec2, q2: Vec2) -> f64 {
     if segments_cross(p1, p2, q1, q2) {
         return 0.0;
     }
-    [point_segment_distance(p1, q1, q2), point_segment_distance(p2, q1, q2), point_segment_distance(q1, p1, p2), point_segment_distance(q2, p1, p2)]
-        .into_iter()
-        .fold(f64::INFINITY, f64::min)
+    [
+        point_segment_distance(p1, q1, q2),
+        point_segment_distance(p2, q1, q2),
+        point_segment_distance(q1, p1, p2),
+        point_segment_distance(q2, p1, p2),
+    ]
+    .into_iter()
+    .fold(f64::INFINITY, f64::min)
 }
 
 /// Whether `x` lies strictly inside the polygon `pts` (even-odd rule).
@@ -113,7 +122,12 @@ mod tests {
     #[test]
     fn rectangle_properties_match_closed_form() {
         let (b, h) = (3.0, 2.0);
-        let pts = [Vec2::new(1.0, 5.0), Vec2::new(1.0 + b, 5.0), Vec2::new(1.0 + b, 5.0 + h), Vec2::new(1.0, 5.0 + h)];
+        let pts = [
+            Vec2::new(1.0, 5.0),
+            Vec2::new(1.0 + b, 5.0),
+            Vec2::new(1.0 + b, 5.0 + h),
+            Vec2::new(1.0, 5.0 + h),
+        ];
         let p = area_properties(&pts);
         assert_relative_eq!(p.area, b * h, max_relative = 1e-14);
         assert_relative_eq!(p.centroid, Vec2::new(2.5, 6.0), max_relative = 1e-14);

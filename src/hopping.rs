@@ -88,7 +88,12 @@ impl Tracker {
             let cross = |a: f64, b: f64| (y0 / (y0 - y)).clamp(0.0, 1.0) * (b - a) + a;
             if !self.in_contact && y0 > 0.0 && y <= 0.0 {
                 self.in_contact = true;
-                self.bounces.push(Bounce { impact: cross(t0, t), impact_speed: -cross(v0, v), apex: f64::NAN, ..Default::default() });
+                self.bounces.push(Bounce {
+                    impact: cross(t0, t),
+                    impact_speed: -cross(v0, v),
+                    apex: f64::NAN,
+                    ..Default::default()
+                });
             } else if self.in_contact && y0 <= 0.0 && y > 0.0 {
                 self.in_contact = false;
                 if let Some(b) = self.bounces.last_mut() {
@@ -118,7 +123,11 @@ pub fn lowest_point(model: &Model, u: &[f64]) -> f64 {
             let el = body.first_element + e.cell as usize;
             let c = model.elements[el].props.centroid;
             for v in [e.v1, e.v2] {
-                let x = model.formulation.current_position(c, &u[el * nd..(el + 1) * nd], mesh.vertices[v as usize] - c);
+                let x = model.formulation.current_position(
+                    c,
+                    &u[el * nd..(el + 1) * nd],
+                    mesh.vertices[v as usize] - c,
+                );
                 low = low.min(x.y);
             }
         }
@@ -162,7 +171,14 @@ pub mod brick {
     /// ground line through the origin at `slope` degrees, then turned by `tilt` degrees about
     /// its centroid; `model` is the contact model, `friction` its `μ` (`None`: no slip limit).
     /// The time step is half the computed `Δt_crit`, one step (callers override both).
-    pub fn scene(cells: [usize; 2], model: &str, friction: Option<f64>, tilt: f64, height: f64, slope: f64) -> String {
+    pub fn scene(
+        cells: [usize; 2],
+        model: &str,
+        friction: Option<f64>,
+        tilt: f64,
+        height: f64,
+        slope: f64,
+    ) -> String {
         let (s, c) = slope.to_radians().sin_cos();
         // Centroid on the normal through the origin of the ground line, `D/2 + height` above it.
         let centre = [-(DEPTH / 2.0 + height) * s, (DEPTH / 2.0 + height) * c];
@@ -192,6 +208,11 @@ pub mod brick {
     /// The flat landing of the single rigid brick from `height`: `K_c = k_n B t` with
     /// `k_n = E'/(D/2)` (eq. 12, `h_b = 0`, plane stress).
     pub fn theory(height: f64) -> Theory {
-        Theory { mass: RHO * WIDTH * DEPTH * THICKNESS, stiffness: E / (1.0 - NU * NU) / (DEPTH / 2.0) * WIDTH * THICKNESS, g: G, height }
+        Theory {
+            mass: RHO * WIDTH * DEPTH * THICKNESS,
+            stiffness: E / (1.0 - NU * NU) / (DEPTH / 2.0) * WIDTH * THICKNESS,
+            g: G,
+            height,
+        }
     }
 }

@@ -128,8 +128,12 @@ impl Status {
     pub fn describe(&self) -> String {
         match self {
             Status::Ok => "ok".to_string(),
-            Status::Interrupted { step, t } => format!("interrupted at step {step} (t = {t:.6e} s)"),
-            Status::Diverged { step, t, reason } => format!("diverged at step {step} (t = {t:.6e} s): {reason}"),
+            Status::Interrupted { step, t } => {
+                format!("interrupted at step {step} (t = {t:.6e} s)")
+            }
+            Status::Diverged { step, t, reason } => {
+                format!("diverged at step {step} (t = {t:.6e} s): {reason}")
+            }
         }
     }
 }
@@ -177,13 +181,35 @@ impl State {
 
 impl<'a> CentralDifference<'a> {
     /// Starts at `t = 0` in the reference configuration with the model's initial velocities.
-    pub fn new(model: &Model, evaluator: &'a dyn Evaluator, mass: &'a Mass, loads: &'a Loads, dt: f64) -> Self {
-        Self::from_state(model, evaluator, mass, loads, dt, vec![0.0; model.n_dofs()], model.initial_velocity.clone())
+    pub fn new(
+        model: &Model,
+        evaluator: &'a dyn Evaluator,
+        mass: &'a Mass,
+        loads: &'a Loads,
+        dt: f64,
+    ) -> Self {
+        Self::from_state(
+            model,
+            evaluator,
+            mass,
+            loads,
+            dt,
+            vec![0.0; model.n_dofs()],
+            model.initial_velocity.clone(),
+        )
     }
 
     /// Starts at `t = 0` from displacements `u0` and velocities `v0` (fixed DOFs are zeroed):
     /// `v^{−½} = v^0 − ½ Δt a^0`.
-    pub fn from_state(model: &Model, evaluator: &'a dyn Evaluator, mass: &'a Mass, loads: &'a Loads, dt: f64, mut u0: Vec<f64>, mut v0: Vec<f64>) -> Self {
+    pub fn from_state(
+        model: &Model,
+        evaluator: &'a dyn Evaluator,
+        mass: &'a Mass,
+        loads: &'a Loads,
+        dt: f64,
+        mut u0: Vec<f64>,
+        mut v0: Vec<f64>,
+    ) -> Self {
         let n = model.n_dofs();
         for &d in &model.fixed {
             u0[d] = 0.0;
@@ -223,7 +249,11 @@ impl<'a> CentralDifference<'a> {
     fn net_force(&mut self, energy: bool) -> f64 {
         self.evaluator.internal_force(&self.u, &mut self.force);
         self.force_clear = false;
-        let elastic = if energy { 0.5 * dot(&self.u, &self.force) } else { 0.0 };
+        let elastic = if energy {
+            0.5 * dot(&self.u, &self.force)
+        } else {
+            0.0
+        };
         self.subtract_external();
         elastic
     }
@@ -231,7 +261,8 @@ impl<'a> CentralDifference<'a> {
     /// `force −= f_c^n + P(t_n)`.
     fn subtract_external(&mut self) {
         if let Some(c) = self.contact.as_mut() {
-            self.ledger.contact_energy = c.apply(self.step, &self.u, &self.v, self.dt, &mut self.force);
+            self.ledger.contact_energy =
+                c.apply(self.step, &self.u, &self.v, self.dt, &mut self.force);
         }
         self.loads.subtract(self.t, &mut self.force);
     }
@@ -248,13 +279,18 @@ impl<'a> CentralDifference<'a> {
     }
 
     fn interrupted(&self) -> bool {
-        self.interrupt.as_ref().is_some_and(|f| f.load(Ordering::Relaxed))
+        self.interrupt
+            .as_ref()
+            .is_some_and(|f| f.load(Ordering::Relaxed))
     }
 
     /// The state at the end of the last `run` that ended `Ok` (after its last record), from
     /// which [`CentralDifference::restore`] goes on bit for bit.
     pub fn state(&self) -> State {
-        assert!(self.pending, "a state is taken at the end of a run, after its last record");
+        assert!(
+            self.pending,
+            "a state is taken at the end of a run, after its last record"
+        );
         State {
             dt: self.dt,
             step: self.step,
@@ -270,10 +306,20 @@ impl<'a> CentralDifference<'a> {
     /// at the same time step; `Err` names what differs.
     pub fn restore(&mut self, state: State) -> std::result::Result<(), String> {
         if state.dt.to_bits() != self.dt.to_bits() {
-            return Err(format!("the time step differs: {:e} s saved, {:e} s now", state.dt, self.dt));
+            return Err(format!(
+                "the time step differs: {:e} s saved, {:e} s now",
+                state.dt, self.dt
+            ));
         }
-        if state.u.len() != self.u.len() || state.v.len() != self.v.len() || state.velocity.len() != self.u.len() {
-            return Err(format!("the model differs: {} DOFs saved, {} now", state.u.len(), self.u.len()));
+        if state.u.len() != self.u.len()
+            || state.v.len() != self.v.len()
+            || state.velocity.len() != self.u.len()
+        {
+            return Err(format!(
+                "the model differs: {} DOFs saved, {} now",
+                state.u.len(),
+                self.u.len()
+            ));
         }
         if state.contact.is_some() != self.contact.is_some() {
             return Err("one of the two has contact and the other not".into());
@@ -281,7 +327,8 @@ impl<'a> CentralDifference<'a> {
         self.step = state.step;
         self.t = state.step as f64 * self.dt;
         self.good = (state.step, self.t, state.u.clone(), state.velocity.clone());
-        (self.u, self.v, self.scratch, self.contact) = (state.u, state.v, state.velocity, state.contact);
+        (self.u, self.v, self.scratch, self.contact) =
+            (state.u, state.v, state.velocity, state.contact);
         self.ledger = state.ledger;
         self.force_clear = false;
         self.pending = true;
@@ -343,7 +390,8 @@ impl<'a> CentralDifference<'a> {
             }
             let elastic = self.net_force(true);
             self.scratch.copy_from_slice(&self.v);
-            self.mass.advance(&self.force, &mut self.v, &mut [], dt, damping);
+            self.mass
+                .advance(&self.force, &mut self.v, &mut [], dt, damping);
             let shadow = self.mass.kinetic_product(&self.scratch, &self.v);
             // v^n = (v^{n−½} + v^{n+½}) / 2 for the energies and the outputs.
             for (s, v) in self.scratch.iter_mut().zip(&self.v) {
@@ -360,7 +408,15 @@ impl<'a> CentralDifference<'a> {
             }
             progress(self.step);
             if record {
-                observer(&Snapshot { step: self.step, t: self.t, u: &self.u, v: &self.scratch }, &energy)?;
+                observer(
+                    &Snapshot {
+                        step: self.step,
+                        t: self.t,
+                        u: &self.u,
+                        v: &self.scratch,
+                    },
+                    &energy,
+                )?;
             }
             self.good.0 = self.step;
             self.good.1 = self.t;
@@ -368,7 +424,14 @@ impl<'a> CentralDifference<'a> {
             self.good.3.copy_from_slice(&self.scratch);
             if last || interrupted {
                 self.pending = true;
-                return Ok(if last { Status::Ok } else { Status::Interrupted { step: self.step, t: self.t } });
+                return Ok(if last {
+                    Status::Ok
+                } else {
+                    Status::Interrupted {
+                        step: self.step,
+                        t: self.t,
+                    }
+                });
             }
             self.finish_step(dt);
         }
@@ -400,14 +463,25 @@ impl<'a> CentralDifference<'a> {
     fn step_unchecked(&mut self, dt: f64, damping: (f64, f64)) {
         if !self.evaluator.fuses() {
             self.net_force(false);
-            self.mass.advance(&self.force, &mut self.v, &mut self.u, dt, damping);
+            self.mass
+                .advance(&self.force, &mut self.v, &mut self.u, dt, damping);
         } else {
             if !self.force_clear {
                 self.force.fill(0.0);
             }
             self.subtract_external();
-            let update = Update { mass: self.mass, dt, damping };
-            self.evaluator.advance(&mut self.u, &mut self.v, &mut self.force, self.loaded.as_deref(), &update);
+            let update = Update {
+                mass: self.mass,
+                dt,
+                damping,
+            };
+            self.evaluator.advance(
+                &mut self.u,
+                &mut self.v,
+                &mut self.force,
+                self.loaded.as_deref(),
+                &update,
+            );
             self.force_clear = true;
         }
         self.ledger.external_work += self.loads.work_increment(self.t, dt, &self.v);
@@ -418,7 +492,12 @@ impl<'a> CentralDifference<'a> {
     /// Runs `steps` steps in chunks of `every`, calling `each` with the integrator (its contact
     /// state included) and the energies at the end of every chunk; returns at the first chunk
     /// that does not end `Ok`.
-    pub fn run_chunks(&mut self, steps: u64, every: u64, mut each: impl FnMut(&Self, &Energy)) -> Result<Status> {
+    pub fn run_chunks(
+        &mut self,
+        steps: u64,
+        every: u64,
+        mut each: impl FnMut(&Self, &Energy),
+    ) -> Result<Status> {
         let mut left = steps;
         while left > 0 {
             let n = every.clamp(1, left);
@@ -448,7 +527,9 @@ impl<'a> CentralDifference<'a> {
     /// (frictionless edge-to-edge contact derives from a potential), and what it loses is what
     /// contact dissipated. Equal to `e.total` without contact.
     pub fn total_with_stored_contact(&self, e: &Energy) -> f64 {
-        self.contact.as_ref().map_or(e.total, |c| e.total - e.contact + c.stored())
+        self.contact
+            .as_ref()
+            .map_or(e.total, |c| e.total - e.contact + c.stored())
     }
 
     /// Runs `steps` steps with no energies, guard or outputs: the bare cost of the explicit
@@ -479,9 +560,20 @@ impl<'a> CentralDifference<'a> {
         let contact = self.ledger.contact_energy;
         let total = shadow + elastic + contact + potential - external_work;
         let initial = *self.ledger.initial_total.get_or_insert(total);
-        self.ledger.energy_scale = self.ledger.energy_scale.max(kinetic + elastic + contact + potential.abs() + external_work.abs());
+        self.ledger.energy_scale = self
+            .ledger
+            .energy_scale
+            .max(kinetic + elastic + contact + potential.abs() + external_work.abs());
         self.ledger.max_drift = self.ledger.max_drift.max((total - initial).abs());
-        Energy { t: self.t, kinetic, elastic, contact, potential, external_work, total }
+        Energy {
+            t: self.t,
+            kinetic,
+            elastic,
+            contact,
+            potential,
+            external_work,
+            total,
+        }
     }
 
     /// Raises the largest energy put in so far (the guard's measure) to what has been put in by
@@ -491,15 +583,23 @@ impl<'a> CentralDifference<'a> {
     /// step ahead counts because `v^n` already carries half of the impulse `Δt M⁻¹ P(t_n)`: a
     /// load that rises from zero would otherwise show kinetic energy before any work is booked.
     fn book_energy_in(&mut self, e: &Energy, dt: f64) {
-        let ahead = self.loads.work_increment(self.t, dt, &self.v) - dt * self.loads.gravity_potential(&self.v);
-        let initial = *self.ledger.initial_stored.get_or_insert(e.kinetic + e.elastic + e.contact.max(0.0));
+        let ahead = self.loads.work_increment(self.t, dt, &self.v)
+            - dt * self.loads.gravity_potential(&self.v);
+        let initial = *self
+            .ledger
+            .initial_stored
+            .get_or_insert(e.kinetic + e.elastic + e.contact.max(0.0));
         let put_in = initial + e.external_work - e.potential + ahead.max(0.0);
         self.ledger.energy_in_max = self.ledger.energy_in_max.max(put_in);
     }
 
     /// Why the run must stop, if it must.
     fn guard(&self, e: &Energy) -> Option<String> {
-        if !(e.total.is_finite() && e.kinetic.is_finite() && e.elastic.is_finite() && e.contact.is_finite()) {
+        if !(e.total.is_finite()
+            && e.kinetic.is_finite()
+            && e.elastic.is_finite()
+            && e.contact.is_finite())
+        {
             return Some("NaN or infinite energy: the solution blew up".into());
         }
         // The contact energy counts only when positive: energy that contact gives to the motion

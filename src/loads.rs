@@ -22,7 +22,11 @@ impl Loads {
         let weight = if model.gravity == Vec2::zeros() {
             Vec::new()
         } else {
-            model.elements.iter().map(|e| model.gravity * (e.rho * model.thickness * e.props.area)).collect()
+            model
+                .elements
+                .iter()
+                .map(|e| model.gravity * (e.rho * model.thickness * e.props.area))
+                .collect()
         };
         let mut entries = Vec::new();
         let mut amplitudes = Vec::new();
@@ -42,7 +46,12 @@ impl Loads {
                 }
             }
         }
-        Loads { nd, weight, entries, amplitudes }
+        Loads {
+            nd,
+            weight,
+            entries,
+            amplitudes,
+        }
     }
 
     /// The load vector `P` over all DOFs with every load at its full value (amplitudes are
@@ -61,7 +70,12 @@ impl Loads {
 
     /// No loads and no gravity (free vibration).
     pub fn none(model: &Model) -> Loads {
-        Loads { nd: model.formulation.ndof(), weight: Vec::new(), entries: Vec::new(), amplitudes: Vec::new() }
+        Loads {
+            nd: model.formulation.ndof(),
+            weight: Vec::new(),
+            entries: Vec::new(),
+            amplitudes: Vec::new(),
+        }
     }
 
     fn factor(&self, amp: usize, t: f64) -> f64 {
@@ -78,7 +92,11 @@ impl Loads {
         if !self.weight.is_empty() {
             return None;
         }
-        let mut elements: Vec<u32> = self.entries.iter().map(|&(d, _, _)| (d / self.nd) as u32).collect();
+        let mut elements: Vec<u32> = self
+            .entries
+            .iter()
+            .map(|&(d, _, _)| (d / self.nd) as u32)
+            .collect();
         elements.sort_unstable();
         elements.dedup();
         Some(elements)
@@ -97,7 +115,12 @@ impl Loads {
 
     /// Change in gravitational potential energy, `−Σ_e m_e g · (u_e, v_e)`.
     pub fn gravity_potential(&self, u: &[f64]) -> f64 {
-        -self.weight.iter().enumerate().map(|(e, w)| w.x * u[e * self.nd] + w.y * u[e * self.nd + 1]).sum::<f64>()
+        -self
+            .weight
+            .iter()
+            .enumerate()
+            .map(|(e, w)| w.x * u[e * self.nd] + w.y * u[e * self.nd + 1])
+            .sum::<f64>()
     }
 
     /// Work of the applied loads over a step from `t` to `t + dt` with displacement increment
@@ -105,7 +128,9 @@ impl Loads {
     pub fn work_increment(&self, t: f64, dt: f64, v: &[f64]) -> f64 {
         self.entries
             .iter()
-            .map(|&(d, val, a)| 0.5 * (self.factor(a, t) + self.factor(a, t + dt)) * val * dt * v[d])
+            .map(|&(d, val, a)| {
+                0.5 * (self.factor(a, t) + self.factor(a, t + dt)) * val * dt * v[d]
+            })
             .sum()
     }
 }

@@ -10,7 +10,11 @@ use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
 #[derive(Parser)]
-#[command(name = "rbsm", version, about = "Rigid-Bodies-Spring Model in 2D with explicit dynamics")]
+#[command(
+    name = "rbsm",
+    version,
+    about = "Rigid-Bodies-Spring Model in 2D with explicit dynamics"
+)]
 struct Cli {
     /// Worker threads (default: all cores).
     #[arg(long, global = true)]
@@ -105,9 +109,7 @@ enum Command {
     },
     /// Draw the histories a run left in DIR as SVG beside them: energies.svg and probes.svg
     /// from history.csv (rbsm run), stability.svg from fraction_F.csv (rbsm stability --out).
-    Plot {
-        dir: PathBuf,
-    },
+    Plot { dir: PathBuf },
     /// Exact Δt_crit, cheap bounds, the empirical limit and runs at fractions of Δt_crit.
     Stability {
         /// The scene file (JSON; see docs/scene.md).
@@ -159,8 +161,14 @@ impl Monitor for Terminal {
             return;
         }
         if self.bar.is_none() && self.start.elapsed() > Duration::from_secs(2) {
-            let bar = ProgressBar::with_draw_target(Some(total), ProgressDrawTarget::stderr()).with_elapsed(self.start.elapsed());
-            bar.set_style(ProgressStyle::with_template("{bar:40} {pos}/{len} steps, {elapsed} elapsed, eta {eta}").expect("valid template"));
+            let bar = ProgressBar::with_draw_target(Some(total), ProgressDrawTarget::stderr())
+                .with_elapsed(self.start.elapsed());
+            bar.set_style(
+                ProgressStyle::with_template(
+                    "{bar:40} {pos}/{len} steps, {elapsed} elapsed, eta {eta}",
+                )
+                .expect("valid template"),
+            );
             // The bar appears late: its rate is measured from here, not from a jump of `step`
             // steps in no time (which showed an ETA of 0 s).
             bar.set_position(step);
@@ -181,17 +189,25 @@ fn interrupt_flag() -> rbsm::error::Result<std::sync::Arc<std::sync::atomic::Ato
     let flag = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
     let fail = |e: std::io::Error| rbsm::error::Error::io("signal handler", e);
     for signal in [SIGINT, SIGTERM, SIGHUP] {
-        signal_hook::flag::register_conditional_shutdown(signal, 130, flag.clone()).map_err(fail)?;
+        signal_hook::flag::register_conditional_shutdown(signal, 130, flag.clone())
+            .map_err(fail)?;
         signal_hook::flag::register(signal, flag.clone()).map_err(fail)?;
     }
-    signal_hook::flag::register(SIGXFSZ, std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false))).map_err(fail)?;
+    signal_hook::flag::register(
+        SIGXFSZ,
+        std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false)),
+    )
+    .map_err(fail)?;
     Ok(flag)
 }
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
     if let Some(n) = cli.threads {
-        if let Err(e) = rayon::ThreadPoolBuilder::new().num_threads(n).build_global() {
+        if let Err(e) = rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build_global()
+        {
             tell(&format!("error: --threads: {e}"));
             return ExitCode::from(2);
         }
@@ -199,11 +215,16 @@ fn main() -> ExitCode {
     match execute(&cli) {
         Ok(code) => code,
         // The reader of standard output went away (`| head`): nothing is wrong with the run.
-        Err(rbsm::error::Error::Io { path, source }) if path == STDOUT && source.kind() == std::io::ErrorKind::BrokenPipe => ExitCode::SUCCESS,
+        Err(rbsm::error::Error::Io { path, source })
+            if path == STDOUT && source.kind() == std::io::ErrorKind::BrokenPipe =>
+        {
+            ExitCode::SUCCESS
+        }
         Err(e) => {
             if cli.json {
                 // Best effort: standard output may be what failed.
-                let _ = say(&serde_json::to_string_pretty(&error_json(&e)).expect("errors serialise"));
+                let _ =
+                    say(&serde_json::to_string_pretty(&error_json(&e)).expect("errors serialise"));
             }
             tell(&format!("error: {e}"));
             ExitCode::from(1)
@@ -219,7 +240,9 @@ const STDOUT: &str = "standard output";
 fn say(text: &str) -> rbsm::error::Result<()> {
     use std::io::Write;
     let mut out = std::io::stdout().lock();
-    writeln!(out, "{text}").and_then(|_| out.flush()).map_err(|e| rbsm::error::Error::io(STDOUT, e))
+    writeln!(out, "{text}")
+        .and_then(|_| out.flush())
+        .map_err(|e| rbsm::error::Error::io(STDOUT, e))
 }
 
 /// Writes `text` and a newline on standard error, ignoring a closed stream (`eprintln!` would
@@ -235,7 +258,11 @@ fn error_json(e: &rbsm::error::Error) -> serde_json::Value {
     use rbsm::error::Error;
     let (kind, key, message) = match e {
         Error::Scene { field, message } => ("scene", field.clone(), message.clone()),
-        Error::Mesh { body, cell, message } => ("mesh", format!("{body}, cell {cell}"), message.clone()),
+        Error::Mesh {
+            body,
+            cell,
+            message,
+        } => ("mesh", format!("{body}, cell {cell}"), message.clone()),
         Error::Parse { path, message } => ("parse", path.clone(), message.clone()),
         Error::Io { path, source } => ("io", path.clone(), source.to_string()),
     };
@@ -258,7 +285,11 @@ fn human_bytes(b: usize) -> String {
 }
 
 /// Prints a report as JSON, or as the text `text` gives.
-fn print(json: bool, value: &impl serde::Serialize, text: impl FnOnce() -> String) -> rbsm::error::Result<()> {
+fn print(
+    json: bool,
+    value: &impl serde::Serialize,
+    text: impl FnOnce() -> String,
+) -> rbsm::error::Result<()> {
     if json {
         say(&serde_json::to_string_pretty(value).expect("reports serialise"))
     } else {
@@ -269,16 +300,43 @@ fn print(json: bool, value: &impl serde::Serialize, text: impl FnOnce() -> Strin
 fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
     match &cli.command {
         Command::Schema => {
-            say(&serde_json::to_string_pretty(&rbsm::scene::schema()).expect("the schema serialises"))?;
+            say(&serde_json::to_string_pretty(&rbsm::scene::schema())
+                .expect("the schema serialises"))?;
             Ok(ExitCode::SUCCESS)
         }
-        Command::Check { scene, evaluator, dt } => {
-            let r = rbsm::report::check_report(&Scene::from_file(scene)?, &RunOptions { evaluator: *evaluator, dt: *dt, ..Default::default() })?;
+        Command::Check {
+            scene,
+            evaluator,
+            dt,
+        } => {
+            let r = rbsm::report::check_report(
+                &Scene::from_file(scene)?,
+                &RunOptions {
+                    evaluator: *evaluator,
+                    dt: *dt,
+                    ..Default::default()
+                },
+            )?;
             print(cli.json, &r, || {
                 let mut t = format!("{}: valid\n", r.scene);
-                t += &format!("  {}, {} ({} formulation, {} evaluator)\n", count(r.bodies, "body", "bodies"), count(r.elements, "element", "elements"), r.formulation, r.evaluator);
-                t += &format!("  {} between elements, {}; {} DOFs, {} fixed\n", count(r.interfaces, "interface", "interfaces"), count(r.ground_springs, "ground spring", "ground springs"), r.dofs, r.fixed_dofs);
-                t += &format!("  {} point loads; gravity ({}, {}) m/s²\n", r.loads, r.gravity[0], r.gravity[1]);
+                t += &format!(
+                    "  {}, {} ({} formulation, {} evaluator)\n",
+                    count(r.bodies, "body", "bodies"),
+                    count(r.elements, "element", "elements"),
+                    r.formulation,
+                    r.evaluator
+                );
+                t += &format!(
+                    "  {} between elements, {}; {} DOFs, {} fixed\n",
+                    count(r.interfaces, "interface", "interfaces"),
+                    count(r.ground_springs, "ground spring", "ground springs"),
+                    r.dofs,
+                    r.fixed_dofs
+                );
+                t += &format!(
+                    "  {} point loads; gravity ({}, {}) m/s²\n",
+                    r.loads, r.gravity[0], r.gravity[1]
+                );
                 t += &match &r.contact {
                     None => "  contact: none declared (no contact search)\n".to_string(),
                     Some(c) => format!(
@@ -286,8 +344,14 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
                         c.model, c.vertices, c.edges, c.pairs_tested_at_start, c.pairs_in_contact_at_start
                     ),
                 };
-                t += &format!("  ω_max = {:.6e} rad/s, Δt_crit = {:.6e} s\n", r.omega_max, r.dt_crit);
-                t += &format!("  dt = {:.6e} s = {:.4} Δt_crit, {} steps\n", r.dt, r.dt_ratio, r.steps);
+                t += &format!(
+                    "  ω_max = {:.6e} rad/s, Δt_crit = {:.6e} s\n",
+                    r.omega_max, r.dt_crit
+                );
+                t += &format!(
+                    "  dt = {:.6e} s = {:.4} Δt_crit, {} steps\n",
+                    r.dt, r.dt_ratio, r.steps
+                );
                 t += &format!("  memory for stepping: {}", human_bytes(r.memory_bytes));
                 for w in &r.warnings {
                     t += &format!("\n  warning: {w}");
@@ -300,13 +364,20 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
             let model = rbsm::model::Model::build(&Scene::from_file(scene)?)?;
             let svg = rbsm::drawing::model_svg(&model);
             std::fs::write(out, svg).map_err(|e| rbsm::error::Error::io(out, e))?;
-            print(cli.json, &serde_json::json!({"written": [out]}), || format!("written: {}", out.display()))?;
+            print(cli.json, &serde_json::json!({"written": [out]}), || {
+                format!("written: {}", out.display())
+            })?;
             Ok(ExitCode::SUCCESS)
         }
         Command::Plot { dir } => {
             let written = rbsm::plot::histories(dir)?;
-            let lines: Vec<String> = written.iter().map(|p| format!("written: {}", p.display())).collect();
-            print(cli.json, &serde_json::json!({ "written": written }), || lines.join("\n"))?;
+            let lines: Vec<String> = written
+                .iter()
+                .map(|p| format!("written: {}", p.display()))
+                .collect();
+            print(cli.json, &serde_json::json!({ "written": written }), || {
+                lines.join("\n")
+            })?;
             Ok(ExitCode::SUCCESS)
         }
         Command::Static { scene, out } => {
@@ -316,12 +387,23 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
                 rbsm::report::write_static(dir, &scene, &r, &model, &u)?;
             }
             print(cli.json, &r, || {
-                let max = r.elements.iter().map(|e| e.u[0].hypot(e.u[1])).fold(0.0, f64::max);
+                let max = r
+                    .elements
+                    .iter()
+                    .map(|e| e.u[0].hypot(e.u[1]))
+                    .fold(0.0, f64::max);
                 format!("{} elements, {} interfaces; strain energy {:.6e} J; largest displacement {:.6e} m", r.elements.len(), r.interfaces.len(), r.energy, max)
             })?;
             Ok(ExitCode::SUCCESS)
         }
-        Command::Eigen { scene, modes, method, vtk, svg, out } => {
+        Command::Eigen {
+            scene,
+            modes,
+            method,
+            vtk,
+            svg,
+            out,
+        } => {
             let scene = Scene::from_file(scene)?;
             let (r, model, shapes) = rbsm::report::eigen_report(&scene, *modes, *method)?;
             if let Some(dir) = out {
@@ -334,7 +416,10 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
                 rbsm::drawing::write_mode_shapes(dir, &model, &shapes)?;
             }
             print(cli.json, &r, || {
-                let mut t = format!("{} free DOFs ({} solver); ω_max = {:.6e} rad/s, Δt_crit = {:.6e} s\n", r.dofs, r.method, r.omega_max, r.dt_crit);
+                let mut t = format!(
+                    "{} free DOFs ({} solver); ω_max = {:.6e} rad/s, Δt_crit = {:.6e} s\n",
+                    r.dofs, r.method, r.omega_max, r.dt_crit
+                );
                 for (i, f) in r.frequencies_hz.iter().enumerate() {
                     t.push_str(&format!("  mode {:>3}: {:.6e} Hz\n", i + 1, f));
                 }
@@ -342,52 +427,108 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
             })?;
             Ok(ExitCode::SUCCESS)
         }
-        Command::Stability { scene, fractions, steps, out } => {
+        Command::Stability {
+            scene,
+            fractions,
+            steps,
+            out,
+        } => {
             if let Some(f) = fractions.iter().find(|f| !(**f > 0.0 && f.is_finite())) {
-                return Err(rbsm::error::Error::scene("--fractions", format!("each fraction must be > 0, got {f}")));
+                return Err(rbsm::error::Error::scene(
+                    "--fractions",
+                    format!("each fraction must be > 0, got {f}"),
+                ));
             }
             let r = rbsm::report::stability_report(&Scene::from_file(scene)?, fractions, *steps)?;
             if let Some(dir) = out {
                 rbsm::output::write_fraction_histories(dir, &r.fractions)?;
             }
             print(cli.json, &r, || {
-                let mut t = format!("ω_max = {:.6e} rad/s, Δt_crit = {:.6e} s\n", r.omega_max, r.dt_crit);
+                let mut t = format!(
+                    "ω_max = {:.6e} rad/s, Δt_crit = {:.6e} s\n",
+                    r.omega_max, r.dt_crit
+                );
                 for b in &r.bounds {
-                    t.push_str(&format!("  {:<15} Δt = {:.6e} s  ratio {:.4}  {}\n", b.name, b.dt, b.ratio, if b.safe { "safe" } else { "UNSAFE" }));
+                    t.push_str(&format!(
+                        "  {:<15} Δt = {:.6e} s  ratio {:.4}  {}\n",
+                        b.name,
+                        b.dt,
+                        b.ratio,
+                        if b.safe { "safe" } else { "UNSAFE" }
+                    ));
                 }
-                t.push_str(&format!("  empirical       Δt = {:.6e} s  ratio {:.4}\n", r.empirical.dt, r.empirical.ratio));
+                t.push_str(&format!(
+                    "  empirical       Δt = {:.6e} s  ratio {:.4}\n",
+                    r.empirical.dt, r.empirical.ratio
+                ));
                 for f in &r.fractions {
-                    t.push_str(&format!("  run at {:.3} Δt_crit: {} after {} steps, energy drift {:.3e}\n", f.fraction, f.status, f.steps, f.max_relative_drift));
+                    t.push_str(&format!(
+                        "  run at {:.3} Δt_crit: {} after {} steps, energy drift {:.3e}\n",
+                        f.fraction, f.status, f.steps, f.max_relative_drift
+                    ));
                 }
                 t.trim_end().to_string()
             })?;
             Ok(ExitCode::SUCCESS)
         }
         Command::Tradeoff { scene, sweeps, out } => {
-            let sweeps = sweeps.iter().map(|s| rbsm::tradeoff::Sweep::parse(s)).collect::<rbsm::error::Result<Vec<_>>>()?;
-            let text = std::fs::read_to_string(scene).map_err(|e| rbsm::error::Error::io(scene, e))?;
+            let sweeps = sweeps
+                .iter()
+                .map(|s| rbsm::tradeoff::Sweep::parse(s))
+                .collect::<rbsm::error::Result<Vec<_>>>()?;
+            let text =
+                std::fs::read_to_string(scene).map_err(|e| rbsm::error::Error::io(scene, e))?;
             let parsed = Scene::from_file(scene)?;
-            let dir = out.clone().unwrap_or_else(|| PathBuf::from(format!("out/tradeoff-{}", parsed.name)));
+            let dir = out
+                .clone()
+                .unwrap_or_else(|| PathBuf::from(format!("out/tradeoff-{}", parsed.name)));
             let total: usize = sweeps.iter().map(|s| s.values.len()).product();
             let mut done = 0;
             let report = rbsm::tradeoff::sweep(&text, &sweeps, |p| {
                 done += 1;
                 if !cli.quiet {
-                    tell(&format!("[{done}/{total}] {}: {} steps in {:.3} s, {}", rbsm::tradeoff::describe(&p.settings), p.steps, p.wall_s, p.status));
+                    tell(&format!(
+                        "[{done}/{total}] {}: {} steps in {:.3} s, {}",
+                        rbsm::tradeoff::describe(&p.settings),
+                        p.steps,
+                        p.wall_s,
+                        p.status
+                    ));
                 }
             })?;
             report.write(&dir)?;
             print(cli.json, &report, || {
                 let md = std::fs::read_to_string(dir.join("tradeoff.md")).unwrap_or_default();
-                format!("{md}
-written: {}/tradeoff.{{csv,md,svg}}", dir.display())
+                format!(
+                    "{md}
+written: {}/tradeoff.{{csv,md,svg}}",
+                    dir.display()
+                )
             })?;
             Ok(ExitCode::SUCCESS)
         }
-        Command::Run { scene, out, resume, evaluator, dt, dt_factor, steps } => {
+        Command::Run {
+            scene,
+            out,
+            resume,
+            evaluator,
+            dt,
+            dt_factor,
+            steps,
+        } => {
             let scene = Scene::from_file(scene)?;
-            let opts = RunOptions { evaluator: *evaluator, dt: *dt, dt_factor: *dt_factor, steps: *steps, interrupt: Some(interrupt_flag()?) };
-            let mut monitor = Terminal { quiet: cli.quiet, bar: None, start: Instant::now() };
+            let opts = RunOptions {
+                evaluator: *evaluator,
+                dt: *dt,
+                dt_factor: *dt_factor,
+                steps: *steps,
+                interrupt: Some(interrupt_flag()?),
+            };
+            let mut monitor = Terminal {
+                quiet: cli.quiet,
+                bar: None,
+                start: Instant::now(),
+            };
             let (summary, out) = match (resume, out) {
                 (Some(dir), _) => (run::resume(&scene, &opts, dir, &mut monitor)?, dir),
                 (None, Some(dir)) => (run::run(&scene, &opts, dir, &mut monitor)?, dir),
@@ -396,7 +537,8 @@ written: {}/tradeoff.{{csv,md,svg}}", dir.display())
             if let Some(bar) = monitor.bar.take() {
                 bar.finish_and_clear();
             }
-            print(cli.json, &summary, || match &summary.reason {
+            print(cli.json, &summary, || {
+                match &summary.reason {
                 Some(reason) => {
                     let state = if summary.status == "diverged" { "the last state that passed the guard" } else { "the step reached" };
                     format!(
@@ -408,6 +550,7 @@ written: {}/tradeoff.{{csv,md,svg}}", dir.display())
                     "{}: ok, {} steps (t = {:.6e} s) in {:.3} s; energy drift {:.3e} of the largest energy; outputs in {}",
                     summary.scene, summary.steps, summary.t_end, summary.wall_time_s, summary.energy.max_relative_drift, out.display()
                 ),
+            }
             })?;
             // A diverged or interrupted run kept its outputs; the exit code tells scripts which.
             Ok(match summary.status.as_str() {

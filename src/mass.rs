@@ -26,15 +26,30 @@ impl Update<'_> {
     /// calls it per element then tests neither.
     pub fn resolve<const N: usize>(&self, elements: Range<usize>, then: impl WithUpdate<N>) {
         debug_assert_eq!(self.mass.nd(), N, "the update of {N} DOFs per element");
-        fn run<B: ElementInverse<N>, const N: usize>(inv: &[B], dt: f64, damping: (f64, f64), then: impl WithUpdate<N>) {
+        fn run<B: ElementInverse<N>, const N: usize>(
+            inv: &[B],
+            dt: f64,
+            damping: (f64, f64),
+            then: impl WithUpdate<N>,
+        ) {
             match damping != (1.0, 1.0) {
                 true => then.run(Resolved::<B, true> { inv, dt, damping }),
                 false => then.run(Resolved::<B, false> { inv, dt, damping }),
             }
         }
         match self.mass {
-            Mass::Diagonal { inv, .. } => run(&inv.as_chunks::<N>().0[elements], self.dt, self.damping, then),
-            Mass::Blocks { inv, .. } => run(&inv.as_chunks::<N>().0.as_chunks::<N>().0[elements], self.dt, self.damping, then),
+            Mass::Diagonal { inv, .. } => run(
+                &inv.as_chunks::<N>().0[elements],
+                self.dt,
+                self.damping,
+                then,
+            ),
+            Mass::Blocks { inv, .. } => run(
+                &inv.as_chunks::<N>().0.as_chunks::<N>().0[elements],
+                self.dt,
+                self.damping,
+                then,
+            ),
         }
     }
 }
@@ -54,19 +69,37 @@ pub trait ElementUpdate<const N: usize> {
 /// An element's `M_e⁻¹`: its diagonal (lumped) or its row-major block.
 trait ElementInverse<const N: usize> {
     /// `v ← (c₁ v − Δt M_e⁻¹ f) c₂`; undamped, `c₁ = c₂ = 1` are left out, which changes no bit.
-    fn velocity<const DAMPED: bool>(&self, v: &mut [f64; N], f: &[f64; N], dt: f64, damping: (f64, f64));
+    fn velocity<const DAMPED: bool>(
+        &self,
+        v: &mut [f64; N],
+        f: &[f64; N],
+        dt: f64,
+        damping: (f64, f64),
+    );
 }
 
 impl<const N: usize> ElementInverse<N> for [f64; N] {
     #[inline(always)]
-    fn velocity<const DAMPED: bool>(&self, v: &mut [f64; N], f: &[f64; N], dt: f64, damping: (f64, f64)) {
+    fn velocity<const DAMPED: bool>(
+        &self,
+        v: &mut [f64; N],
+        f: &[f64; N],
+        dt: f64,
+        damping: (f64, f64),
+    ) {
         lumped_velocity::<DAMPED>(v, f, self, dt, damping)
     }
 }
 
 impl<const N: usize> ElementInverse<N> for [[f64; N]; N] {
     #[inline(always)]
-    fn velocity<const DAMPED: bool>(&self, v: &mut [f64; N], f: &[f64; N], dt: f64, damping: (f64, f64)) {
+    fn velocity<const DAMPED: bool>(
+        &self,
+        v: &mut [f64; N],
+        f: &[f64; N],
+        dt: f64,
+        damping: (f64, f64),
+    ) {
         block_velocity::<DAMPED>(v, f, self.as_flattened(), dt, damping)
     }
 }
@@ -79,7 +112,9 @@ struct Resolved<'a, B, const DAMPED: bool> {
     damping: (f64, f64),
 }
 
-impl<B: ElementInverse<N>, const N: usize, const DAMPED: bool> ElementUpdate<N> for Resolved<'_, B, DAMPED> {
+impl<B: ElementInverse<N>, const N: usize, const DAMPED: bool> ElementUpdate<N>
+    for Resolved<'_, B, DAMPED>
+{
     #[inline(always)]
     fn element(&self, i: usize, f: &[f64; N], v: &mut [f64; N], u: &mut [f64; N]) {
         // `v_i` is updated in registers: read back from memory, its fresh scalar stores could not
@@ -95,20 +130,40 @@ impl<B: ElementInverse<N>, const N: usize, const DAMPED: bool> ElementUpdate<N> 
 
 /// `v ← (c₁ v − Δt w f) c₂` with the lumped `M_e⁻¹ = diag(w)`.
 #[inline(always)]
-fn lumped_velocity<const DAMPED: bool>(v: &mut [f64], f: &[f64], w: &[f64], dt: f64, (c1, c2): (f64, f64)) {
+fn lumped_velocity<const DAMPED: bool>(
+    v: &mut [f64],
+    f: &[f64],
+    w: &[f64],
+    dt: f64,
+    (c1, c2): (f64, f64),
+) {
     for ((v, f), w) in v.iter_mut().zip(f).zip(w) {
-        *v = if DAMPED { (c1 * *v - dt * w * f) * c2 } else { *v - dt * w * f };
+        *v = if DAMPED {
+            (c1 * *v - dt * w * f) * c2
+        } else {
+            *v - dt * w * f
+        };
     }
 }
 
 /// `v ← (c₁ v − Δt B f) c₂` with the row-major block `M_e⁻¹ = B` of `v.len()` rows (a
 /// constant wherever the caller's is).
 #[inline(always)]
-fn block_velocity<const DAMPED: bool>(v: &mut [f64], f: &[f64], b: &[f64], dt: f64, (c1, c2): (f64, f64)) {
+fn block_velocity<const DAMPED: bool>(
+    v: &mut [f64],
+    f: &[f64],
+    b: &[f64],
+    dt: f64,
+    (c1, c2): (f64, f64),
+) {
     let nd = v.len();
     for i in 0..nd {
         let a: f64 = (0..nd).map(|j| b[i * nd + j] * f[j]).sum();
-        v[i] = if DAMPED { (c1 * v[i] - dt * a) * c2 } else { v[i] - dt * a };
+        v[i] = if DAMPED {
+            (c1 * v[i] - dt * a) * c2
+        } else {
+            v[i] - dt * a
+        };
     }
 }
 
@@ -144,8 +199,15 @@ impl Mass {
     /// The mass of every element from the formulation (eq. 9 for rigid).
     pub fn new(model: &Model) -> Mass {
         let nd = model.formulation.ndof();
-        let blocks: Vec<Vec<f64>> = model.elements.iter().map(|el| model.formulation.mass(&el.props, el.rho * model.thickness)).collect();
-        if blocks.iter().any(|b| (0..nd).any(|i| (0..nd).any(|j| i != j && b[i * nd + j] != 0.0))) {
+        let blocks: Vec<Vec<f64>> = model
+            .elements
+            .iter()
+            .map(|el| model.formulation.mass(&el.props, el.rho * model.thickness))
+            .collect();
+        if blocks
+            .iter()
+            .any(|b| (0..nd).any(|i| (0..nd).any(|j| i != j && b[i * nd + j] != 0.0)))
+        {
             return Mass::blocks(model, nd, blocks);
         }
         let mut m = Vec::with_capacity(model.n_dofs());
@@ -168,11 +230,19 @@ impl Mass {
         let (mut m, mut inv, mut l, mut l_inv) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
         for (e, b) in blocks.iter().enumerate() {
             let free: Vec<usize> = (0..nd).filter(|&i| !fixed[e * nd + i]).collect();
-            let sub = nalgebra::DMatrix::from_fn(free.len(), free.len(), |i, j| b[free[i] * nd + free[j]]);
-            let chol = sub.cholesky().expect("element mass blocks are positive definite");
+            let sub = nalgebra::DMatrix::from_fn(free.len(), free.len(), |i, j| {
+                b[free[i] * nd + free[j]]
+            });
+            let chol = sub
+                .cholesky()
+                .expect("element mass blocks are positive definite");
             let (si, sf) = (chol.inverse(), chol.l());
-            let sl = sf.clone().try_inverse().expect("a Cholesky factor is invertible");
-            let (mut bi, mut bf, mut bl) = (vec![0.0; nd * nd], vec![0.0; nd * nd], vec![0.0; nd * nd]);
+            let sl = sf
+                .clone()
+                .try_inverse()
+                .expect("a Cholesky factor is invertible");
+            let (mut bi, mut bf, mut bl) =
+                (vec![0.0; nd * nd], vec![0.0; nd * nd], vec![0.0; nd * nd]);
             for (i, &fi) in free.iter().enumerate() {
                 for (j, &fj) in free.iter().enumerate() {
                     bi[fi * nd + fj] = si[(i, j)];
@@ -185,14 +255,22 @@ impl Mass {
             l.extend(bf);
             l_inv.extend(bl);
         }
-        Mass::Blocks { nd, m, inv, l, l_inv }
+        Mass::Blocks {
+            nd,
+            m,
+            inv,
+            l,
+            l_inv,
+        }
     }
 
     /// The diagonal of `M` (the whole matrix when lumped).
     pub fn diagonal(&self) -> Vec<f64> {
         match self {
             Mass::Diagonal { m, .. } => m.clone(),
-            Mass::Blocks { nd, m, .. } => (0..m.len() / nd).map(|k| m[(k / nd) * nd * nd + (k % nd) * (nd + 1)]).collect(),
+            Mass::Blocks { nd, m, .. } => (0..m.len() / nd)
+                .map(|k| m[(k / nd) * nd * nd + (k % nd) * (nd + 1)])
+                .collect(),
         }
     }
 
@@ -243,8 +321,12 @@ impl Mass {
     fn velocity_update(&self, e: usize, f: &[f64], v: &mut [f64], dt: f64, damping: (f64, f64)) {
         let nd = v.len();
         match self {
-            Mass::Diagonal { inv, .. } => lumped_velocity::<true>(v, f, &inv[e * nd..(e + 1) * nd], dt, damping),
-            Mass::Blocks { inv, .. } => block_velocity::<true>(v, f, &inv[e * nd * nd..(e + 1) * nd * nd], dt, damping),
+            Mass::Diagonal { inv, .. } => {
+                lumped_velocity::<true>(v, f, &inv[e * nd..(e + 1) * nd], dt, damping)
+            }
+            Mass::Blocks { inv, .. } => {
+                block_velocity::<true>(v, f, &inv[e * nd * nd..(e + 1) * nd * nd], dt, damping)
+            }
         }
     }
 
@@ -256,7 +338,14 @@ impl Mass {
     /// `½ aᵀ M b`.
     pub fn kinetic_product(&self, a: &[f64], b: &[f64]) -> f64 {
         match self {
-            Mass::Diagonal { m, .. } => 0.5 * a.iter().zip(b).zip(m).map(|((a, b), m)| m * a * b).sum::<f64>(),
+            Mass::Diagonal { m, .. } => {
+                0.5 * a
+                    .iter()
+                    .zip(b)
+                    .zip(m)
+                    .map(|((a, b), m)| m * a * b)
+                    .sum::<f64>()
+            }
             Mass::Blocks { nd, m, .. } => {
                 0.5 * a
                     .chunks_exact(*nd)
@@ -264,7 +353,9 @@ impl Mass {
                     .enumerate()
                     .map(|(e, (ae, be))| {
                         let blk = &m[e * nd * nd..(e + 1) * nd * nd];
-                        (0..*nd).map(|i| ae[i] * (0..*nd).map(|j| blk[i * nd + j] * be[j]).sum::<f64>()).sum::<f64>()
+                        (0..*nd)
+                            .map(|i| ae[i] * (0..*nd).map(|j| blk[i * nd + j] * be[j]).sum::<f64>())
+                            .sum::<f64>()
                     })
                     .sum::<f64>()
             }
@@ -302,7 +393,14 @@ impl Mass {
 
     /// `L`, `Lᵀ`, `L⁻¹` or `L⁻ᵀ` applied element by element to the DOFs `first ..` of the whole
     /// vector (`first` a multiple of `nd`), so that chunks can be done in parallel.
-    pub fn apply_range(&self, first: usize, x: &[f64], y: &mut [f64], transpose: bool, inverse: bool) {
+    pub fn apply_range(
+        &self,
+        first: usize,
+        x: &[f64],
+        y: &mut [f64],
+        transpose: bool,
+        inverse: bool,
+    ) {
         match self {
             // `L = M^{½}` on the free DOFs, square roots taken here rather than stored.
             Mass::Diagonal { inv, .. } if inverse => {

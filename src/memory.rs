@@ -21,7 +21,15 @@ const BASELINE: u64 = 256 << 20;
 /// file, known only once read.
 pub fn cells_of(mesh: &MeshSpec) -> Option<u64> {
     match mesh {
-        MeshSpec::Grid(g) => Some(g.cells[0] as u64 * g.cells[1] as u64 * if g.cell == crate::mesh::grid::Cell::Tri { 2 } else { 1 }),
+        MeshSpec::Grid(g) => Some(
+            g.cells[0] as u64
+                * g.cells[1] as u64
+                * if g.cell == crate::mesh::grid::Cell::Tri {
+                    2
+                } else {
+                    1
+                },
+        ),
         MeshSpec::Voronoi(v) => Some(v.sites as u64),
         MeshSpec::Polygons(p) => Some(p.cells.len() as u64),
         MeshSpec::Gmsh(_) => None,
@@ -34,8 +42,14 @@ pub fn estimate(scene: &Scene, elements: u64) -> u64 {
         FormulationSpec::Hybrid { .. } => HYBRID_ELEMENT,
         _ => RIGID_ELEMENT,
     };
-    let factor = if scene.contact.is_some() { CONTACT_FACTOR } else { 1.0 };
-    BASELINE + (elements as f64 * per_element as f64 * factor) as u64 + scene.bodies.len() as u64 * PER_BODY
+    let factor = if scene.contact.is_some() {
+        CONTACT_FACTOR
+    } else {
+        1.0
+    };
+    BASELINE
+        + (elements as f64 * per_element as f64 * factor) as u64
+        + scene.bodies.len() as u64 * PER_BODY
 }
 
 /// Refuses `scene` when a model of `elements` elements needs more memory than the process may
@@ -68,11 +82,18 @@ pub fn available() -> Option<u64> {
     if let Some(kb) = read("/proc/meminfo").and_then(|t| field(&t, "MemAvailable:")) {
         limits.push(kb * 1024);
     }
-    let used_virtual = read("/proc/self/status").and_then(|t| field(&t, "VmSize:")).map(|kb| kb * 1024);
-    if let (Some(limit), Some(used)) = (read("/proc/self/limits").and_then(|t| field(&t, "Max address space")), used_virtual) {
+    let used_virtual = read("/proc/self/status")
+        .and_then(|t| field(&t, "VmSize:"))
+        .map(|kb| kb * 1024);
+    if let (Some(limit), Some(used)) = (
+        read("/proc/self/limits").and_then(|t| field(&t, "Max address space")),
+        used_virtual,
+    ) {
         limits.push(limit.saturating_sub(used));
     }
-    let cgroup = |name: &str| read(&format!("/sys/fs/cgroup/{name}")).and_then(|t| t.trim().parse::<u64>().ok());
+    let cgroup = |name: &str| {
+        read(&format!("/sys/fs/cgroup/{name}")).and_then(|t| t.trim().parse::<u64>().ok())
+    };
     if let (Some(max), Some(current)) = (cgroup("memory.max"), cgroup("memory.current")) {
         limits.push(max.saturating_sub(current));
     }

@@ -3,13 +3,13 @@
 
 use crate::contact::ContactSettings;
 use crate::error::{Error, Result};
-use crate::memory;
 use crate::formulation::{elasticity, Formulation};
 use crate::geometry::{area_properties, AreaProperties, Vec2};
+use crate::memory;
 use crate::mesh::{grid, voronoi, EdgeSet, Mesh};
 use crate::scene::{
-    ClampSpec, Component, ContactSpec, ForceSpec, GridSpec, GroundSpringSpec, LoadSpec, MaterialSpec, MeshSpec, GmshSpec, Plane, PolygonsSpec, Scene,
-    SupportSpec, TractionSpec, VoronoiSpec,
+    ClampSpec, Component, ContactSpec, ForceSpec, GmshSpec, GridSpec, GroundSpringSpec, LoadSpec,
+    MaterialSpec, MeshSpec, Plane, PolygonsSpec, Scene, SupportSpec, TractionSpec, VoronoiSpec,
 };
 
 /// Marks the `b` side of an interface tied to fixed ground (`U_b = 0`, `h_b = 0`).
@@ -180,15 +180,26 @@ impl Model {
             interfaces: Vec::new(),
             fixed: Vec::new(),
             loads: Vec::new(),
-            gravity: scene.gravity.map(|g| Vec2::new(g[0], g[1])).unwrap_or_else(Vec2::zeros),
+            gravity: scene
+                .gravity
+                .map(|g| Vec2::new(g[0], g[1]))
+                .unwrap_or_else(Vec2::zeros),
             damping: scene.damping.unwrap_or(0.0),
             initial_velocity: Vec::new(),
             contact: scene.contact.as_ref().map(ContactSpec::settings),
-            ground: scene.ground.iter().map(|g| [Vec2::new(g.from[0], g.from[1]), Vec2::new(g.to[0], g.to[1])]).collect(),
+            ground: scene
+                .ground
+                .iter()
+                .map(|g| [Vec2::new(g.from[0], g.from[1]), Vec2::new(g.to[0], g.to[1])])
+                .collect(),
         };
         // What the scene's meshes will make, known before meshing except for gmsh files,
         // whose elements are counted once read.
-        let mut expected: u64 = scene.bodies.iter().filter_map(|b| memory::cells_of(&b.mesh)).sum();
+        let mut expected: u64 = scene
+            .bodies
+            .iter()
+            .filter_map(|b| memory::cells_of(&b.mesh))
+            .sum();
         memory::ensure_fits(scene, expected)?;
         for (bi, spec) in scene.bodies.iter().enumerate() {
             let material = scene.materials[&spec.material];
@@ -198,7 +209,9 @@ impl Model {
                 memory::ensure_fits(scene, expected)?;
             }
             let first = model.elements.len();
-            let props: Vec<AreaProperties> = (0..mesh.n_cells()).map(|c| area_properties(&mesh.cell_points(c))).collect();
+            let props: Vec<AreaProperties> = (0..mesh.n_cells())
+                .map(|c| area_properties(&mesh.cell_points(c)))
+                .collect();
             let body_area: f64 = props.iter().map(|p| p.area).sum();
             let body_centroid = props.iter().map(|p| p.area * p.centroid).sum::<Vec2>() / body_area;
             let rot = nalgebra::Rotation2::new(spec.initial.rotation_deg.to_radians());
@@ -211,7 +224,12 @@ impl Model {
             let v0 = Vec2::new(spec.initial.velocity[0], spec.initial.velocity[1]);
             for c in 0..mesh.n_cells() {
                 let p = area_properties(&mesh.cell_points(c));
-                model.elements.push(Element { body: bi as u32, props: p, rho: material.rho, d: elasticity(material.e, material.nu, scene.plane) });
+                model.elements.push(Element {
+                    body: bi as u32,
+                    props: p,
+                    rho: material.rho,
+                    d: elasticity(material.e, material.nu, scene.plane),
+                });
                 let r = p.centroid - body_centroid;
                 let mut v = vec![0.0; nd];
                 v[0] = v0.x - omega * r.y;
@@ -221,7 +239,15 @@ impl Model {
             }
             let at = |k: &str| format!("bodies[{bi}].{k}");
             for e in &mesh.shared {
-                let iface = model.interface(first + e.a as usize, Some(first + e.b as usize), &mesh, e.v1, e.v2, &material)
+                let iface = model
+                    .interface(
+                        first + e.a as usize,
+                        Some(first + e.b as usize),
+                        &mesh,
+                        e.v1,
+                        e.v2,
+                        &material,
+                    )
                     .map_err(|m| Error::mesh(&spec.name, e.a as usize, m))?;
                 model.interfaces.push(iface);
             }
@@ -230,7 +256,15 @@ impl Model {
                 match s {
                     SupportSpec::GroundSpring(GroundSpringSpec { edge, components }) => {
                         for e in side_edges(&mesh, edge, &field)? {
-                            let mut iface = model.interface(first + e.cell as usize, None, &mesh, e.v1, e.v2, &material)
+                            let mut iface = model
+                                .interface(
+                                    first + e.cell as usize,
+                                    None,
+                                    &mesh,
+                                    e.v1,
+                                    e.v2,
+                                    &material,
+                                )
                                 .map_err(|m| Error::mesh(&spec.name, e.cell as usize, m))?;
                             if !components.contains(&Component::N) {
                                 iface.k_n = 0.0;
@@ -244,7 +278,12 @@ impl Model {
                     SupportSpec::Clamp(ClampSpec { edge, dofs }) => {
                         let which: Vec<usize> = match dofs {
                             None => (0..nd).collect(),
-                            Some(names) => names.iter().map(|n| dof_index(n, formulation, &at(&format!("supports[{k}].dofs")))).collect::<Result<_>>()?,
+                            Some(names) => names
+                                .iter()
+                                .map(|n| {
+                                    dof_index(n, formulation, &at(&format!("supports[{k}].dofs")))
+                                })
+                                .collect::<Result<_>>()?,
                         };
                         for e in side_edges(&mesh, edge, &field)? {
                             let el = first + e.cell as usize;
@@ -255,10 +294,15 @@ impl Model {
             }
             for (k, l) in spec.loads.iter().enumerate() {
                 match l {
-                    LoadSpec::Traction(TractionSpec { edge, value, amplitude }) => {
+                    LoadSpec::Traction(TractionSpec {
+                        edge,
+                        value,
+                        amplitude,
+                    }) => {
                         let q = Vec2::new(value[0], value[1]);
                         for e in side_edges(&mesh, edge, &at(&format!("loads[{k}].edge")))? {
-                            let (p, r) = (mesh.vertices[e.v1 as usize], mesh.vertices[e.v2 as usize]);
+                            let (p, r) =
+                                (mesh.vertices[e.v1 as usize], mesh.vertices[e.v2 as usize]);
                             // Uniform traction: the resultant acts at the midpoint, exactly.
                             model.loads.push(Load {
                                 element: (first + e.cell as usize) as u32,
@@ -269,10 +313,20 @@ impl Model {
                             });
                         }
                     }
-                    LoadSpec::Force(ForceSpec { element, value, amplitude }) => {
+                    LoadSpec::Force(ForceSpec {
+                        element,
+                        value,
+                        amplitude,
+                    }) => {
                         if *element >= mesh.n_cells() {
-                            return Err(Error::scene(at(&format!("loads[{k}].element")), format!(
-                                "must lie in 0..{} (elements of body `{}`), got {element}", mesh.n_cells(), spec.name)));
+                            return Err(Error::scene(
+                                at(&format!("loads[{k}].element")),
+                                format!(
+                                    "must lie in 0..{} (elements of body `{}`), got {element}",
+                                    mesh.n_cells(),
+                                    spec.name
+                                ),
+                            ));
                         }
                         let el = first + element;
                         model.loads.push(Load {
@@ -285,7 +339,12 @@ impl Model {
                     }
                 }
             }
-            model.bodies.push(Body { name: spec.name.clone(), mesh, first_element: first, moduli: spring_moduli(&material, scene.plane) });
+            model.bodies.push(Body {
+                name: spec.name.clone(),
+                mesh,
+                first_element: first,
+                moduli: spring_moduli(&material, scene.plane),
+            });
         }
         model.check_finite(scene)?;
         model.fixed.sort_unstable();
@@ -299,7 +358,15 @@ impl Model {
 
     /// The interface on the edge `v1 → v2` of element `a` (counter-clockwise in `a`), to element
     /// `b` or to ground; `Err` explains a degenerate geometry.
-    fn interface(&self, a: usize, b: Option<usize>, mesh: &Mesh, v1: u32, v2: u32, m: &MaterialSpec) -> std::result::Result<Interface, String> {
+    fn interface(
+        &self,
+        a: usize,
+        b: Option<usize>,
+        mesh: &Mesh,
+        v1: u32,
+        v2: u32,
+        m: &MaterialSpec,
+    ) -> std::result::Result<Interface, String> {
         let (p1, p2) = (mesh.vertices[v1 as usize], mesh.vertices[v2 as usize]);
         let length = (p2 - p1).norm();
         if length == 0.0 {
@@ -310,13 +377,31 @@ impl Model {
         let normal = Vec2::new(dir.y, -dir.x);
         let tangent = Vec2::new(normal.y, -normal.x);
         let h_a = (p1 - self.elements[a].props.centroid).dot(&normal).abs();
-        let h_b = b.map_or(0.0, |b| (self.elements[b].props.centroid - p1).dot(&normal).abs());
+        let h_b = b.map_or(0.0, |b| {
+            (self.elements[b].props.centroid - p1).dot(&normal).abs()
+        });
         if !(h_a + h_b > 1e-12 * length) {
-            return Err(format!("edge ({v1}, {v2}): the centroids lie on the edge line (h_a + h_b = 0)"));
+            return Err(format!(
+                "edge ({v1}, {v2}): the centroids lie on the edge line (h_a + h_b = 0)"
+            ));
         }
         let [e_n, e_s] = spring_moduli(m, self.plane);
-        let (k_n, k_s) = [e_n, e_s].map(|e| e / (h_a + h_b) * self.formulation.spring_factor()).into();
-        Ok(Interface { a: a as u32, b: b.map_or(GROUND, |b| b as u32), p1, p2, normal, tangent, length, h_a, h_b, k_n, k_s })
+        let (k_n, k_s) = [e_n, e_s]
+            .map(|e| e / (h_a + h_b) * self.formulation.spring_factor())
+            .into();
+        Ok(Interface {
+            a: a as u32,
+            b: b.map_or(GROUND, |b| b as u32),
+            p1,
+            p2,
+            normal,
+            tangent,
+            length,
+            h_a,
+            h_b,
+            k_n,
+            k_s,
+        })
     }
 
     /// Masses and spring constants must be finite numbers: extreme inputs (a thickness of
@@ -327,7 +412,11 @@ impl Model {
             let m = el.rho * t * el.props.area;
             let nd = self.formulation.ndof();
             let massive = m.is_normal() && m > 0.0 && (m * el.props.polar()).is_normal();
-            let block = nalgebra::DMatrix::from_row_slice(nd, nd, &self.formulation.mass(&el.props, el.rho * t));
+            let block = nalgebra::DMatrix::from_row_slice(
+                nd,
+                nd,
+                &self.formulation.mass(&el.props, el.rho * t),
+            );
             if !massive || (block.clone().cholesky().is_none() && nd == 3) {
                 return Err(Error::scene(scene.most_extreme(el.body as usize, &["rho", "thickness"]), format!(
                     "the mass of element {e} ({m:e} kg, rotational inertia {:e} kg m²) is not a positive normal number; \
@@ -335,8 +424,12 @@ impl Model {
             }
             if block.cholesky().is_none() {
                 let body = &self.bodies[el.body as usize];
-                return Err(Error::mesh(&body.name, e - body.first_element, "its consistent mass is not positive definite in double precision: \
-                    the element is too elongated (extreme aspect ratio) for the hybrid formulation"));
+                return Err(Error::mesh(
+                    &body.name,
+                    e - body.first_element,
+                    "its consistent mass is not positive definite in double precision: \
+                    the element is too elongated (extreme aspect ratio) for the hybrid formulation",
+                ));
             }
         }
         for i in &self.interfaces {
@@ -355,8 +448,12 @@ impl Model {
             (0..b.mesh.n_cells()).find_map(|c| {
                 let pts = b.mesh.cell_points(c);
                 let n = pts.len();
-                let on_edge = (0..n).any(|i| crate::geometry::point_segment_distance(x, pts[i], pts[(i + 1) % n]) <= 1e-12 * (pts[i] - pts[(i + 1) % n]).norm());
-                (on_edge || crate::geometry::point_in_polygon(x, &pts)).then_some(b.first_element + c)
+                let on_edge = (0..n).any(|i| {
+                    crate::geometry::point_segment_distance(x, pts[i], pts[(i + 1) % n])
+                        <= 1e-12 * (pts[i] - pts[(i + 1) % n]).norm()
+                });
+                (on_edge || crate::geometry::point_in_polygon(x, &pts))
+                    .then_some(b.first_element + c)
             })
         })
     }
@@ -364,11 +461,23 @@ impl Model {
     /// The element of probe `k`: its `element`, checked, or the one containing its `at`.
     pub fn probe_element(&self, k: usize, p: &crate::scene::ProbeSpec) -> Result<usize> {
         match (p.element, p.at) {
-            (_, Some([x, y])) => self.element_at(Vec2::new(x, y)).ok_or_else(|| Error::scene(format!("output.probes[{k}].at"), format!(
-                "[{x}, {y}] lies in no element (a point of the reference configuration, m)"))),
+            (_, Some([x, y])) => self.element_at(Vec2::new(x, y)).ok_or_else(|| {
+                Error::scene(
+                    format!("output.probes[{k}].at"),
+                    format!(
+                        "[{x}, {y}] lies in no element (a point of the reference configuration, m)"
+                    ),
+                )
+            }),
             (Some(e), None) if e < self.elements.len() => Ok(e),
-            (e, None) => Err(Error::scene(format!("output.probes[{k}].element"), format!(
-                "must lie in 0..{} (global element index), got {}", self.elements.len(), e.map_or("nothing".into(), |e| e.to_string())))),
+            (e, None) => Err(Error::scene(
+                format!("output.probes[{k}].element"),
+                format!(
+                    "must lie in 0..{} (global element index), got {}",
+                    self.elements.len(),
+                    e.map_or("nothing".into(), |e| e.to_string())
+                ),
+            )),
         }
     }
 
@@ -385,22 +494,50 @@ impl Model {
 
 /// The global index of DOF `name` within an element, checked against the formulation.
 pub fn dof_index(name: &str, formulation: Formulation, field: &str) -> Result<usize> {
-    formulation.dof_names().iter().position(|n| *n == name).ok_or_else(|| {
-        Error::scene(field, format!("unknown DOF `{name}`; the {} formulation has {}", formulation.name(), formulation.dof_names().join(", ")))
-    })
+    formulation
+        .dof_names()
+        .iter()
+        .position(|n| *n == name)
+        .ok_or_else(|| {
+            Error::scene(
+                field,
+                format!(
+                    "unknown DOF `{name}`; the {} formulation has {}",
+                    formulation.name(),
+                    formulation.dof_names().join(", ")
+                ),
+            )
+        })
 }
 
 fn build_mesh(body: &str, spec: &MeshSpec) -> Result<Mesh> {
     let v = |p: &[f64; 2]| Vec2::new(p[0], p[1]);
     match spec {
-        MeshSpec::Grid(GridSpec { origin, size, cells, cell }) => grid::grid(body, v(origin), v(size), cells[0], cells[1], *cell),
-        MeshSpec::Voronoi(VoronoiSpec { origin, size, sites, seed, lloyd }) => voronoi::voronoi(body, v(origin), v(size), *sites, *seed, *lloyd),
-        MeshSpec::Polygons(PolygonsSpec { vertices, cells }) => Mesh::from_polygons(body, vertices.iter().map(v).collect(), cells),
+        MeshSpec::Grid(GridSpec {
+            origin,
+            size,
+            cells,
+            cell,
+        }) => grid::grid(body, v(origin), v(size), cells[0], cells[1], *cell),
+        MeshSpec::Voronoi(VoronoiSpec {
+            origin,
+            size,
+            sites,
+            seed,
+            lloyd,
+        }) => voronoi::voronoi(body, v(origin), v(size), *sites, *seed, *lloyd),
+        MeshSpec::Polygons(PolygonsSpec { vertices, cells }) => {
+            Mesh::from_polygons(body, vertices.iter().map(v).collect(), cells)
+        }
         MeshSpec::Gmsh(GmshSpec { path }) => crate::mesh::gmsh::read(body, path),
     }
 }
 
 /// The boundary edges of a side or group; an error naming `field` when there are none.
-fn side_edges<'m>(mesh: &'m Mesh, set: &EdgeSet, field: &str) -> Result<Vec<&'m crate::mesh::BoundaryEdge>> {
+fn side_edges<'m>(
+    mesh: &'m Mesh,
+    set: &EdgeSet,
+    field: &str,
+) -> Result<Vec<&'m crate::mesh::BoundaryEdge>> {
     mesh.edges_in(set).map_err(|m| Error::scene(field, m))
 }

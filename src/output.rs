@@ -137,7 +137,15 @@ impl Probe {
 }
 
 /// The columns of `history.csv` before the probes.
-pub const HISTORY_COLUMNS: [&str; 7] = ["t", "kinetic", "elastic", "contact", "potential", "external_work", "total"];
+pub const HISTORY_COLUMNS: [&str; 7] = [
+    "t",
+    "kinetic",
+    "elastic",
+    "contact",
+    "potential",
+    "external_work",
+    "total",
+];
 
 /// `history.csv`, written as the run goes: each row in one write, so that the file holds whole
 /// rows only, even after the process is killed; a row that fails to be written (disk full, file
@@ -155,7 +163,12 @@ impl History {
     pub fn create(dir: &Path, probes: Vec<Probe>) -> Result<History> {
         let path = dir.join("history.csv");
         let file = std::fs::File::create(&path).map_err(|e| Error::io(&path, e))?;
-        let mut h = History { file, path, probes, len: 0 };
+        let mut h = History {
+            file,
+            path,
+            probes,
+            len: 0,
+        };
         let mut header = HISTORY_COLUMNS.join(",");
         for p in &h.probes {
             header.push(',');
@@ -169,15 +182,30 @@ impl History {
     /// a checkpoint); the rest is cut off.
     pub fn resume(dir: &Path, probes: Vec<Probe>, len: u64) -> Result<History> {
         let path = dir.join("history.csv");
-        let file = std::fs::OpenOptions::new().write(true).open(&path).map_err(|e| Error::io(&path, e))?;
+        let file = std::fs::OpenOptions::new()
+            .write(true)
+            .open(&path)
+            .map_err(|e| Error::io(&path, e))?;
         let have = file.metadata().map_err(|e| Error::io(&path, e))?.len();
         if have < len {
-            return Err(Error::io(&path, std::io::Error::other(format!("holds {have} bytes, shorter than the {len} the checkpoint counts"))));
+            return Err(Error::io(
+                &path,
+                std::io::Error::other(format!(
+                    "holds {have} bytes, shorter than the {len} the checkpoint counts"
+                )),
+            ));
         }
         file.set_len(len).map_err(|e| Error::io(&path, e))?;
-        let mut h = History { file, path, probes, len };
+        let mut h = History {
+            file,
+            path,
+            probes,
+            len,
+        };
         use std::io::Seek;
-        h.file.seek(std::io::SeekFrom::Start(len)).map_err(|e| Error::io(&h.path, e))?;
+        h.file
+            .seek(std::io::SeekFrom::Start(len))
+            .map_err(|e| Error::io(&h.path, e))?;
         Ok(h)
     }
 
@@ -208,7 +236,10 @@ impl History {
             }
             Err(e) => {
                 use std::io::Seek;
-                let _ = self.file.set_len(self.len).and_then(|_| self.file.seek(std::io::SeekFrom::Start(self.len)));
+                let _ = self
+                    .file
+                    .set_len(self.len)
+                    .and_then(|_| self.file.seek(std::io::SeekFrom::Start(self.len)));
                 Err(Error::io(&self.path, e))
             }
         }
@@ -250,7 +281,10 @@ pub fn write_final_state(dir: &Path, model: &Model, t: f64, u: &[f64], v: &[f64]
             stress: element_stress(model, e, &u[e * nd..(e + 1) * nd]),
         })
         .collect();
-    write_json(&dir.join("final_state.json"), &serde_json::json!({ "t": t, "elements": elements }))
+    write_json(
+        &dir.join("final_state.json"),
+        &serde_json::json!({ "t": t, "elements": elements }),
+    )
 }
 
 /// Writes any serialisable value as pretty JSON, atomically ([`write_atomic`]).
@@ -263,7 +297,10 @@ pub fn write_json(path: &Path, value: &impl Serialize) -> Result<()> {
 /// The temporary name beside `path` that [`write_atomic`] writes first: hidden, with the same
 /// extension (readers such as vtkio pick the format by it).
 pub fn temporary(path: &Path) -> PathBuf {
-    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
     path.with_file_name(format!(".part-{name}"))
 }
 

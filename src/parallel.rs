@@ -13,19 +13,32 @@ pub fn for_each_chunk<T: Send>(items: &mut [T], f: impl Fn(usize, &mut [T]) + Sy
     if items.len() <= CHUNK {
         f(0, items);
     } else {
-        items.par_chunks_mut(CHUNK).enumerate().for_each(|(c, chunk)| f(c * CHUNK, chunk));
+        items
+            .par_chunks_mut(CHUNK)
+            .enumerate()
+            .for_each(|(c, chunk)| f(c * CHUNK, chunk));
     }
 }
 
 /// Calls `f(first_index, a_chunk, b_chunk)` on matching chunks of `len` items of `a` and `b`;
 /// `b` may be empty, and its chunks are then empty too.
 #[inline]
-pub fn for_each_chunk_pair<T: Send>(a: &mut [T], b: &mut [T], len: usize, f: impl Fn(usize, &mut [T], &mut [T]) + Sync + Send) {
+pub fn for_each_chunk_pair<T: Send>(
+    a: &mut [T],
+    b: &mut [T],
+    len: usize,
+    f: impl Fn(usize, &mut [T], &mut [T]) + Sync + Send,
+) {
     if a.len() <= len {
         f(0, a, b);
     } else if b.is_empty() {
-        a.par_chunks_mut(len).enumerate().for_each(|(c, a)| f(c * len, a, &mut []));
+        a.par_chunks_mut(len)
+            .enumerate()
+            .for_each(|(c, a)| f(c * len, a, &mut []));
     } else {
-        a.par_chunks_mut(len).zip(b.par_chunks_mut(len)).enumerate().for_each(|(c, (a, b))| f(c * len, a, b));
+        a.par_chunks_mut(len)
+            .zip(b.par_chunks_mut(len))
+            .enumerate()
+            .for_each(|(c, (a, b))| f(c * len, a, b));
     }
 }

@@ -11,7 +11,9 @@ fn failed(path: &Path, e: impl std::fmt::Display) -> Error {
 
 /// The range of positive values, widened by `factor` on both sides.
 fn range(values: impl Iterator<Item = f64>, factor: f64) -> std::ops::Range<f64> {
-    let (lo, hi) = values.filter(|v| *v > 0.0 && v.is_finite()).fold((f64::MAX, f64::MIN), |a, v| (a.0.min(v), a.1.max(v)));
+    let (lo, hi) = values
+        .filter(|v| *v > 0.0 && v.is_finite())
+        .fold((f64::MAX, f64::MIN), |a, v| (a.0.min(v), a.1.max(v)));
     if lo > hi {
         return 0.1..10.0;
     }
@@ -20,7 +22,13 @@ fn range(values: impl Iterator<Item = f64>, factor: f64) -> std::ops::Range<f64>
 
 /// Named series of `(x, y)` as lines with markers on log–log axes (non-positive points are
 /// left out).
-pub fn log_log(path: &Path, title: &str, x_label: &str, y_label: &str, series: &[(&str, Vec<(f64, f64)>)]) -> Result<()> {
+pub fn log_log(
+    path: &Path,
+    title: &str,
+    x_label: &str,
+    y_label: &str,
+    series: &[(&str, Vec<(f64, f64)>)],
+) -> Result<()> {
     svg_file(path, (720, 480), |root| {
         let all = || series.iter().flat_map(|s| s.1.iter().copied());
         let mut chart = ChartBuilder::on(root)
@@ -28,20 +36,43 @@ pub fn log_log(path: &Path, title: &str, x_label: &str, y_label: &str, series: &
             .margin(15)
             .x_label_area_size(40)
             .y_label_area_size(70)
-            .build_cartesian_2d(range(all().map(|p| p.0), 1.3).log_scale(), range(all().map(|p| p.1), 2.0).log_scale())
+            .build_cartesian_2d(
+                range(all().map(|p| p.0), 1.3).log_scale(),
+                range(all().map(|p| p.1), 2.0).log_scale(),
+            )
             .map_err(|e| failed(path, e))?;
-        chart.configure_mesh().x_desc(x_label).y_desc(y_label).x_label_formatter(&|x| tick(*x)).y_label_formatter(&|y| tick(*y)).draw().map_err(|e| failed(path, e))?;
+        chart
+            .configure_mesh()
+            .x_desc(x_label)
+            .y_desc(y_label)
+            .x_label_formatter(&|x| tick(*x))
+            .y_label_formatter(&|y| tick(*y))
+            .draw()
+            .map_err(|e| failed(path, e))?;
         for (i, (name, pts)) in series.iter().enumerate() {
             let color = Palette99::pick(i).to_rgba();
-            let pts: Vec<_> = pts.iter().copied().filter(|p| p.0 > 0.0 && p.1 > 0.0).collect();
+            let pts: Vec<_> = pts
+                .iter()
+                .copied()
+                .filter(|p| p.0 > 0.0 && p.1 > 0.0)
+                .collect();
             chart
                 .draw_series(LineSeries::new(pts.clone(), color.stroke_width(2)))
                 .map_err(|e| failed(path, e))?
                 .label(*name)
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2)));
-            chart.draw_series(pts.iter().map(|&p| Circle::new(p, 3, color.filled()))).map_err(|e| failed(path, e))?;
+                .legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
+                });
+            chart
+                .draw_series(pts.iter().map(|&p| Circle::new(p, 3, color.filled())))
+                .map_err(|e| failed(path, e))?;
         }
-        chart.configure_series_labels().background_style(WHITE.mix(0.8)).border_style(BLACK).draw().map_err(|e| failed(path, e))?;
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .draw()
+            .map_err(|e| failed(path, e))?;
         Ok(())
     })
 }
@@ -55,7 +86,10 @@ pub fn pareto(path: &Path, title: &str, points: &[(f64, f64, bool, String)]) -> 
             .margin(15)
             .x_label_area_size(40)
             .y_label_area_size(70)
-            .build_cartesian_2d(range(points.iter().map(|p| p.0), 1.5).log_scale(), range(points.iter().map(|p| p.1), 2.0).log_scale())
+            .build_cartesian_2d(
+                range(points.iter().map(|p| p.0), 1.5).log_scale(),
+                range(points.iter().map(|p| p.1), 2.0).log_scale(),
+            )
             .map_err(|e| failed(path, e))?;
         chart
             .configure_mesh()
@@ -66,11 +100,16 @@ pub fn pareto(path: &Path, title: &str, points: &[(f64, f64, bool, String)]) -> 
             .draw()
             .map_err(|e| failed(path, e))?;
         chart
-            .draw_series(points.iter().map(|p| Circle::new((p.0, p.1), 3, RGBColor(120, 120, 120).filled())))
+            .draw_series(
+                points
+                    .iter()
+                    .map(|p| Circle::new((p.0, p.1), 3, RGBColor(120, 120, 120).filled())),
+            )
             .map_err(|e| failed(path, e))?
             .label("run")
             .legend(|(x, y)| Circle::new((x + 10, y), 3, RGBColor(120, 120, 120).filled()));
-        let mut front: Vec<(f64, f64)> = points.iter().filter(|p| p.2).map(|p| (p.0, p.1)).collect();
+        let mut front: Vec<(f64, f64)> =
+            points.iter().filter(|p| p.2).map(|p| (p.0, p.1)).collect();
         front.sort_by(|a, b| a.0.total_cmp(&b.0));
         chart
             .draw_series(LineSeries::new(front.clone(), RED.stroke_width(2)))
@@ -82,10 +121,19 @@ pub fn pareto(path: &Path, title: &str, points: &[(f64, f64, bool, String)]) -> 
                 .draw_series([TriangleMarker::new((p.0, p.1), 6, RED.filled())])
                 .map_err(|e| failed(path, e))?;
             chart
-                .draw_series([Text::new(p.3.clone(), (p.0, p.1), ("sans-serif", 11).into_font().color(&BLACK))])
+                .draw_series([Text::new(
+                    p.3.clone(),
+                    (p.0, p.1),
+                    ("sans-serif", 11).into_font().color(&BLACK),
+                )])
                 .map_err(|e| failed(path, e))?;
         }
-        chart.configure_series_labels().background_style(WHITE.mix(0.8)).border_style(BLACK).draw().map_err(|e| failed(path, e))?;
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .draw()
+            .map_err(|e| failed(path, e))?;
         Ok(())
     })
 }
@@ -101,7 +149,10 @@ pub struct Column {
 
 /// An error naming `path` and what is wrong with its contents.
 fn invalid(path: &Path, message: &str) -> Error {
-    Error::io(path, std::io::Error::new(std::io::ErrorKind::InvalidData, message.to_string()))
+    Error::io(
+        path,
+        std::io::Error::new(std::io::ErrorKind::InvalidData, message.to_string()),
+    )
 }
 
 /// Reads a CSV file of numbers under one header line, as the runs write them.
@@ -109,15 +160,34 @@ pub fn read_csv(path: &Path) -> Result<Vec<Column>> {
     let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
     let bad = |line: usize, message: String| invalid(path, &format!("line {line}: {message}"));
     let mut lines = text.lines();
-    let mut columns: Vec<Column> =
-        lines.next().ok_or_else(|| bad(1, "empty file, a header line was expected".into()))?.split(',').map(|h| Column { name: h.trim().to_string(), values: Vec::new() }).collect();
+    let mut columns: Vec<Column> = lines
+        .next()
+        .ok_or_else(|| bad(1, "empty file, a header line was expected".into()))?
+        .split(',')
+        .map(|h| Column {
+            name: h.trim().to_string(),
+            values: Vec::new(),
+        })
+        .collect();
     for (i, line) in lines.enumerate().filter(|(_, l)| !l.trim().is_empty()) {
         let fields: Vec<&str> = line.split(',').collect();
         if fields.len() != columns.len() {
-            return Err(bad(i + 2, format!("{} fields where the header has {}", fields.len(), columns.len())));
+            return Err(bad(
+                i + 2,
+                format!(
+                    "{} fields where the header has {}",
+                    fields.len(),
+                    columns.len()
+                ),
+            ));
         }
         for (c, f) in columns.iter_mut().zip(fields) {
-            c.values.push(f.trim().parse().map_err(|_| bad(i + 2, format!("`{f}` in column `{}` is not a number", c.name)))?);
+            c.values.push(f.trim().parse().map_err(|_| {
+                bad(
+                    i + 2,
+                    format!("`{f}` in column `{}` is not a number", c.name),
+                )
+            })?);
         }
     }
     Ok(columns)
@@ -130,29 +200,60 @@ fn tick(x: f64) -> String {
     if x == 0.0 || (1e-3..1e4).contains(&x.abs()) {
         let decimals = (5 - x.abs().log10().floor() as i32).max(0) as usize;
         let s = format!("{x:.decimals$}");
-        if s.contains('.') { s.trim_end_matches('0').trim_end_matches('.').to_string() } else { s }
+        if s.contains('.') {
+            s.trim_end_matches('0').trim_end_matches('.').to_string()
+        } else {
+            s
+        }
     } else {
         let s = format!("{x:.5e}");
         let (mantissa, exponent) = s.split_once('e').unwrap_or((&s, "0"));
-        let mantissa = if mantissa.contains('.') { mantissa.trim_end_matches('0').trim_end_matches('.') } else { mantissa };
+        let mantissa = if mantissa.contains('.') {
+            mantissa.trim_end_matches('0').trim_end_matches('.')
+        } else {
+            mantissa
+        };
         format!("{mantissa}e{exponent}")
     }
 }
 
 /// Lines of `(x, y)` series on linear axes in `area`; with `log_y`, `y` is drawn as `log10 y`
 /// (non-positive values left out) and labelled in powers of ten.
-fn panel(area: &DrawingArea<SVGBackend, plotters::coord::Shift>, path: &Path, title: &str, x_label: &str, y_label: &str, series: &[(&str, Vec<(f64, f64)>)], log_y: bool) -> Result<()> {
+fn panel(
+    area: &DrawingArea<SVGBackend, plotters::coord::Shift>,
+    path: &Path,
+    title: &str,
+    x_label: &str,
+    y_label: &str,
+    series: &[(&str, Vec<(f64, f64)>)],
+    log_y: bool,
+) -> Result<()> {
     let series: Vec<(&str, Vec<(f64, f64)>)> = series
         .iter()
-        .map(|(n, pts)| (*n, pts.iter().filter(|p| !log_y || p.1 > 0.0).map(|&(x, y)| (x, if log_y { y.log10() } else { y })).filter(|p| p.0.is_finite() && p.1.is_finite()).collect()))
+        .map(|(n, pts)| {
+            (
+                *n,
+                pts.iter()
+                    .filter(|p| !log_y || p.1 > 0.0)
+                    .map(|&(x, y)| (x, if log_y { y.log10() } else { y }))
+                    .filter(|p| p.0.is_finite() && p.1.is_finite())
+                    .collect(),
+            )
+        })
         .collect();
     let all = || series.iter().flat_map(|s| s.1.iter().copied());
     let bounds = |f: fn((f64, f64)) -> f64| {
-        let (lo, hi) = all().map(f).fold((f64::MAX, f64::MIN), |a, v| (a.0.min(v), a.1.max(v)));
+        let (lo, hi) = all()
+            .map(f)
+            .fold((f64::MAX, f64::MIN), |a, v| (a.0.min(v), a.1.max(v)));
         if lo > hi {
             (0.0, 1.0)
         } else {
-            let pad = if hi > lo { 0.05 * (hi - lo) } else { lo.abs().max(1e-30) * 0.1 };
+            let pad = if hi > lo {
+                0.05 * (hi - lo)
+            } else {
+                lo.abs().max(1e-30) * 0.1
+            };
             (lo - pad, hi + pad)
         }
     };
@@ -165,25 +266,56 @@ fn panel(area: &DrawingArea<SVGBackend, plotters::coord::Shift>, path: &Path, ti
         .build_cartesian_2d(x0..x1, y0..y1)
         .map_err(|e| failed(path, e))?;
     // On a log axis the ticks fall between round values: three significant digits suffice.
-    let round3 = |v: f64| if v > 0.0 { let k = 10f64.powi(v.log10().floor() as i32 - 2); (v / k).round() * k } else { v };
+    let round3 = |v: f64| {
+        if v > 0.0 {
+            let k = 10f64.powi(v.log10().floor() as i32 - 2);
+            (v / k).round() * k
+        } else {
+            v
+        }
+    };
     // A tick meant to be 0 can come out as round-off (-6.9e-18 on a span of 0.05): snap it.
     let snap = |v: f64, span: f64| if v.abs() <= 1e-9 * span { 0.0 } else { v };
-    let y_format = |y: &f64| if log_y { tick(round3(10f64.powf(*y))) } else { tick(snap(*y, y1 - y0)) };
-    chart.configure_mesh().x_desc(x_label).y_desc(y_label).x_label_formatter(&|x| tick(snap(*x, x1 - x0))).y_label_formatter(&y_format).draw().map_err(|e| failed(path, e))?;
+    let y_format = |y: &f64| {
+        if log_y {
+            tick(round3(10f64.powf(*y)))
+        } else {
+            tick(snap(*y, y1 - y0))
+        }
+    };
+    chart
+        .configure_mesh()
+        .x_desc(x_label)
+        .y_desc(y_label)
+        .x_label_formatter(&|x| tick(snap(*x, x1 - x0)))
+        .y_label_formatter(&y_format)
+        .draw()
+        .map_err(|e| failed(path, e))?;
     for (i, (name, pts)) in series.iter().enumerate() {
         let color = Palette99::pick(i).to_rgba();
         chart
             .draw_series(LineSeries::new(pts.clone(), color.stroke_width(2)))
             .map_err(|e| failed(path, e))?
             .label(*name)
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2)));
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
+            });
     }
-    chart.configure_series_labels().background_style(WHITE.mix(0.8)).border_style(BLACK).draw().map_err(|e| failed(path, e))?;
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .draw()
+        .map_err(|e| failed(path, e))?;
     Ok(())
 }
 
 /// Creates the SVG `path` of `size` pixels, lets `draw` fill it, and writes it.
-fn svg_file(path: &Path, size: (u32, u32), draw: impl FnOnce(&DrawingArea<SVGBackend, plotters::coord::Shift>) -> Result<()>) -> Result<()> {
+fn svg_file(
+    path: &Path,
+    size: (u32, u32),
+    draw: impl FnOnce(&DrawingArea<SVGBackend, plotters::coord::Shift>) -> Result<()>,
+) -> Result<()> {
     let root = SVGBackend::new(path, size).into_drawing_area();
     root.fill(&WHITE).map_err(|e| failed(path, e))?;
     draw(&root)?;
@@ -191,7 +323,14 @@ fn svg_file(path: &Path, size: (u32, u32), draw: impl FnOnce(&DrawingArea<SVGBac
 }
 
 /// The columns of a run's `history.csv` that are energies (J), the rest being probes.
-const ENERGIES: [&str; 6] = ["kinetic", "elastic", "contact", "potential", "external_work", "total"];
+const ENERGIES: [&str; 6] = [
+    "kinetic",
+    "elastic",
+    "contact",
+    "potential",
+    "external_work",
+    "total",
+];
 
 /// Draws the histories that runs left in `dir`, as SVG beside them, and returns the files written:
 /// - `history.csv` of `rbsm run`: `energies.svg` (each energy that is not zero throughout, J,
@@ -204,19 +343,51 @@ pub fn histories(dir: &Path) -> Result<Vec<std::path::PathBuf>> {
     let history = dir.join("history.csv");
     if history.exists() {
         let columns = read_csv(&history)?;
-        let t = &columns.first().filter(|c| c.name == "t").ok_or_else(|| invalid(&history, "the first column must be `t`"))?.values;
-        let pairs = |c: &Column| t.iter().copied().zip(c.values.iter().copied()).collect::<Vec<_>>();
-        let energies: Vec<(&str, Vec<(f64, f64)>)> =
-            columns.iter().filter(|c| ENERGIES.contains(&c.name.as_str()) && c.values.iter().any(|v| *v != 0.0)).map(|c| (c.name.as_str(), pairs(c))).collect();
+        let t = &columns
+            .first()
+            .filter(|c| c.name == "t")
+            .ok_or_else(|| invalid(&history, "the first column must be `t`"))?
+            .values;
+        let pairs = |c: &Column| {
+            t.iter()
+                .copied()
+                .zip(c.values.iter().copied())
+                .collect::<Vec<_>>()
+        };
+        let energies: Vec<(&str, Vec<(f64, f64)>)> = columns
+            .iter()
+            .filter(|c| ENERGIES.contains(&c.name.as_str()) && c.values.iter().any(|v| *v != 0.0))
+            .map(|c| (c.name.as_str(), pairs(c)))
+            .collect();
         let path = dir.join("energies.svg");
-        svg_file(&path, (820, 480), |root| panel(root, &path, "energies", "t (s)", "energy (J)", &energies, false))?;
+        svg_file(&path, (820, 480), |root| {
+            panel(
+                root,
+                &path,
+                "energies",
+                "t (s)",
+                "energy (J)",
+                &energies,
+                false,
+            )
+        })?;
         written.push(path);
-        let probes: Vec<&Column> = columns[1..].iter().filter(|c| !ENERGIES.contains(&c.name.as_str())).collect();
+        let probes: Vec<&Column> = columns[1..]
+            .iter()
+            .filter(|c| !ENERGIES.contains(&c.name.as_str()))
+            .collect();
         if !probes.is_empty() {
             // The units from the run's summary, when it is there.
-            let summary: serde_json::Value = std::fs::read_to_string(dir.join("summary.json")).ok().and_then(|t| serde_json::from_str(&t).ok()).unwrap_or_default();
+            let summary: serde_json::Value = std::fs::read_to_string(dir.join("summary.json"))
+                .ok()
+                .and_then(|t| serde_json::from_str(&t).ok())
+                .unwrap_or_default();
             let unit = |name: &str| {
-                let listed = summary["probes"].as_array().into_iter().flatten().find(|p| p["name"] == name);
+                let listed = summary["probes"]
+                    .as_array()
+                    .into_iter()
+                    .flatten()
+                    .find(|p| p["name"] == name);
                 match listed.and_then(|p| p["unit"].as_str()) {
                     Some("1") => "strain".to_string(),
                     Some(u) => format!("({u})"),
@@ -226,7 +397,15 @@ pub fn histories(dir: &Path) -> Result<Vec<std::path::PathBuf>> {
             let path = dir.join("probes.svg");
             svg_file(&path, (820, 260 * probes.len() as u32), |root| {
                 for (area, c) in root.split_evenly((probes.len(), 1)).iter().zip(&probes) {
-                    panel(area, &path, &format!("probe {}", c.name), "t (s)", &format!("{} {}", c.name, unit(&c.name)), &[(c.name.as_str(), pairs(c))], false)?;
+                    panel(
+                        area,
+                        &path,
+                        &format!("probe {}", c.name),
+                        "t (s)",
+                        &format!("{} {}", c.name, unit(&c.name)),
+                        &[(c.name.as_str(), pairs(c))],
+                        false,
+                    )?;
                 }
                 Ok(())
             })?;
@@ -237,29 +416,84 @@ pub fn histories(dir: &Path) -> Result<Vec<std::path::PathBuf>> {
     for entry in std::fs::read_dir(dir).map_err(|e| Error::io(dir, e))? {
         let p = entry.map_err(|e| Error::io(dir, e))?.path();
         let name = p.file_name().and_then(|n| n.to_str()).unwrap_or("");
-        if let Some(f) = name.strip_prefix("fraction_").and_then(|n| n.strip_suffix(".csv")) {
+        if let Some(f) = name
+            .strip_prefix("fraction_")
+            .and_then(|n| n.strip_suffix(".csv"))
+        {
             fractions.push((f.to_string(), p.clone()));
         }
     }
     if !fractions.is_empty() {
-        fractions.sort_by(|a, b| a.0.parse::<f64>().unwrap_or(f64::MAX).total_cmp(&b.0.parse::<f64>().unwrap_or(f64::MAX)));
+        fractions.sort_by(|a, b| {
+            a.0.parse::<f64>()
+                .unwrap_or(f64::MAX)
+                .total_cmp(&b.0.parse::<f64>().unwrap_or(f64::MAX))
+        });
         let mut series = Vec::new();
         for (f, p) in &fractions {
             let c = read_csv(p)?;
-            let stored = c.iter().find(|c| c.name == "stored").ok_or_else(|| invalid(p, "expected the columns t,total,stored"))?;
+            let stored = c
+                .iter()
+                .find(|c| c.name == "stored")
+                .ok_or_else(|| invalid(p, "expected the columns t,total,stored"))?;
             // Relative to the first energy stored: a run loaded from rest starts at 0 J.
-            let s0 = stored.values.iter().copied().find(|e| *e > 0.0).unwrap_or(1.0);
-            series.push((format!("dt = {f} Δt_crit"), c[0].values.iter().zip(&stored.values).map(|(t, e)| (*t, e / s0)).collect::<Vec<_>>()));
+            let s0 = stored
+                .values
+                .iter()
+                .copied()
+                .find(|e| *e > 0.0)
+                .unwrap_or(1.0);
+            series.push((
+                format!("dt = {f} Δt_crit"),
+                c[0].values
+                    .iter()
+                    .zip(&stored.values)
+                    .map(|(t, e)| (*t, e / s0))
+                    .collect::<Vec<_>>(),
+            ));
         }
-        let series: Vec<(&str, Vec<(f64, f64)>)> = series.iter().map(|(n, s)| (n.as_str(), s.clone())).collect();
+        let series: Vec<(&str, Vec<(f64, f64)>)> = series
+            .iter()
+            .map(|(n, s)| (n.as_str(), s.clone()))
+            .collect();
         // A run above the limit stops within a few steps: the second panel shows those steps.
-        let shortest = series.iter().map(|s| s.1.last().map_or(0.0, |p| p.0)).fold(f64::INFINITY, f64::min);
-        let early: Vec<(&str, Vec<(f64, f64)>)> = series.iter().map(|(n, s)| (*n, s.iter().copied().filter(|p| p.0 <= 1.5 * shortest).collect())).collect();
+        let shortest = series
+            .iter()
+            .map(|s| s.1.last().map_or(0.0, |p| p.0))
+            .fold(f64::INFINITY, f64::min);
+        let early: Vec<(&str, Vec<(f64, f64)>)> = series
+            .iter()
+            .map(|(n, s)| {
+                (
+                    *n,
+                    s.iter()
+                        .copied()
+                        .filter(|p| p.0 <= 1.5 * shortest)
+                        .collect(),
+                )
+            })
+            .collect();
         let path = dir.join("stability.svg");
         svg_file(&path, (820, 900), |root| {
             let areas = root.split_evenly((2, 1));
-            panel(&areas[0], &path, "kinetic + elastic energy at fractions of Δt_crit", "t (s)", "E / E(first stored)", &series, true)?;
-            panel(&areas[1], &path, "the first steps, until the shortest run stopped", "t (s)", "E / E(first stored)", &early, true)
+            panel(
+                &areas[0],
+                &path,
+                "kinetic + elastic energy at fractions of Δt_crit",
+                "t (s)",
+                "E / E(first stored)",
+                &series,
+                true,
+            )?;
+            panel(
+                &areas[1],
+                &path,
+                "the first steps, until the shortest run stopped",
+                "t (s)",
+                "E / E(first stored)",
+                &early,
+                true,
+            )
         })?;
         written.push(path);
     }

@@ -1,8 +1,8 @@
 //! The JSON answers of the analysis commands (the README's *Commands*): `check`, `static`, `eigen`,
 //! `stability`.
 
-use crate::error::{Error, Result};
 use crate::eigen::{self, Method, Modes};
+use crate::error::{Error, Result};
 use crate::evaluator;
 use crate::mass::Mass;
 use crate::model::Model;
@@ -63,7 +63,11 @@ pub fn static_report(scene: &Scene) -> Result<(StaticReport, Model, Vec<f64>)> {
         .enumerate()
         .map(|(e, el)| {
             let u = &sol.u[e * nd..(e + 1) * nd];
-            StaticElement { centroid: [el.props.centroid.x, el.props.centroid.y], u: u.to_vec(), stress: crate::output::element_stress(&model, e, u) }
+            StaticElement {
+                centroid: [el.props.centroid.x, el.props.centroid.y],
+                u: u.to_vec(),
+                stress: crate::output::element_stress(&model, e, u),
+            }
         })
         .collect();
     let interfaces = model
@@ -77,36 +81,84 @@ pub fn static_report(scene: &Scene) -> Result<(StaticReport, Model, Vec<f64>)> {
             traction: statics::midpoint_traction(&model, i, &sol.u),
         })
         .collect();
-    Ok((StaticReport { elements, interfaces, energy: sol.energy }, model, sol.u))
+    Ok((
+        StaticReport {
+            elements,
+            interfaces,
+            energy: sol.energy,
+        },
+        model,
+        sol.u,
+    ))
 }
 
 /// Writes what `rbsm static --out DIR` gives: `summary.json` (the report), `final_state.json`
 /// (`U`, zero `V`), `probes.csv` (`probe,value,unit` for the scene's probes) and the frame
 /// `static.vtu` with its collection `series.pvd`.
-pub fn write_static(dir: &Path, scene: &Scene, report: &StaticReport, model: &Model, u: &[f64]) -> Result<()> {
+pub fn write_static(
+    dir: &Path,
+    scene: &Scene,
+    report: &StaticReport,
+    model: &Model,
+    u: &[f64],
+) -> Result<()> {
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
     crate::output::write_json(&dir.join("summary.json"), report)?;
     let v = vec![0.0; u.len()];
     crate::output::write_final_state(dir, model, 0.0, u, &v)?;
-    write_probe_rows(dir, scene, model, &["case"], &[(vec!["static".to_string()], u)])?;
-    crate::vtk::write_frame(&dir.join("static.vtu"), model, u, &v, crate::vtk::Placement::Linear)?;
+    write_probe_rows(
+        dir,
+        scene,
+        model,
+        &["case"],
+        &[(vec!["static".to_string()], u)],
+    )?;
+    crate::vtk::write_frame(
+        &dir.join("static.vtu"),
+        model,
+        u,
+        &v,
+        crate::vtk::Placement::Linear,
+    )?;
     crate::vtk::write_collection(&dir.join("series.pvd"), &[(0.0, "static.vtu".into())])
 }
 
 /// Writes what `rbsm eigen --out DIR` gives: `summary.json` (the report), the shapes as
 /// `mode_NNN.vtu` with `modes.pvd`, and `probes.csv` (per mode its number, frequency and each
 /// probe of the `M`-normalised shape).
-pub fn write_eigen(dir: &Path, scene: &Scene, report: &EigenReport, model: &Model, modes: &Modes) -> Result<()> {
+pub fn write_eigen(
+    dir: &Path,
+    scene: &Scene,
+    report: &EigenReport,
+    model: &Model,
+    modes: &Modes,
+) -> Result<()> {
     crate::vtk::write_mode_shapes(dir, model, modes)?;
     crate::output::write_json(&dir.join("summary.json"), report)?;
-    let rows: Vec<(Vec<String>, &[f64])> =
-        modes.shapes.iter().zip(&report.frequencies_hz).enumerate().map(|(k, (shape, f))| (vec![(k + 1).to_string(), format!("{f:e}")], shape.as_slice())).collect();
+    let rows: Vec<(Vec<String>, &[f64])> = modes
+        .shapes
+        .iter()
+        .zip(&report.frequencies_hz)
+        .enumerate()
+        .map(|(k, (shape, f))| {
+            (
+                vec![(k + 1).to_string(), format!("{f:e}")],
+                shape.as_slice(),
+            )
+        })
+        .collect();
     write_probe_rows(dir, scene, model, &["mode", "frequency_hz"], &rows)
 }
 
 /// `probes.csv`: the columns `keys`, then one column per probe of `scene` (its unit in the
 /// header, `name (m)`), a row per `(key values, displacements)`.
-fn write_probe_rows(dir: &Path, scene: &Scene, model: &Model, keys: &[&str], rows: &[(Vec<String>, &[f64])]) -> Result<()> {
+fn write_probe_rows(
+    dir: &Path,
+    scene: &Scene,
+    model: &Model,
+    keys: &[&str],
+    rows: &[(Vec<String>, &[f64])],
+) -> Result<()> {
     let probes = crate::run::probes(scene, model)?;
     if probes.is_empty() {
         return Ok(());
@@ -144,7 +196,11 @@ pub struct EigenReport {
 }
 
 /// The lowest `n_modes` modes of a scene, and the model and modes for mode-shape output.
-pub fn eigen_report(scene: &Scene, n_modes: usize, method: Method) -> Result<(EigenReport, Model, Modes)> {
+pub fn eigen_report(
+    scene: &Scene,
+    n_modes: usize,
+    method: Method,
+) -> Result<(EigenReport, Model, Modes)> {
     let model = Model::build(scene)?;
     let mass = Mass::new(&model);
     let sys = FreeSystem::new(&model, &mass);
@@ -152,7 +208,11 @@ pub fn eigen_report(scene: &Scene, n_modes: usize, method: Method) -> Result<(Ei
     let modes = eigen::modes(&sys, ev.as_ref(), &mass, n_modes, method)?;
     let report = EigenReport {
         dofs: sys.n(),
-        frequencies_hz: modes.omega.iter().map(|w| w / (2.0 * std::f64::consts::PI)).collect(),
+        frequencies_hz: modes
+            .omega
+            .iter()
+            .map(|w| w / (2.0 * std::f64::consts::PI))
+            .collect(),
         omega: modes.omega.clone(),
         omega_max: modes.omega_max,
         dt_crit: stability::critical_time_step(modes.omega_max),
@@ -192,12 +252,25 @@ pub fn stability_report(scene: &Scene, fractions: &[f64], steps: u64) -> Result<
     let mass = Mass::new(&model);
     let sys = FreeSystem::new(&model, &mass);
     let ev = evaluator::build(&model, scene.evaluator);
-    let omega_max = if sys.n() <= eigen::DENSE_LIMIT { eigen::dense_modes(&sys, &mass, 0)?.omega_max } else { eigen::omega_max(&model, ev.as_ref(), &mass) };
+    let omega_max = if sys.n() <= eigen::DENSE_LIMIT {
+        eigen::dense_modes(&sys, &mass, 0)?.omega_max
+    } else {
+        eigen::omega_max(&model, ev.as_ref(), &mass)
+    };
     let dt_crit = stability::critical_time_step(omega_max);
     let bounds = stability::bounds(&model, &sys, &mass, dt_crit);
     let (dt, ratio) = stability::empirical_limit(&model, ev.as_ref(), &mass, dt_crit, steps, 1e-4);
-    let fractions = fractions.iter().map(|&f| stability::run_at_fraction(&model, ev.as_ref(), &mass, dt_crit, f, steps)).collect();
-    Ok(StabilityReport { omega_max, dt_crit, bounds, empirical: Empirical { dt, ratio }, fractions })
+    let fractions = fractions
+        .iter()
+        .map(|&f| stability::run_at_fraction(&model, ev.as_ref(), &mass, dt_crit, f, steps))
+        .collect();
+    Ok(StabilityReport {
+        omega_max,
+        dt_crit,
+        bounds,
+        empirical: Empirical { dt, ratio },
+        fractions,
+    })
 }
 
 /// `rbsm check --json`: what a run of the scene would model, without running it.
@@ -267,7 +340,13 @@ pub fn check_report(scene: &Scene, opts: &crate::run::RunOptions) -> Result<Chec
     let m = &p.model;
     let contact = crate::contact::Contact::new(m).map(|mut c| {
         let n = m.n_dofs();
-        c.apply(0, &vec![0.0; n], &m.initial_velocity, p.dt, &mut vec![0.0; n]);
+        c.apply(
+            0,
+            &vec![0.0; n],
+            &m.initial_velocity,
+            p.dt,
+            &mut vec![0.0; n],
+        );
         let (vertices, edges) = c.extent();
         ContactCheck {
             model: c.settings.model.name(),
@@ -277,7 +356,11 @@ pub fn check_report(scene: &Scene, opts: &crate::run::RunOptions) -> Result<Chec
             pairs_in_contact_at_start: c.live(),
         }
     });
-    let ground_springs = m.interfaces.iter().filter(|i| i.b == crate::model::GROUND).count();
+    let ground_springs = m
+        .interfaces
+        .iter()
+        .filter(|i| i.b == crate::model::GROUND)
+        .count();
     let mass_bytes = 8 * p.mass.triplets().len() * if p.mass.is_diagonal() { 2 } else { 4 };
     Ok(CheckReport {
         scene: m.name.clone(),

@@ -4,9 +4,9 @@
 
 use crate::eigen::symmetric_eigen;
 use crate::evaluator::Evaluator;
-use nalgebra::DMatrix;
 use crate::geometry::Vec2;
 use crate::model::{Model, GROUND};
+use nalgebra::DMatrix;
 
 /// One free rigid motion of a group of elements.
 #[derive(Debug, Clone, PartialEq)]
@@ -29,8 +29,16 @@ pub enum Motion {
 impl std::fmt::Display for FreeMode {
     fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
         match self.motion {
-            Motion::Translation(d) => write!(f, "{} can translate along ({:.3}, {:.3})", self.what, d.x, d.y),
-            Motion::Rotation(p) => write!(f, "{} can rotate about ({:.4e}, {:.4e})", self.what, p.x, p.y),
+            Motion::Translation(d) => write!(
+                f,
+                "{} can translate along ({:.3}, {:.3})",
+                self.what, d.x, d.y
+            ),
+            Motion::Rotation(p) => write!(
+                f,
+                "{} can rotate about ({:.4e}, {:.4e})",
+                self.what, p.x, p.y
+            ),
         }
     }
 }
@@ -48,7 +56,10 @@ fn components(model: &Model) -> Vec<Vec<usize>> {
     }
     for i in &model.interfaces {
         if i.b != GROUND {
-            let (a, b) = (root(&mut parent, i.a as usize), root(&mut parent, i.b as usize));
+            let (a, b) = (
+                root(&mut parent, i.a as usize),
+                root(&mut parent, i.b as usize),
+            );
             parent[a.max(b)] = a.min(b);
         }
     }
@@ -78,7 +89,11 @@ pub fn free_modes(model: &Model, evaluator: &dyn Evaluator) -> Vec<FreeMode> {
     let mut frames = Vec::with_capacity(groups.len());
     for g in &groups {
         let area: f64 = g.iter().map(|&e| model.elements[e].props.area).sum();
-        let c = g.iter().map(|&e| model.elements[e].props.area * model.elements[e].props.centroid).sum::<Vec2>() / area;
+        let c = g
+            .iter()
+            .map(|&e| model.elements[e].props.area * model.elements[e].props.centroid)
+            .sum::<Vec2>()
+            / area;
         let size = area.sqrt();
         for &e in g {
             let d = (model.elements[e].props.centroid - c) / size;
@@ -96,7 +111,11 @@ pub fn free_modes(model: &Model, evaluator: &dyn Evaluator) -> Vec<FreeMode> {
     }
     // The stiffest spring (N/m) sets the scale of Rᵀ K R (whose columns are displacements of
     // order one): K R itself vanishes for exactly the motions we look for.
-    let scale = model.interfaces.iter().map(|i| (i.k_n + i.k_s) * model.thickness * i.length).fold(0.0, f64::max);
+    let scale = model
+        .interfaces
+        .iter()
+        .map(|i| (i.k_n + i.k_s) * model.thickness * i.length)
+        .fold(0.0, f64::max);
     let mut out = Vec::new();
     for (g, &(c, size)) in groups.iter().zip(&frames) {
         // Constraints C w = 0 from the fixed DOFs of the group.
@@ -120,7 +139,9 @@ pub fn free_modes(model: &Model, evaluator: &dyn Evaluator) -> Vec<FreeMode> {
         }
         // Energy of the admissible motions: Zᵀ G Z, scaled.
         let z = DMatrix::<f64>::from_fn(3, basis.len(), |i, j| basis[j][i]);
-        let gmat = DMatrix::<f64>::from_fn(3, 3, |i, j| 0.5 * (gram[i][j] + gram[j][i]) / scale.max(f64::MIN_POSITIVE));
+        let gmat = DMatrix::<f64>::from_fn(3, 3, |i, j| {
+            0.5 * (gram[i][j] + gram[j][i]) / scale.max(f64::MIN_POSITIVE)
+        });
         let (values, vectors) = symmetric_eigen(z.transpose() * &gmat * &z);
         for j in 0..basis.len() {
             if values[j].abs() > 1e-10 {
@@ -131,7 +152,11 @@ pub fn free_modes(model: &Model, evaluator: &dyn Evaluator) -> Vec<FreeMode> {
             let what = describe(model, g);
             let motion = if theta.abs() < 1e-8 * (w[0].hypot(w[1])) {
                 let d = Vec2::new(w[0], w[1]).normalize();
-                Motion::Translation(if d.x < -1e-12 || (d.x.abs() <= 1e-12 && d.y < 0.0) { -d } else { d })
+                Motion::Translation(if d.x < -1e-12 || (d.x.abs() <= 1e-12 && d.y < 0.0) {
+                    -d
+                } else {
+                    d
+                })
             } else {
                 Motion::Rotation(Vec2::new(c.x - w[1] / theta, c.y + w[0] / theta))
             };
@@ -157,7 +182,10 @@ fn null_space(cons: &[[f64; 3]]) -> Vec<[f64; 3]> {
     }
     let top = (0..3).map(|i| ctc[(i, i)]).fold(0.0, f64::max);
     let (values, vectors) = symmetric_eigen(ctc);
-    (0..3).filter(|&j| values[j] <= 1e-12 * top).map(|j| [vectors[(0, j)], vectors[(1, j)], vectors[(2, j)]]).collect()
+    (0..3)
+        .filter(|&j| values[j] <= 1e-12 * top)
+        .map(|j| [vectors[(0, j)], vectors[(1, j)], vectors[(2, j)]])
+        .collect()
 }
 
 fn describe(model: &Model, group: &[usize]) -> String {
@@ -167,6 +195,12 @@ fn describe(model: &Model, group: &[usize]) -> String {
     } else if group.len() == 1 {
         format!("element {} of body `{}`", group[0], body.name)
     } else {
-        format!("{} elements of body `{}` ({} to {})", group.len(), body.name, group[0], group[group.len() - 1])
+        format!(
+            "{} elements of body `{}` ({} to {})",
+            group.len(),
+            body.name,
+            group[0],
+            group[group.len() - 1]
+        )
     }
 }

@@ -11,13 +11,18 @@ use crate::mass::Mass;
 use crate::model::{dof_index, Model};
 use crate::output::{self, ContactSummary, EnergySummary, History, Probe, ProbeColumn, Summary};
 use crate::scene::{EvaluatorKind, Scene};
-use crate::{eigen, stability};
 use crate::vtk::VtkSeries;
+use crate::{eigen, stability};
 use std::path::Path;
 use std::time::Instant;
 
 /// The files a run writes into its folder, beside `history.csv` and the frames `vtk/step_*.vtk`.
-const OUTPUTS: [&str; 4] = ["summary.json", "final_state.json", "series.pvd", crate::checkpoint::FILE];
+const OUTPUTS: [&str; 4] = [
+    "summary.json",
+    "final_state.json",
+    "series.pvd",
+    crate::checkpoint::FILE,
+];
 
 /// Removes what an earlier run left in `out` of the files a run writes (`summary.json`,
 /// `final_state.json`, `series.pvd`, `checkpoint.bin`, the frames `vtk/step_*.vtk` and files
@@ -29,7 +34,9 @@ fn clear_previous(out: &Path) -> Result<()> {
         remove(&crate::output::temporary(&out.join(name)))?;
     }
     let frames = out.join("vtk");
-    let Ok(entries) = std::fs::read_dir(&frames) else { return Ok(()) };
+    let Ok(entries) = std::fs::read_dir(&frames) else {
+        return Ok(());
+    };
     for entry in entries {
         let path = entry.map_err(|e| Error::io(&frames, e))?.path();
         if crate::vtk::is_frame(path.file_name().and_then(|n| n.to_str()).unwrap_or("")) {
@@ -95,7 +102,15 @@ impl Prepared {
             None => eigen::omega_max(&model, evaluator.as_ref(), &mass),
             Some(c) => {
                 let blocks = contact::stiffness_estimate(&model, &c);
-                eigen::omega_max(&model, &WithBlocks { inner: evaluator.as_ref(), nd: model.formulation.ndof(), blocks }, &mass)
+                eigen::omega_max(
+                    &model,
+                    &WithBlocks {
+                        inner: evaluator.as_ref(),
+                        nd: model.formulation.ndof(),
+                        blocks,
+                    },
+                    &mass,
+                )
             }
         };
         if !omega_max.is_finite() {
@@ -104,26 +119,62 @@ impl Prepared {
         }
         let dt_crit = stability::critical_time_step(omega_max);
         let dt = match (opts.dt, scene.time.dt, scene.time.dt_factor) {
-            (Some(_), ..) if opts.dt_factor.is_some() => return Err(Error::scene("--dt-factor", "give --dt or --dt-factor, not both")),
+            (Some(_), ..) if opts.dt_factor.is_some() => {
+                return Err(Error::scene(
+                    "--dt-factor",
+                    "give --dt or --dt-factor, not both",
+                ))
+            }
             (Some(dt), _, _) if dt > 0.0 && dt.is_finite() => dt,
-            (Some(dt), _, _) => return Err(Error::scene("--dt", format!("must be a finite number > 0, got {dt}"))),
+            (Some(dt), _, _) => {
+                return Err(Error::scene(
+                    "--dt",
+                    format!("must be a finite number > 0, got {dt}"),
+                ))
+            }
             (None, ..) if opts.dt_factor.is_some() => match opts.dt_factor {
-                Some(f) if !(f > 0.0 && f.is_finite()) => return Err(Error::scene("--dt-factor", format!("must be a finite number > 0, got {f}"))),
+                Some(f) if !(f > 0.0 && f.is_finite()) => {
+                    return Err(Error::scene(
+                        "--dt-factor",
+                        format!("must be a finite number > 0, got {f}"),
+                    ))
+                }
                 Some(f) if dt_crit.is_finite() => f * dt_crit,
-                _ => return Err(Error::scene("--dt-factor", "Δt_crit is infinite (no spring is loaded): give --dt instead")),
+                _ => {
+                    return Err(Error::scene(
+                        "--dt-factor",
+                        "Δt_crit is infinite (no spring is loaded): give --dt instead",
+                    ))
+                }
             },
             (None, Some(dt), _) => dt,
             (None, None, Some(f)) if dt_crit.is_finite() => f * dt_crit,
-            (None, None, _) => return Err(Error::scene("time.dt_factor", "Δt_crit is infinite (no spring is loaded): give `time.dt` instead")),
+            (None, None, _) => {
+                return Err(Error::scene(
+                    "time.dt_factor",
+                    "Δt_crit is infinite (no spring is loaded): give `time.dt` instead",
+                ))
+            }
         };
         let steps = match (opts.steps, scene.time.steps, scene.time.end) {
-            (Some(0), _, _) => return Err(Error::scene("--steps", "must be ≥ 1, like `time.steps`")),
+            (Some(0), _, _) => {
+                return Err(Error::scene("--steps", "must be ≥ 1, like `time.steps`"))
+            }
             (Some(n), _, _) => n,
             (None, Some(n), _) => n,
             (None, None, Some(end)) => (end / dt - 1e-9).ceil().max(1.0) as u64,
             (None, None, None) => unreachable!("validated: the scene has `end` or `steps`"),
         };
-        Ok(Prepared { model, evaluator, mass, loads, omega_max, dt_crit, dt, steps })
+        Ok(Prepared {
+            model,
+            evaluator,
+            mass,
+            loads,
+            omega_max,
+            dt_crit,
+            dt,
+            steps,
+        })
     }
 }
 
@@ -131,7 +182,13 @@ impl Prepared {
     /// A central-difference integrator of the model at time step `dt`, with the guard told
     /// `Δt_crit`.
     pub fn integrator(&self, dt: f64) -> CentralDifference<'_> {
-        let mut cd = CentralDifference::new(&self.model, self.evaluator.as_ref(), &self.mass, &self.loads, dt);
+        let mut cd = CentralDifference::new(
+            &self.model,
+            self.evaluator.as_ref(),
+            &self.mass,
+            &self.loads,
+            dt,
+        );
         cd.set_stability_limit(self.dt_crit);
         cd
     }
@@ -162,26 +219,55 @@ pub fn probes(scene: &Scene, model: &Model) -> Result<Vec<Probe>> {
         .iter()
         .enumerate()
         .map(|(k, pr)| {
-            let d = dof_index(&pr.dof, model.formulation, &format!("output.probes[{k}].dof"))?;
+            let d = dof_index(
+                &pr.dof,
+                model.formulation,
+                &format!("output.probes[{k}].dof"),
+            )?;
             let element = model.probe_element(k, pr)?;
-            let offset = pr.at.map(|[x, y]| crate::geometry::Vec2::new(x, y) - model.elements[element].props.centroid);
-            Ok(Probe { name: pr.column(), element, dof: d, nd, offset, formulation: model.formulation })
+            let offset = pr.at.map(|[x, y]| {
+                crate::geometry::Vec2::new(x, y) - model.elements[element].props.centroid
+            });
+            Ok(Probe {
+                name: pr.column(),
+                element,
+                dof: d,
+                nd,
+                offset,
+                formulation: model.formulation,
+            })
         })
         .collect()
 }
 
 /// Runs `scene` and writes its outputs into `out`; returns the summary (also written).
-pub fn run(scene: &Scene, opts: &RunOptions, out: &Path, monitor: &mut dyn Monitor) -> Result<Summary> {
+pub fn run(
+    scene: &Scene,
+    opts: &RunOptions,
+    out: &Path,
+    monitor: &mut dyn Monitor,
+) -> Result<Summary> {
     execute(scene, opts, out, monitor, false)
 }
 
 /// Goes on with the run of `scene` that stopped in `out`, from its last checkpoint
 /// (`output.checkpoint_every`); the outputs end as those of a run that never stopped.
-pub fn resume(scene: &Scene, opts: &RunOptions, out: &Path, monitor: &mut dyn Monitor) -> Result<Summary> {
+pub fn resume(
+    scene: &Scene,
+    opts: &RunOptions,
+    out: &Path,
+    monitor: &mut dyn Monitor,
+) -> Result<Summary> {
     execute(scene, opts, out, monitor, true)
 }
 
-fn execute(scene: &Scene, opts: &RunOptions, out: &Path, monitor: &mut dyn Monitor, resuming: bool) -> Result<Summary> {
+fn execute(
+    scene: &Scene,
+    opts: &RunOptions,
+    out: &Path,
+    monitor: &mut dyn Monitor,
+    resuming: bool,
+) -> Result<Summary> {
     let wall = Instant::now();
     let p = Prepared::new(scene, opts)?;
     let model = &p.model;
@@ -201,7 +287,11 @@ fn execute(scene: &Scene, opts: &RunOptions, out: &Path, monitor: &mut dyn Monit
         clear_previous(out)?;
         None
     };
-    let ground_springs = model.interfaces.iter().filter(|i| i.b == crate::model::GROUND).count();
+    let ground_springs = model
+        .interfaces
+        .iter()
+        .filter(|i| i.b == crate::model::GROUND)
+        .count();
     monitor.info(&format!(
         "{}: {} elements, {} interfaces between elements and {} ground springs, {} free DOFs ({} formulation, {} evaluator, {} threads)",
         model.name,
@@ -214,35 +304,77 @@ fn execute(scene: &Scene, opts: &RunOptions, out: &Path, monitor: &mut dyn Monit
         rayon::current_num_threads()
     ));
     let ratio = p.dt / p.dt_crit;
-    monitor.info(&format!("dt = {:.6e} s, Δt_crit = {:.6e} s, dt/Δt_crit = {ratio:.4}, {} steps", p.dt, p.dt_crit, p.steps));
+    monitor.info(&format!(
+        "dt = {:.6e} s, Δt_crit = {:.6e} s, dt/Δt_crit = {ratio:.4}, {} steps",
+        p.dt, p.dt_crit, p.steps
+    ));
     let mut warnings = crate::checks::warnings(model, p.dt, p.dt_crit);
     for w in &warnings {
         monitor.info(&format!("warning: {w}"));
     }
     let probes = probes(scene, model)?;
-    let probe_columns: Vec<ProbeColumn> = probes.iter().map(|p| ProbeColumn { name: p.name.clone(), unit: p.unit().into() }).collect();
+    let probe_columns: Vec<ProbeColumn> = probes
+        .iter()
+        .map(|p| ProbeColumn {
+            name: p.name.clone(),
+            unit: p.unit().into(),
+        })
+        .collect();
     let mut cd = p.integrator(p.dt);
     let (mut history, mut vtk, mut first, mut rotation) = match checkpoint {
-        None => (History::create(out, probes)?, scene.output.vtk.then(|| VtkSeries::create(out)).transpose()?, None, 0.0f64),
+        None => (
+            History::create(out, probes)?,
+            scene
+                .output
+                .vtk
+                .then(|| VtkSeries::create(out))
+                .transpose()?,
+            None,
+            0.0f64,
+        ),
         Some(c) => {
-            monitor.info(&format!("resuming from the checkpoint at step {}", c.state.step()));
-            cd.restore(c.state).map_err(|why| Error::io(out.join(crate::checkpoint::FILE), std::io::Error::other(why)))?;
-            let vtk = scene.output.vtk.then(|| VtkSeries::resume(out, c.frames)).transpose()?;
-            (History::resume(out, probes, c.history_bytes)?, vtk, c.first, c.rotation)
+            monitor.info(&format!(
+                "resuming from the checkpoint at step {}",
+                c.state.step()
+            ));
+            cd.restore(c.state).map_err(|why| {
+                Error::io(
+                    out.join(crate::checkpoint::FILE),
+                    std::io::Error::other(why),
+                )
+            })?;
+            let vtk = scene
+                .output
+                .vtk
+                .then(|| VtkSeries::resume(out, c.frames))
+                .transpose()?;
+            (
+                History::resume(out, probes, c.history_bytes)?,
+                vtk,
+                c.first,
+                c.rotation,
+            )
         }
     };
     if let Some(flag) = &opts.interrupt {
         cd.stop_on(flag.clone());
     }
     let (end, every) = (p.steps, scene.output.every);
-    let interrupted = || opts.interrupt.as_ref().is_some_and(|f| f.load(std::sync::atomic::Ordering::Relaxed));
+    let interrupted = || {
+        opts.interrupt
+            .as_ref()
+            .is_some_and(|f| f.load(std::sync::atomic::Ordering::Relaxed))
+    };
     let mut last = None;
     let start = Instant::now();
     // In chunks that end at the checkpoints; a chunk's end is recorded only when it is a
     // history row's step, the last step or the step where the run was interrupted.
     let status = loop {
         let step = cd.step;
-        let next = scene.output.checkpoint_every.map_or(end, |c| ((step / c + 1) * c).min(end));
+        let next = scene
+            .output
+            .checkpoint_every
+            .map_or(end, |c| ((step / c + 1) * c).min(end));
         let status = cd.run(
             next - step,
             every,
@@ -265,7 +397,16 @@ fn execute(scene: &Scene, opts: &RunOptions, out: &Path, monitor: &mut dyn Monit
             break status;
         }
         let frames = vtk.as_ref().map_or_else(Vec::new, |v| v.frames().to_vec());
-        Checkpoint::new(scene, opts, cd.state(), history.len(), frames, first, rotation).write(out)?;
+        Checkpoint::new(
+            scene,
+            opts,
+            cd.state(),
+            history.len(),
+            frames,
+            first,
+            rotation,
+        )
+        .write(out)?;
     };
     let step_time = start.elapsed().as_secs_f64();
     if let Some(w) = crate::checks::rotation_warning(rotation) {
@@ -274,10 +415,21 @@ fn execute(scene: &Scene, opts: &RunOptions, out: &Path, monitor: &mut dyn Monit
     }
     let (status_name, reason) = match &status {
         Status::Ok => ("ok", None),
-        Status::Interrupted { step, t } => ("interrupted", Some(format!(
-            "step {step}, t = {t:e} s: interrupted by a signal{}",
-            if scene.output.checkpoint_every.is_some() { "; `rbsm run SCENE --resume DIR` goes on from the last checkpoint" } else { "" }))),
-        Status::Diverged { step, t, reason } => ("diverged", Some(format!("step {step}, t = {t:e} s: {reason}"))),
+        Status::Interrupted { step, t } => (
+            "interrupted",
+            Some(format!(
+                "step {step}, t = {t:e} s: interrupted by a signal{}",
+                if scene.output.checkpoint_every.is_some() {
+                    "; `rbsm run SCENE --resume DIR` goes on from the last checkpoint"
+                } else {
+                    ""
+                }
+            )),
+        ),
+        Status::Diverged { step, t, reason } => (
+            "diverged",
+            Some(format!("step {step}, t = {t:e} s: {reason}")),
+        ),
     };
     // After a divergence the integrator has rolled back to its last good state.
     output::write_final_state(out, model, cd.t, &cd.u, cd.velocity())?;
@@ -299,7 +451,11 @@ fn execute(scene: &Scene, opts: &RunOptions, out: &Path, monitor: &mut dyn Monit
         step_time_s: step_time,
         threads: rayon::current_num_threads(),
         warnings,
-        energy: EnergySummary { initial: first.total, final_: last.total, max_relative_drift: cd.max_relative_drift() },
+        energy: EnergySummary {
+            initial: first.total,
+            final_: last.total,
+            max_relative_drift: cd.max_relative_drift(),
+        },
         contact: cd.contact.as_ref().map(|c| ContactSummary {
             model: c.settings.model.name().into(),
             friction: c.settings.friction,

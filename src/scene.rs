@@ -136,7 +136,9 @@ impl<'de> Deserialize<'de> for FormulationSpec {
         let (kind, rest) = split_kind(d)?;
         match kind.as_str() {
             "rigid" => variant(rest).map(|NoKeys {}| FormulationSpec::Rigid),
-            "hybrid" => variant(rest).map(|HybridKeys { penalty }| FormulationSpec::Hybrid { penalty }),
+            "hybrid" => {
+                variant(rest).map(|HybridKeys { penalty }| FormulationSpec::Hybrid { penalty })
+            }
             other => Err(unknown_kind(other, &["rigid", "hybrid"])),
         }
     }
@@ -147,14 +149,18 @@ impl<'de> Deserialize<'de> for ReferenceSpec {
         let (kind, rest) = split_kind(d)?;
         match kind.as_str() {
             "hopping-block" => variant(rest).map(|NoKeys {}| ReferenceSpec::HoppingBlock),
-            "bar-step" => variant(rest).map(|BarStepKeys { probe }| ReferenceSpec::BarStep { probe }),
+            "bar-step" => {
+                variant(rest).map(|BarStepKeys { probe }| ReferenceSpec::BarStep { probe })
+            }
             other => Err(unknown_kind(other, &["hopping-block", "bar-step"])),
         }
     }
 }
 
 /// Which evaluator computes the internal forces (module `evaluator`).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum, JsonSchema)]
+#[derive(
+    Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum, JsonSchema,
+)]
 #[serde(rename_all = "kebab-case")]
 pub enum EvaluatorKind {
     /// Global sparse `K`, `f = K U` (eqs. 7–13).
@@ -240,9 +246,14 @@ pub(crate) fn read_limited(path: &Path, limit: u64, what: &str) -> Result<Vec<u8
     use std::io::Read;
     let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
     let mut bytes = Vec::new();
-    file.take(limit + 1).read_to_end(&mut bytes).map_err(|e| Error::io(path, e))?;
+    file.take(limit + 1)
+        .read_to_end(&mut bytes)
+        .map_err(|e| Error::io(path, e))?;
     if bytes.len() as u64 > limit {
-        return Err(Error::io(path, std::io::Error::other(format!("larger than {} MiB: not {what}", limit >> 20))));
+        return Err(Error::io(
+            path,
+            std::io::Error::other(format!("larger than {} MiB: not {what}", limit >> 20)),
+        ));
     }
     Ok(bytes)
 }
@@ -254,7 +265,10 @@ fn refuse_duplicate_keys(text: &str) -> Result<()> {
     struct Keys(String);
     impl<'de> DeserializeSeed<'de> for Keys {
         type Value = ();
-        fn deserialize<D: serde::Deserializer<'de>>(self, d: D) -> std::result::Result<(), D::Error> {
+        fn deserialize<D: serde::Deserializer<'de>>(
+            self,
+            d: D,
+        ) -> std::result::Result<(), D::Error> {
             d.deserialize_any(self)
         }
     }
@@ -266,7 +280,11 @@ fn refuse_duplicate_keys(text: &str) -> Result<()> {
         fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> std::result::Result<(), A::Error> {
             let mut seen = std::collections::HashSet::new();
             while let Some(key) = map.next_key::<String>()? {
-                let path = if self.0.is_empty() { key.clone() } else { format!("{}.{key}", self.0) };
+                let path = if self.0.is_empty() {
+                    key.clone()
+                } else {
+                    format!("{}.{key}", self.0)
+                };
                 if !seen.insert(key) {
                     return Err(A::Error::custom(path));
                 }
@@ -276,17 +294,32 @@ fn refuse_duplicate_keys(text: &str) -> Result<()> {
         }
         fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> std::result::Result<(), A::Error> {
             let mut i = 0;
-            while seq.next_element_seed(Keys(format!("{}[{i}]", self.0)))?.is_some() {
+            while seq
+                .next_element_seed(Keys(format!("{}[{i}]", self.0)))?
+                .is_some()
+            {
                 i += 1;
             }
             Ok(())
         }
-        fn visit_bool<E>(self, _: bool) -> std::result::Result<(), E> { Ok(()) }
-        fn visit_i64<E>(self, _: i64) -> std::result::Result<(), E> { Ok(()) }
-        fn visit_u64<E>(self, _: u64) -> std::result::Result<(), E> { Ok(()) }
-        fn visit_f64<E>(self, _: f64) -> std::result::Result<(), E> { Ok(()) }
-        fn visit_str<E>(self, _: &str) -> std::result::Result<(), E> { Ok(()) }
-        fn visit_unit<E>(self) -> std::result::Result<(), E> { Ok(()) }
+        fn visit_bool<E>(self, _: bool) -> std::result::Result<(), E> {
+            Ok(())
+        }
+        fn visit_i64<E>(self, _: i64) -> std::result::Result<(), E> {
+            Ok(())
+        }
+        fn visit_u64<E>(self, _: u64) -> std::result::Result<(), E> {
+            Ok(())
+        }
+        fn visit_f64<E>(self, _: f64) -> std::result::Result<(), E> {
+            Ok(())
+        }
+        fn visit_str<E>(self, _: &str) -> std::result::Result<(), E> {
+            Ok(())
+        }
+        fn visit_unit<E>(self) -> std::result::Result<(), E> {
+            Ok(())
+        }
     }
     let de = &mut serde_json::Deserializer::from_str(text);
     match Keys(String::new()).deserialize(de) {
@@ -294,7 +327,13 @@ fn refuse_duplicate_keys(text: &str) -> Result<()> {
             // The message is the key's path; serde_json adds the line and column.
             let message = e.to_string();
             let path = message.split(" at line ").next().unwrap_or(&message);
-            Err(Error::scene(path, format!("the key appears twice in one object (line {}); keep one", e.line())))
+            Err(Error::scene(
+                path,
+                format!(
+                    "the key appears twice in one object (line {}); keep one",
+                    e.line()
+                ),
+            ))
         }
         _ => Ok(()),
     }
@@ -306,12 +345,21 @@ pub const MAX_BODIES: usize = 1_000_000;
 impl BodySpec {
     /// The bodies this spec stands for: itself, or its `array` of shifted copies.
     fn copies(self) -> Vec<BodySpec> {
-        let Some(a) = self.array else { return vec![self] };
+        let Some(a) = self.array else {
+            return vec![self];
+        };
         let mut out = Vec::with_capacity(a.count[0] * a.count[1]);
         for j in 0..a.count[1] {
             for i in 0..a.count[0] {
-                let shift = [i as f64 * a.pitch[0] + if j % 2 == 1 { a.row_offset } else { 0.0 }, j as f64 * a.pitch[1]];
-                let mut body = BodySpec { name: format!("{}[{i},{j}]", self.name), array: None, ..self.clone() };
+                let shift = [
+                    i as f64 * a.pitch[0] + if j % 2 == 1 { a.row_offset } else { 0.0 },
+                    j as f64 * a.pitch[1],
+                ];
+                let mut body = BodySpec {
+                    name: format!("{}[{i},{j}]", self.name),
+                    array: None,
+                    ..self.clone()
+                };
                 let moved = |p: &mut [f64; 2]| {
                     p[0] += shift[0];
                     p[1] += shift[1];
@@ -409,7 +457,10 @@ impl<'de> Deserialize<'de> for MeshSpec {
             "voronoi" => variant(rest).map(MeshSpec::Voronoi),
             "polygons" => variant(rest).map(MeshSpec::Polygons),
             "gmsh" => variant(rest).map(MeshSpec::Gmsh),
-            other => Err(unknown_kind(other, &["grid", "voronoi", "polygons", "gmsh"])),
+            other => Err(unknown_kind(
+                other,
+                &["grid", "voronoi", "polygons", "gmsh"],
+            )),
         }
     }
 }
@@ -427,7 +478,10 @@ impl JsonSchema for MeshSpec {
             kind_variant::<PolygonsSpec>(generator, "polygons"),
             kind_variant::<GmshSpec>(generator, "gmsh"),
         ];
-        one_of_kinds("How a body is cut into elements (`kind`: `grid`, `voronoi`, `polygons` or `gmsh`).", variants)
+        one_of_kinds(
+            "How a body is cut into elements (`kind`: `grid`, `voronoi`, `polygons` or `gmsh`).",
+            variants,
+        )
     }
 }
 
@@ -489,8 +543,14 @@ impl JsonSchema for SupportSpec {
     }
 
     fn json_schema(generator: &mut SchemaGenerator) -> Schema {
-        let variants = [kind_variant::<GroundSpringSpec>(generator, "ground-spring"), kind_variant::<ClampSpec>(generator, "clamp")];
-        one_of_kinds("A support on an edge set of the body (`kind`: `ground-spring` or `clamp`).", variants)
+        let variants = [
+            kind_variant::<GroundSpringSpec>(generator, "ground-spring"),
+            kind_variant::<ClampSpec>(generator, "clamp"),
+        ];
+        one_of_kinds(
+            "A support on an edge set of the body (`kind`: `ground-spring` or `clamp`).",
+            variants,
+        )
     }
 }
 
@@ -566,8 +626,14 @@ impl JsonSchema for LoadSpec {
     }
 
     fn json_schema(generator: &mut SchemaGenerator) -> Schema {
-        let variants = [kind_variant::<TractionSpec>(generator, "traction"), kind_variant::<ForceSpec>(generator, "force")];
-        one_of_kinds("A load on a body (`kind`: `traction` or `force`).", variants)
+        let variants = [
+            kind_variant::<TractionSpec>(generator, "traction"),
+            kind_variant::<ForceSpec>(generator, "force"),
+        ];
+        one_of_kinds(
+            "A load on a body (`kind`: `traction` or `force`).",
+            variants,
+        )
     }
 }
 
@@ -576,11 +642,18 @@ impl JsonSchema for LoadSpec {
 fn kind_variant<T: JsonSchema>(generator: &mut SchemaGenerator, kind: &str) -> Schema {
     let mut schema = T::json_schema(generator);
     let object = schema.ensure_object();
-    let properties = object.entry("properties").or_insert_with(|| serde_json::json!({}));
+    let properties = object
+        .entry("properties")
+        .or_insert_with(|| serde_json::json!({}));
     if let Some(properties) = properties.as_object_mut() {
-        properties.insert("kind".into(), serde_json::json!({"type": "string", "const": kind}));
+        properties.insert(
+            "kind".into(),
+            serde_json::json!({"type": "string", "const": kind}),
+        );
     }
-    let required = object.entry("required").or_insert_with(|| serde_json::json!([]));
+    let required = object
+        .entry("required")
+        .or_insert_with(|| serde_json::json!([]));
     if let Some(required) = required.as_array_mut() {
         required.insert(0, "kind".into());
     }
@@ -608,7 +681,10 @@ fn items_positive(schema: &mut Schema) {
 /// Every item of an array schema (or of an array-or-null) one of the DOF names.
 fn items_dof_names(schema: &mut Schema) {
     if let Some(items) = schema.get_mut("items").and_then(|i| i.as_object_mut()) {
-        items.insert("enum".into(), crate::formulation::DOF_NAMES.as_slice().into());
+        items.insert(
+            "enum".into(),
+            crate::formulation::DOF_NAMES.as_slice().into(),
+        );
     }
 }
 
@@ -639,27 +715,42 @@ fn probe_exactly_one(schema: &mut Schema) {
 /// Splits an object with a `kind` key into the kind and the other keys. Dispatching by hand,
 /// rather than with serde's internally tagged enums, keeps the path of an error inside the
 /// variant (`bodies[0].mesh.cells`), which serde's buffering would lose.
-fn split_kind<'de, D: serde::Deserializer<'de>>(d: D) -> std::result::Result<(String, serde_json::Value), D::Error> {
+fn split_kind<'de, D: serde::Deserializer<'de>>(
+    d: D,
+) -> std::result::Result<(String, serde_json::Value), D::Error> {
     use serde::de::Error as _;
     let mut value = serde_json::Value::deserialize(d)?;
-    let map = value.as_object_mut().ok_or_else(|| D::Error::custom("expected an object with a `kind` key"))?;
+    let map = value
+        .as_object_mut()
+        .ok_or_else(|| D::Error::custom("expected an object with a `kind` key"))?;
     match map.remove("kind") {
         Some(serde_json::Value::String(kind)) => Ok((kind, value)),
-        Some(other) => Err(D::Error::custom(format!("`kind` must be a string, got {other}"))),
+        Some(other) => Err(D::Error::custom(format!(
+            "`kind` must be a string, got {other}"
+        ))),
         None => Err(D::Error::missing_field("kind")),
     }
 }
 
 /// Deserialises the keys of one variant; an error names the key path within the variant.
-fn variant<T: serde::de::DeserializeOwned, E: serde::de::Error>(rest: serde_json::Value) -> std::result::Result<T, E> {
+fn variant<T: serde::de::DeserializeOwned, E: serde::de::Error>(
+    rest: serde_json::Value,
+) -> std::result::Result<T, E> {
     serde_path_to_error::deserialize(rest).map_err(|e| {
         let path = e.path().to_string();
-        E::custom(if path == "." { e.into_inner().to_string() } else { format!("`{path}`: {}", e.into_inner()) })
+        E::custom(if path == "." {
+            e.into_inner().to_string()
+        } else {
+            format!("`{path}`: {}", e.into_inner())
+        })
     })
 }
 
 fn unknown_kind<E: serde::de::Error>(kind: &str, allowed: &[&str]) -> E {
-    E::custom(format!("unknown kind `{kind}`, expected one of: {}", allowed.join(", ")))
+    E::custom(format!(
+        "unknown kind `{kind}`, expected one of: {}",
+        allowed.join(", ")
+    ))
 }
 
 /// Initial placement and motion of a body.
@@ -704,8 +795,15 @@ impl ContactSpec {
     /// The settings of a validated spec.
     pub fn settings(&self) -> crate::contact::ContactSettings {
         use crate::contact::ContactModel;
-        let model = if self.model == "point" { ContactModel::Point } else { ContactModel::EdgeToEdge };
-        crate::contact::ContactSettings { model, friction: self.friction }
+        let model = if self.model == "point" {
+            ContactModel::Point
+        } else {
+            ContactModel::EdgeToEdge
+        };
+        crate::contact::ContactSettings {
+            model,
+            friction: self.friction,
+        }
     }
 }
 
@@ -755,7 +853,12 @@ pub struct OutputSpec {
 
 impl Default for OutputSpec {
     fn default() -> Self {
-        OutputSpec { every: default_every(), vtk: false, probes: Vec::new(), checkpoint_every: None }
+        OutputSpec {
+            every: default_every(),
+            vtk: false,
+            probes: Vec::new(),
+            checkpoint_every: None,
+        }
     }
 }
 
@@ -788,10 +891,12 @@ pub struct ProbeSpec {
 impl ProbeSpec {
     /// The history column's header: `name`, or `e<element>_<dof>`, or `<dof>_at_<x>_<y>`.
     pub fn column(&self) -> String {
-        self.name.clone().unwrap_or_else(|| match (self.element, self.at) {
-            (_, Some([x, y])) => format!("{}_at_{x}_{y}", self.dof),
-            (e, None) => format!("e{}_{}", e.unwrap_or(0), self.dof),
-        })
+        self.name
+            .clone()
+            .unwrap_or_else(|| match (self.element, self.at) {
+                (_, Some([x, y])) => format!("{}_at_{x}_{y}", self.dof),
+                (e, None) => format!("e{}_{}", e.unwrap_or(0), self.dof),
+            })
     }
 }
 
@@ -809,7 +914,12 @@ impl Scene {
     pub fn from_file(path: impl AsRef<Path>) -> Result<Scene> {
         let path = path.as_ref();
         let bytes = read_limited(path, MAX_SCENE_BYTES, "a scene file")?;
-        let text = String::from_utf8(bytes).map_err(|e| Error::io(path, std::io::Error::new(std::io::ErrorKind::InvalidData, e)))?;
+        let text = String::from_utf8(bytes).map_err(|e| {
+            Error::io(
+                path,
+                std::io::Error::new(std::io::ErrorKind::InvalidData, e),
+            )
+        })?;
         Scene::parse(&text, path.parent()).map_err(|e| match e {
             Error::Parse { message, .. } => Error::parse(path.display().to_string(), message),
             other => other,
@@ -836,10 +946,18 @@ impl Scene {
             let mut inner = e.into_inner().to_string();
             // A variant's own path (see `variant`) continues the outer one.
             if let Some((sub, rest)) = inner.strip_prefix('`').and_then(|r| r.split_once("`: ")) {
-                path = if path == "." { sub.to_string() } else { format!("{path}.{sub}") };
+                path = if path == "." {
+                    sub.to_string()
+                } else {
+                    format!("{path}.{sub}")
+                };
                 inner = rest.to_string();
             }
-            let message = if path == "." { inner } else { format!("at `{path}`: {inner}") };
+            let message = if path == "." {
+                inner
+            } else {
+                format!("at `{path}`: {inner}")
+            };
             Error::parse("<json>", message)
         })?;
         if let Some(dir) = dir {
@@ -852,7 +970,10 @@ impl Scene {
             }
         }
         scene.validate()?;
-        scene.bodies = std::mem::take(&mut scene.bodies).into_iter().flat_map(BodySpec::copies).collect();
+        scene.bodies = std::mem::take(&mut scene.bodies)
+            .into_iter()
+            .flat_map(BodySpec::copies)
+            .collect();
         Ok(scene)
     }
 
@@ -860,23 +981,43 @@ impl Scene {
     /// whose value lies furthest, in orders of magnitude, from its usual size (2500 kg/m³,
     /// 30 GPa, 0.1 m, 1): the one to blame when their product overflows or underflows.
     pub fn most_extreme(&self, body: usize, names: &[&str]) -> String {
-        let material = self.bodies.get(body).map(|b| b.material.as_str()).unwrap_or("");
+        let material = self
+            .bodies
+            .get(body)
+            .map(|b| b.material.as_str())
+            .unwrap_or("");
         let m = self.materials.get(material);
         let penalty = match self.formulation {
             FormulationSpec::Hybrid { penalty } => Some(penalty),
             _ => None,
         };
         let candidates = [
-            ("rho", format!("materials.{material}.rho"), m.map(|m| m.rho), 2500.0),
+            (
+                "rho",
+                format!("materials.{material}.rho"),
+                m.map(|m| m.rho),
+                2500.0,
+            ),
             ("E", format!("materials.{material}.E"), m.map(|m| m.e), 3e10),
-            ("thickness", "thickness".to_string(), Some(self.thickness), 0.1),
+            (
+                "thickness",
+                "thickness".to_string(),
+                Some(self.thickness),
+                0.1,
+            ),
             ("penalty", "formulation.penalty".to_string(), penalty, 1.0),
         ];
         candidates
             .into_iter()
             .filter(|(name, _, value, _)| names.contains(name) && value.is_some())
             .map(|(_, field, value, usual)| (field, (value.unwrap_or(1.0) / usual).log10().abs()))
-            .fold((String::from("materials"), -1.0), |best, (field, d)| if d > best.1 { (field, d) } else { best })
+            .fold((String::from("materials"), -1.0), |best, (field, d)| {
+                if d > best.1 {
+                    (field, d)
+                } else {
+                    best
+                }
+            })
             .0
     }
 
@@ -891,7 +1032,10 @@ impl Scene {
         }
         if let Some(alpha) = self.damping {
             if !(alpha >= 0.0 && alpha.is_finite()) {
-                return Err(Error::scene("damping", format!("must be a finite number ≥ 0 (1/s), got {alpha}")));
+                return Err(Error::scene(
+                    "damping",
+                    format!("must be a finite number ≥ 0 (1/s), got {alpha}"),
+                ));
             }
         }
         if self.materials.is_empty() {
@@ -901,31 +1045,64 @@ impl Scene {
             positive(&format!("materials.{name}.E"), m.e)?;
             positive(&format!("materials.{name}.rho"), m.rho)?;
             if !(m.nu > -1.0 && m.nu < 0.5) {
-                return Err(Error::scene(format!("materials.{name}.nu"), format!("must lie in (-1, 0.5), got {}", m.nu)));
+                return Err(Error::scene(
+                    format!("materials.{name}.nu"),
+                    format!("must lie in (-1, 0.5), got {}", m.nu),
+                ));
             }
         }
         if self.bodies.is_empty() {
             return Err(Error::scene("bodies", "at least one body is needed"));
         }
         if let Some(ReferenceSpec::BarStep { probe }) = &self.reference {
-            if !self.output.probes.iter().any(|p| p.name.as_deref() == Some(probe.as_str())) {
-                return Err(Error::scene("reference.probe", format!("must name one of `output.probes`, got `{probe}`")));
+            if !self
+                .output
+                .probes
+                .iter()
+                .any(|p| p.name.as_deref() == Some(probe.as_str()))
+            {
+                return Err(Error::scene(
+                    "reference.probe",
+                    format!("must name one of `output.probes`, got `{probe}`"),
+                ));
             }
         }
-        let mut columns: Vec<String> = crate::output::HISTORY_COLUMNS.iter().map(|c| c.to_string()).collect();
+        let mut columns: Vec<String> = crate::output::HISTORY_COLUMNS
+            .iter()
+            .map(|c| c.to_string())
+            .collect();
         for (k, p) in self.output.probes.iter().enumerate() {
             match (p.element, p.at) {
                 (Some(_), None) => {}
                 (None, Some(at)) => finite_all(&format!("output.probes[{k}].at"), &at)?,
-                _ => return Err(Error::scene(format!("output.probes[{k}].element"), "give exactly one of `element` (global index) and `at` ([x, y], m)")),
+                _ => {
+                    return Err(Error::scene(
+                        format!("output.probes[{k}].element"),
+                        "give exactly one of `element` (global index) and `at` ([x, y], m)",
+                    ))
+                }
             }
             let (field, column) = (format!("output.probes[{k}].name"), p.column());
-            if column.is_empty() || column.chars().any(|c| c == ',' || c == '"' || c.is_control()) {
+            if column.is_empty()
+                || column
+                    .chars()
+                    .any(|c| c == ',' || c == '"' || c.is_control())
+            {
                 return Err(Error::scene(field, format!("must be a non-empty column name without commas, quotes or control characters, got {column:?}")));
             }
             if let Some(i) = columns.iter().position(|c| *c == column) {
-                let what = if i < crate::output::HISTORY_COLUMNS.len() { "one of the history's own columns".to_string() } else { format!("the column of `output.probes[{}]`", i - crate::output::HISTORY_COLUMNS.len()) };
-                return Err(Error::scene(field, format!("`{column}` is {what}: every column needs its own name")));
+                let what = if i < crate::output::HISTORY_COLUMNS.len() {
+                    "one of the history's own columns".to_string()
+                } else {
+                    format!(
+                        "the column of `output.probes[{}]`",
+                        i - crate::output::HISTORY_COLUMNS.len()
+                    )
+                };
+                return Err(Error::scene(
+                    field,
+                    format!("`{column}` is {what}: every column needs its own name"),
+                ));
             }
             columns.push(column);
         }
@@ -936,7 +1113,10 @@ impl Scene {
             finite_all(&format!("ground[{i}].from"), &g.from)?;
             finite_all(&format!("ground[{i}].to"), &g.to)?;
             if g.from == g.to {
-                return Err(Error::scene(format!("ground[{i}].to"), "must differ from `from` (a segment of positive length)"));
+                return Err(Error::scene(
+                    format!("ground[{i}].to"),
+                    "must differ from `from` (a segment of positive length)",
+                ));
             }
         }
         if !self.ground.is_empty() && self.contact.is_none() {
@@ -944,30 +1124,52 @@ impl Scene {
         }
         if let Some(c) = &self.contact {
             if c.model != "edge-to-edge" && c.model != "point" {
-                return Err(Error::scene("contact.model", format!("must be `edge-to-edge` or `point`, got `{}`", c.model)));
+                return Err(Error::scene(
+                    "contact.model",
+                    format!("must be `edge-to-edge` or `point`, got `{}`", c.model),
+                ));
             }
             if let Some(mu) = c.friction {
                 if !(mu >= 0.0 && mu.is_finite()) {
-                    return Err(Error::scene("contact.friction", format!("must be null or a finite μ ≥ 0, got {mu}")));
+                    return Err(Error::scene(
+                        "contact.friction",
+                        format!("must be null or a finite μ ≥ 0, got {mu}"),
+                    ));
                 }
             }
         }
         match (self.time.dt, self.time.dt_factor) {
             (Some(dt), None) => positive("time.dt", dt)?,
             (None, Some(f)) => positive("time.dt_factor", f)?,
-            _ => return Err(Error::scene("time.dt", "give exactly one of `dt` (s, > 0) and `dt_factor` (fraction of Δt_crit, > 0)")),
+            _ => {
+                return Err(Error::scene(
+                    "time.dt",
+                    "give exactly one of `dt` (s, > 0) and `dt_factor` (fraction of Δt_crit, > 0)",
+                ))
+            }
         }
         match (self.time.end, self.time.steps) {
             (Some(end), None) => positive("time.end", end)?,
             (None, Some(0)) => return Err(Error::scene("time.steps", "must be ≥ 1")),
             (None, Some(_)) => {}
-            _ => return Err(Error::scene("time.end", "give exactly one of `end` (s, > 0) and `steps` (≥ 1)")),
+            _ => {
+                return Err(Error::scene(
+                    "time.end",
+                    "give exactly one of `end` (s, > 0) and `steps` (≥ 1)",
+                ))
+            }
         }
         if self.output.every == 0 {
-            return Err(Error::scene("output.every", "must be ≥ 1 (steps between history rows)"));
+            return Err(Error::scene(
+                "output.every",
+                "must be ≥ 1 (steps between history rows)",
+            ));
         }
         if self.output.checkpoint_every == Some(0) {
-            return Err(Error::scene("output.checkpoint_every", "must be ≥ 1 (steps between checkpoints), or absent for none"));
+            return Err(Error::scene(
+                "output.checkpoint_every",
+                "must be ≥ 1 (steps between checkpoints), or absent for none",
+            ));
         }
         Ok(())
     }
@@ -976,10 +1178,22 @@ impl Scene {
         let at = |k: &str| format!("bodies[{i}].{k}");
         if !self.materials.contains_key(&b.material) {
             let known: Vec<_> = self.materials.keys().map(String::as_str).collect();
-            return Err(Error::scene(at("material"), format!("unknown material `{}`; defined: {}", b.material, known.join(", "))));
+            return Err(Error::scene(
+                at("material"),
+                format!(
+                    "unknown material `{}`; defined: {}",
+                    b.material,
+                    known.join(", ")
+                ),
+            ));
         }
         match &b.mesh {
-            MeshSpec::Grid(GridSpec { origin, size, cells, .. }) => {
+            MeshSpec::Grid(GridSpec {
+                origin,
+                size,
+                cells,
+                ..
+            }) => {
                 finite_all(&at("mesh.origin"), origin)?;
                 positive(&at("mesh.size[0]"), size[0])?;
                 positive(&at("mesh.size[1]"), size[1])?;
@@ -987,51 +1201,94 @@ impl Scene {
                     return Err(Error::scene(at("mesh.cells"), format!("both counts must be ≥ 1 and their product ≤ {MAX_CELLS}, got {cells:?}")));
                 }
             }
-            MeshSpec::Voronoi(VoronoiSpec { origin, size, sites, lloyd, .. }) => {
+            MeshSpec::Voronoi(VoronoiSpec {
+                origin,
+                size,
+                sites,
+                lloyd,
+                ..
+            }) => {
                 finite_all(&at("mesh.origin"), origin)?;
                 positive(&at("mesh.size[0]"), size[0])?;
                 positive(&at("mesh.size[1]"), size[1])?;
                 if *sites < 2 || *sites > MAX_CELLS {
-                    return Err(Error::scene(at("mesh.sites"), format!("must lie in 2..={MAX_CELLS}, got {sites}")));
+                    return Err(Error::scene(
+                        at("mesh.sites"),
+                        format!("must lie in 2..={MAX_CELLS}, got {sites}"),
+                    ));
                 }
                 if *lloyd > 10_000 {
-                    return Err(Error::scene(at("mesh.lloyd"), format!("must lie in 0..=10000, got {lloyd}")));
+                    return Err(Error::scene(
+                        at("mesh.lloyd"),
+                        format!("must lie in 0..=10000, got {lloyd}"),
+                    ));
                 }
             }
             MeshSpec::Polygons(PolygonsSpec { vertices, cells }) => {
                 if vertices.len() < 3 || cells.is_empty() {
-                    return Err(Error::scene(at("mesh"), "needs at least 3 vertices and 1 cell"));
+                    return Err(Error::scene(
+                        at("mesh"),
+                        "needs at least 3 vertices and 1 cell",
+                    ));
                 }
             }
             MeshSpec::Gmsh(GmshSpec { path }) => {
                 if !path.is_file() {
-                    return Err(Error::scene(at("mesh.path"), format!("no file `{}` (a relative path starts at the scene file's directory)", path.display())));
+                    return Err(Error::scene(
+                        at("mesh.path"),
+                        format!(
+                            "no file `{}` (a relative path starts at the scene file's directory)",
+                            path.display()
+                        ),
+                    ));
                 }
             }
         }
         for (k, s) in b.supports.iter().enumerate() {
             if let SupportSpec::GroundSpring(GroundSpringSpec { components, .. }) = s {
                 if components.is_empty() {
-                    return Err(Error::scene(at(&format!("supports[{k}].components")), "must list `n`, `s` or both"));
+                    return Err(Error::scene(
+                        at(&format!("supports[{k}].components")),
+                        "must list `n`, `s` or both",
+                    ));
                 }
             }
         }
         for (k, l) in b.loads.iter().enumerate() {
             let (value, amplitude): (&[f64], _) = match l {
-                LoadSpec::Traction(TractionSpec { value, amplitude, .. }) => (value, amplitude),
-                LoadSpec::Force(ForceSpec { value, amplitude, .. }) => (value, amplitude),
+                LoadSpec::Traction(TractionSpec {
+                    value, amplitude, ..
+                }) => (value, amplitude),
+                LoadSpec::Force(ForceSpec {
+                    value, amplitude, ..
+                }) => (value, amplitude),
             };
             finite_all(&at(&format!("loads[{k}].value")), value)?;
             if let Some(a) = amplitude {
                 let field = at(&format!("loads[{k}].amplitude"));
-                if a.is_empty() || a.windows(2).any(|w| !(w[1][0] > w[0][0])) || a.iter().any(|p| !p[0].is_finite() || !p[1].is_finite()) {
-                    return Err(Error::scene(field, "must be a non-empty list of [t, factor] with strictly increasing t"));
+                if a.is_empty()
+                    || a.windows(2).any(|w| !(w[1][0] > w[0][0]))
+                    || a.iter().any(|p| !p[0].is_finite() || !p[1].is_finite())
+                {
+                    return Err(Error::scene(
+                        field,
+                        "must be a non-empty list of [t, factor] with strictly increasing t",
+                    ));
                 }
             }
         }
         if let Some(a) = &b.array {
-            if a.count[0] == 0 || a.count[1] == 0 || a.count[0].saturating_mul(a.count[1]) > MAX_BODIES {
-                return Err(Error::scene(at("array.count"), format!("both counts must be ≥ 1 and their product ≤ {MAX_BODIES}, got {:?}", a.count)));
+            if a.count[0] == 0
+                || a.count[1] == 0
+                || a.count[0].saturating_mul(a.count[1]) > MAX_BODIES
+            {
+                return Err(Error::scene(
+                    at("array.count"),
+                    format!(
+                        "both counts must be ≥ 1 and their product ≤ {MAX_BODIES}, got {:?}",
+                        a.count
+                    ),
+                ));
             }
             finite_all(&at("array.pitch"), &a.pitch)?;
             finite_all(&at("array.row_offset"), &[a.row_offset])?;
@@ -1040,7 +1297,10 @@ impl Scene {
             }
         }
         finite_all(&at("initial.velocity"), &b.initial.velocity)?;
-        finite_all(&at("initial.angular_velocity"), &[b.initial.angular_velocity])?;
+        finite_all(
+            &at("initial.angular_velocity"),
+            &[b.initial.angular_velocity],
+        )?;
         finite_all(&at("initial.rotation_deg"), &[b.initial.rotation_deg])?;
         Ok(())
     }
@@ -1057,6 +1317,9 @@ fn positive(field: &str, x: f64) -> Result<()> {
 fn finite_all(field: &str, xs: &[f64]) -> Result<()> {
     match xs.iter().position(|x| !x.is_finite()) {
         None => Ok(()),
-        Some(k) => Err(Error::scene(format!("{field}[{k}]"), "must be a finite number")),
+        Some(k) => Err(Error::scene(
+            format!("{field}[{k}]"),
+            "must be a finite number",
+        )),
     }
 }

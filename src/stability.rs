@@ -46,14 +46,25 @@ pub fn bounds(model: &Model, sys: &FreeSystem, mass: &Mass, dt_crit: f64) -> Vec
     let mk = |name, omega2: f64, proven: bool| {
         let dt = 2.0 / omega2.sqrt();
         let ratio = dt / dt_crit;
-        Bound { name, dt, ratio, safe: if proven { true } else { ratio <= 1.0 } }
+        Bound {
+            name,
+            dt,
+            ratio,
+            safe: if proven { true } else { ratio <= 1.0 },
+        }
     };
     let n = sys.n();
     // Gershgorin on the scaled matrix, and the diagonal ratio of the naive estimate.
     let mut rows = vec![0.0; n];
     let mut diag_ratio = 0.0f64;
     for j in 0..n {
-        for (&i, &v) in sys.k.symbolic().row_idx_of_col_raw(j).iter().zip(sys.k.val_of_col(j)) {
+        for (&i, &v) in sys
+            .k
+            .symbolic()
+            .row_idx_of_col_raw(j)
+            .iter()
+            .zip(sys.k.val_of_col(j))
+        {
             rows[i] += v.abs() / (sys.mass[i] * sys.mass[j]).sqrt();
             if i == j {
                 diag_ratio = diag_ratio.max(v / sys.mass[i]);
@@ -66,21 +77,34 @@ pub fn bounds(model: &Model, sys: &FreeSystem, mass: &Mass, dt_crit: f64) -> Vec
         Formulation::Hybrid { .. } => interface_and_body_bounds::<Hybrid, 6>(model),
     };
     if mass.is_diagonal() {
-        vec![mk("gershgorin", gershgorin, true), mk("irons-treharne", it, true), mk("per-body", per_body, true), mk("single-body", diag_ratio, false)]
+        vec![
+            mk("gershgorin", gershgorin, true),
+            mk("irons-treharne", it, true),
+            mk("per-body", per_body, true),
+            mk("single-body", diag_ratio, false),
+        ]
     } else {
-        vec![mk("irons-treharne", it, true), mk("per-body", per_body, true)]
+        vec![
+            mk("irons-treharne", it, true),
+            mk("per-body", per_body, true),
+        ]
     }
 }
 
 /// `max_s λ_max(K_s, M_s)` and `2 max_e λ_max(K_ee, M_e)` over the free DOFs.
-fn interface_and_body_bounds<K: crate::formulation::Kinematics<N>, const N: usize>(model: &Model) -> (f64, f64) {
+fn interface_and_body_bounds<K: crate::formulation::Kinematics<N>, const N: usize>(
+    model: &Model,
+) -> (f64, f64) {
     let ne = model.elements.len();
     let mut fixed = vec![false; model.n_dofs()];
     for &d in &model.fixed {
         fixed[d] = true;
     }
-    let mass: Vec<SMatrix<f64, N, N>> =
-        model.elements.iter().map(|e| K::mass(&e.props, e.rho * model.thickness)).collect();
+    let mass: Vec<SMatrix<f64, N, N>> = model
+        .elements
+        .iter()
+        .map(|e| K::mass(&e.props, e.rho * model.thickness))
+        .collect();
     // Each element's mass is shared equally among its interfaces and, for hybrid, its interior
     // term, so that the shares add up to M (Irons–Treharne).
     let mut count = vec![usize::from(K::HAS_INTERIOR); ne];
@@ -94,7 +118,11 @@ fn interface_and_body_bounds<K: crate::formulation::Kinematics<N>, const N: usiz
     let mut it = 0.0f64;
     for i in &model.interfaces {
         let xa = model.elements[i.a as usize].props.centroid;
-        let xb = if i.b == GROUND { i.midpoint() } else { model.elements[i.b as usize].props.centroid };
+        let xb = if i.b == GROUND {
+            i.midpoint()
+        } else {
+            model.elements[i.b as usize].props.centroid
+        };
         let [kaa, kab, kba, kbb] = interface_stiffness::<K, N>(i, xa, xb, model.thickness);
         k_diag[i.a as usize] += kaa;
         let mut elements = vec![i.a as usize];
@@ -105,7 +133,8 @@ fn interface_and_body_bounds<K: crate::formulation::Kinematics<N>, const N: usiz
         let m = elements.len() * N;
         let (mut ks, mut ms) = (DMatrix::<f64>::zeros(m, m), DMatrix::<f64>::zeros(m, m));
         for (p, &e) in elements.iter().enumerate() {
-            ms.view_mut((p * N, p * N), (N, N)).copy_from(&(mass[e] / count[e] as f64));
+            ms.view_mut((p * N, p * N), (N, N))
+                .copy_from(&(mass[e] / count[e] as f64));
         }
         ks.view_mut((0, 0), (N, N)).copy_from(&kaa);
         if i.b != GROUND {
@@ -113,8 +142,15 @@ fn interface_and_body_bounds<K: crate::formulation::Kinematics<N>, const N: usiz
             ks.view_mut((N, 0), (N, N)).copy_from(&kba);
             ks.view_mut((N, N), (N, N)).copy_from(&kbb);
         }
-        let dofs: Vec<usize> = elements.iter().flat_map(|&e| (0..N).map(move |d| e * N + d)).collect();
-        it = it.max(generalized_max(&ks, &ms, &dofs.iter().map(|&d| !fixed[d]).collect::<Vec<_>>()));
+        let dofs: Vec<usize> = elements
+            .iter()
+            .flat_map(|&e| (0..N).map(move |d| e * N + d))
+            .collect();
+        it = it.max(generalized_max(
+            &ks,
+            &ms,
+            &dofs.iter().map(|&d| !fixed[d]).collect::<Vec<_>>(),
+        ));
     }
     let mut body = 0.0f64;
     for e in 0..ne {
@@ -122,12 +158,18 @@ fn interface_and_body_bounds<K: crate::formulation::Kinematics<N>, const N: usiz
             let el = &model.elements[e];
             let kint = K::interior_stiffness(&el.props, &el.d, model.thickness);
             k_diag[e] += kint;
-            let (k, m) = (DMatrix::from_fn(N, N, |i, j| kint[(i, j)]), DMatrix::from_fn(N, N, |i, j| mass[e][(i, j)] / count[e] as f64));
+            let (k, m) = (
+                DMatrix::from_fn(N, N, |i, j| kint[(i, j)]),
+                DMatrix::from_fn(N, N, |i, j| mass[e][(i, j)] / count[e] as f64),
+            );
             let free: Vec<bool> = (0..N).map(|d| !fixed[e * N + d]).collect();
             it = it.max(generalized_max(&k, &m, &free));
         }
         let free: Vec<bool> = (0..N).map(|d| !fixed[e * N + d]).collect();
-        let (k, m) = (DMatrix::from_fn(N, N, |i, j| k_diag[e][(i, j)]), DMatrix::from_fn(N, N, |i, j| mass[e][(i, j)]));
+        let (k, m) = (
+            DMatrix::from_fn(N, N, |i, j| k_diag[e][(i, j)]),
+            DMatrix::from_fn(N, N, |i, j| mass[e][(i, j)]),
+        );
         body = body.max(generalized_max(&k, &m, &free));
     }
     (it, 2.0 * body)
@@ -141,7 +183,10 @@ fn generalized_max(k: &DMatrix<f64>, m: &DMatrix<f64>, free: &[bool]) -> f64 {
     }
     let kf = DMatrix::from_fn(idx.len(), idx.len(), |i, j| k[(idx[i], idx[j])]);
     let mf = DMatrix::from_fn(idx.len(), idx.len(), |i, j| m[(idx[i], idx[j])]);
-    let l = mf.cholesky().expect("element mass blocks are positive definite").l();
+    let l = mf
+        .cholesky()
+        .expect("element mass blocks are positive definite")
+        .l();
     let li = l.try_inverse().expect("a Cholesky factor is invertible");
     let a = &li * kf * li.transpose();
     let a = 0.5 * (&a + a.transpose());
@@ -171,28 +216,58 @@ pub struct FractionRun {
 
 /// Runs the model undamped and unloaded for `steps` steps at `fraction · Δt_crit` from a
 /// seeded random displacement (which excites every mode, the highest included).
-pub fn run_at_fraction(model: &Model, evaluator: &dyn Evaluator, mass: &Mass, dt_crit: f64, fraction: f64, steps: u64) -> FractionRun {
+pub fn run_at_fraction(
+    model: &Model,
+    evaluator: &dyn Evaluator,
+    mass: &Mass,
+    dt_crit: f64,
+    fraction: f64,
+    steps: u64,
+) -> FractionRun {
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
-    let u0: Vec<f64> = (0..model.n_dofs()).map(|_| 1e-6 * (rng.random::<f64>() - 0.5)).collect();
+    let u0: Vec<f64> = (0..model.n_dofs())
+        .map(|_| 1e-6 * (rng.random::<f64>() - 0.5))
+        .collect();
     let loads = Loads::none(model);
     let dt = fraction * dt_crit;
-    let mut cd = CentralDifference::from_state(model, evaluator, mass, &loads, dt, u0, vec![0.0; model.n_dofs()]);
+    let mut cd = CentralDifference::from_state(
+        model,
+        evaluator,
+        mass,
+        &loads,
+        dt,
+        u0,
+        vec![0.0; model.n_dofs()],
+    );
     cd.set_stability_limit(dt_crit);
     cd.damping = 0.0;
     // Above the limit every step, so that the few steps before the guard stops it show.
-    let every = if fraction > 1.0 { 1 } else { (steps / 200).max(1) };
+    let every = if fraction > 1.0 {
+        1
+    } else {
+        (steps / 200).max(1)
+    };
     let mut history = Vec::new();
     let status = cd
-        .run(steps, every, |_, e| {
-            history.push((e.t, e.total, e.kinetic + e.elastic));
-            Ok(())
-        }, |_| {})
+        .run(
+            steps,
+            every,
+            |_, e| {
+                history.push((e.t, e.total, e.kinetic + e.elastic));
+                Ok(())
+            },
+            |_| {},
+        )
         .expect("the observer cannot fail");
     FractionRun {
         fraction,
         dt,
         steps: cd.step,
-        status: if status == Status::Ok { "ok".into() } else { "diverged".into() },
+        status: if status == Status::Ok {
+            "ok".into()
+        } else {
+            "diverged".into()
+        },
         max_relative_drift: cd.max_relative_drift(),
         history,
     }
@@ -200,7 +275,14 @@ pub fn run_at_fraction(model: &Model, evaluator: &dyn Evaluator, mass: &Mass, dt
 
 /// The empirical limit: bisection on `fraction` between a stable and an unstable run of
 /// `steps` steps each, to a relative width of `tol`. Returns `(dt, dt / Δt_crit)`.
-pub fn empirical_limit(model: &Model, evaluator: &dyn Evaluator, mass: &Mass, dt_crit: f64, steps: u64, tol: f64) -> (f64, f64) {
+pub fn empirical_limit(
+    model: &Model,
+    evaluator: &dyn Evaluator,
+    mass: &Mass,
+    dt_crit: f64,
+    steps: u64,
+    tol: f64,
+) -> (f64, f64) {
     let stable = |f: f64| run_at_fraction(model, evaluator, mass, dt_crit, f, steps).status == "ok";
     let (mut lo, mut hi) = (0.5, 2.0);
     while !stable(lo) {

@@ -26,15 +26,21 @@ pub fn solve(model: &Model) -> Result<StaticSolution> {
     let modes = free_modes(model, ev.as_ref());
     if !modes.is_empty() {
         let list: Vec<String> = modes.iter().map(|m| m.to_string()).collect();
-        return Err(Error::scene("bodies[].supports", format!(
+        return Err(Error::scene(
+            "bodies[].supports",
+            format!(
             "the model is a mechanism ({} free rigid mode{}): {}; add supports that restrain them",
-            modes.len(), if modes.len() == 1 { "" } else { "s" }, list.join("; "))));
+            modes.len(), if modes.len() == 1 { "" } else { "s" }, list.join("; ")),
+        ));
     }
     let mass = Mass::new(model);
     let sys = FreeSystem::new(model, &mass);
     let p = Loads::new(model).static_vector(model.n_dofs());
     let llt = sys.k.sp_cholesky(faer::Side::Lower).map_err(|e| {
-        Error::scene("bodies[].supports", format!("K_ff is not positive definite ({e:?}) although no free rigid mode was found"))
+        Error::scene(
+            "bodies[].supports",
+            format!("K_ff is not positive definite ({e:?}) although no free rigid mode was found"),
+        )
     })?;
     let mut rhs = faer::Mat::<f64>::from_fn(sys.n(), 1, |i, _| p[sys.free[i]]);
     llt.solve_in_place(rhs.as_mut());
@@ -55,7 +61,10 @@ pub fn midpoint_traction(model: &Model, i: &crate::model::Interface, u: &[f64]) 
             return Vec2::zeros();
         }
         let e = e as usize;
-        model.formulation.displacement(&u[e * nd..(e + 1) * nd], m - model.elements[e].props.centroid)
+        model.formulation.displacement(
+            &u[e * nd..(e + 1) * nd],
+            m - model.elements[e].props.centroid,
+        )
     };
     let delta = disp(i.b) - disp(i.a);
     [i.k_n * i.normal.dot(&delta), i.k_s * i.tangent.dot(&delta)]

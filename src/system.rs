@@ -41,17 +41,25 @@ impl FreeSystem {
             .filter(|&(r, c, v)| v != 0.0 && index[r] != usize::MAX && index[c] != usize::MAX)
             .map(|(r, c, v)| Triplet::new(index[r], index[c], v))
             .collect();
-        let k = SparseColMat::try_new_from_triplets(free.len(), free.len(), &triplets).expect("indices lie within the free DOFs");
+        let k = SparseColMat::try_new_from_triplets(free.len(), free.len(), &triplets)
+            .expect("indices lie within the free DOFs");
         let m_triplets: Vec<Triplet<usize, usize, f64>> = mass
             .triplets()
             .into_iter()
             .filter(|&(r, c, v)| v != 0.0 && index[r] != usize::MAX && index[c] != usize::MAX)
             .map(|(r, c, v)| Triplet::new(index[r], index[c], v))
             .collect();
-        let m = SparseColMat::try_new_from_triplets(free.len(), free.len(), &m_triplets).expect("indices lie within the free DOFs");
+        let m = SparseColMat::try_new_from_triplets(free.len(), free.len(), &m_triplets)
+            .expect("indices lie within the free DOFs");
         let diag = mass.diagonal();
         let mass = free.iter().map(|&d| diag[d]).collect();
-        FreeSystem { free, index, k, m, mass }
+        FreeSystem {
+            free,
+            index,
+            k,
+            m,
+            mass,
+        }
     }
 
     /// `K_ff − σ M_ff`.
@@ -59,12 +67,18 @@ impl FreeSystem {
         let mut t = Vec::with_capacity(self.k.compute_nnz() + self.m.compute_nnz());
         for (mat, scale) in [(&self.k, 1.0), (&self.m, -sigma)] {
             for j in 0..self.n() {
-                for (&i, &v) in mat.symbolic().row_idx_of_col_raw(j).iter().zip(mat.val_of_col(j)) {
+                for (&i, &v) in mat
+                    .symbolic()
+                    .row_idx_of_col_raw(j)
+                    .iter()
+                    .zip(mat.val_of_col(j))
+                {
                     t.push(Triplet::new(i, j, scale * v));
                 }
             }
         }
-        SparseColMat::try_new_from_triplets(self.n(), self.n(), &t).expect("indices lie within the free DOFs")
+        SparseColMat::try_new_from_triplets(self.n(), self.n(), &t)
+            .expect("indices lie within the free DOFs")
     }
 
     /// Applies an operator on vectors over all DOFs to a vector over the free DOFs.

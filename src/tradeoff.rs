@@ -70,17 +70,38 @@ impl Sweep {
     /// Parses `KEY=V1,V2,...`; the error names the key or value and what is allowed.
     pub fn parse(text: &str) -> Result<Sweep> {
         let field = "--sweep";
-        let (key, values) = text.split_once('=').ok_or_else(|| Error::scene(field, format!("expected KEY=V1,V2,..., got `{text}`")))?;
-        let key = KEYS.iter().find(|k| k.0 == key.trim()).map(|k| k.1).ok_or_else(|| {
-            Error::scene(field, format!("unknown key `{key}`; allowed: {}", KEYS.map(|k| k.0).join(", ")))
-        })?;
-        let values: Vec<String> = values.split(',').map(|v| v.trim().to_string()).filter(|v| !v.is_empty()).collect();
+        let (key, values) = text
+            .split_once('=')
+            .ok_or_else(|| Error::scene(field, format!("expected KEY=V1,V2,..., got `{text}`")))?;
+        let key = KEYS
+            .iter()
+            .find(|k| k.0 == key.trim())
+            .map(|k| k.1)
+            .ok_or_else(|| {
+                Error::scene(
+                    field,
+                    format!(
+                        "unknown key `{key}`; allowed: {}",
+                        KEYS.map(|k| k.0).join(", ")
+                    ),
+                )
+            })?;
+        let values: Vec<String> = values
+            .split(',')
+            .map(|v| v.trim().to_string())
+            .filter(|v| !v.is_empty())
+            .collect();
         if values.is_empty() {
-            return Err(Error::scene(field, format!("`{}` has no values", key.name())));
+            return Err(Error::scene(
+                field,
+                format!("`{}` has no values", key.name()),
+            ));
         }
         for v in &values {
             let ok = match key {
-                Key::Dt | Key::DtFactor | Key::Penalty => v.parse::<f64>().is_ok_and(|x| x > 0.0 && x.is_finite()),
+                Key::Dt | Key::DtFactor | Key::Penalty => {
+                    v.parse::<f64>().is_ok_and(|x| x > 0.0 && x.is_finite())
+                }
                 Key::Refine => v.parse::<u32>().is_ok_and(|r| (1..=64).contains(&r)),
                 Key::Formulation => v == "rigid" || v == "hybrid",
                 Key::Evaluator => v == "assembled" || v == "element-wise",
@@ -94,7 +115,10 @@ impl Sweep {
                     Key::Evaluator => "assembled or element-wise",
                     Key::Contact => "edge-to-edge or point",
                 };
-                return Err(Error::scene(format!("--sweep {}", key.name()), format!("must be {allowed}, got `{v}`")));
+                return Err(Error::scene(
+                    format!("--sweep {}", key.name()),
+                    format!("must be {allowed}, got `{v}`"),
+                ));
             }
         }
         Ok(Sweep { key, values })
@@ -165,7 +189,8 @@ struct Probe {
 /// Runs `scene` (its JSON text `json`) at every combination of `sweeps`, calling `progress`
 /// with each finished point.
 pub fn sweep(json: &str, sweeps: &[Sweep], mut progress: impl FnMut(&Point)) -> Result<Report> {
-    let base: Value = serde_json::from_str(json).map_err(|e| Error::scene("scene", e.to_string()))?;
+    let base: Value =
+        serde_json::from_str(json).map_err(|e| Error::scene("scene", e.to_string()))?;
     let scene = Scene::from_json(json)?;
     let base_model = Model::build(&scene)?;
     let probes: Vec<Probe> = scene
@@ -174,12 +199,24 @@ pub fn sweep(json: &str, sweeps: &[Sweep], mut progress: impl FnMut(&Point)) -> 
         .iter()
         .enumerate()
         .map(|(k, p)| {
-            let dof = dof_index(&p.dof, base_model.formulation, &format!("output.probes[{k}].dof"))?;
+            let dof = dof_index(
+                &p.dof,
+                base_model.formulation,
+                &format!("output.probes[{k}].dof"),
+            )?;
             let point = match p.at {
                 Some([x, y]) => Vec2::new(x, y),
-                None => base_model.elements[base_model.probe_element(k, p)?].props.centroid,
+                None => {
+                    base_model.elements[base_model.probe_element(k, p)?]
+                        .props
+                        .centroid
+                }
             };
-            Ok(Probe { name: p.column(), point, dof })
+            Ok(Probe {
+                name: p.column(),
+                point,
+                dof,
+            })
         })
         .collect::<Result<_>>()?;
     if scene.reference.is_none() && probes.is_empty() {
@@ -200,14 +237,26 @@ pub fn sweep(json: &str, sweeps: &[Sweep], mut progress: impl FnMut(&Point)) -> 
     let (reference, error) = score(&scene, &base_model, &mut runs, &probes)?;
     let mut points: Vec<Point> = runs.into_iter().map(|r| r.0).collect();
     mark_pareto(&mut points);
-    Ok(Report { scene: scene.name.clone(), reference, error, points })
+    Ok(Report {
+        scene: scene.name.clone(),
+        reference,
+        error,
+        points,
+    })
 }
 
 /// Every combination of the sweeps' values, the first sweep varying slowest.
 fn combinations(sweeps: &[Sweep]) -> Vec<Vec<(Key, String)>> {
     let mut out = vec![Vec::new()];
     for s in sweeps {
-        out = out.into_iter().flat_map(|c: Vec<(Key, String)>| s.values.iter().map(move |v| [c.clone(), vec![(s.key, v.clone())]].concat())).collect();
+        out = out
+            .into_iter()
+            .flat_map(|c: Vec<(Key, String)>| {
+                s.values
+                    .iter()
+                    .map(move |v| [c.clone(), vec![(s.key, v.clone())]].concat())
+            })
+            .collect();
     }
     out
 }
@@ -217,14 +266,21 @@ fn apply(scene: &mut Value, key: Key, value: &str) -> Result<()> {
     let number = |v: &str| Value::from(v.parse::<f64>().expect("checked by Sweep::parse"));
     match key {
         Key::Dt | Key::DtFactor => {
-            let time = scene["time"].as_object_mut().ok_or_else(|| Error::scene("time", "missing"))?;
+            let time = scene["time"]
+                .as_object_mut()
+                .ok_or_else(|| Error::scene("time", "missing"))?;
             time.remove("dt");
             time.remove("dt_factor");
-            time.insert(if key == Key::Dt { "dt" } else { "dt_factor" }.into(), number(value));
+            time.insert(
+                if key == Key::Dt { "dt" } else { "dt_factor" }.into(),
+                number(value),
+            );
         }
         Key::Refine => {
             let r: u64 = value.parse().expect("checked by Sweep::parse");
-            let bodies = scene["bodies"].as_array_mut().ok_or_else(|| Error::scene("bodies", "missing"))?;
+            let bodies = scene["bodies"]
+                .as_array_mut()
+                .ok_or_else(|| Error::scene("bodies", "missing"))?;
             for (k, body) in bodies.iter_mut().enumerate() {
                 let mesh = &mut body["mesh"];
                 match mesh["kind"].as_str() {
@@ -235,8 +291,15 @@ fn apply(scene: &mut Value, key: Key, value: &str) -> Result<()> {
                             *c = Value::from(if n > 1 { n * r } else { n });
                         }
                     }
-                    Some("voronoi") => mesh["sites"] = Value::from(mesh["sites"].as_u64().unwrap_or(1) * r * r),
-                    _ => return Err(Error::scene(format!("bodies[{k}].mesh"), "`refine` needs a grid or Voronoi mesh")),
+                    Some("voronoi") => {
+                        mesh["sites"] = Value::from(mesh["sites"].as_u64().unwrap_or(1) * r * r)
+                    }
+                    _ => {
+                        return Err(Error::scene(
+                            format!("bodies[{k}].mesh"),
+                            "`refine` needs a grid or Voronoi mesh",
+                        ))
+                    }
                 }
             }
         }
@@ -248,11 +311,16 @@ fn apply(scene: &mut Value, key: Key, value: &str) -> Result<()> {
                 serde_json::json!({"kind": "hybrid", "penalty": penalty})
             };
         }
-        Key::Penalty => scene["formulation"] = serde_json::json!({"kind": "hybrid", "penalty": number(value)}),
+        Key::Penalty => {
+            scene["formulation"] = serde_json::json!({"kind": "hybrid", "penalty": number(value)})
+        }
         Key::Evaluator => scene["evaluator"] = Value::from(value),
         Key::Contact => {
             if scene.get("contact").is_none_or(Value::is_null) {
-                return Err(Error::scene("--sweep contact", "the scene declares no `contact`"));
+                return Err(Error::scene(
+                    "--sweep contact",
+                    "the scene declares no `contact`",
+                ));
             }
             scene["contact"]["model"] = Value::from(value);
         }
@@ -272,7 +340,11 @@ fn peak_memory_mib() -> Option<f64> {
 }
 
 /// Runs one point and measures it.
-fn run_point(scene: &Scene, settings: Vec<(Key, String)>, probes: &[Probe]) -> Result<(Point, Measure)> {
+fn run_point(
+    scene: &Scene,
+    settings: Vec<(Key, String)>,
+    probes: &[Probe],
+) -> Result<(Point, Measure)> {
     reset_peak_memory();
     let start = Instant::now();
     let p = Prepared::new(scene, &RunOptions::default())?;
@@ -288,36 +360,65 @@ fn run_point(scene: &Scene, settings: Vec<(Key, String)>, probes: &[Probe]) -> R
         let mut status = Status::Ok;
         // Until the body falls again after its first rebound: the apex is then behind it.
         let mut falling = false;
-        while cd.step < p.steps && !(falling && tracker.bounces.first().is_some_and(|b| b.apex.is_finite())) {
+        while cd.step < p.steps
+            && !(falling && tracker.bounces.first().is_some_and(|b| b.apex.is_finite()))
+        {
             let n = (p.steps - cd.step).min(1000);
-            status = cd.run(n, 1, |s, _| {
-                let vy = crate::hopping::centre_velocity(model, s.v).y;
-                tracker.push(s.t, lowest_point(model, s.u) - ground, vy);
-                falling = vy < 0.0;
-                Ok(())
-            }, |_| ())?;
+            status = cd.run(
+                n,
+                1,
+                |s, _| {
+                    let vy = crate::hopping::centre_velocity(model, s.v).y;
+                    tracker.push(s.t, lowest_point(model, s.u) - ground, vy);
+                    falling = vy < 0.0;
+                    Ok(())
+                },
+                |_| (),
+            )?;
             if status != Status::Ok {
                 break;
             }
         }
-        (status, Measure::Apex(tracker.bounces.first().map_or(f64::NAN, |b| b.apex)))
+        (
+            status,
+            Measure::Apex(tracker.bounces.first().map_or(f64::NAN, |b| b.apex)),
+        )
     } else {
-        let cells: Vec<usize> = probes.iter().map(|pr| element_at(model, pr.point)).collect();
+        let cells: Vec<usize> = probes
+            .iter()
+            .map(|pr| element_at(model, pr.point))
+            .collect();
         let mut histories = vec![Vec::new(); probes.len()];
         let every = (p.steps / 2000).max(1);
-        let status = cd.run(p.steps, every, |s, _| {
-            for ((&e, pr), h) in cells.iter().zip(probes).zip(&mut histories) {
-                let ue = &s.u[e * nd..(e + 1) * nd];
-                let value = match pr.dof {
-                    // Displacements at the probe's material point, rotations and strains as they are.
-                    0 | 1 => model.formulation.displacement(ue, pr.point - model.elements[e].props.centroid)[pr.dof],
-                    d => ue[d],
-                };
-                h.push((s.t, value));
-            }
-            Ok(())
-        }, |_| ())?;
-        (status, Measure::Histories(histories, cells.iter().map(|&e| model.elements[e].props.centroid).collect()))
+        let status = cd.run(
+            p.steps,
+            every,
+            |s, _| {
+                for ((&e, pr), h) in cells.iter().zip(probes).zip(&mut histories) {
+                    let ue = &s.u[e * nd..(e + 1) * nd];
+                    let value = match pr.dof {
+                        // Displacements at the probe's material point, rotations and strains as they are.
+                        0 | 1 => model
+                            .formulation
+                            .displacement(ue, pr.point - model.elements[e].props.centroid)[pr.dof],
+                        d => ue[d],
+                    };
+                    h.push((s.t, value));
+                }
+                Ok(())
+            },
+            |_| (),
+        )?;
+        (
+            status,
+            Measure::Histories(
+                histories,
+                cells
+                    .iter()
+                    .map(|&e| model.elements[e].props.centroid)
+                    .collect(),
+            ),
+        )
     };
     let stepping_s = clock.elapsed().as_secs_f64();
     let status = status.describe();
@@ -351,7 +452,8 @@ fn element_at(model: &Model, x: Vec2) -> usize {
     for body in &model.bodies {
         for c in 0..body.mesh.n_cells() {
             let pts = body.mesh.cell_points(c);
-            let inside = (0..pts.len()).all(|i| (pts[(i + 1) % pts.len()] - pts[i]).perp(&(x - pts[i])) >= -1e-12);
+            let inside = (0..pts.len())
+                .all(|i| (pts[(i + 1) % pts.len()] - pts[i]).perp(&(x - pts[i])) >= -1e-12);
             let e = body.first_element + c;
             if inside {
                 return e;
@@ -366,7 +468,12 @@ fn element_at(model: &Model, x: Vec2) -> usize {
 }
 
 /// Fills in every point's error; returns the reference's name and the error's definition.
-fn score(scene: &Scene, model: &Model, runs: &mut [(Point, Measure)], probes: &[Probe]) -> Result<(String, String)> {
+fn score(
+    scene: &Scene,
+    model: &Model,
+    runs: &mut [(Point, Measure)],
+    probes: &[Probe],
+) -> Result<(String, String)> {
     let ok = |p: &Point| p.status == "ok";
     match &scene.reference {
         Some(ReferenceSpec::HoppingBlock) => {
@@ -380,14 +487,20 @@ fn score(scene: &Scene, model: &Model, runs: &mut [(Point, Measure)], probes: &[
             Ok((format!("theory of the hopping block: the first apex returns to the drop height H = {height} m"), "|apex − H| / H".into()))
         }
         Some(ReferenceSpec::BarStep { probe }) => {
-            let k = probes.iter().position(|p| &p.name == probe).expect("validated: the probe exists");
+            let k = probes
+                .iter()
+                .position(|p| &p.name == probe)
+                .expect("validated: the probe exists");
             let bar = Bar::of(scene, model)?;
             for (p, m) in runs.iter_mut() {
                 if let (true, Measure::Histories(h, at)) = (ok(p), m) {
                     // At the centroid of the element that carried the probe (the rigid elements'
                     // displacement jumps at their edges, where a refined mesh may put the point).
                     let x = at[k].x - bar.origin;
-                    let exact: Vec<(f64, f64)> = h[k].iter().map(|&(t, _)| (t, bar.displacement(x, t))).collect();
+                    let exact: Vec<(f64, f64)> = h[k]
+                        .iter()
+                        .map(|&(t, _)| (t, bar.displacement(x, t)))
+                        .collect();
                     p.error = Some(rms_difference(&h[k], &exact));
                 }
             }
@@ -401,21 +514,43 @@ fn score(scene: &Scene, model: &Model, runs: &mut [(Point, Measure)], probes: &[
                 .iter()
                 .enumerate()
                 .filter(|(_, r)| ok(&r.0))
-                .max_by(|a, b| a.1 .0.elements.cmp(&b.1 .0.elements).then(b.1 .0.dt.total_cmp(&a.1 .0.dt)).then(b.0.cmp(&a.0)))
+                .max_by(|a, b| {
+                    a.1 .0
+                        .elements
+                        .cmp(&b.1 .0.elements)
+                        .then(b.1 .0.dt.total_cmp(&a.1 .0.dt))
+                        .then(b.0.cmp(&a.0))
+                })
                 .map(|(i, _)| i)
-                .ok_or_else(|| Error::scene("--sweep", "every run of the sweep diverged: there is no reference"))?;
+                .ok_or_else(|| {
+                    Error::scene(
+                        "--sweep",
+                        "every run of the sweep diverged: there is no reference",
+                    )
+                })?;
             let name = describe(&runs[finest].0.settings);
-            let Measure::Histories(reference, _) = &runs[finest].1 else { unreachable!("no closed form: histories") };
+            let Measure::Histories(reference, _) = &runs[finest].1 else {
+                unreachable!("no closed form: histories")
+            };
             let reference = reference.clone();
             for (i, (p, m)) in runs.iter_mut().enumerate() {
                 if let (true, Measure::Histories(h, _)) = (ok(p), m) {
                     p.error = (i != finest).then(|| {
-                        h.iter().zip(&reference).map(|(h, r)| rms_difference(h, &resample(r, h))).fold(0.0, f64::max)
+                        h.iter()
+                            .zip(&reference)
+                            .map(|(h, r)| rms_difference(h, &resample(r, h)))
+                            .fold(0.0, f64::max)
                     });
                 }
             }
             let names: Vec<&str> = probes.iter().map(|p| p.name.as_str()).collect();
-            Ok((format!("finest run of the sweep ({name})"), format!("largest over the probes ({}) of RMS(u − u_ref) / RMS(u_ref)", names.join(", "))))
+            Ok((
+                format!("finest run of the sweep ({name})"),
+                format!(
+                    "largest over the probes ({}) of RMS(u − u_ref) / RMS(u_ref)",
+                    names.join(", ")
+                ),
+            ))
         }
     }
 }
@@ -425,7 +560,11 @@ pub fn describe(settings: &[(Key, String)]) -> String {
     if settings.is_empty() {
         return "the scene as given".into();
     }
-    settings.iter().map(|(k, v)| format!("{}={v}", k.name())).collect::<Vec<_>>().join(", ")
+    settings
+        .iter()
+        .map(|(k, v)| format!("{}={v}", k.name()))
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 /// `RMS(a − b) / RMS(b)` over matching samples.
@@ -439,9 +578,15 @@ fn rms_difference(a: &[(f64, f64)], b: &[(f64, f64)]) -> f64 {
 fn resample(reference: &[(f64, f64)], at: &[(f64, f64)]) -> Vec<(f64, f64)> {
     at.iter()
         .map(|&(t, _)| {
-            let k = reference.partition_point(|r| r.0 < t).clamp(1, reference.len().max(2) - 1);
+            let k = reference
+                .partition_point(|r| r.0 < t)
+                .clamp(1, reference.len().max(2) - 1);
             let (a, b) = (reference[k - 1], reference[k.min(reference.len() - 1)]);
-            let w = if b.0 > a.0 { ((t - a.0) / (b.0 - a.0)).clamp(0.0, 1.0) } else { 0.0 };
+            let w = if b.0 > a.0 {
+                ((t - a.0) / (b.0 - a.0)).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
             (t, a.1 + w * (b.1 - a.1))
         })
         .collect()
@@ -460,21 +605,41 @@ struct Bar {
 impl Bar {
     fn of(scene: &Scene, model: &Model) -> Result<Bar> {
         let field = "reference";
-        let body = scene.bodies.first().ok_or_else(|| Error::scene(field, "bar-step needs a body"))?;
+        let body = scene
+            .bodies
+            .first()
+            .ok_or_else(|| Error::scene(field, "bar-step needs a body"))?;
         let crate::scene::MeshSpec::Grid(grid) = &body.mesh else {
-            return Err(Error::scene(field, "bar-step needs the first body on a grid mesh"));
+            return Err(Error::scene(
+                field,
+                "bar-step needs the first body on a grid mesh",
+            ));
         };
         let q = body
             .loads
             .iter()
             .find_map(|l| match l {
-                crate::scene::LoadSpec::Traction(t) if t.edge == crate::mesh::EdgeSet::Side(crate::mesh::Side::Right) => Some(t.value[0]),
+                crate::scene::LoadSpec::Traction(t)
+                    if t.edge == crate::mesh::EdgeSet::Side(crate::mesh::Side::Right) =>
+                {
+                    Some(t.value[0])
+                }
                 _ => None,
             })
-            .ok_or_else(|| Error::scene(field, "bar-step needs a traction on the right edge of the first body"))?;
+            .ok_or_else(|| {
+                Error::scene(
+                    field,
+                    "bar-step needs a traction on the right edge of the first body",
+                )
+            })?;
         let e = model.bodies[0].moduli[0];
         let rho = scene.materials[&body.material].rho;
-        Ok(Bar { origin: grid.origin[0], length: grid.size[0], strain: q / e, speed: (e / rho).sqrt() })
+        Ok(Bar {
+            origin: grid.origin[0],
+            length: grid.size[0],
+            strain: q / e,
+            speed: (e / rho).sqrt(),
+        })
     }
 
     /// `u(x, t)`, `x` from the held end.
@@ -506,12 +671,22 @@ impl Report {
     /// Writes `tradeoff.csv`, `tradeoff.md` and `tradeoff.svg` into `dir`.
     pub fn write(&self, dir: &Path) -> Result<()> {
         std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
-        let keys: Vec<&str> = self.points.first().map(|p| p.settings.iter().map(|s| s.0.name()).collect()).unwrap_or_default();
+        let keys: Vec<&str> = self
+            .points
+            .first()
+            .map(|p| p.settings.iter().map(|s| s.0.name()).collect())
+            .unwrap_or_default();
         let mut csv = keys.iter().map(|k| format!("{k},")).collect::<String>();
         csv.push_str("elements,dofs,dt,dt_crit,steps,setup_s,stepping_s,wall_s,peak_mib,error,pareto,status\n");
-        let mut md = format!("Scene `{}`. Reference: {}. Error: {}.\n\n", self.scene, self.reference, self.error);
+        let mut md = format!(
+            "Scene `{}`. Reference: {}. Error: {}.\n\n",
+            self.scene, self.reference, self.error
+        );
         md.push_str(&format!("| {} | elements | Δt (s) | Δt/Δt_crit | steps | wall (s) | peak (MiB) | error | Pareto |\n", keys.join(" | ")));
-        md.push_str(&format!("|{}---|---|---|---|---|---|---|---|\n", "---|".repeat(keys.len())));
+        md.push_str(&format!(
+            "|{}---|---|---|---|---|---|---|---|\n",
+            "---|".repeat(keys.len())
+        ));
         for p in &self.points {
             let values: Vec<&str> = p.settings.iter().map(|s| s.1.as_str()).collect();
             let err = p.error.map_or(String::new(), |e| format!("{e:.4e}"));
@@ -519,7 +694,16 @@ impl Report {
             csv.push_str(&values.iter().map(|v| format!("{v},")).collect::<String>());
             csv.push_str(&format!(
                 "{},{},{:e},{:e},{},{:.6},{:.6},{:.6},{peak},{err},{},\"{}\"\n",
-                p.elements, p.dofs, p.dt, p.dt_crit, p.steps, p.setup_s, p.stepping_s, p.wall_s, p.pareto, p.status.replace('"', "'")
+                p.elements,
+                p.dofs,
+                p.dt,
+                p.dt_crit,
+                p.steps,
+                p.setup_s,
+                p.stepping_s,
+                p.wall_s,
+                p.pareto,
+                p.status.replace('"', "'")
             ));
             let err_md = match (&p.error, p.status.as_str()) {
                 (Some(e), _) => format!("{e:.3e}"),
@@ -528,14 +712,33 @@ impl Report {
             };
             md.push_str(&format!(
                 "| {} | {} | {:.3e} | {:.3} | {} | {:.3e} | {peak} | {err_md} | {} |\n",
-                values.join(" | "), p.elements, p.dt, p.dt / p.dt_crit, p.steps, p.wall_s, if p.pareto { "◆" } else { "" }
+                values.join(" | "),
+                p.elements,
+                p.dt,
+                p.dt / p.dt_crit,
+                p.steps,
+                p.wall_s,
+                if p.pareto { "◆" } else { "" }
             ));
         }
-        let write = |name: &str, text: &str| std::fs::write(dir.join(name), text).map_err(|e| Error::io(dir.join(name), e));
+        let write = |name: &str, text: &str| {
+            std::fs::write(dir.join(name), text).map_err(|e| Error::io(dir.join(name), e))
+        };
         write("tradeoff.csv", &csv)?;
         write("tradeoff.md", &md)?;
-        let pts: Vec<(f64, f64, bool, String)> =
-            self.points.iter().filter_map(|p| p.error.filter(|e| *e > 0.0).map(|e| (p.wall_s, e, p.pareto, describe(&p.settings)))).collect();
-        crate::plot::pareto(&dir.join("tradeoff.svg"), &format!("{}: error against wall time", self.scene), &pts)
+        let pts: Vec<(f64, f64, bool, String)> = self
+            .points
+            .iter()
+            .filter_map(|p| {
+                p.error
+                    .filter(|e| *e > 0.0)
+                    .map(|e| (p.wall_s, e, p.pareto, describe(&p.settings)))
+            })
+            .collect();
+        crate::plot::pareto(
+            &dir.join("tradeoff.svg"),
+            &format!("{}: error against wall time", self.scene),
+            &pts,
+        )
     }
 }

@@ -10,7 +10,8 @@ use crate::integrator::Snapshot;
 use crate::model::Model;
 use std::path::{Path, PathBuf};
 use vtkio::model::{
-    Attribute, Attributes, ByteOrder, CellType, Cells, DataSet, IOBuffer, UnstructuredGridPiece, Version, VertexNumbers, Vtk,
+    Attribute, Attributes, ByteOrder, CellType, Cells, DataSet, IOBuffer, UnstructuredGridPiece,
+    Version, VertexNumbers, Vtk,
 };
 
 /// A series of frames in `DIR/vtk/` and its collection `DIR/series.pvd`. Each frame is written
@@ -25,7 +26,8 @@ pub struct VtkSeries {
     tail: u64,
 }
 
-const HEAD: &str = "<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"0.1\">\n  <Collection>\n";
+const HEAD: &str =
+    "<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"0.1\">\n  <Collection>\n";
 const TAIL: &str = "  </Collection>\n</VTKFile>\n";
 
 fn entry(t: f64, name: &str) -> String {
@@ -43,7 +45,8 @@ impl VtkSeries {
     pub fn resume(dir: &Path, frames: Vec<(f64, String)>) -> Result<VtkSeries> {
         let frames_dir = dir.join("vtk");
         std::fs::create_dir_all(&frames_dir).map_err(|e| Error::io(&frames_dir, e))?;
-        let keep: std::collections::HashSet<&str> = frames.iter().map(|(_, f)| f.as_str()).collect();
+        let keep: std::collections::HashSet<&str> =
+            frames.iter().map(|(_, f)| f.as_str()).collect();
         for entry in std::fs::read_dir(&frames_dir).map_err(|e| Error::io(&frames_dir, e))? {
             let path = entry.map_err(|e| Error::io(&frames_dir, e))?.path();
             let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("");
@@ -53,9 +56,21 @@ impl VtkSeries {
         }
         let path = dir.join("series.pvd");
         write_collection(&path, &frames)?;
-        let tail = (HEAD.len() + frames.iter().map(|(t, f)| entry(*t, f).len()).sum::<usize>()) as u64;
-        let collection = std::fs::OpenOptions::new().write(true).open(&path).map_err(|e| Error::io(&path, e))?;
-        Ok(VtkSeries { dir: dir.to_path_buf(), frames, collection, tail })
+        let tail = (HEAD.len()
+            + frames
+                .iter()
+                .map(|(t, f)| entry(*t, f).len())
+                .sum::<usize>()) as u64;
+        let collection = std::fs::OpenOptions::new()
+            .write(true)
+            .open(&path)
+            .map_err(|e| Error::io(&path, e))?;
+        Ok(VtkSeries {
+            dir: dir.to_path_buf(),
+            frames,
+            collection,
+            tail,
+        })
     }
 
     /// The frames written so far: time and name under `DIR`.
@@ -79,10 +94,16 @@ impl VtkSeries {
         std::fs::rename(&tmp, &path).map_err(|e| Error::io(&path, e))?;
         let line = entry(s.t, &name);
         let pvd = self.dir.join("series.pvd");
-        let write = |file: &mut std::fs::File, at: u64, text: &str| file.seek(SeekFrom::Start(at)).and_then(|_| file.write_all(text.as_bytes()));
+        let write = |file: &mut std::fs::File, at: u64, text: &str| {
+            file.seek(SeekFrom::Start(at))
+                .and_then(|_| file.write_all(text.as_bytes()))
+        };
         if let Err(e) = write(&mut self.collection, self.tail, &format!("{line}{TAIL}")) {
             // Put the closing tags back where they were: the collection stays whole.
-            let _ = self.collection.set_len(self.tail).and_then(|_| write(&mut self.collection, self.tail, TAIL));
+            let _ = self
+                .collection
+                .set_len(self.tail)
+                .and_then(|_| write(&mut self.collection, self.tail, TAIL));
             return Err(Error::io(&pvd, e));
         }
         self.tail += line.len() as u64;
@@ -110,9 +131,16 @@ pub enum Placement {
 /// Writes one VTK XML unstructured grid (`.vtu`) of the elements placed by `placement`, with
 /// cell data `displacement`, `velocity`, `rotation` and `body` (hybrid: `strain`, `stress`).
 /// Cells of 3 and 4 vertices are written as VTK triangles and quadrilaterals, others as polygons.
-pub fn write_frame(path: &Path, model: &Model, u: &[f64], v: &[f64], placement: Placement) -> Result<()> {
+pub fn write_frame(
+    path: &Path,
+    model: &Model,
+    u: &[f64],
+    v: &[f64],
+    placement: Placement,
+) -> Result<()> {
     let nd = model.formulation.ndof();
-    let (mut points, mut conn, mut offsets, mut types) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let (mut points, mut conn, mut offsets, mut types) =
+        (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     let (mut disp, mut vel, mut rot, mut body) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     let (mut strain, mut stress): (Vec<f64>, Vec<f64>) = (Vec::new(), Vec::new());
     for b in &model.bodies {
@@ -164,17 +192,36 @@ pub fn write_frame(path: &Path, model: &Model, u: &[f64], v: &[f64], placement: 
         file_path: None,
         data: DataSet::inline(UnstructuredGridPiece {
             points: IOBuffer::F64(points),
-            cells: Cells { cell_verts: VertexNumbers::XML { connectivity: conn, offsets }, types },
-            data: Attributes { point: Vec::new(), cell },
+            cells: Cells {
+                cell_verts: VertexNumbers::XML {
+                    connectivity: conn,
+                    offsets,
+                },
+                types,
+            },
+            data: Attributes {
+                point: Vec::new(),
+                cell,
+            },
         }),
     };
     let fail = |e: String| Error::io(path, std::io::Error::other(e));
-    let xml = vtkio::xml::VTKFile::try_from(vtk).map_err(|e| fail(e.to_string()))?.to_string();
+    let xml = vtkio::xml::VTKFile::try_from(vtk)
+        .map_err(|e| fail(e.to_string()))?
+        .to_string();
     // vtkio declares connectivity and offsets `UInt64`, which meshio cannot subtract from for
     // polygons; `Int64` has the same bytes for these values and every reader takes it.
     let xml = xml
-        .replacen(r#"type="UInt64" Name="connectivity""#, r#"type="Int64" Name="connectivity""#, 1)
-        .replacen(r#"type="UInt64" Name="offsets""#, r#"type="Int64" Name="offsets""#, 1);
+        .replacen(
+            r#"type="UInt64" Name="connectivity""#,
+            r#"type="Int64" Name="connectivity""#,
+            1,
+        )
+        .replacen(
+            r#"type="UInt64" Name="offsets""#,
+            r#"type="Int64" Name="offsets""#,
+            1,
+        );
     std::fs::write(path, xml).map_err(|e| Error::io(path, e))
 }
 
@@ -183,7 +230,10 @@ pub fn write_frame(path: &Path, model: &Model, u: &[f64], v: &[f64], placement: 
 /// the model's size (shapes are `M`-normalised, their scale is arbitrary).
 pub fn write_mode_shapes(dir: &Path, model: &Model, modes: &crate::eigen::Modes) -> Result<()> {
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
-    let (mut lo, mut hi) = (crate::geometry::Vec2::repeat(f64::INFINITY), crate::geometry::Vec2::repeat(f64::NEG_INFINITY));
+    let (mut lo, mut hi) = (
+        crate::geometry::Vec2::repeat(f64::INFINITY),
+        crate::geometry::Vec2::repeat(f64::NEG_INFINITY),
+    );
     for b in &model.bodies {
         let (l, h) = b.mesh.bounding_box();
         lo = lo.inf(&l);
@@ -193,11 +243,19 @@ pub fn write_mode_shapes(dir: &Path, model: &Model, modes: &crate::eigen::Modes)
     let nd = model.formulation.ndof();
     let mut frames = Vec::new();
     for (k, shape) in modes.shapes.iter().enumerate() {
-        let max = (0..model.elements.len()).map(|e| shape[e * nd].hypot(shape[e * nd + 1])).fold(0.0, f64::max);
+        let max = (0..model.elements.len())
+            .map(|e| shape[e * nd].hypot(shape[e * nd + 1]))
+            .fold(0.0, f64::max);
         let scale = if max > 0.0 { 0.1 * size / max } else { 1.0 };
         let u: Vec<f64> = shape.iter().map(|x| x * scale).collect();
         let name = format!("mode_{:03}.vtu", k + 1);
-        write_frame(&dir.join(&name), model, &u, &vec![0.0; u.len()], Placement::Linear)?;
+        write_frame(
+            &dir.join(&name),
+            model,
+            &u,
+            &vec![0.0; u.len()],
+            Placement::Linear,
+        )?;
         frames.push(((k + 1) as f64, name));
     }
     write_collection(&dir.join("modes.pvd"), &frames)

@@ -2,7 +2,6 @@
 //! warm, for both evaluators and formulations, on a model large enough to run in parallel, and
 //! on the contact scene.
 
-
 use rbsm::run::{Prepared, RunOptions};
 use rbsm::scene::{EvaluatorKind, Scene};
 use std::alloc::{GlobalAlloc, Layout, System};
@@ -49,8 +48,16 @@ fn the_time_loop_does_not_allocate() {
 
 fn plain_steps() {
     // 4800 elements: more than one parallel chunk, so rayon's loops are exercised too.
-    for (formulation, evaluator) in [("rigid", EvaluatorKind::Assembled), ("rigid", EvaluatorKind::ElementWise), ("hybrid", EvaluatorKind::ElementWise)] {
-        let f = if formulation == "rigid" { r#"{"kind": "rigid"}"# } else { r#"{"kind": "hybrid", "penalty": 10}"# };
+    for (formulation, evaluator) in [
+        ("rigid", EvaluatorKind::Assembled),
+        ("rigid", EvaluatorKind::ElementWise),
+        ("hybrid", EvaluatorKind::ElementWise),
+    ] {
+        let f = if formulation == "rigid" {
+            r#"{"kind": "rigid"}"#
+        } else {
+            r#"{"kind": "hybrid", "penalty": 10}"#
+        };
         let json = format!(
             r#"{{"name": "a", "thickness": 1.0, "formulation": {f}, "gravity": [0, -9.81],
                 "materials": {{"m": {{"E": 3e10, "nu": 0.2, "rho": 2400}}}},
@@ -60,13 +67,29 @@ fn plain_steps() {
                 "time": {{"dt_factor": 0.5, "steps": 10}}}}"#
         );
         let scene = Scene::from_json(&json).unwrap_or_else(|e| panic!("{e}"));
-        let p = Prepared::new(&scene, &RunOptions { evaluator: Some(evaluator), ..Default::default() }).unwrap();
-        assert_eq!(allocations(&p, 20, 200), 0, "{formulation} / {}", evaluator.name());
+        let p = Prepared::new(
+            &scene,
+            &RunOptions {
+                evaluator: Some(evaluator),
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        assert_eq!(
+            allocations(&p, 20, 200),
+            0,
+            "{formulation} / {}",
+            evaluator.name()
+        );
     }
 }
 
 fn contact_steps() {
-    let scene = Scene::from_file(std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/examples/scenes/toppling_stack.json"))).unwrap();
+    let scene = Scene::from_file(std::path::Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/examples/scenes/toppling_stack.json"
+    )))
+    .unwrap();
     let p = Prepared::new(&scene, &RunOptions::default()).unwrap();
     // The stack is in contact from the start; after the warm-up its buffers have their size.
     assert_eq!(allocations(&p, 2000, 2000), 0);

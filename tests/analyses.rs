@@ -28,15 +28,26 @@ fn column(n: usize, h: f64, supports: &str) -> Model {
 /// eq. 12 with `h_a + h_b = h` inside and `h/2` at a ground spring.
 #[test]
 fn column_frequencies_match_the_discrete_closed_form() {
-    let (n, h, t, e, nu, rho): (usize, f64, f64, f64, f64, f64) = (40, 0.05, 0.5, 2.0e9, 0.2, 1500.0);
+    let (n, h, t, e, nu, rho): (usize, f64, f64, f64, f64, f64) =
+        (40, 0.05, 0.5, 2.0e9, 0.2, 1500.0);
     let stiff = e / (1.0 - nu * nu) / h * h * t; // K = k_n h t
     let m = rho * h * h * t;
     let clamp = r#"{"edge": "top", "kind": "clamp", "dofs": ["v", "theta"]}"#;
     for (supports, exact) in [
-        (format!(r#"[{clamp}, {{"edge": "left", "kind": "ground-spring"}}]"#),
-         Box::new(|j: usize| 2.0 * (stiff / m).sqrt() * (((2 * j - 1) as f64) * PI / (4.0 * n as f64)).sin()) as Box<dyn Fn(usize) -> f64>),
-        (format!(r#"[{clamp}, {{"edge": "left", "kind": "ground-spring"}}, {{"edge": "right", "kind": "ground-spring"}}]"#),
-         Box::new(|j: usize| 2.0 * (stiff / m).sqrt() * ((j as f64) * PI / (2.0 * n as f64)).sin())),
+        (
+            format!(r#"[{clamp}, {{"edge": "left", "kind": "ground-spring"}}]"#),
+            Box::new(|j: usize| {
+                2.0 * (stiff / m).sqrt() * (((2 * j - 1) as f64) * PI / (4.0 * n as f64)).sin()
+            }) as Box<dyn Fn(usize) -> f64>,
+        ),
+        (
+            format!(
+                r#"[{clamp}, {{"edge": "left", "kind": "ground-spring"}}, {{"edge": "right", "kind": "ground-spring"}}]"#
+            ),
+            Box::new(|j: usize| {
+                2.0 * (stiff / m).sqrt() * ((j as f64) * PI / (2.0 * n as f64)).sin()
+            }),
+        ),
     ] {
         let model = column(n, h, &supports);
         let mass = Mass::new(&model);
@@ -45,7 +56,12 @@ fn column_frequencies_match_the_discrete_closed_form() {
         let modes = eigen::dense_modes(&sys, &mass, n).unwrap();
         for j in 1..=n {
             let rel = (modes.omega[j - 1] - exact(j)).abs() / exact(j);
-            assert!(rel <= 1e-10, "{supports}: mode {j}: {} vs {}: {rel:e}", modes.omega[j - 1], exact(j));
+            assert!(
+                rel <= 1e-10,
+                "{supports}: mode {j}: {} vs {}: {rel:e}",
+                modes.omega[j - 1],
+                exact(j)
+            );
         }
     }
 }
@@ -53,13 +69,25 @@ fn column_frequencies_match_the_discrete_closed_form() {
 /// A free assembly has exactly three zero frequencies on every mesh kind.
 #[test]
 fn free_assembly_has_three_zero_frequencies() {
-    for (name, mesh) in [("rect", common::RECT), ("tri", common::TRI), ("voronoi", common::VORONOI)] {
+    for (name, mesh) in [
+        ("rect", common::RECT),
+        ("tri", common::TRI),
+        ("voronoi", common::VORONOI),
+    ] {
         let model = common::model(mesh, "[]");
         let mass = Mass::new(&model);
         let modes = eigen::dense_modes(&FreeSystem::new(&model, &mass), &mass, 5).unwrap();
-        let zero = modes.omega.iter().filter(|&&w| w <= 1e-6 * modes.omega_max).count();
+        let zero = modes
+            .omega
+            .iter()
+            .filter(|&&w| w <= 1e-6 * modes.omega_max)
+            .count();
         assert_eq!(zero, 3, "{name}: {:?}", &modes.omega);
-        assert!(modes.omega[3] > 1e-3 * modes.omega_max, "{name}: fourth mode {:e}", modes.omega[3]);
+        assert!(
+            modes.omega[3] > 1e-3 * modes.omega_max,
+            "{name}: fourth mode {:e}",
+            modes.omega[3]
+        );
     }
 }
 
@@ -71,7 +99,11 @@ fn free_assembly_has_three_zero_frequencies() {
 /// residual of 7e-10 there, so the gap is the dense solver's). `ω_max` agrees to 1e-10.
 #[test]
 fn dense_and_sparse_eigen_agree() {
-    let scene = Scene::from_file(format!("{}/examples/scenes/cantilever.json", env!("CARGO_MANIFEST_DIR"))).unwrap();
+    let scene = Scene::from_file(format!(
+        "{}/examples/scenes/cantilever.json",
+        env!("CARGO_MANIFEST_DIR")
+    ))
+    .unwrap();
     let model = Model::build(&scene).unwrap();
     let mass = Mass::new(&model);
     let sys = FreeSystem::new(&model, &mass);
@@ -83,11 +115,19 @@ fn dense_and_sparse_eigen_agree() {
     for j in 0..8 {
         let tol = sys.n() as f64 * f64::EPSILON * (dense.omega_max / dense.omega[j]).powi(2);
         let rel = (dense.omega[j] - sparse.omega[j]).abs() / dense.omega[j];
-        assert!(rel <= tol, "mode {}: dense {} sparse {}: {rel:e} > {tol:e}", j + 1, dense.omega[j], sparse.omega[j]);
+        assert!(
+            rel <= tol,
+            "mode {}: dense {} sparse {}: {rel:e} > {tol:e}",
+            j + 1,
+            dense.omega[j],
+            sparse.omega[j]
+        );
     }
     // The shapes are the same up to sign (M-normalised).
     let m = mass.diagonal();
-    let dot: f64 = (0..m.len()).map(|i| dense.shapes[0][i] * m[i] * sparse.shapes[0][i]).sum();
+    let dot: f64 = (0..m.len())
+        .map(|i| dense.shapes[0][i] * m[i] * sparse.shapes[0][i])
+        .sum();
     assert!((dot.abs() - 1.0).abs() < 1e-6, "{dot}");
 }
 
@@ -112,17 +152,31 @@ fn square_grid_passes_the_patch_tests_to_round_off() {
     let mesh = r#"{"kind": "grid", "origin": [0, 0], "size": [1.2, 0.8], "cells": [6, 4]}"#;
     let (e, sigma) = (1.0e10, 3.0e6);
     for nu in [0.0, 0.2] {
-        let (model, u) = patch(mesh, nu, &format!(r#"[{{"kind": "traction", "edge": "right", "value": [{sigma}, 0]}}]"#),
-            r#"[{"edge": "left", "kind": "ground-spring", "components": ["n"]}, {"edge": "bottom", "kind": "ground-spring", "components": ["n"]}]"#);
+        let (model, u) = patch(
+            mesh,
+            nu,
+            &format!(r#"[{{"kind": "traction", "edge": "right", "value": [{sigma}, 0]}}]"#),
+            r#"[{"edge": "left", "kind": "ground-spring", "components": ["n"]}, {"edge": "bottom", "kind": "ground-spring", "components": ["n"]}]"#,
+        );
         let eps = sigma * (1.0 - nu * nu) / e;
         for (k, el) in model.elements.iter().enumerate() {
             let c = el.props.centroid;
-            let err = [(u[3 * k] - eps * c.x).abs(), u[3 * k + 1].abs(), u[3 * k + 2].abs()];
-            assert!(err.iter().all(|&x| x <= 1e-12 * eps), "tension, ν = {nu}, element {k}: {err:?}");
+            let err = [
+                (u[3 * k] - eps * c.x).abs(),
+                u[3 * k + 1].abs(),
+                u[3 * k + 2].abs(),
+            ];
+            assert!(
+                err.iter().all(|&x| x <= 1e-12 * eps),
+                "tension, ν = {nu}, element {k}: {err:?}"
+            );
         }
         for i in model.interfaces.iter().filter(|i| i.normal.x.abs() > 0.5) {
             let t = statics::midpoint_traction(&model, i, &u);
-            assert!((t[0] - sigma).abs() <= 1e-10 * sigma && t[1].abs() <= 1e-10 * sigma, "tension traction {t:?}");
+            assert!(
+                (t[0] - sigma).abs() <= 1e-10 * sigma && t[1].abs() <= 1e-10 * sigma,
+                "tension traction {t:?}"
+            );
         }
         // Shear: tangential ground springs on the bottom, left and right edges, `(τ, 0)` on
         // top. The rigid elements take the simple-shear state `U_e = (γ y_e, 0, −γ/2)` (pure
@@ -131,19 +185,33 @@ fn square_grid_passes_the_patch_tests_to_round_off() {
         // the rotation through its `L³/12` term, so the supports are tangential only; with two
         // of them through one corner, the rotation about that corner would be a mechanism.)
         let tau = 1.0e6;
-        let (model, u) = patch(mesh, nu, &format!(r#"[{{"kind": "traction", "edge": "top", "value": [{tau}, 0]}}]"#),
+        let (model, u) = patch(
+            mesh,
+            nu,
+            &format!(r#"[{{"kind": "traction", "edge": "top", "value": [{tau}, 0]}}]"#),
             r#"[{"edge": "bottom", "kind": "ground-spring", "components": ["s"]},
                 {"edge": "left", "kind": "ground-spring", "components": ["s"]},
-                {"edge": "right", "kind": "ground-spring", "components": ["s"]}]"#);
+                {"edge": "right", "kind": "ground-spring", "components": ["s"]}]"#,
+        );
         let gamma = tau * 2.0 * (1.0 + nu) / e;
         for (k, el) in model.elements.iter().enumerate() {
             let c = el.props.centroid;
-            let err = [(u[3 * k] - gamma * c.y).abs(), u[3 * k + 1].abs(), (u[3 * k + 2] + 0.5 * gamma).abs()];
-            assert!(err.iter().all(|&x| x <= 1e-12 * gamma), "shear, ν = {nu}, element {k}: {err:?}");
+            let err = [
+                (u[3 * k] - gamma * c.y).abs(),
+                u[3 * k + 1].abs(),
+                (u[3 * k + 2] + 0.5 * gamma).abs(),
+            ];
+            assert!(
+                err.iter().all(|&x| x <= 1e-12 * gamma),
+                "shear, ν = {nu}, element {k}: {err:?}"
+            );
         }
         for i in &model.interfaces {
             let t = statics::midpoint_traction(&model, i, &u);
-            assert!(t[0].abs() <= 1e-10 * tau && (t[1].abs() - tau).abs() <= 1e-10 * tau, "shear traction {t:?}");
+            assert!(
+                t[0].abs() <= 1e-10 * tau && (t[1].abs() - tau).abs() <= 1e-10 * tau,
+                "shear traction {t:?}"
+            );
         }
     }
 }
@@ -152,10 +220,23 @@ fn square_grid_passes_the_patch_tests_to_round_off() {
 #[test]
 fn mechanism_names_the_free_modes() {
     let roller = r#"[{"edge": "bottom", "kind": "ground-spring", "components": ["n"]}]"#;
-    let err = statics::solve(&common::model(common::RECT, roller)).err().unwrap().to_string();
-    assert!(err.contains("mechanism (1 free rigid mode)") && err.contains("body `b` can translate along (1.000, 0.000)"), "{err}");
-    let err = statics::solve(&common::model(common::VORONOI, "[]")).err().unwrap().to_string();
-    assert!(err.contains("3 free rigid modes") && err.contains("rotate about"), "{err}");
+    let err = statics::solve(&common::model(common::RECT, roller))
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(
+        err.contains("mechanism (1 free rigid mode)")
+            && err.contains("body `b` can translate along (1.000, 0.000)"),
+        "{err}"
+    );
+    let err = statics::solve(&common::model(common::VORONOI, "[]"))
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(
+        err.contains("3 free rigid modes") && err.contains("rotate about"),
+        "{err}"
+    );
     // A clamp of `u` and `v` only on the left side leaves no rotation free (several elements).
     let clamp = r#"[{"edge": "left", "kind": "clamp", "dofs": ["u", "v"]}]"#;
     assert!(statics::solve(&common::model(common::RECT, clamp)).is_ok());
@@ -167,8 +248,10 @@ fn mechanism_names_the_free_modes() {
 /// `(1 + ε) Δt_crit`, so the limit is resolved to well below 1 %).
 #[test]
 fn bounds_and_empirical_limit_on_a_square_grid() {
-    let model = common::model(r#"{"kind": "grid", "origin": [0, 0], "size": [1, 1], "cells": [12, 12]}"#,
-        r#"[{"edge": "bottom", "kind": "ground-spring"}]"#);
+    let model = common::model(
+        r#"{"kind": "grid", "origin": [0, 0], "size": [1, 1], "cells": [12, 12]}"#,
+        r#"[{"edge": "bottom", "kind": "ground-spring"}]"#,
+    );
     let mass = Mass::new(&model);
     let sys = FreeSystem::new(&model, &mass);
     let ev = evaluator::build(&model, EvaluatorKind::ElementWise);
@@ -177,11 +260,26 @@ fn bounds_and_empirical_limit_on_a_square_grid() {
     let bounds = rbsm::stability::bounds(&model, &sys, &mass, dt_crit);
     for b in &bounds {
         let proven = b.name != "single-body";
-        assert_eq!(b.ratio <= 1.0 + 1e-12, proven, "{}: ratio {}", b.name, b.ratio);
-        assert!(b.ratio > 0.3, "{}: ratio {} is uselessly small", b.name, b.ratio);
+        assert_eq!(
+            b.ratio <= 1.0 + 1e-12,
+            proven,
+            "{}: ratio {}",
+            b.name,
+            b.ratio
+        );
+        assert!(
+            b.ratio > 0.3,
+            "{}: ratio {} is uselessly small",
+            b.name,
+            b.ratio
+        );
     }
-    let (_, ratio) = rbsm::stability::empirical_limit(&model, ev.as_ref(), &mass, dt_crit, 2000, 1e-3);
-    assert!((ratio - 1.0).abs() <= 0.01, "empirical limit at {ratio} × Δt_crit");
+    let (_, ratio) =
+        rbsm::stability::empirical_limit(&model, ev.as_ref(), &mass, dt_crit, 2000, 1e-3);
+    assert!(
+        (ratio - 1.0).abs() <= 0.01,
+        "empirical limit at {ratio} × Δt_crit"
+    );
 }
 
 /// `ω_max` of long thin models (issue 18 item 9). A free chain's top eigenvalues are a cluster
@@ -198,18 +296,37 @@ fn omega_max_of_long_free_chains_is_accurate_and_fast() {
         let mass = Mass::new(m);
         let ev = evaluator::build(m, EvaluatorKind::Assembled);
         let t = std::time::Instant::now();
-        (eigen::omega_max(m, ev.as_ref(), &mass), t.elapsed().as_secs_f64())
+        (
+            eigen::omega_max(m, ev.as_ref(), &mass),
+            t.elapsed().as_secs_f64(),
+        )
     };
     let small = column(300, 0.01, "[]");
     let mass = Mass::new(&small);
-    let dense = eigen::dense_modes(&FreeSystem::new(&small, &mass), &mass, 0).unwrap().omega_max;
+    let dense = eigen::dense_modes(&FreeSystem::new(&small, &mass), &mass, 0)
+        .unwrap()
+        .omega_max;
     let (lanczos, _) = omega(&small);
-    assert!((lanczos - dense).abs() <= 1e-11 * dense, "{lanczos} {dense}: {:e}", lanczos / dense - 1.0);
-    let w: Vec<(f64, f64)> = [5_000, 10_000, 20_000].iter().map(|&n| omega(&column(n, 0.01, "[]"))).collect();
+    assert!(
+        (lanczos - dense).abs() <= 1e-11 * dense,
+        "{lanczos} {dense}: {:e}",
+        lanczos / dense - 1.0
+    );
+    let w: Vec<(f64, f64)> = [5_000, 10_000, 20_000]
+        .iter()
+        .map(|&n| omega(&column(n, 0.01, "[]")))
+        .collect();
     let ratio = (w[1].0 - w[0].0) / (w[2].0 - w[1].0);
     assert!((ratio - 4.0).abs() < 0.04, "{ratio}: {w:?}");
-    let square = omega(&model_of(r#"{"kind": "grid", "origin": [0, 0], "size": [1.42, 1.41], "cells": [142, 141]}"#)).1;
-    assert!(w[2].1 <= 3.0 * square, "chain {:.3} s, square {square:.3} s", w[2].1);
+    let square = omega(&model_of(
+        r#"{"kind": "grid", "origin": [0, 0], "size": [1.42, 1.41], "cells": [142, 141]}"#,
+    ))
+    .1;
+    assert!(
+        w[2].1 <= 3.0 * square,
+        "chain {:.3} s, square {square:.3} s",
+        w[2].1
+    );
 }
 
 fn model_of(mesh: &str) -> Model {

@@ -4,8 +4,17 @@
 use std::process::Command;
 
 fn check(args: &[&str]) -> (i32, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_rbsm")).arg("check").args(args).current_dir(env!("CARGO_MANIFEST_DIR")).output().unwrap();
-    (out.status.code().unwrap_or(-1), String::from_utf8_lossy(&out.stdout).into_owned(), String::from_utf8_lossy(&out.stderr).into_owned())
+    let out = Command::new(env!("CARGO_BIN_EXE_rbsm"))
+        .arg("check")
+        .args(args)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .unwrap();
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
 }
 
 #[test]
@@ -20,7 +29,10 @@ fn a_good_scene_is_described() {
     assert_eq!(r["loads"], 8);
     assert!(r["contact"].is_null());
     let (dt, crit) = (r["dt"].as_f64().unwrap(), r["dt_crit"].as_f64().unwrap());
-    assert!((dt / crit - 0.9).abs() < 1e-12 && r["steps"].as_u64().unwrap() == (0.1 / dt - 1e-9).ceil() as u64);
+    assert!(
+        (dt / crit - 0.9).abs() < 1e-12
+            && r["steps"].as_u64().unwrap() == (0.1 / dt - 1e-9).ceil() as u64
+    );
     assert!(r["memory_bytes"].as_u64().unwrap() > 1920 * 8 * 6);
     // With contact: the pairs it would track.
     let (code, stdout, _) = check(&["examples/scenes/hopping_block.json", "--json"]);
@@ -31,22 +43,47 @@ fn a_good_scene_is_described() {
     // Text for people.
     let (code, stdout, _) = check(&["examples/scenes/cantilever.json"]);
     assert_eq!(code, 0);
-    assert!(stdout.contains("cantilever: valid") && stdout.contains("Δt_crit") && stdout.contains("memory"), "{stdout}");
+    assert!(
+        stdout.contains("cantilever: valid")
+            && stdout.contains("Δt_crit")
+            && stdout.contains("memory"),
+        "{stdout}"
+    );
 }
 
 #[test]
 fn a_bad_scene_is_refused_with_its_field() {
     let dir = std::env::temp_dir().join(format!("rbsm-check-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
-    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/examples/scenes/cantilever_gmsh.json")).unwrap();
-    let msh = concat!(env!("CARGO_MANIFEST_DIR"), "/examples/meshes/cantilever.msh");
+    let text = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/examples/scenes/cantilever_gmsh.json"
+    ))
+    .unwrap();
+    let msh = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/examples/meshes/cantilever.msh"
+    );
     let bad = dir.join("bad.json");
-    std::fs::write(&bad, text.replace("\"clamp\"", "\"clmap\"").replace("../meshes/cantilever.msh", msh)).unwrap();
+    std::fs::write(
+        &bad,
+        text.replace("\"clamp\"", "\"clmap\"")
+            .replace("../meshes/cantilever.msh", msh),
+    )
+    .unwrap();
     let (code, stdout, stderr) = check(&[bad.to_str().unwrap()]);
     assert_eq!(code, 1, "{stdout}");
-    assert!(stderr.contains("bodies[0].supports[0].edge") && stderr.contains("clmap"), "{stderr}");
+    assert!(
+        stderr.contains("bodies[0].supports[0].edge") && stderr.contains("clmap"),
+        "{stderr}"
+    );
     let neg = dir.join("neg.json");
-    std::fs::write(&neg, text.replace("3.0e10", "-3.0e10").replace("../meshes/cantilever.msh", msh)).unwrap();
+    std::fs::write(
+        &neg,
+        text.replace("3.0e10", "-3.0e10")
+            .replace("../meshes/cantilever.msh", msh),
+    )
+    .unwrap();
     let (code, _, stderr) = check(&[neg.to_str().unwrap()]);
     assert_eq!(code, 1);
     assert!(stderr.contains("materials.concrete.E"), "{stderr}");

@@ -13,9 +13,14 @@ fn scene(name: &str) -> String {
 
 /// Runs `rbsm ARGS --json`; its exit code and standard output parsed as JSON.
 fn json(args: &[&str]) -> (Option<i32>, Value) {
-    let out = Command::new(RBSM).args(args).args(["--json", "--quiet"]).output().unwrap();
+    let out = Command::new(RBSM)
+        .args(args)
+        .args(["--json", "--quiet"])
+        .output()
+        .unwrap();
     let text = String::from_utf8(out.stdout).unwrap();
-    let value = serde_json::from_str(&text).unwrap_or_else(|e| panic!("{args:?}: not JSON ({e}): {text:?}"));
+    let value = serde_json::from_str(&text)
+        .unwrap_or_else(|e| panic!("{args:?}: not JSON ({e}): {text:?}"));
     (out.status.code(), value)
 }
 
@@ -27,13 +32,30 @@ fn every_command_answers_json_with_json() {
     let (code, v) = json(&["check", &cantilever]);
     assert_eq!(code, Some(0));
     assert!(v["dt_crit"].as_f64().unwrap() > 0.0);
-    let (code, v) = json(&["run", &cantilever, "--steps", "50", "--out", &format!("{dir}/run")]);
+    let (code, v) = json(&[
+        "run",
+        &cantilever,
+        "--steps",
+        "50",
+        "--out",
+        &format!("{dir}/run"),
+    ]);
     assert_eq!((code, v["status"].as_str()), (Some(0), Some("ok")));
     let (code, v) = json(&["plot", &format!("{dir}/run")]);
     assert_eq!(code, Some(0));
-    assert!(v["written"].as_array().unwrap().iter().any(|p| p.as_str().unwrap().ends_with("energies.svg")));
+    assert!(v["written"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .any(|p| p.as_str().unwrap().ends_with("energies.svg")));
     let (code, v) = json(&["draw", &cantilever, "--out", &format!("{dir}/model.svg")]);
-    assert_eq!((code, v["written"][0].as_str().map(|p| p.ends_with("model.svg"))), (Some(0), Some(true)));
+    assert_eq!(
+        (
+            code,
+            v["written"][0].as_str().map(|p| p.ends_with("model.svg"))
+        ),
+        (Some(0), Some(true))
+    );
     let (code, v) = json(&["static", &cantilever]);
     assert_eq!(code, Some(0));
     assert!(v["energy"].as_f64().unwrap() > 0.0);
@@ -46,18 +68,35 @@ fn every_command_answers_json_with_json() {
     let (code, v) = json(&["check", bad.to_str().unwrap()]);
     assert_eq!(code, Some(1));
     assert_eq!(v["error"]["kind"], "parse");
-    assert!(v["error"]["message"].as_str().unwrap().contains("missing field"));
+    assert!(v["error"]["message"]
+        .as_str()
+        .unwrap()
+        .contains("missing field"));
     let (code, v) = json(&["check", "/no/such/scene.json"]);
-    assert_eq!((code, v["error"]["kind"].as_str(), v["error"]["key"].as_str()), (Some(1), Some("io"), Some("/no/such/scene.json")));
+    assert_eq!(
+        (
+            code,
+            v["error"]["kind"].as_str(),
+            v["error"]["key"].as_str()
+        ),
+        (Some(1), Some("io"), Some("/no/such/scene.json"))
+    );
 }
 
 #[test]
 fn a_reader_that_closes_early_ends_the_process_cleanly() {
     let tmp = tempfile::tempdir().unwrap();
-    for args in [vec!["run", &scene("cantilever"), "--steps", "200", "--json"], vec!["eigen", &scene("cantilever"), "--modes", "3"]] {
+    for args in [
+        vec!["run", &scene("cantilever"), "--steps", "200", "--json"],
+        vec!["eigen", &scene("cantilever"), "--modes", "3"],
+    ] {
         let mut child = Command::new(RBSM)
             .args(&args)
-            .args(["--out", tmp.path().join("out").to_str().unwrap()].iter().filter(|_| args[0] == "run"))
+            .args(
+                ["--out", tmp.path().join("out").to_str().unwrap()]
+                    .iter()
+                    .filter(|_| args[0] == "run"),
+            )
             .stdout(Stdio::piped())
             .stderr(Stdio::piped())
             .spawn()
@@ -79,20 +118,47 @@ fn static_and_eigen_write_their_outputs() {
     let cantilever = scene("cantilever");
     let (code, _) = json(&["static", &cantilever, "--out", s.to_str().unwrap()]);
     assert_eq!(code, Some(0));
-    let summary: Value = serde_json::from_str(&std::fs::read_to_string(s.join("summary.json")).unwrap()).unwrap();
+    let summary: Value =
+        serde_json::from_str(&std::fs::read_to_string(s.join("summary.json")).unwrap()).unwrap();
     assert!(summary["energy"].as_f64().unwrap() > 0.0);
-    assert!(std::fs::read_to_string(s.join("series.pvd")).unwrap().contains(r#"file="static.vtu""#));
+    assert!(std::fs::read_to_string(s.join("series.pvd"))
+        .unwrap()
+        .contains(r#"file="static.vtu""#));
     assert!(vtkio::Vtk::import(s.join("static.vtu")).is_ok());
     let probes = std::fs::read_to_string(s.join("probes.csv")).unwrap();
     assert_eq!(probes.lines().next(), Some("case,tip_v (m)"));
-    let tip: f64 = probes.lines().nth(1).unwrap().split(',').nth(1).unwrap().parse().unwrap();
-    let state: Value = serde_json::from_str(&std::fs::read_to_string(s.join("final_state.json")).unwrap()).unwrap();
+    let tip: f64 = probes
+        .lines()
+        .nth(1)
+        .unwrap()
+        .split(',')
+        .nth(1)
+        .unwrap()
+        .parse()
+        .unwrap();
+    let state: Value =
+        serde_json::from_str(&std::fs::read_to_string(s.join("final_state.json")).unwrap())
+            .unwrap();
     assert_eq!(tip, state["elements"][79]["U"][1].as_f64().unwrap());
-    let (code, _) = json(&["eigen", &cantilever, "--modes", "3", "--out", e.to_str().unwrap()]);
+    let (code, _) = json(&[
+        "eigen",
+        &cantilever,
+        "--modes",
+        "3",
+        "--out",
+        e.to_str().unwrap(),
+    ]);
     assert_eq!(code, Some(0));
-    let summary: Value = serde_json::from_str(&std::fs::read_to_string(e.join("summary.json")).unwrap()).unwrap();
+    let summary: Value =
+        serde_json::from_str(&std::fs::read_to_string(e.join("summary.json")).unwrap()).unwrap();
     assert_eq!(summary["frequencies_hz"].as_array().unwrap().len(), 3);
-    assert_eq!(std::fs::read_to_string(e.join("modes.pvd")).unwrap().matches("<DataSet").count(), 3);
+    assert_eq!(
+        std::fs::read_to_string(e.join("modes.pvd"))
+            .unwrap()
+            .matches("<DataSet")
+            .count(),
+        3
+    );
     let probes = std::fs::read_to_string(e.join("probes.csv")).unwrap();
     assert_eq!(probes.lines().count(), 4);
     assert!(probes.starts_with("mode,frequency_hz,tip_v (m)\n1,"));

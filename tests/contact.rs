@@ -24,7 +24,15 @@ struct Outcome {
 /// Runs `scene` for `steps` steps of `dt`, sampling every step.
 fn run(scene: &str, dt: f64, steps: u64) -> Outcome {
     let scene = Scene::from_json(scene).expect("valid scene");
-    let p = Prepared::new(&scene, &RunOptions { dt: Some(dt), steps: Some(steps), ..Default::default() }).expect("model");
+    let p = Prepared::new(
+        &scene,
+        &RunOptions {
+            dt: Some(dt),
+            steps: Some(steps),
+            ..Default::default()
+        },
+    )
+    .expect("model");
     let mut cd = p.integrator(dt);
     let mut tracker = Tracker::default();
     let mut max_rotation: f64 = 0.0;
@@ -34,8 +42,16 @@ fn run(scene: &str, dt: f64, steps: u64) -> Outcome {
             steps,
             1,
             |s, _| {
-                tracker.push(s.t, lowest_point(&p.model, s.u), centre_velocity(&p.model, s.v).y);
-                max_rotation = max_rotation.max((0..p.model.elements.len()).map(|e| s.u[e * nd + 2].abs()).fold(0.0, f64::max));
+                tracker.push(
+                    s.t,
+                    lowest_point(&p.model, s.u),
+                    centre_velocity(&p.model, s.v).y,
+                );
+                max_rotation = max_rotation.max(
+                    (0..p.model.elements.len())
+                        .map(|e| s.u[e * nd + 2].abs())
+                        .fold(0.0, f64::max),
+                );
                 Ok(())
             },
             |_| {},
@@ -65,16 +81,41 @@ fn hopping_block_matches_the_theory_of_a_flat_landing() {
         assert_eq!(o.status, Status::Ok);
         let b = o.tracker.bounces[0];
         let rel = |a: f64, b: f64| (a - b).abs() / b;
-        eprintln!("{model}: {b:?}; theory impact {} contact {} speed {}", th.impact_time(), th.contact_time(), th.impact_speed());
+        eprintln!(
+            "{model}: {b:?}; theory impact {} contact {} speed {}",
+            th.impact_time(),
+            th.contact_time(),
+            th.impact_speed()
+        );
         // Impact time and speed: free fall, exact up to the step (1e-6 s in 0.2 s).
-        assert!(rel(b.impact, th.impact_time()) < 1e-5, "impact at {} s", b.impact);
-        assert!(rel(b.impact_speed, th.impact_speed()) < 1e-5, "impact speed {}", b.impact_speed);
+        assert!(
+            rel(b.impact, th.impact_time()) < 1e-5,
+            "impact at {} s",
+            b.impact
+        );
+        assert!(
+            rel(b.impact_speed, th.impact_speed()) < 1e-5,
+            "impact speed {}",
+            b.impact_speed
+        );
         // Contact time against (π + 2 arcsin(δ_s/A))/ω: ~25 steps per contact, 1 % (measured 0.4 %).
-        assert!(rel(b.release - b.impact, th.contact_time()) < 0.01, "contact time {} s", b.release - b.impact);
+        assert!(
+            rel(b.release - b.impact, th.contact_time()) < 0.01,
+            "contact time {} s",
+            b.release - b.impact
+        );
         // Rebound speed and apex: no energy loss, up to the penalty's O(Δt) onset error.
-        assert!(rel(b.rebound_speed, b.impact_speed) < 1e-3, "rebound speed {}", b.rebound_speed);
+        assert!(
+            rel(b.rebound_speed, b.impact_speed) < 1e-3,
+            "rebound speed {}",
+            b.rebound_speed
+        );
         assert!(rel(b.apex, h) < 2e-3, "apex {} m", b.apex);
-        assert!(o.max_rotation < 1e-9, "a flat landing does not turn the block: θ = {}", o.max_rotation);
+        assert!(
+            o.max_rotation < 1e-9,
+            "a flat landing does not turn the block: θ = {}",
+            o.max_rotation
+        );
         assert!(o.drift < 5e-3, "energy drift {}", o.drift);
     }
 }
@@ -87,12 +128,19 @@ fn apex_error_converges_with_the_time_step() {
     let errors: Vec<f64> = [4e-6, 1e-6]
         .iter()
         .map(|&dt| {
-            let o = run(&brick::scene([1, 1], "edge-to-edge", None, 0.0, h, 0.0), dt, (1.3 * th.period() / dt) as u64);
+            let o = run(
+                &brick::scene([1, 1], "edge-to-edge", None, 0.0, h, 0.0),
+                dt,
+                (1.3 * th.period() / dt) as u64,
+            );
             (o.tracker.bounces[0].apex - h).abs() / h
         })
         .collect();
     eprintln!("apex errors at dt = 4e-6, 1e-6: {errors:?}");
-    assert!(errors[1] < errors[0] / 3.0, "apex error {errors:?} does not fall with dt");
+    assert!(
+        errors[1] < errors[0] / 3.0,
+        "apex error {errors:?} does not fall with dt"
+    );
 }
 
 /// A 5° tilt: frictionless contact keeps the energy in both models, and the two models differ.
@@ -102,13 +150,23 @@ fn tilted_landing_conserves_energy_without_friction() {
     let steps = (1.2 * brick::theory(h).period() / 1e-6) as u64;
     let mut rotations = Vec::new();
     for model in ["edge-to-edge", "point"] {
-        let o = run(&brick::scene([1, 1], model, Some(0.0), 5.0, h, 0.0), 1e-6, steps);
+        let o = run(
+            &brick::scene([1, 1], model, Some(0.0), 5.0, h, 0.0),
+            1e-6,
+            steps,
+        );
         assert_eq!(o.status, Status::Ok);
-        eprintln!("{model}: drift {:e}, final θ {:e}, rate {:e}", o.drift, o.final_u[2], o.final_v[2]);
+        eprintln!(
+            "{model}: drift {:e}, final θ {:e}, rate {:e}",
+            o.drift, o.final_u[2], o.final_v[2]
+        );
         assert!(o.drift < 2e-3, "{model}: energy drift {}", o.drift);
         rotations.push(o.final_v[2]);
     }
-    assert!((rotations[0] - rotations[1]).abs() > 1e-3 * rotations[0].abs(), "the two models spin the block alike: {rotations:?}");
+    assert!(
+        (rotations[0] - rotations[1]).abs() > 1e-3 * rotations[0].abs(),
+        "the two models spin the block alike: {rotations:?}"
+    );
 }
 
 /// A brick at rest on flat ground, placed at its static penetration, stays there for 10⁵ steps.
@@ -117,12 +175,22 @@ fn resting_block_stays_at_rest() {
     let th = brick::theory(0.0);
     let static_depth = th.mass * G / th.stiffness;
     for model in ["edge-to-edge", "point"] {
-        let o = run(&brick::scene([1, 1], model, None, 0.0, -static_depth, 0.0), 1e-6, 100_000);
+        let o = run(
+            &brick::scene([1, 1], model, None, 0.0, -static_depth, 0.0),
+            1e-6,
+            100_000,
+        );
         assert_eq!(o.status, Status::Ok);
         let speed = o.final_v[..3].iter().fold(0.0f64, |a, v| a.max(v.abs()));
         let moved = o.final_u[..3].iter().fold(0.0f64, |a, v| a.max(v.abs()));
-        eprintln!("{model}: static depth {static_depth:e} m, |v| {speed:e}, |u| {moved:e}, bounces {}", o.tracker.bounces.len());
-        assert!(speed < 1e-9 && moved < 1e-6 * static_depth, "{model}: drifted: |v| {speed:e} m/s, |u| {moved:e} m");
+        eprintln!(
+            "{model}: static depth {static_depth:e} m, |v| {speed:e}, |u| {moved:e}, bounces {}",
+            o.tracker.bounces.len()
+        );
+        assert!(
+            speed < 1e-9 && moved < 1e-6 * static_depth,
+            "{model}: drifted: |v| {speed:e} m/s, |u| {moved:e} m"
+        );
     }
 }
 
@@ -136,7 +204,11 @@ fn incline_with_friction_slides_at_the_coulomb_rate() {
         for mu in [0.2, 0.5] {
             let (t1, t2) = (0.05, 0.1);
             let o_speed = |steps: u64| {
-                let o = run(&brick::scene([1, 1], model, Some(mu), 0.0, -depth, 20.0), 1e-6, steps);
+                let o = run(
+                    &brick::scene([1, 1], model, Some(mu), 0.0, -depth, 20.0),
+                    1e-6,
+                    steps,
+                );
                 assert_eq!(o.status, Status::Ok);
                 // Down the slope.
                 -(o.final_v[0] * alpha.cos() + o.final_v[1] * alpha.sin())
@@ -146,9 +218,15 @@ fn incline_with_friction_slides_at_the_coulomb_rate() {
             let expected = (G * (alpha.sin() - mu * alpha.cos())).max(0.0);
             eprintln!("{model}, μ = {mu}: a = {a:.5} m/s², Coulomb {expected:.5}");
             if expected > 0.0 {
-                assert!((a - expected).abs() < 0.01 * expected, "{model}: a = {a}, expected {expected}");
+                assert!(
+                    (a - expected).abs() < 0.01 * expected,
+                    "{model}: a = {a}, expected {expected}"
+                );
             } else {
-                assert!(a.abs() < 1e-3 && v2.abs() < 1e-3, "{model}: a block that should stick moves: v = {v2}, a = {a}");
+                assert!(
+                    a.abs() < 1e-3 && v2.abs() < 1e-3,
+                    "{model}: a block that should stick moves: v = {v2}, a = {a}"
+                );
             }
         }
     }
@@ -168,17 +246,38 @@ fn a_toppling_stack_of_bricks() {
     // of the other bodies and the ground.
     let edges: usize = model.bodies.iter().map(|b| b.mesh.boundary.len()).sum();
     let all_pairs = edges * (edges - edges / model.bodies.len() + model.ground.len());
-    eprintln!("stack: max pairs {}, tests/step {:.1} (all pairs {all_pairs}), drift {:e}", o.max_pairs, o.tests_per_step, o.drift);
-    assert!(o.max_pairs >= 3, "the bricks touch each other and the ground: {} pairs", o.max_pairs);
-    assert!(o.tests_per_step < 0.6 * all_pairs as f64, "broad phase: {} tests per step", o.tests_per_step);
+    eprintln!(
+        "stack: max pairs {}, tests/step {:.1} (all pairs {all_pairs}), drift {:e}",
+        o.max_pairs, o.tests_per_step, o.drift
+    );
+    assert!(
+        o.max_pairs >= 3,
+        "the bricks touch each other and the ground: {} pairs",
+        o.max_pairs
+    );
+    assert!(
+        o.tests_per_step < 0.6 * all_pairs as f64,
+        "broad phase: {} tests per step",
+        o.tests_per_step
+    );
     assert!(o.drift < 0.01, "energy drift {}", o.drift);
-    assert!(lowest_point(model, &o.final_u) > -1e-3, "a brick sank into the ground");
+    assert!(
+        lowest_point(model, &o.final_u) > -1e-3,
+        "a brick sank into the ground"
+    );
 }
 
 /// A scene without `contact` builds no contact and so does no contact work.
 #[test]
 fn no_contact_without_contact() {
-    let scene = Scene::from_json(&std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/examples/scenes/cantilever.json")).unwrap()).unwrap();
+    let scene = Scene::from_json(
+        &std::fs::read_to_string(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/examples/scenes/cantilever.json"
+        ))
+        .unwrap(),
+    )
+    .unwrap();
     let p = Prepared::new(&scene, &RunOptions::default()).unwrap();
     assert!(Contact::new(&p.model).is_none());
     let cd = p.integrator(p.dt);

@@ -7,14 +7,28 @@ use rbsm::run::{self, Prepared, RunOptions, Silent};
 use rbsm::scene::{EvaluatorKind, Scene};
 
 fn scene(name: &str) -> Scene {
-    Scene::from_file(format!("{}/examples/scenes/{name}.json", env!("CARGO_MANIFEST_DIR"))).unwrap()
+    Scene::from_file(format!(
+        "{}/examples/scenes/{name}.json",
+        env!("CARGO_MANIFEST_DIR")
+    ))
+    .unwrap()
 }
 
 /// `U` after `steps` steps of `scene` with the given evaluator, and `max |U|`.
 fn trajectory(scene: &Scene, kind: EvaluatorKind, steps: u64) -> Vec<f64> {
-    let p = Prepared::new(scene, &RunOptions { evaluator: Some(kind), ..Default::default() }).unwrap();
+    let p = Prepared::new(
+        scene,
+        &RunOptions {
+            evaluator: Some(kind),
+            ..Default::default()
+        },
+    )
+    .unwrap();
     let mut cd = p.integrator(p.dt);
-    assert_eq!(cd.run(steps, steps, |_, _| Ok(()), |_| {}).unwrap(), Status::Ok);
+    assert_eq!(
+        cd.run(steps, steps, |_, _| Ok(()), |_| {}).unwrap(),
+        Status::Ok
+    );
     cd.u
 }
 
@@ -37,8 +51,13 @@ fn evaluators_give_the_same_trajectory_over_ten_thousand_steps() {
         let e = trajectory(&s, EvaluatorKind::ElementWise, 10_000);
         let scale = a.iter().fold(0.0f64, |m, x| m.max(x.abs()));
         let diff = common::max_abs_diff(&a, &e) / scale;
-        eprintln!("{name}: max |U_assembled − U_element-wise| / max |U| = {diff:.3e} after 10⁴ steps");
-        assert!(scale > 0.0 && diff <= 1e-9, "{name}: relative difference {diff:e}");
+        eprintln!(
+            "{name}: max |U_assembled − U_element-wise| / max |U| = {diff:.3e} after 10⁴ steps"
+        );
+        assert!(
+            scale > 0.0 && diff <= 1e-9,
+            "{name}: relative difference {diff:e}"
+        );
     }
 }
 
@@ -47,7 +66,16 @@ fn drift(scene: &Scene, factor: f64, steps: u64) -> f64 {
     s.time.dt = None;
     s.time.dt_factor = Some(factor);
     let dir = tempfile::tempdir().unwrap();
-    let summary = run::run(&s, &RunOptions { steps: Some(steps), ..Default::default() }, dir.path(), &mut Silent).unwrap();
+    let summary = run::run(
+        &s,
+        &RunOptions {
+            steps: Some(steps),
+            ..Default::default()
+        },
+        dir.path(),
+        &mut Silent,
+    )
+    .unwrap();
     assert_eq!(summary.status, "ok");
     summary.energy.max_relative_drift
 }
@@ -62,7 +90,10 @@ fn energy_is_conserved_to_round_off() {
     let coarse = drift(&s, 0.9, 10_000);
     let fine = drift(&s, 0.45, 20_000);
     eprintln!("cantilever energy drift: {coarse:.3e} at 0.9 Δt_crit, {fine:.3e} at 0.45 Δt_crit");
-    assert!(coarse <= 1e-10 && fine <= 1e-10, "drift {coarse:e} at 0.9 Δt_crit, {fine:e} at 0.45");
+    assert!(
+        coarse <= 1e-10 && fine <= 1e-10,
+        "drift {coarse:e} at 0.9 Δt_crit, {fine:e} at 0.45"
+    );
 }
 
 /// Above Δt_crit the run stops with the step, the time and the reason, and what it wrote stays
@@ -76,17 +107,38 @@ fn unstable_run_stops_with_reason_and_keeps_its_outputs() {
     let summary = run::run(&s, &RunOptions::default(), dir.path(), &mut Silent).unwrap();
     assert_eq!(summary.status, "diverged");
     let reason = summary.reason.unwrap();
-    assert!(reason.starts_with("step ") && reason.contains("t = ") && reason.contains("energy growth"), "{reason}");
+    assert!(
+        reason.starts_with("step ") && reason.contains("t = ") && reason.contains("energy growth"),
+        "{reason}"
+    );
     assert!(summary.steps < 25_000, "stopped at step {}", summary.steps);
     // It was warned about before it started, and the summary keeps the warning.
-    assert!(summary.warnings.iter().any(|w| w.contains("1.0500 × Δt_crit")), "{:?}", summary.warnings);
+    assert!(
+        summary
+            .warnings
+            .iter()
+            .any(|w| w.contains("1.0500 × Δt_crit")),
+        "{:?}",
+        summary.warnings
+    );
     let history = std::fs::read_to_string(dir.path().join("history.csv")).unwrap();
     for line in history.lines().skip(1) {
-        assert!(line.split(',').all(|x| x.parse::<f64>().is_ok_and(f64::is_finite)), "bad row {line}");
+        assert!(
+            line.split(',')
+                .all(|x| x.parse::<f64>().is_ok_and(f64::is_finite)),
+            "bad row {line}"
+        );
     }
-    let state: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.path().join("final_state.json")).unwrap()).unwrap();
+    let state: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.path().join("final_state.json")).unwrap(),
+    )
+    .unwrap();
     let u = &state["elements"][79]["U"];
-    assert!(u.as_array().unwrap().iter().all(|x| x.as_f64().is_some_and(f64::is_finite)));
+    assert!(u
+        .as_array()
+        .unwrap()
+        .iter()
+        .all(|x| x.as_f64().is_some_and(f64::is_finite)));
 }
 
 /// A run into a folder that holds an earlier run's outputs removes them first: a shorter run
@@ -98,15 +150,35 @@ fn a_run_clears_an_earlier_runs_outputs() {
     s.output.vtk = true;
     let dir = tempfile::tempdir().unwrap();
     let frames = |dir: &std::path::Path| std::fs::read_dir(dir.join("vtk")).unwrap().count();
-    run::run(&s, &RunOptions { steps: Some(1000), ..Default::default() }, dir.path(), &mut Silent).unwrap();
+    run::run(
+        &s,
+        &RunOptions {
+            steps: Some(1000),
+            ..Default::default()
+        },
+        dir.path(),
+        &mut Silent,
+    )
+    .unwrap();
     assert_eq!(frames(dir.path()), 11);
     std::fs::write(dir.path().join("notes.txt"), "mine").unwrap();
     std::fs::write(dir.path().join("vtk").join("mine.vtk"), "mine").unwrap();
-    let summary = run::run(&s, &RunOptions { steps: Some(300), ..Default::default() }, dir.path(), &mut Silent).unwrap();
+    let summary = run::run(
+        &s,
+        &RunOptions {
+            steps: Some(300),
+            ..Default::default()
+        },
+        dir.path(),
+        &mut Silent,
+    )
+    .unwrap();
     assert_eq!(summary.steps, 300);
     // Frames of steps 0 … 300 and the user's own file; the earlier run's 400 … 1000 are gone.
     assert_eq!(frames(dir.path()), 5);
-    assert!(dir.path().join("notes.txt").exists() && dir.path().join("vtk").join("mine.vtk").exists());
+    assert!(
+        dir.path().join("notes.txt").exists() && dir.path().join("vtk").join("mine.vtk").exists()
+    );
 }
 
 /// The files of the README's *Outputs* with their exact keys, header and element order.
@@ -117,20 +189,48 @@ fn outputs_follow_the_contract() {
     s.time.end = None;
     s.time.steps = Some(200);
     let summary = run::run(&s, &RunOptions::default(), dir.path(), &mut Silent).unwrap();
-    let json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.path().join("summary.json")).unwrap()).unwrap();
-    for key in ["scene", "formulation", "evaluator", "elements", "interfaces", "dofs", "dt", "dt_crit", "steps", "t_end", "status",
-                "reason", "wall_time_s", "step_time_s", "threads", "energy"] {
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("summary.json")).unwrap())
+            .unwrap();
+    for key in [
+        "scene",
+        "formulation",
+        "evaluator",
+        "elements",
+        "interfaces",
+        "dofs",
+        "dt",
+        "dt_crit",
+        "steps",
+        "t_end",
+        "status",
+        "reason",
+        "wall_time_s",
+        "step_time_s",
+        "threads",
+        "energy",
+    ] {
         assert!(json.get(key).is_some(), "summary.json lacks `{key}`");
     }
     for key in ["initial", "final", "max_relative_drift"] {
-        assert!(json["energy"].get(key).is_some(), "summary.json energy lacks `{key}`");
+        assert!(
+            json["energy"].get(key).is_some(),
+            "summary.json energy lacks `{key}`"
+        );
     }
     assert_eq!(json["steps"], 200);
     assert_eq!(summary.elements, 400);
     let history = std::fs::read_to_string(dir.path().join("history.csv")).unwrap();
     assert!(history.starts_with("t,kinetic,elastic,contact,potential,external_work,total\n"));
-    assert_eq!(history.lines().count(), 1 + 3, "rows at steps 0, 100 and 200");
-    let state: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.path().join("final_state.json")).unwrap()).unwrap();
+    assert_eq!(
+        history.lines().count(),
+        1 + 3,
+        "rows at steps 0, 100 and 200"
+    );
+    let state: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.path().join("final_state.json")).unwrap(),
+    )
+    .unwrap();
     let elements = state["elements"].as_array().unwrap();
     assert_eq!(elements.len(), 400);
     assert_eq!(elements[0]["U"].as_array().unwrap().len(), 3);
@@ -160,8 +260,12 @@ fn no_vtk_unless_asked() {
 /// a point outside every element is an error naming the probe.
 #[test]
 fn probes_by_point_read_the_displacement_there() {
-    let path = format!("{}/examples/scenes/cantilever.json", env!("CARGO_MANIFEST_DIR"));
-    let mut v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+    let path = format!(
+        "{}/examples/scenes/cantilever.json",
+        env!("CARGO_MANIFEST_DIR")
+    );
+    let mut v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
     let model = rbsm::model::Model::build(&Scene::from_json(&v.to_string()).unwrap()).unwrap();
     let c = model.elements[79].props.centroid;
     v["output"]["probes"] = serde_json::json!([
@@ -172,20 +276,63 @@ fn probes_by_point_read_the_displacement_there() {
     ]);
     let dir = tempfile::tempdir().unwrap();
     let s = Scene::from_json(&v.to_string()).unwrap();
-    run::run(&s, &RunOptions { steps: Some(2000), ..Default::default() }, dir.path(), &mut Silent).unwrap();
+    run::run(
+        &s,
+        &RunOptions {
+            steps: Some(2000),
+            ..Default::default()
+        },
+        dir.path(),
+        &mut Silent,
+    )
+    .unwrap();
     let history = std::fs::read_to_string(dir.path().join("history.csv")).unwrap();
     let header: Vec<&str> = history.lines().next().unwrap().split(',').collect();
-    assert_eq!(header[7..], ["e79_v", &format!("v_at_{}_{}", c.x, c.y), "corner_v", "theta_at_2_0"]);
-    let last: Vec<f64> = history.lines().last().unwrap().split(',').map(|x| x.parse().unwrap()).collect();
+    assert_eq!(
+        header[7..],
+        [
+            "e79_v",
+            &format!("v_at_{}_{}", c.x, c.y),
+            "corner_v",
+            "theta_at_2_0"
+        ]
+    );
+    let last: Vec<f64> = history
+        .lines()
+        .last()
+        .unwrap()
+        .split(',')
+        .map(|x| x.parse().unwrap())
+        .collect();
     assert_eq!(last[7], last[8], "at the centroid, the element's own v");
-    let corner = model.element_at(rbsm::geometry::Vec2::new(2.0, 0.0)).unwrap();
-    let state: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.path().join("final_state.json")).unwrap()).unwrap();
-    let u: Vec<f64> = state["elements"][corner]["U"].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect();
+    let corner = model
+        .element_at(rbsm::geometry::Vec2::new(2.0, 0.0))
+        .unwrap();
+    let state: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.path().join("final_state.json")).unwrap(),
+    )
+    .unwrap();
+    let u: Vec<f64> = state["elements"][corner]["U"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect();
     let d = rbsm::geometry::Vec2::new(2.0, 0.0) - model.elements[corner].props.centroid;
     let expected = model.formulation.displacement(&u, d).y;
-    assert!((last[9] - expected).abs() <= 1e-12 * expected.abs() && expected != last[8], "{} against {expected}", last[9]);
+    assert!(
+        (last[9] - expected).abs() <= 1e-12 * expected.abs() && expected != last[8],
+        "{} against {expected}",
+        last[9]
+    );
     assert_eq!(last[10], u[2], "θ is the element's own");
     v["output"]["probes"] = serde_json::json!([{"at": [5.0, 0.0], "dof": "u"}]);
-    let e = Scene::from_json(&v.to_string()).and_then(|s| rbsm::model::Model::build(&s)).unwrap_err().to_string();
-    assert!(e.contains("output.probes[0].at") && e.contains("lies in no element"), "{e}");
+    let e = Scene::from_json(&v.to_string())
+        .and_then(|s| rbsm::model::Model::build(&s))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("output.probes[0].at") && e.contains("lies in no element"),
+        "{e}"
+    );
 }

@@ -14,10 +14,19 @@ fn penalty_up_to_1e8_runs_stably_and_is_warned_about() {
         assert!(x.run.drift < 1e-2, "p = {}: drift {}", x.p, x.run.drift);
     }
     // Δt_crit ∝ 1/√p between 1e4 and 1e8.
-    assert!((high.dt_ratio_sqrt_p / low.dt_ratio_sqrt_p - 1.0).abs() < 0.05, "{} {}", low.dt_ratio_sqrt_p, high.dt_ratio_sqrt_p);
+    assert!(
+        (high.dt_ratio_sqrt_p / low.dt_ratio_sqrt_p - 1.0).abs() < 0.05,
+        "{} {}",
+        low.dt_ratio_sqrt_p,
+        high.dt_ratio_sqrt_p
+    );
     assert!(low.patch_error < 1e-3, "{}", low.patch_error);
     assert!(!low.warnings.iter().any(|w| w.contains("penalty")));
-    assert!(high.warnings.iter().any(|w| w.contains("penalty p = 1e8")), "{:?}", high.warnings);
+    assert!(
+        high.warnings.iter().any(|w| w.contains("penalty p = 1e8")),
+        "{:?}",
+        high.warnings
+    );
 }
 
 #[test]
@@ -26,8 +35,18 @@ fn aspect_ratio_1000_is_stable_below_and_stopped_above_the_limit() {
     assert!(x.lanczos_error < 1e-8, "{}", x.lanczos_error);
     assert_eq!(x.stable.status, "ok");
     assert!(x.stable.drift < 1e-2);
-    assert!(x.above.status.starts_with("diverged") && x.above.finite, "{}", x.above.status);
-    assert!(x.warnings.iter().any(|w| w.contains("aspect ratio of 1000")), "{:?}", x.warnings);
+    assert!(
+        x.above.status.starts_with("diverged") && x.above.finite,
+        "{}",
+        x.above.status
+    );
+    assert!(
+        x.warnings
+            .iter()
+            .any(|w| w.contains("aspect ratio of 1000")),
+        "{:?}",
+        x.warnings
+    );
     assert!(extremes::aspect(10.0, RIGID).unwrap().warnings.is_empty());
 }
 
@@ -37,25 +56,50 @@ fn sizes_spanning_1000_are_stable_and_warned_about() {
     assert!(x.lanczos_error < 1e-8, "{}", x.lanczos_error);
     assert_eq!(x.stable.status, "ok");
     assert!(x.above.status.starts_with("diverged") && x.above.finite);
-    assert!(x.sizes > 500.0 && x.warnings.iter().any(|w| w.contains("sizes span 1:")), "{} {:?}", x.sizes, x.warnings);
+    assert!(
+        x.sizes > 500.0 && x.warnings.iter().any(|w| w.contains("sizes span 1:")),
+        "{} {:?}",
+        x.sizes,
+        x.warnings
+    );
     // The limit is the smallest cells': 100 times larger cells leave it where it was.
     let y = extremes::size_ratio(10.0).unwrap();
-    assert!((x.dt_crit / y.dt_crit - 1.0).abs() < 0.2, "{} {}", x.dt_crit, y.dt_crit);
+    assert!(
+        (x.dt_crit / y.dt_crit - 1.0).abs() < 0.2,
+        "{} {}",
+        x.dt_crit,
+        y.dt_crit
+    );
 }
 
 #[test]
 fn extreme_poisson_ratios_run_and_the_hybrid_carries_them() {
     for nu in [0.49, -0.9] {
         let h = extremes::poisson(nu, true, "stress").unwrap();
-        assert!((h.nu_effective - nu).abs() < 0.01, "ν = {nu}: fitted {}", h.nu_effective);
-        assert!((h.e_ratio - 1.0).abs() < 0.01, "ν = {nu}: E ratio {}", h.e_ratio);
+        assert!(
+            (h.nu_effective - nu).abs() < 0.01,
+            "ν = {nu}: fitted {}",
+            h.nu_effective
+        );
+        assert!(
+            (h.e_ratio - 1.0).abs() < 0.01,
+            "ν = {nu}: E ratio {}",
+            h.e_ratio
+        );
         assert_eq!(h.run.status, "ok");
-        assert!(h.warnings.iter().any(|w| w.contains("ν =")), "{:?}", h.warnings);
+        assert!(
+            h.warnings.iter().any(|w| w.contains("ν =")),
+            "{:?}",
+            h.warnings
+        );
         let r = extremes::poisson(nu, false, "stress").unwrap();
         assert_eq!(r.run.status, "ok");
         assert!(r.run.drift < 1e-2);
     }
-    assert!(extremes::poisson(0.2, true, "stress").unwrap().warnings.is_empty());
+    assert!(extremes::poisson(0.2, true, "stress")
+        .unwrap()
+        .warnings
+        .is_empty());
 }
 
 #[test]
@@ -74,7 +118,14 @@ fn large_rotations_in_contact_keep_the_balance_and_meshed_bodies_are_warned_abou
     assert!(one.run.drift < 1e-2, "{}", one.run.drift);
     assert!(one.warnings.is_empty(), "{:?}", one.warnings);
     let meshed = extremes::tumble(4, 20.0, 0.5).unwrap();
-    assert!(meshed.warnings.iter().any(|w| w.contains("meshed body turned")), "{:?}", meshed.warnings);
+    assert!(
+        meshed
+            .warnings
+            .iter()
+            .any(|w| w.contains("meshed body turned")),
+        "{:?}",
+        meshed.warnings
+    );
     assert!(meshed.spurious > 0.0);
 }
 
@@ -85,7 +136,11 @@ fn just_above_the_critical_step_the_guard_stops_the_run() {
     assert_eq!(extremes::run_at(&p, 0.999, 20_000).unwrap().status, "ok");
     for f in [1.001, 1.01] {
         let x = extremes::run_at(&p, f, 20_000).unwrap();
-        assert!(x.status.starts_with("diverged") && x.status.contains("energy growth"), "{f}: {}", x.status);
+        assert!(
+            x.status.starts_with("diverged") && x.status.contains("energy growth"),
+            "{f}: {}",
+            x.status
+        );
         assert!(x.finite && x.steps < 20_000);
     }
 }

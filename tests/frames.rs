@@ -11,26 +11,48 @@ use vtkio::model::{Attribute, CellType, DataSet, Piece, VertexNumbers};
 /// The frames a collection lists, in order.
 fn listed(dir: &Path) -> Vec<String> {
     let pvd = std::fs::read_to_string(dir.join("series.pvd")).unwrap();
-    pvd.split("file=\"").skip(1).map(|s| s.split('"').next().unwrap().to_string()).collect()
+    pvd.split("file=\"")
+        .skip(1)
+        .map(|s| s.split('"').next().unwrap().to_string())
+        .collect()
 }
 
 /// Points, cell connectivity (per cell), cell types and cell-data names of a `.vtu` file.
 fn read(path: &Path) -> (Vec<f64>, Vec<Vec<u64>>, Vec<CellType>, Vec<String>) {
     let vtk = vtkio::Vtk::import(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    let DataSet::UnstructuredGrid { pieces, .. } = vtk.data else { panic!("not an unstructured grid") };
-    let Piece::Inline(piece) = pieces.into_iter().next().unwrap() else { panic!("not inline") };
+    let DataSet::UnstructuredGrid { pieces, .. } = vtk.data else {
+        panic!("not an unstructured grid")
+    };
+    let Piece::Inline(piece) = pieces.into_iter().next().unwrap() else {
+        panic!("not inline")
+    };
     let points: Vec<f64> = piece.points.cast_into().unwrap();
     let cells = match piece.cells.cell_verts {
-        VertexNumbers::XML { connectivity, offsets } => {
+        VertexNumbers::XML {
+            connectivity,
+            offsets,
+        } => {
             let mut start = 0;
-            offsets.iter().map(|&end| { let c = connectivity[start as usize..end as usize].to_vec(); start = end; c }).collect()
+            offsets
+                .iter()
+                .map(|&end| {
+                    let c = connectivity[start as usize..end as usize].to_vec();
+                    start = end;
+                    c
+                })
+                .collect()
         }
         VertexNumbers::Legacy { .. } => panic!("legacy cells in an XML file"),
     };
-    let names = piece.data.cell.iter().map(|a| match a {
-        Attribute::DataArray(d) => d.name.clone(),
-        Attribute::Field { name, .. } => name.clone(),
-    }).collect();
+    let names = piece
+        .data
+        .cell
+        .iter()
+        .map(|a| match a {
+            Attribute::DataArray(d) => d.name.clone(),
+            Attribute::Field { name, .. } => name.clone(),
+        })
+        .collect();
     (points, cells, piece.cells.types, names)
 }
 
@@ -45,24 +67,59 @@ fn the_series_lists_xml_frames_with_every_cell_typed_and_every_array() {
     let mut tri = bundled("cantilever_hybrid");
     tri["bodies"][0]["mesh"]["cell"] = "tri".into();
     for (scene, arrays) in [
-        (bundled("voronoi_panel"), vec!["displacement", "velocity", "rotation", "body"]),
-        (tri, vec!["displacement", "velocity", "rotation", "body", "strain", "stress"]),
+        (
+            bundled("voronoi_panel"),
+            vec!["displacement", "velocity", "rotation", "body"],
+        ),
+        (
+            tri,
+            vec![
+                "displacement",
+                "velocity",
+                "rotation",
+                "body",
+                "strain",
+                "stress",
+            ],
+        ),
     ] {
         let mut scene = scene;
         scene["output"]["vtk"] = true.into();
         scene["output"]["every"] = 50.into();
-        let s = Scene::from_json_in(&scene.to_string(), Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/examples/scenes"))).unwrap();
+        let s = Scene::from_json_in(
+            &scene.to_string(),
+            Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/examples/scenes")),
+        )
+        .unwrap();
         let model = rbsm::model::Model::build(&s).unwrap();
         let dir = tempfile::tempdir().unwrap();
-        run::run(&s, &RunOptions { steps: Some(200), ..Default::default() }, dir.path(), &mut Silent).unwrap();
+        run::run(
+            &s,
+            &RunOptions {
+                steps: Some(200),
+                ..Default::default()
+            },
+            dir.path(),
+            &mut Silent,
+        )
+        .unwrap();
         let frames = listed(dir.path());
-        assert_eq!(frames, (0..=4).map(|k| format!("vtk/step_{:09}.vtu", 50 * k)).collect::<Vec<_>>());
+        assert_eq!(
+            frames,
+            (0..=4)
+                .map(|k| format!("vtk/step_{:09}.vtu", 50 * k))
+                .collect::<Vec<_>>()
+        );
         for f in &frames {
             let (points, cells, types, names) = read(&dir.path().join(f));
             assert_eq!(cells.len(), model.elements.len());
             assert_eq!(points.len(), 3 * cells.iter().map(Vec::len).sum::<usize>());
             for (cell, ty) in cells.iter().zip(&types) {
-                let expected = match cell.len() { 3 => CellType::Triangle, 4 => CellType::Quad, _ => CellType::Polygon };
+                let expected = match cell.len() {
+                    3 => CellType::Triangle,
+                    4 => CellType::Quad,
+                    _ => CellType::Polygon,
+                };
                 assert_eq!(*ty, expected);
             }
             assert_eq!(names, arrays);
@@ -88,19 +145,29 @@ fn a_block_spun_by_two_radians_keeps_its_shape_in_the_frames() {
     let (points, cells, _, _) = read(&dir.path().join("vtk/step_000001000.vtu"));
     let p = |k: u64| (points[3 * k as usize], points[3 * k as usize + 1]);
     let cell = &cells[0];
-    let lengths: Vec<f64> = (0..4).map(|i| {
-        let (a, b) = (p(cell[i]), p(cell[(i + 1) % 4]));
-        (a.0 - b.0).hypot(a.1 - b.1)
-    }).collect();
+    let lengths: Vec<f64> = (0..4)
+        .map(|i| {
+            let (a, b) = (p(cell[i]), p(cell[(i + 1) % 4]));
+            (a.0 - b.0).hypot(a.1 - b.1)
+        })
+        .collect();
     for (l, reference) in lengths.iter().zip([w, h, w, h]) {
-        assert!((l - reference).abs() <= 1e-9, "edge lengths {lengths:?} against {w} × {h}");
+        assert!(
+            (l - reference).abs() <= 1e-9,
+            "edge lengths {lengths:?} against {w} × {h}"
+        );
     }
     // Turned by 2 rad about its centroid, which stays put.
     let (a, b) = (p(cell[0]), p(cell[1]));
     let angle = (b.1 - a.1).atan2(b.0 - a.0);
     assert!((angle - 2.0).abs() < 1e-9, "edge at {angle} rad");
-    let centre = (0..4).fold((0.0, 0.0), |c, i| (c.0 + p(cell[i]).0 / 4.0, c.1 + p(cell[i]).1 / 4.0));
-    assert!((centre.0 - 0.5 * w).abs() < 1e-12 && (centre.1 - 0.5 * h).abs() < 1e-12, "{centre:?}");
+    let centre = (0..4).fold((0.0, 0.0), |c, i| {
+        (c.0 + p(cell[i]).0 / 4.0, c.1 + p(cell[i]).1 / 4.0)
+    });
+    assert!(
+        (centre.0 - 0.5 * w).abs() < 1e-12 && (centre.1 - 0.5 * h).abs() < 1e-12,
+        "{centre:?}"
+    );
 }
 
 /// Mode shapes come as `.vtu` files and a `modes.pvd` collection, one time step per mode.
@@ -111,7 +178,11 @@ fn mode_shapes_open_as_a_series() {
     let dir = tempfile::tempdir().unwrap();
     rbsm::vtk::write_mode_shapes(dir.path(), &model, &modes).unwrap();
     let pvd = std::fs::read_to_string(dir.path().join("modes.pvd")).unwrap();
-    let files: Vec<&str> = pvd.split("file=\"").skip(1).map(|s| s.split('"').next().unwrap()).collect();
+    let files: Vec<&str> = pvd
+        .split("file=\"")
+        .skip(1)
+        .map(|s| s.split('"').next().unwrap())
+        .collect();
     assert_eq!(files, ["mode_001.vtu", "mode_002.vtu", "mode_003.vtu"]);
     assert!(pvd.contains(r#"timestep="1e0""#) && pvd.contains(r#"timestep="3e0""#));
     for f in files {

@@ -29,14 +29,18 @@ fn names_its_cause(e: &Error) -> bool {
     match e {
         Error::Scene { field, .. } => !field.is_empty(),
         Error::Mesh { body, .. } => !body.is_empty(),
-        Error::Parse { path, message } => !path.is_empty() && (message.contains("line") || message.contains('`')),
+        Error::Parse { path, message } => {
+            !path.is_empty() && (message.contains("line") || message.contains('`'))
+        }
         Error::Io { path, .. } => !path.is_empty(),
     }
 }
 
 /// Numbers that break things: signs, zero, extremes, fractions near limits, big integers.
 fn wild_number(rng: &mut ChaCha8Rng) -> Value {
-    const FLOATS: [f64; 12] = [0.0, -0.0, -1.0, 1e-320, 1e-300, 1e300, 0.5, 0.49999, -0.99, 3.0, 1e9, 2.5e-7];
+    const FLOATS: [f64; 12] = [
+        0.0, -0.0, -1.0, 1e-320, 1e-300, 1e300, 0.5, 0.49999, -0.99, 3.0, 1e9, 2.5e-7,
+    ];
     const INTS: [u64; 6] = [0, 1, 2, 7, 4_294_967_296, 1_000_000_000];
     if rng.random_bool(0.5) {
         FLOATS[rng.random_range(0..FLOATS.len())].into()
@@ -81,16 +85,32 @@ fn mutant(scene: &Value, rng: &mut ChaCha8Rng) -> String {
         let (parent, last) = path.split_at(path.len().saturating_sub(1));
         match rng.random_range(0..8) {
             0 | 1 => *node(&mut v, &path) = wild_number(rng),
-            2 => *node(&mut v, &path) = ["bogus", "", "rigid", "point", "left", "u"][rng.random_range(0..6)].into(),
-            3 => *node(&mut v, &path) = [Value::Null, Value::Bool(true), serde_json::json!([]), serde_json::json!({})][rng.random_range(0..4)].clone(),
+            2 => {
+                *node(&mut v, &path) =
+                    ["bogus", "", "rigid", "point", "left", "u"][rng.random_range(0..6)].into()
+            }
+            3 => {
+                *node(&mut v, &path) = [
+                    Value::Null,
+                    Value::Bool(true),
+                    serde_json::json!([]),
+                    serde_json::json!({}),
+                ][rng.random_range(0..4)]
+                .clone()
+            }
             4 => {
-                if let (Some(Value::String(k)), Some(map)) = (last.first(), node(&mut v, parent).as_object_mut()) {
+                if let (Some(Value::String(k)), Some(map)) =
+                    (last.first(), node(&mut v, parent).as_object_mut())
+                {
                     map.remove(k);
                 }
             }
             5 => {
                 if let Some(map) = node(&mut v, &path).as_object_mut() {
-                    map.insert(["colour", "cells", "kind", "E", "x"][rng.random_range(0..5)].into(), wild_number(rng));
+                    map.insert(
+                        ["colour", "cells", "kind", "E", "x"][rng.random_range(0..5)].into(),
+                        wild_number(rng),
+                    );
                 }
             }
             6 => {
@@ -141,7 +161,13 @@ fn msh_mutant(msh: &[u8], rng: &mut ChaCha8Rng) -> Vec<u8> {
         _ => {
             let text = String::from_utf8_lossy(&bytes).into_owned();
             let numbers = ["4294967296", "0", "-1", "99999999999", "2.2"];
-            bytes = text.replacen("\n1 ", &format!("\n{} ", numbers[rng.random_range(0..numbers.len())]), 1).into_bytes();
+            bytes = text
+                .replacen(
+                    "\n1 ",
+                    &format!("\n{} ", numbers[rng.random_range(0..numbers.len())]),
+                    1,
+                )
+                .into_bytes();
         }
     }
     bytes
@@ -154,7 +180,12 @@ fn twenty_thousand_mutated_scenes_and_meshes_exit_cleanly_and_errors_name_their_
     let mut originals: Vec<(String, Value)> = std::fs::read_dir(&scenes_dir)
         .unwrap()
         .map(|e| e.unwrap().path())
-        .map(|p| (p.file_name().unwrap().to_string_lossy().into_owned(), serde_json::from_str(&std::fs::read_to_string(&p).unwrap()).unwrap()))
+        .map(|p| {
+            (
+                p.file_name().unwrap().to_string_lossy().into_owned(),
+                serde_json::from_str(&std::fs::read_to_string(&p).unwrap()).unwrap(),
+            )
+        })
         .collect();
     originals.sort_by(|a, b| a.0.cmp(&b.0));
     let msh = std::fs::read(root.join("examples/meshes/cantilever.msh")).unwrap();
@@ -176,7 +207,8 @@ fn twenty_thousand_mutated_scenes_and_meshes_exit_cleanly_and_errors_name_their_
             } else {
                 (mutant(original, &mut rng), scenes_dir.clone())
             };
-            let result = std::panic::catch_unwind(|| outcome(&text, &dir)).map_err(|_| text.clone());
+            let result =
+                std::panic::catch_unwind(|| outcome(&text, &dir)).map_err(|_| text.clone());
             (case, result)
         })
         .collect();
@@ -186,15 +218,31 @@ fn twenty_thousand_mutated_scenes_and_meshes_exit_cleanly_and_errors_name_their_
             Err(text) => panic!("case {case} panicked on: {text}"),
             Ok(Ok(code)) => codes[*code as usize] += 1,
             Ok(Err(e)) => {
-                assert!(names_its_cause(e), "case {case}: the error names no key, cell or file: {e}");
-                assert!(e.to_string().len() < 3 * rbsm::error::MAX_MESSAGE, "case {case}: a message of {} bytes", e.to_string().len());
+                assert!(
+                    names_its_cause(e),
+                    "case {case}: the error names no key, cell or file: {e}"
+                );
+                assert!(
+                    e.to_string().len() < 3 * rbsm::error::MAX_MESSAGE,
+                    "case {case}: a message of {} bytes",
+                    e.to_string().len()
+                );
                 codes[1] += 1;
             }
         }
     }
-    eprintln!("{CASES} cases in {:.1} s: {} ran, {} refused, {} diverged", t0.elapsed().as_secs_f64(), codes[0], codes[1], codes[3]);
+    eprintln!(
+        "{CASES} cases in {:.1} s: {} ran, {} refused, {} diverged",
+        t0.elapsed().as_secs_f64(),
+        codes[0],
+        codes[1],
+        codes[3]
+    );
     assert_eq!(codes.iter().sum::<usize>(), CASES);
-    assert!(codes[0] > CASES / 20 && codes[1] > CASES / 4, "the mutants should both run and fail: {codes:?}");
+    assert!(
+        codes[0] > CASES / 20 && codes[1] > CASES / 4,
+        "the mutants should both run and fail: {codes:?}"
+    );
 }
 
 /// The same mutants through the command line: `rbsm run` exits with 0, 1 or 3 only, and says
@@ -203,13 +251,18 @@ fn twenty_thousand_mutated_scenes_and_meshes_exit_cleanly_and_errors_name_their_
 fn the_command_line_exits_with_0_1_or_3_on_mutated_scenes() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let scenes_dir = root.join("examples/scenes");
-    let mut names: Vec<_> = std::fs::read_dir(&scenes_dir).unwrap().map(|e| e.unwrap().path()).collect();
+    let mut names: Vec<_> = std::fs::read_dir(&scenes_dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
     names.sort();
     let tmp = tempfile::tempdir().unwrap();
     let mut codes = std::collections::BTreeMap::new();
     for case in 0..300 {
         let mut rng = ChaCha8Rng::seed_from_u64(1_000_000 + case as u64);
-        let mut original: Value = serde_json::from_str(&std::fs::read_to_string(&names[case % names.len()]).unwrap()).unwrap();
+        let mut original: Value =
+            serde_json::from_str(&std::fs::read_to_string(&names[case % names.len()]).unwrap())
+                .unwrap();
         // Mesh files found from anywhere.
         for body in original["bodies"].as_array_mut().unwrap() {
             if let Some(mesh) = body["mesh"]["path"].as_str() {
@@ -219,13 +272,23 @@ fn the_command_line_exits_with_0_1_or_3_on_mutated_scenes() {
         let path = tmp.path().join(format!("case{case}.json"));
         std::fs::write(&path, mutant(&original, &mut rng)).unwrap();
         let out = std::process::Command::new(env!("CARGO_BIN_EXE_rbsm"))
-            .args(["run", path.to_str().unwrap(), "--quiet", "--steps", "5", "--out"])
+            .args([
+                "run",
+                path.to_str().unwrap(),
+                "--quiet",
+                "--steps",
+                "5",
+                "--out",
+            ])
             .arg(tmp.path().join("out"))
             .output()
             .unwrap();
         let stderr = String::from_utf8_lossy(&out.stderr);
         let code = out.status.code();
-        assert!(matches!(code, Some(0 | 1 | 3)), "case {case}: exit {code:?}: {stderr}");
+        assert!(
+            matches!(code, Some(0 | 1 | 3)),
+            "case {case}: exit {code:?}: {stderr}"
+        );
         assert!(!stderr.contains("panicked"), "case {case}: {stderr}");
         *codes.entry(code.unwrap()).or_insert(0) += 1;
     }

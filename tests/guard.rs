@@ -27,18 +27,34 @@ fn stable_runs_that_start_from_nothing_are_not_stopped() {
     for name in ["voronoi_panel", "bar_pulse"] {
         let s = bundled(name);
         for steps in [1, 2, 3] {
-            assert_eq!(status(&s, None, steps, 1), Status::Ok, "{name}, {steps} steps");
+            assert_eq!(
+                status(&s, None, steps, 1),
+                Status::Ok,
+                "{name}, {steps} steps"
+            );
         }
-        assert_eq!(status(&s, None, 3000, 1), Status::Ok, "{name}, every step checked");
+        assert_eq!(
+            status(&s, None, 3000, 1),
+            Status::Ok,
+            "{name}, every step checked"
+        );
     }
     // Damped starts, at and near the scene's time step.
     for name in ["cantilever", "column_step", "hopping_block", "wall"] {
         let mut s = bundled(name);
         s["damping"] = 1.0.into();
         for steps in [1, 5, 300] {
-            assert_eq!(status(&s, None, steps, 1), Status::Ok, "{name} damped, {steps} steps");
+            assert_eq!(
+                status(&s, None, steps, 1),
+                Status::Ok,
+                "{name} damped, {steps} steps"
+            );
         }
-        assert_eq!(status(&s, Some(0.999), 300, 1), Status::Ok, "{name} damped at 0.999 Δt_crit");
+        assert_eq!(
+            status(&s, Some(0.999), 300, 1),
+            Status::Ok,
+            "{name} damped at 0.999 Δt_crit"
+        );
     }
     // Bricks that touch at t = 0, under gravity, with contact.
     let mut wall = bundled("wall");
@@ -66,8 +82,14 @@ fn runs_above_the_critical_step_are_stopped_as_early_as_before() {
         let every = s["output"]["every"].as_u64().unwrap_or(1);
         match status(&s, Some(f), 30_000, every) {
             Status::Diverged { step, reason, .. } => {
-                assert!(step <= before, "{name} at {f} Δt_crit: stopped at step {step}, before at {before}");
-                assert!(reason.contains("energy growth") || reason.contains("NaN"), "{reason}");
+                assert!(
+                    step <= before,
+                    "{name} at {f} Δt_crit: stopped at step {step}, before at {before}"
+                );
+                assert!(
+                    reason.contains("energy growth") || reason.contains("NaN"),
+                    "{reason}"
+                );
             }
             other => panic!("{name} at {f} Δt_crit: {other:?}"),
         }

@@ -19,7 +19,10 @@ fn assembled_and_element_wise_forces_agree_to_round_off() {
             let u = random_vector(model.n_dofs(), seed);
             let (fa, fe) = forces(&model, &u);
             let rel = norm(&fa.iter().zip(&fe).map(|(a, b)| a - b).collect::<Vec<_>>()) / norm(&fa);
-            assert!(rel <= 1e-12, "{name}, seed {seed}: relative difference {rel:e}");
+            assert!(
+                rel <= 1e-12,
+                "{name}, seed {seed}: relative difference {rel:e}"
+            );
         }
     }
 }
@@ -39,9 +42,26 @@ fn rigid_motion_of_a_free_assembly_gives_zero_force() {
         }
         let (fa, fe) = forces(&model, &u);
         // Compare with the force the same amplitude produces when it is not a rigid motion.
-        let scale = norm(&forces(&model, &random_vector(u.len(), 5).iter().map(|x| x * 2e-3).collect::<Vec<_>>()).0);
-        assert!(norm(&fa) <= 1e-13 * scale, "assembled: {:e} vs {scale:e}", norm(&fa));
-        assert!(norm(&fe) <= 1e-13 * scale, "element-wise: {:e} vs {scale:e}", norm(&fe));
+        let scale = norm(
+            &forces(
+                &model,
+                &random_vector(u.len(), 5)
+                    .iter()
+                    .map(|x| x * 2e-3)
+                    .collect::<Vec<_>>(),
+            )
+            .0,
+        );
+        assert!(
+            norm(&fa) <= 1e-13 * scale,
+            "assembled: {:e} vs {scale:e}",
+            norm(&fa)
+        );
+        assert!(
+            norm(&fe) <= 1e-13 * scale,
+            "element-wise: {:e} vs {scale:e}",
+            norm(&fe)
+        );
     }
 }
 
@@ -59,24 +79,44 @@ fn stiffness_is_symmetric_psd_with_three_rigid_modes_when_free() {
         let kmax = (0..n).map(|i| k[(i, i)].abs()).fold(0.0, f64::max);
         for i in 0..n {
             for j in 0..n {
-                assert!((k[(i, j)] - k[(j, i)]).abs() <= 1e-14 * kmax, "{name}: K[{i},{j}] not symmetric");
+                assert!(
+                    (k[(i, j)] - k[(j, i)]).abs() <= 1e-14 * kmax,
+                    "{name}: K[{i},{j}] not symmetric"
+                );
             }
         }
-        let eig = k.self_adjoint_eigenvalues(faer::Side::Lower).expect("eigenvalues converge");
+        let eig = k
+            .self_adjoint_eigenvalues(faer::Side::Lower)
+            .expect("eigenvalues converge");
         let top = eig.iter().cloned().fold(0.0, f64::max);
         let zero = eig.iter().filter(|&&l| l.abs() <= 1e-10 * top).count();
-        assert!(eig.iter().all(|&l| l >= -1e-10 * top), "{name}: K has a negative eigenvalue");
-        assert_eq!(zero, 3, "{name}: {zero} zero eigenvalues; smallest: {:?}", &eig[..5.min(eig.len())]);
+        assert!(
+            eig.iter().all(|&l| l >= -1e-10 * top),
+            "{name}: K has a negative eigenvalue"
+        );
+        assert_eq!(
+            zero,
+            3,
+            "{name}: {zero} zero eigenvalues; smallest: {:?}",
+            &eig[..5.min(eig.len())]
+        );
     }
 }
 
 /// With supports the assembly has no zero eigenvalue left.
 #[test]
 fn supported_assembly_is_positive_definite() {
-    let k = stiffness(&model(RECT, r#"[{"edge": "left", "kind": "ground-spring"}]"#));
+    let k = stiffness(&model(
+        RECT,
+        r#"[{"edge": "left", "kind": "ground-spring"}]"#,
+    ));
     let eig = k.self_adjoint_eigenvalues(faer::Side::Lower).unwrap();
     let top = eig.iter().cloned().fold(0.0, f64::max);
-    assert!(eig.iter().all(|&l| l > 1e-12 * top), "smallest {:e}, largest {top:e}", eig[0]);
+    assert!(
+        eig.iter().all(|&l| l > 1e-12 * top),
+        "smallest {:e}, largest {top:e}",
+        eig[0]
+    );
 }
 
 /// For a skewed edge, 2-point Gauss gives exactly `t L B_mᵀ k B_m + t k_n (L³/12) e eᵀ`.
@@ -89,13 +129,32 @@ fn interface_stiffness_matches_the_closed_form() {
     let tangent = Vec2::new(normal.y, -normal.x);
     let (xa, xb) = (Vec2::new(0.2, 0.6), Vec2::new(1.1, -0.4));
     let (k_n, k_s, t) = (3.0e9, 1.7e9, 0.25);
-    let iface = Interface { a: 0, b: 1, p1, p2, normal, tangent, length, h_a: 0.5, h_b: 0.5, k_n, k_s };
+    let iface = Interface {
+        a: 0,
+        b: 1,
+        p1,
+        p2,
+        normal,
+        tangent,
+        length,
+        h_a: 0.5,
+        h_b: 0.5,
+        k_n,
+        k_s,
+    };
     let [kaa, kab, kba, kbb] = interface_stiffness::<Rigid, 3>(&iface, xa, xb, t);
     // Closed form: B at the midpoint, 2 × 6, rows (n, s).
     let m = iface.midpoint();
     let row = |d: Vec2| {
         let (da, db) = (m - xa, m - xb);
-        [-d.x, -d.y, -(-da.y * d.x + da.x * d.y), d.x, d.y, -db.y * d.x + db.x * d.y]
+        [
+            -d.x,
+            -d.y,
+            -(-da.y * d.x + da.x * d.y),
+            d.x,
+            d.y,
+            -db.y * d.x + db.x * d.y,
+        ]
     };
     let bm = [row(normal), row(tangent)];
     let mut k = [[0.0; 6]; 6];
@@ -119,7 +178,11 @@ fn interface_stiffness_matches_the_closed_form() {
                 (false, true) => kba[(i - 3, j)],
                 (false, false) => kbb[(i - 3, j - 3)],
             };
-            assert!((got - k[i][j]).abs() <= 1e-13 * scale, "K[{i},{j}] = {got:e}, closed form {:e}", k[i][j]);
+            assert!(
+                (got - k[i][j]).abs() <= 1e-13 * scale,
+                "K[{i},{j}] = {got:e}, closed form {:e}",
+                k[i][j]
+            );
         }
     }
     // The rotational term is the whole coupling of θ_a and θ_b beyond the midpoint rule.
@@ -133,12 +196,18 @@ fn interface_stiffness_matches_the_closed_form() {
 /// Each element's force is summed in the same order whatever the thread count: bit-identical.
 #[test]
 fn forces_do_not_depend_on_the_thread_count() {
-    let model = model(r#"{"kind": "grid", "origin": [0.0, 0.0], "size": [1.0, 1.0], "cells": [100, 50], "cell": "tri"}"#, SUPPORTS);
+    let model = model(
+        r#"{"kind": "grid", "origin": [0.0, 0.0], "size": [1.0, 1.0], "cells": [100, 50], "cell": "tri"}"#,
+        SUPPORTS,
+    );
     let u = random_vector(model.n_dofs(), 9);
     for kind in [EvaluatorKind::Assembled, EvaluatorKind::ElementWise] {
         let ev = evaluator::build(&model, kind);
         let run = |threads| {
-            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
             let mut f = vec![0.0; u.len()];
             pool.install(|| ev.internal_force(&u, &mut f));
             f
@@ -155,9 +224,9 @@ fn forces_do_not_depend_on_the_thread_count() {
 /// out the damping factors: the same holds.
 #[test]
 fn the_fused_step_matches_evaluation_then_update() {
+    use rbsm::evaluator::Evaluator;
     use rbsm::integrator::CentralDifference;
     use rbsm::loads::Loads;
-    use rbsm::evaluator::Evaluator;
     use rbsm::mass::Mass;
     /// The same evaluator, seen through its two-pass interface only.
     struct TwoPass(Box<dyn evaluator::Evaluator>);
@@ -172,9 +241,12 @@ fn the_fused_step_matches_evaluation_then_update() {
             self.0.bytes()
         }
     }
-    let cases = [r#"{"kind": "rigid"}"#, r#"{"kind": "hybrid", "penalty": 10}"#]
-        .into_iter()
-        .flat_map(|f| [(f, "[0, -9.81]", 50), (f, "[0, 0]", 50), (f, "[0, 0]", 0)]);
+    let cases = [
+        r#"{"kind": "rigid"}"#,
+        r#"{"kind": "hybrid", "penalty": 10}"#,
+    ]
+    .into_iter()
+    .flat_map(|f| [(f, "[0, -9.81]", 50), (f, "[0, 0]", 50), (f, "[0, 0]", 0)]);
     for (formulation, gravity, damping) in cases {
         let json = format!(
             r#"{{"name": "a", "thickness": 1.0, "formulation": {formulation}, "gravity": {gravity}, "damping": {damping},
@@ -190,18 +262,31 @@ fn the_fused_step_matches_evaluation_then_update() {
         let two_pass = TwoPass(evaluator::build(&model, EvaluatorKind::ElementWise));
         assert!(fused.fuses() && !two_pass.fuses());
         let run = |ev: &dyn evaluator::Evaluator, threads: usize| {
-            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
             let mut cd = CentralDifference::new(&model, ev, &mass, &loads, 1e-7);
             pool.install(|| cd.step_only(300));
             (cd.u, cd.v)
         };
         let (u, v) = run(fused.as_ref(), 1);
-        assert_eq!((&u, &v), (&run(fused.as_ref(), 2).0, &run(fused.as_ref(), 2).1), "{formulation}, gravity {gravity}, damping {damping}: thread count");
+        assert_eq!(
+            (&u, &v),
+            (&run(fused.as_ref(), 2).0, &run(fused.as_ref(), 2).1),
+            "{formulation}, gravity {gravity}, damping {damping}: thread count"
+        );
         let assembled = evaluator::build(&model, EvaluatorKind::Assembled);
-        for (name, ev) in [("two passes", &two_pass as &dyn evaluator::Evaluator), ("assembled", assembled.as_ref())] {
+        for (name, ev) in [
+            ("two passes", &two_pass as &dyn evaluator::Evaluator),
+            ("assembled", assembled.as_ref()),
+        ] {
             let (u2, v2) = run(ev, 2);
             let scale = u.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-            assert!(scale > 1e-9, "{formulation}, gravity {gravity}, damping {damping}: the model moved ({scale:e})");
+            assert!(
+                scale > 1e-9,
+                "{formulation}, gravity {gravity}, damping {damping}: the model moved ({scale:e})"
+            );
             assert!(max_abs_diff(&u, &u2) <= 1e-12 * scale, "{formulation}, gravity {gravity}, damping {damping}, {name}: |ΔU| = {:e} of {scale:e}", max_abs_diff(&u, &u2));
             let vscale = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
             assert!(max_abs_diff(&v, &v2) <= 1e-12 * vscale, "{formulation}, gravity {gravity}, damping {damping}, {name}: |Δv| = {:e} of {vscale:e}", max_abs_diff(&v, &v2));

@@ -7,16 +7,31 @@ use rbsm::scene::Scene;
 use std::process::Command;
 
 fn model(name: &str) -> Model {
-    Model::build(&Scene::from_file(format!("{}/examples/scenes/{name}.json", env!("CARGO_MANIFEST_DIR"))).unwrap()).unwrap()
+    Model::build(
+        &Scene::from_file(format!(
+            "{}/examples/scenes/{name}.json",
+            env!("CARGO_MANIFEST_DIR")
+        ))
+        .unwrap(),
+    )
+    .unwrap()
 }
 
 /// Every tag `<tag ...>` with `marker` in it.
 fn tags<'a>(svg: &'a str, tag: &str, marker: &str) -> Vec<&'a str> {
-    svg.split('<').filter(|t| t.starts_with(tag) && t.contains(marker)).collect()
+    svg.split('<')
+        .filter(|t| t.starts_with(tag) && t.contains(marker))
+        .collect()
 }
 
 fn points(tag: &str) -> Vec<(f64, f64)> {
-    let p = tag.split("points=\"").nth(1).unwrap().split('"').next().unwrap();
+    let p = tag
+        .split("points=\"")
+        .nth(1)
+        .unwrap()
+        .split('"')
+        .next()
+        .unwrap();
     p.split_whitespace()
         .map(|xy| {
             let (x, y) = xy.split_once(',').unwrap();
@@ -27,11 +42,32 @@ fn points(tag: &str) -> Vec<(f64, f64)> {
 
 /// The trimmed contents of every `<text>` element.
 fn texts(svg: &str) -> Vec<String> {
-    svg.split("<text").skip(1).map(|t| t.split_once('>').unwrap().1.split("</text>").next().unwrap().trim().to_string()).collect()
+    svg.split("<text")
+        .skip(1)
+        .map(|t| {
+            t.split_once('>')
+                .unwrap()
+                .1
+                .split("</text>")
+                .next()
+                .unwrap()
+                .trim()
+                .to_string()
+        })
+        .collect()
 }
 
 fn view_box(svg: &str) -> (f64, f64) {
-    let v: Vec<f64> = svg.split("viewBox=\"").nth(1).unwrap().split('"').next().unwrap().split(' ').map(|s| s.parse().unwrap()).collect();
+    let v: Vec<f64> = svg
+        .split("viewBox=\"")
+        .nth(1)
+        .unwrap()
+        .split('"')
+        .next()
+        .unwrap()
+        .split(' ')
+        .map(|s| s.parse().unwrap())
+        .collect();
     (v[2], v[3])
 }
 
@@ -43,24 +79,52 @@ fn the_model_drawing_shows_each_element_spring_support_and_load_inside_its_frame
     let elements = tags(&svg, "polygon", "fill=\"#dbe7f3\"");
     assert_eq!(elements.len(), m.elements.len());
     let pairs = m.interfaces.iter().filter(|i| i.b != GROUND).count();
-    assert_eq!(tags(&svg, "line", "#2a5db0").len(), 2 * pairs, "two springs per interface");
+    assert_eq!(
+        tags(&svg, "line", "#2a5db0").len(),
+        2 * pairs,
+        "two springs per interface"
+    );
     let grounded = m.interfaces.iter().filter(|i| i.b == GROUND).count();
-    assert!(grounded == 8 && tags(&svg, "line", "stroke=\"#1b8a3a\" stroke-width=\"2.5\"").len() == grounded);
-    assert_eq!(tags(&svg, "line", "#c0392b").len(), m.loads.len(), "one arrow per point load");
+    assert!(
+        grounded == 8
+            && tags(&svg, "line", "stroke=\"#1b8a3a\" stroke-width=\"2.5\"").len() == grounded
+    );
+    assert_eq!(
+        tags(&svg, "line", "#c0392b").len(),
+        m.loads.len(),
+        "one arrow per point load"
+    );
     // Every vertex inside the frame, and the drawing keeps the model's proportions.
     let (w, h) = view_box(&svg);
     let all: Vec<(f64, f64)> = elements.iter().flat_map(|t| points(t)).collect();
-    assert!(all.iter().all(|&(x, y)| (0.0..=w).contains(&x) && (0.0..=h).contains(&y)));
-    let (x0, x1) = all.iter().fold((f64::MAX, f64::MIN), |a, p| (a.0.min(p.0), a.1.max(p.0)));
-    let (y0, y1) = all.iter().fold((f64::MAX, f64::MIN), |a, p| (a.0.min(p.1), a.1.max(p.1)));
+    assert!(all
+        .iter()
+        .all(|&(x, y)| (0.0..=w).contains(&x) && (0.0..=h).contains(&y)));
+    let (x0, x1) = all
+        .iter()
+        .fold((f64::MAX, f64::MIN), |a, p| (a.0.min(p.0), a.1.max(p.0)));
+    let (y0, y1) = all
+        .iter()
+        .fold((f64::MAX, f64::MIN), |a, p| (a.0.min(p.1), a.1.max(p.1)));
     assert!(((x1 - x0) / (y1 - y0) - 10.0).abs() < 1e-2, "2 m × 0.2 m");
     // Contact ground and gravity on the hopping block; the key names only what is drawn.
     let svg = model_svg(&model("hopping_block"));
-    assert!(svg.contains(">g</text>") && !tags(&svg, "line", "stroke=\"#000\" stroke-width=\"2.5\"").is_empty());
-    assert!(svg.contains("hatched black: contact ground") && !svg.contains("blue:") && !svg.contains("red:"));
+    assert!(
+        svg.contains(">g</text>")
+            && !tags(&svg, "line", "stroke=\"#000\" stroke-width=\"2.5\"").is_empty()
+    );
+    assert!(
+        svg.contains("hatched black: contact ground")
+            && !svg.contains("blue:")
+            && !svg.contains("red:")
+    );
     // A clamped edge: one black triangle per element with fixed DOFs.
-    let path = format!("{}/examples/scenes/cantilever.json", env!("CARGO_MANIFEST_DIR"));
-    let mut scene: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+    let path = format!(
+        "{}/examples/scenes/cantilever.json",
+        env!("CARGO_MANIFEST_DIR")
+    );
+    let mut scene: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
     scene["bodies"][0]["supports"] = serde_json::json!([{"edge": "left", "kind": "clamp"}]);
     let m = Model::build(&Scene::from_json(&scene.to_string()).unwrap()).unwrap();
     let svg = model_svg(&m);
@@ -76,9 +140,15 @@ fn a_mode_drawing_moves_the_largest_vertex_a_tenth_of_the_model_size() {
     let n = m.n_dofs();
     // Nothing moves: the displaced elements lie on the reference.
     let svg = displaced_svg(&m, &vec![0.0; n], "rest");
-    let (reference, displaced) = (tags(&svg, "polygon", "fill=\"none\""), tags(&svg, "polygon", "fill-opacity"));
+    let (reference, displaced) = (
+        tags(&svg, "polygon", "fill=\"none\""),
+        tags(&svg, "polygon", "fill-opacity"),
+    );
     assert_eq!(reference.len(), m.elements.len());
-    assert!(reference.iter().zip(&displaced).all(|(r, d)| points(r) == points(d)));
+    assert!(reference
+        .iter()
+        .zip(&displaced)
+        .all(|(r, d)| points(r) == points(d)));
     // A rotation of the whole plate about the origin by 1e-3 rad: U = (−θ y_c, θ x_c, θ).
     let mut u = vec![0.0; n];
     for (e, el) in m.elements.iter().enumerate() {
@@ -86,55 +156,127 @@ fn a_mode_drawing_moves_the_largest_vertex_a_tenth_of_the_model_size() {
         u[3 * e..3 * e + 3].copy_from_slice(&[-1e-3 * c.y, 1e-3 * c.x, 1e-3]);
     }
     let svg = displaced_svg(&m, &u, "rotation");
-    let (reference, displaced) = (tags(&svg, "polygon", "fill=\"none\""), tags(&svg, "polygon", "fill-opacity"));
+    let (reference, displaced) = (
+        tags(&svg, "polygon", "fill=\"none\""),
+        tags(&svg, "polygon", "fill-opacity"),
+    );
     let all: Vec<(f64, f64)> = reference.iter().flat_map(|t| points(t)).collect();
-    let width_px = all.iter().map(|p| p.0).fold(f64::MIN, f64::max) - all.iter().map(|p| p.0).fold(f64::MAX, f64::min);
-    let largest = reference.iter().zip(&displaced).flat_map(|(r, d)| points(r).into_iter().zip(points(d))).map(|(a, b)| (a.0 - b.0).hypot(a.1 - b.1)).fold(0.0, f64::max);
+    let width_px = all.iter().map(|p| p.0).fold(f64::MIN, f64::max)
+        - all.iter().map(|p| p.0).fold(f64::MAX, f64::min);
+    let largest = reference
+        .iter()
+        .zip(&displaced)
+        .flat_map(|(r, d)| points(r).into_iter().zip(points(d)))
+        .map(|(a, b)| (a.0 - b.0).hypot(a.1 - b.1))
+        .fold(0.0, f64::max);
     // The largest vertex displacement is a tenth of the 2 m length; the picture's reference
     // width is 2 m (up to the 0.01 px of the coordinates).
-    assert!((largest / width_px - 0.1).abs() < 1e-3, "largest {largest} px of {width_px} px");
+    assert!(
+        (largest / width_px - 0.1).abs() < 1e-3,
+        "largest {largest} px of {width_px} px"
+    );
 }
 
 #[test]
 fn plot_draws_energies_and_probes_of_a_run_and_refuses_an_empty_directory() {
     let dir = tempfile::tempdir().unwrap();
-    let scene = Scene::from_file(format!("{}/examples/scenes/cantilever.json", env!("CARGO_MANIFEST_DIR"))).unwrap();
-    let opts = rbsm::run::RunOptions { steps: Some(400), ..Default::default() };
+    let scene = Scene::from_file(format!(
+        "{}/examples/scenes/cantilever.json",
+        env!("CARGO_MANIFEST_DIR")
+    ))
+    .unwrap();
+    let opts = rbsm::run::RunOptions {
+        steps: Some(400),
+        ..Default::default()
+    };
     rbsm::run::run(&scene, &opts, dir.path(), &mut rbsm::run::Silent).unwrap();
     let written = rbsm::plot::histories(dir.path()).unwrap();
-    assert_eq!(written, vec![dir.path().join("energies.svg"), dir.path().join("probes.svg")]);
+    assert_eq!(
+        written,
+        vec![
+            dir.path().join("energies.svg"),
+            dir.path().join("probes.svg")
+        ]
+    );
     let energies = texts(&std::fs::read_to_string(&written[0]).unwrap());
     for name in ["kinetic", "elastic", "external_work", "total"] {
         assert!(energies.iter().any(|t| t == name), "{name} in the legend");
     }
-    assert!(!energies.iter().any(|t| t == "contact"), "no contact in the scene: its zero energy is not drawn");
-    assert!(texts(&std::fs::read_to_string(&written[1]).unwrap()).iter().any(|t| t == "probe tip_v"));
+    assert!(
+        !energies.iter().any(|t| t == "contact"),
+        "no contact in the scene: its zero energy is not drawn"
+    );
+    assert!(texts(&std::fs::read_to_string(&written[1]).unwrap())
+        .iter()
+        .any(|t| t == "probe tip_v"));
     // Nothing to draw, and a broken history.
     let empty = tempfile::tempdir().unwrap();
     let e = rbsm::plot::histories(empty.path()).unwrap_err().to_string();
-    assert!(e.contains("history.csv") && e.contains("fraction_F.csv"), "{e}");
+    assert!(
+        e.contains("history.csv") && e.contains("fraction_F.csv"),
+        "{e}"
+    );
     std::fs::write(empty.path().join("history.csv"), "t,kinetic\n0,1\n1e-3,x\n").unwrap();
     let e = rbsm::plot::histories(empty.path()).unwrap_err().to_string();
-    assert!(e.contains("line 3") && e.contains("`x`") && e.contains("kinetic"), "{e}");
+    assert!(
+        e.contains("line 3") && e.contains("`x`") && e.contains("kinetic"),
+        "{e}"
+    );
 }
 
 #[test]
 fn the_commands_write_the_pictures() {
     let dir = tempfile::tempdir().unwrap();
     let rbsm = |args: &[&str]| {
-        let out = Command::new(env!("CARGO_BIN_EXE_rbsm")).args(args).arg("--quiet").current_dir(env!("CARGO_MANIFEST_DIR")).output().unwrap();
-        assert!(out.status.success(), "{args:?}: {}", String::from_utf8_lossy(&out.stderr));
+        let out = Command::new(env!("CARGO_BIN_EXE_rbsm"))
+            .args(args)
+            .arg("--quiet")
+            .current_dir(env!("CARGO_MANIFEST_DIR"))
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
     };
     let d = dir.path().to_str().unwrap();
-    rbsm(&["draw", "examples/scenes/voronoi_panel.json", "--out", &format!("{d}/panel.svg")]);
-    rbsm(&["eigen", "examples/scenes/cantilever.json", "--modes", "2", "--svg", &format!("{d}/modes")]);
-    rbsm(&["stability", "examples/scenes/cantilever.json", "--steps", "400", "--out", &format!("{d}/stability")]);
+    rbsm(&[
+        "draw",
+        "examples/scenes/voronoi_panel.json",
+        "--out",
+        &format!("{d}/panel.svg"),
+    ]);
+    rbsm(&[
+        "eigen",
+        "examples/scenes/cantilever.json",
+        "--modes",
+        "2",
+        "--svg",
+        &format!("{d}/modes"),
+    ]);
+    rbsm(&[
+        "stability",
+        "examples/scenes/cantilever.json",
+        "--steps",
+        "400",
+        "--out",
+        &format!("{d}/stability"),
+    ]);
     rbsm(&["plot", &format!("{d}/stability")]);
     let panel = std::fs::read_to_string(dir.path().join("panel.svg")).unwrap();
     assert_eq!(tags(&panel, "polygon", "fill=\"#dbe7f3\"").len(), 400);
     let mode = std::fs::read_to_string(dir.path().join("modes/mode_002.svg")).unwrap();
-    assert!(mode.contains("cantilever mode 2: f = 1.7364"), "the caption names the frequency");
+    assert!(
+        mode.contains("cantilever mode 2: f = 1.7364"),
+        "the caption names the frequency"
+    );
     assert!(!dir.path().join("modes/mode_003.svg").exists());
     let s = texts(&std::fs::read_to_string(dir.path().join("stability/stability.svg")).unwrap());
-    assert!(["0.9", "0.99", "1.01"].iter().all(|f| s.contains(&format!("dt = {f} Δt_crit"))), "{s:?}");
+    assert!(
+        ["0.9", "0.99", "1.01"]
+            .iter()
+            .all(|f| s.contains(&format!("dt = {f} Δt_crit"))),
+        "{s:?}"
+    );
 }

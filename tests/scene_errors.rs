@@ -14,7 +14,8 @@ fn base() -> Value {
 
 /// The error of the whole pipeline (parse, validate, model, time step) for a scene.
 fn error_of(v: &Value) -> String {
-    let result = Scene::from_json(&v.to_string()).and_then(|s| Prepared::new(&s, &RunOptions::default()).map(|_| ()));
+    let result = Scene::from_json(&v.to_string())
+        .and_then(|s| Prepared::new(&s, &RunOptions::default()).map(|_| ()));
     match result {
         Ok(()) => panic!("scene was accepted: {v}"),
         Err(e) => e.to_string(),
@@ -36,8 +37,14 @@ fn expect(msg: &str, parts: &[&str]) {
 #[test]
 fn unknown_keys_are_named_with_their_path() {
     expect(&with(|v| v["colour"] = "red".into()), &["colour"]);
-    expect(&with(|v| v["bodies"][0]["mesh"]["cels"] = 3.into()), &["bodies[0].mesh", "cels"]);
-    expect(&with(|v| v["materials"]["m"]["youngs"] = 3.into()), &["materials.m", "youngs"]);
+    expect(
+        &with(|v| v["bodies"][0]["mesh"]["cels"] = 3.into()),
+        &["bodies[0].mesh", "cels"],
+    );
+    expect(
+        &with(|v| v["materials"]["m"]["youngs"] = 3.into()),
+        &["materials.m", "youngs"],
+    );
     expect(&with(|v| v["time"]["tend"] = 3.into()), &["time", "tend"]);
 }
 
@@ -45,78 +52,181 @@ fn unknown_keys_are_named_with_their_path() {
 /// drop them: `{"kind": "rigid", "penalty": 100}` ran rigid without a word).
 #[test]
 fn kinds_without_keys_refuse_keys() {
-    expect(&with(|v| v["formulation"] = serde_json::json!({"kind": "rigid", "penalty": 100})), &["formulation", "penalty"]);
-    expect(&with(|v| v["reference"] = serde_json::json!({"kind": "hopping-block", "height": 1})), &["reference", "height"]);
-    expect(&with(|v| v["formulation"] = serde_json::json!({"kind": "hybrid", "penalty": 1, "p": 2})), &["formulation", "`p`"]);
-    expect(&with(|v| v["formulation"] = serde_json::json!({"kind": "hybrid"})), &["formulation", "penalty"]);
-    expect(&with(|v| v["formulation"] = serde_json::json!({"kind": "elastic"})), &["formulation", "elastic", "rigid, hybrid"]);
+    expect(
+        &with(|v| v["formulation"] = serde_json::json!({"kind": "rigid", "penalty": 100})),
+        &["formulation", "penalty"],
+    );
+    expect(
+        &with(|v| v["reference"] = serde_json::json!({"kind": "hopping-block", "height": 1})),
+        &["reference", "height"],
+    );
+    expect(
+        &with(|v| v["formulation"] = serde_json::json!({"kind": "hybrid", "penalty": 1, "p": 2})),
+        &["formulation", "`p`"],
+    );
+    expect(
+        &with(|v| v["formulation"] = serde_json::json!({"kind": "hybrid"})),
+        &["formulation", "penalty"],
+    );
+    expect(
+        &with(|v| v["formulation"] = serde_json::json!({"kind": "elastic"})),
+        &["formulation", "elastic", "rigid, hybrid"],
+    );
 }
 
 #[test]
 fn material_values_out_of_range_name_field_and_range() {
-    expect(&with(|v| v["materials"]["m"]["E"] = 0.0.into()), &["materials.m.E", "> 0"]);
-    expect(&with(|v| v["materials"]["m"]["E"] = (-2e9).into()), &["materials.m.E", "> 0"]);
-    expect(&with(|v| v["materials"]["m"]["nu"] = 0.5.into()), &["materials.m.nu", "(-1, 0.5)"]);
-    expect(&with(|v| v["materials"]["m"]["nu"] = (-1.0).into()), &["materials.m.nu", "(-1, 0.5)"]);
-    expect(&with(|v| v["materials"]["m"]["rho"] = 0.0.into()), &["materials.m.rho", "> 0"]);
+    expect(
+        &with(|v| v["materials"]["m"]["E"] = 0.0.into()),
+        &["materials.m.E", "> 0"],
+    );
+    expect(
+        &with(|v| v["materials"]["m"]["E"] = (-2e9).into()),
+        &["materials.m.E", "> 0"],
+    );
+    expect(
+        &with(|v| v["materials"]["m"]["nu"] = 0.5.into()),
+        &["materials.m.nu", "(-1, 0.5)"],
+    );
+    expect(
+        &with(|v| v["materials"]["m"]["nu"] = (-1.0).into()),
+        &["materials.m.nu", "(-1, 0.5)"],
+    );
+    expect(
+        &with(|v| v["materials"]["m"]["rho"] = 0.0.into()),
+        &["materials.m.rho", "> 0"],
+    );
 }
 
 #[test]
 fn thickness_and_time_out_of_range() {
-    expect(&with(|v| v["thickness"] = 0.0.into()), &["thickness", "> 0"]);
-    expect(&with(|v| v["time"]["dt"] = (-1e-6).into()), &["time.dt", "> 0"]);
+    expect(
+        &with(|v| v["thickness"] = 0.0.into()),
+        &["thickness", "> 0"],
+    );
+    expect(
+        &with(|v| v["time"]["dt"] = (-1e-6).into()),
+        &["time.dt", "> 0"],
+    );
     expect(&with(|v| v["time"]["dt"] = 0.0.into()), &["time.dt", "> 0"]);
-    expect(&with(|v| v["time"]["dt_factor"] = 0.5.into()), &["time.dt", "exactly one"]);
-    expect(&with(|v| v["time"]["steps"] = 0.into()), &["time.steps", "≥ 1"]);
-    expect(&with(|v| v["output"] = serde_json::json!({"every": 0})), &["output.every", "≥ 1"]);
+    expect(
+        &with(|v| v["time"]["dt_factor"] = 0.5.into()),
+        &["time.dt", "exactly one"],
+    );
+    expect(
+        &with(|v| v["time"]["steps"] = 0.into()),
+        &["time.steps", "≥ 1"],
+    );
+    expect(
+        &with(|v| v["output"] = serde_json::json!({"every": 0})),
+        &["output.every", "≥ 1"],
+    );
 }
 
 #[test]
 fn unknown_names_are_errors() {
-    expect(&with(|v| v["bodies"][0]["material"] = "steel".into()), &["bodies[0].material", "unknown material `steel`", "m"]);
-    expect(&with(|v| v["bodies"][0]["supports"][0]["edge"] = "middle".into()), &["bodies[0].supports[0].edge", "middle"]);
-    expect(&with(|v| v["bodies"][0]["supports"][0]["kind"] = "glue".into()), &["bodies[0].supports[0]", "glue"]);
+    expect(
+        &with(|v| v["bodies"][0]["material"] = "steel".into()),
+        &["bodies[0].material", "unknown material `steel`", "m"],
+    );
+    expect(
+        &with(|v| v["bodies"][0]["supports"][0]["edge"] = "middle".into()),
+        &["bodies[0].supports[0].edge", "middle"],
+    );
+    expect(
+        &with(|v| v["bodies"][0]["supports"][0]["kind"] = "glue".into()),
+        &["bodies[0].supports[0]", "glue"],
+    );
     expect(&with(|v| v["plane"] = "shell".into()), &["plane", "shell"]);
-    expect(&with(|v| v["evaluator"] = "magic".into()), &["evaluator", "magic"]);
-    expect(&with(|v| v["bodies"][0]["supports"][0] = serde_json::json!({"edge": "left", "kind": "clamp", "dofs": ["w"]})),
-        &["bodies[0].supports[0].dofs", "unknown DOF `w`", "u, v, theta"]);
+    expect(
+        &with(|v| v["evaluator"] = "magic".into()),
+        &["evaluator", "magic"],
+    );
+    expect(
+        &with(|v| {
+            v["bodies"][0]["supports"][0] =
+                serde_json::json!({"edge": "left", "kind": "clamp", "dofs": ["w"]})
+        }),
+        &[
+            "bodies[0].supports[0].dofs",
+            "unknown DOF `w`",
+            "u, v, theta",
+        ],
+    );
 }
 
 #[test]
 fn wrong_types_and_malformed_json_are_named() {
-    expect(&with(|v| v["thickness"] = "thick".into()), &["thickness", "invalid type"]);
-    expect(&with(|v| v["bodies"][0]["mesh"]["cells"] = serde_json::json!([10])), &["bodies[0].mesh.cells"]);
-    let err = Scene::from_json("{\"name\": \"x\",").unwrap_err().to_string();
+    expect(
+        &with(|v| v["thickness"] = "thick".into()),
+        &["thickness", "invalid type"],
+    );
+    expect(
+        &with(|v| v["bodies"][0]["mesh"]["cells"] = serde_json::json!([10])),
+        &["bodies[0].mesh.cells"],
+    );
+    let err = Scene::from_json("{\"name\": \"x\",")
+        .unwrap_err()
+        .to_string();
     expect(&err, &["line 1"]);
-    let err = Scene::from_file("/nonexistent/scene.json").unwrap_err().to_string();
+    let err = Scene::from_file("/nonexistent/scene.json")
+        .unwrap_err()
+        .to_string();
     expect(&err, &["/nonexistent/scene.json"]);
 }
 
 #[test]
 fn references_out_of_range() {
-    expect(&with(|v| v["bodies"][0]["loads"] = serde_json::json!([{"kind": "force", "element": 40, "value": [1, 0, 0]}])),
-        &["bodies[0].loads[0].element", "0..40"]);
-    expect(&with(|v| v["output"] = serde_json::json!({"probes": [{"element": 999, "dof": "u"}]})), &["output.probes[0].element", "0..40"]);
-    expect(&with(|v| v["bodies"][0]["mesh"]["cells"] = serde_json::json!([100000, 100000])), &["bodies[0].mesh.cells", "≤ 20000000"]);
+    expect(
+        &with(|v| {
+            v["bodies"][0]["loads"] =
+                serde_json::json!([{"kind": "force", "element": 40, "value": [1, 0, 0]}])
+        }),
+        &["bodies[0].loads[0].element", "0..40"],
+    );
+    expect(
+        &with(|v| v["output"] = serde_json::json!({"probes": [{"element": 999, "dof": "u"}]})),
+        &["output.probes[0].element", "0..40"],
+    );
+    expect(
+        &with(|v| v["bodies"][0]["mesh"]["cells"] = serde_json::json!([100000, 100000])),
+        &["bodies[0].mesh.cells", "≤ 20000000"],
+    );
 }
 
 #[test]
 fn bad_meshes_name_the_cell() {
     let poly = |cells: Value| serde_json::json!({"kind": "polygons", "vertices": [[0, 0], [1, 0], [1, 1], [0, 1]], "cells": cells});
-    expect(&with(|v| v["bodies"][0]["mesh"] = poly(serde_json::json!([[0, 3, 2, 1]]))), &["cell 0", "clockwise"]);
-    expect(&with(|v| v["bodies"][0]["mesh"] = poly(serde_json::json!([[0, 1, 2, 3], [0, 1, 7]]))), &["cell 1", "out of range"]);
+    expect(
+        &with(|v| v["bodies"][0]["mesh"] = poly(serde_json::json!([[0, 3, 2, 1]]))),
+        &["cell 0", "clockwise"],
+    );
+    expect(
+        &with(|v| v["bodies"][0]["mesh"] = poly(serde_json::json!([[0, 1, 2, 3], [0, 1, 7]]))),
+        &["cell 1", "out of range"],
+    );
     // A triangle has no edge on the left side of its bounding box.
-    expect(&with(|v| {
-        v["bodies"][0]["mesh"] = poly(serde_json::json!([[0, 1, 2]]));
-        v["bodies"][0]["supports"] = serde_json::json!([{"edge": "left", "kind": "ground-spring"}]);
-    }), &["bodies[0].supports[0].edge", "no boundary edge"]);
+    expect(
+        &with(|v| {
+            v["bodies"][0]["mesh"] = poly(serde_json::json!([[0, 1, 2]]));
+            v["bodies"][0]["supports"] =
+                serde_json::json!([{"edge": "left", "kind": "ground-spring"}]);
+        }),
+        &["bodies[0].supports[0].edge", "no boundary edge"],
+    );
 }
 
 #[test]
 fn penalty_and_contact_settings_are_checked() {
     use serde_json::json;
-    expect(&with(|v| v["formulation"] = json!({"kind": "hybrid", "penalty": 0.0})), &["formulation.penalty", "> 0"]);
-    expect(&with(|v| v["ground"] = json!([{"from": [0.0, 0.0], "to": [1.0, 0.0]}])), &["contact", "ground segments act only through contact"]);
+    expect(
+        &with(|v| v["formulation"] = json!({"kind": "hybrid", "penalty": 0.0})),
+        &["formulation.penalty", "> 0"],
+    );
+    expect(
+        &with(|v| v["ground"] = json!([{"from": [0.0, 0.0], "to": [1.0, 0.0]}])),
+        &["contact", "ground segments act only through contact"],
+    );
     let with_ground = |contact: serde_json::Value, ground: serde_json::Value| {
         with(move |v| {
             v["contact"] = contact;
@@ -124,9 +234,21 @@ fn penalty_and_contact_settings_are_checked() {
         })
     };
     let ground = json!([{"from": [0.0, 0.0], "to": [1.0, 0.0]}]);
-    expect(&with_ground(json!({"model": "dem"}), ground.clone()), &["contact.model", "edge-to-edge", "point"]);
-    expect(&with_ground(json!({"model": "point", "friction": -0.1}), ground.clone()), &["contact.friction", "μ ≥ 0"]);
-    expect(&with_ground(json!({"model": "point"}), json!([{"from": [1.0, 2.0], "to": [1.0, 2.0]}])), &["ground[0].to", "positive length"]);
+    expect(
+        &with_ground(json!({"model": "dem"}), ground.clone()),
+        &["contact.model", "edge-to-edge", "point"],
+    );
+    expect(
+        &with_ground(json!({"model": "point", "friction": -0.1}), ground.clone()),
+        &["contact.friction", "μ ≥ 0"],
+    );
+    expect(
+        &with_ground(
+            json!({"model": "point"}),
+            json!([{"from": [1.0, 2.0], "to": [1.0, 2.0]}]),
+        ),
+        &["ground[0].to", "positive length"],
+    );
 }
 
 /// Every number of every shipped scene pushed to an extreme, every key deleted, every string
@@ -136,17 +258,27 @@ fn no_panic_on_mutated_scenes() {
     let dir = format!("{}/examples/scenes", env!("CARGO_MANIFEST_DIR"));
     for entry in std::fs::read_dir(&dir).unwrap() {
         let path = entry.unwrap().path();
-        let original: Value = serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+        let original: Value =
+            serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
         let mut mutants = Vec::new();
         mutate(&original, &mut Vec::new(), &original, &mut mutants);
-        assert!(mutants.len() > 50, "{}: only {} mutants", path.display(), mutants.len());
+        assert!(
+            mutants.len() > 50,
+            "{}: only {} mutants",
+            path.display(),
+            mutants.len()
+        );
         for m in mutants {
             let text = m.to_string();
             let outcome = std::panic::catch_unwind(|| {
                 let scene = Scene::from_json(&text)?;
                 Model::build(&scene)?;
                 let p = Prepared::new(&scene, &RunOptions::default())?;
-                assert!(p.dt.is_finite() && p.dt > 0.0, "time step {} for {text}", p.dt);
+                assert!(
+                    p.dt.is_finite() && p.dt > 0.0,
+                    "time step {} for {text}",
+                    p.dt
+                );
                 Ok::<(), rbsm::error::Error>(())
             });
             assert!(outcome.is_ok(), "panic on {text}");
@@ -207,7 +339,10 @@ fn pointer<'v>(v: &'v mut Value, path: &[Value]) -> &'v mut Value {
 #[test]
 fn an_endless_file_is_not_a_scene() {
     let e = Scene::from_file("/dev/zero").unwrap_err().to_string();
-    assert!(e.contains("/dev/zero") && e.contains("larger than 256 MiB"), "{e}");
+    assert!(
+        e.contains("/dev/zero") && e.contains("larger than 256 MiB"),
+        "{e}"
+    );
 }
 
 /// `array` copies a body on a pattern, each copy a body of its own; bad counts name the key.
@@ -227,8 +362,13 @@ fn array_makes_named_shifted_copies() {
         rbsm::scene::MeshSpec::Grid(g) => assert_eq!(g.origin, [1.0 + 1.5 + 0.25, 3.0]),
         other => panic!("{other:?}"),
     }
-    let e = scene(r#"{"count": [0, 2], "pitch": [1, 1]}"#).unwrap_err().to_string();
-    assert!(e.contains("bodies[0].array.count") && e.contains("≥ 1"), "{e}");
+    let e = scene(r#"{"count": [0, 2], "pitch": [1, 1]}"#)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("bodies[0].array.count") && e.contains("≥ 1"),
+        "{e}"
+    );
 }
 
 /// A key repeated inside one object is refused with its path (issue 18 item 7): JSON parsers
@@ -237,14 +377,28 @@ fn array_makes_named_shifted_copies() {
 fn repeated_keys_are_refused_everywhere() {
     let text = base().to_string();
     let cases = [
-        (r#""materials":{"#, r#""materials":{"m":{"E":1.0,"nu":0.2,"rho":1.0},"#, "`materials.m`"),
-        (r#""mesh":{"#, r#""mesh":{"cells":[2,2],"#, "`bodies[0].mesh.cells`"),
-        (r#""supports":[{"#, r#""supports":[{"edge":"top","#, "`bodies[0].supports[0].edge`"),
+        (
+            r#""materials":{"#,
+            r#""materials":{"m":{"E":1.0,"nu":0.2,"rho":1.0},"#,
+            "`materials.m`",
+        ),
+        (
+            r#""mesh":{"#,
+            r#""mesh":{"cells":[2,2],"#,
+            "`bodies[0].mesh.cells`",
+        ),
+        (
+            r#""supports":[{"#,
+            r#""supports":[{"edge":"top","#,
+            "`bodies[0].supports[0].edge`",
+        ),
         (r#""name":"#, r#""name":"a","name":"#, "`bodies[0].name`"),
     ];
     for (at, with, field) in cases {
         assert!(text.contains(at), "{at} not in {text}");
-        let e = Scene::from_json(&text.replacen(at, with, 1)).unwrap_err().to_string();
+        let e = Scene::from_json(&text.replacen(at, with, 1))
+            .unwrap_err()
+            .to_string();
         expect(&e, &[field, "appears twice"]);
     }
 }
@@ -258,10 +412,13 @@ fn probe_names_must_make_a_valid_header() {
         let e = with(|v| v["output"]["probes"] = Value::Array(vec![probe(bad.into())]));
         expect(&e, &["output.probes[0].name"]);
     }
-    let e = with(|v| v["output"]["probes"] = Value::Array(vec![probe("x".into()), probe("x".into())]));
+    let e =
+        with(|v| v["output"]["probes"] = Value::Array(vec![probe("x".into()), probe("x".into())]));
     expect(&e, &["output.probes[1].name", "`x`", "output.probes[0]"]);
     // A default name (`e0_u`) counts too.
-    let e = with(|v| v["output"]["probes"] = serde_json::json!([{"element": 0, "dof": "u"}, {"name": "e0_u", "element": 1, "dof": "u"}]));
+    let e = with(
+        |v| v["output"]["probes"] = serde_json::json!([{"element": 0, "dof": "u"}, {"name": "e0_u", "element": 1, "dof": "u"}]),
+    );
     expect(&e, &["output.probes[1].name", "e0_u"]);
 }
 
@@ -269,7 +426,16 @@ fn probe_names_must_make_a_valid_header() {
 #[test]
 fn zero_steps_are_refused_from_the_command_line_too() {
     let scene = Scene::from_json(&base().to_string()).unwrap();
-    let e = Prepared::new(&scene, &RunOptions { steps: Some(0), ..Default::default() }).err().unwrap().to_string();
+    let e = Prepared::new(
+        &scene,
+        &RunOptions {
+            steps: Some(0),
+            ..Default::default()
+        },
+    )
+    .err()
+    .unwrap()
+    .to_string();
     expect(&e, &["--steps", "≥ 1"]);
 }
 
@@ -278,10 +444,22 @@ fn zero_steps_are_refused_from_the_command_line_too() {
 /// overflowing penalty names the penalty (it was blamed on `materials`).
 #[test]
 fn messages_blame_the_input_at_fault() {
-    expect(&with(|v| v["materials"]["m"]["rho"] = 1e-320.into()), &["materials.m.rho", "smallest normal"]);
-    expect(&with(|v| v["thickness"] = 1e-320.into()), &["`thickness`", "smallest normal"]);
-    expect(&with(|v| v["formulation"] = serde_json::json!({"kind": "hybrid", "penalty": 1e300})), &["formulation.penalty", "overflow"]);
-    expect(&with(|v| v["materials"]["m"]["E"] = 1e300.into()), &["materials.m.E", "overflow"]);
+    expect(
+        &with(|v| v["materials"]["m"]["rho"] = 1e-320.into()),
+        &["materials.m.rho", "smallest normal"],
+    );
+    expect(
+        &with(|v| v["thickness"] = 1e-320.into()),
+        &["`thickness`", "smallest normal"],
+    );
+    expect(
+        &with(|v| v["formulation"] = serde_json::json!({"kind": "hybrid", "penalty": 1e300})),
+        &["formulation.penalty", "overflow"],
+    );
+    expect(
+        &with(|v| v["materials"]["m"]["E"] = 1e300.into()),
+        &["materials.m.E", "overflow"],
+    );
 }
 
 /// A polygon cell shaped like an 8 (two lobes meeting at a point) is refused (issue 18 item 8).
@@ -300,9 +478,17 @@ fn a_figure_eight_cell_is_refused() {
 fn messages_are_cut_to_a_useful_length() {
     let long = "x".repeat(50_000);
     let e = with(|v| v["bodies"][0]["material"] = long.clone().into());
-    assert!(e.len() < 2 * rbsm::error::MAX_MESSAGE + 200 && e.contains("more characters"), "{} bytes", e.len());
+    assert!(
+        e.len() < 2 * rbsm::error::MAX_MESSAGE + 200 && e.contains("more characters"),
+        "{} bytes",
+        e.len()
+    );
     let e = with(|v| v["bodies"][0]["mesh"]["kind"] = long.clone().into());
-    assert!(e.len() < 2 * rbsm::error::MAX_MESSAGE + 200, "{} bytes", e.len());
+    assert!(
+        e.len() < 2 * rbsm::error::MAX_MESSAGE + 200,
+        "{} bytes",
+        e.len()
+    );
 }
 
 /// A model too large for the memory the process may take is refused with the estimate and
@@ -319,7 +505,11 @@ fn a_model_too_large_for_memory_is_refused_before_it_is_built() {
         // 4 GB of address space, as `ulimit -v 4000000` gives.
         let out = std::process::Command::new("sh")
             .arg("-c")
-            .arg(format!("ulimit -v 4000000 && exec '{}' check '{}'", env!("CARGO_BIN_EXE_rbsm"), path.display()))
+            .arg(format!(
+                "ulimit -v 4000000 && exec '{}' check '{}'",
+                env!("CARGO_BIN_EXE_rbsm"),
+                path.display()
+            ))
             .output()
             .unwrap();
         let err = String::from_utf8_lossy(&out.stderr);

@@ -31,7 +31,10 @@ fn bundled() -> Vec<(String, Value)> {
         .filter(|p| p.extension().is_some_and(|x| x == "json"))
         .map(|p| {
             let text = std::fs::read_to_string(&p).unwrap();
-            (p.file_name().unwrap().to_string_lossy().into_owned(), serde_json::from_str(&text).unwrap())
+            (
+                p.file_name().unwrap().to_string_lossy().into_owned(),
+                serde_json::from_str(&text).unwrap(),
+            )
         })
         .collect();
     out.sort_by(|a, b| a.0.cmp(&b.0));
@@ -57,7 +60,8 @@ fn extras() -> Vec<(String, Value)> {
         "probes": [{"name": "tip_v", "element": 79, "dof": "v"}, {"at": [1.0, 0.1], "dof": "u"}]
     });
     let body = &mut all["bodies"][0];
-    body["initial"] = json!({"velocity": [0.1, 0.0], "angular_velocity": 0.01, "rotation_deg": 1.0});
+    body["initial"] =
+        json!({"velocity": [0.1, 0.0], "angular_velocity": 0.01, "rotation_deg": 1.0});
     body["supports"] = json!([
         {"kind": "ground-spring", "edge": "left", "components": ["n"]},
         {"kind": "clamp", "edge": "bottom", "dofs": ["v", "theta"]},
@@ -74,14 +78,17 @@ fn extras() -> Vec<(String, Value)> {
 
     let mut polygons = load("cantilever.json");
     polygons["bodies"][0]["mesh"] = json!({"kind": "polygons", "vertices": [[0, 0], [1, 0], [1, 1], [0, 1], [2, 0], [2, 1]], "cells": [[0, 1, 2, 3], [1, 4, 5, 2]]});
-    polygons["bodies"][0]["array"] = json!({"count": [2, 3], "pitch": [2.5, 1.5], "row_offset": 0.5});
+    polygons["bodies"][0]["array"] =
+        json!({"count": [2, 3], "pitch": [2.5, 1.5], "row_offset": 0.5});
     polygons["output"] = json!({});
 
     let mut hybrid = load("cantilever.json");
     hybrid["formulation"] = json!({"kind": "hybrid", "penalty": 100.0});
     hybrid["bodies"][0]["mesh"]["cell"] = json!("tri");
-    hybrid["output"]["probes"] = json!([{"name": "tip_v", "element": 79, "dof": "v"}, {"element": 3, "dof": "gxy"}]);
-    hybrid["bodies"][0]["supports"] = json!([{"kind": "clamp", "edge": "left", "dofs": ["u", "v", "theta", "ex", "ey", "gxy"]}]);
+    hybrid["output"]["probes"] =
+        json!([{"name": "tip_v", "element": 79, "dof": "v"}, {"element": 3, "dof": "gxy"}]);
+    hybrid["bodies"][0]["supports"] =
+        json!([{"kind": "clamp", "edge": "left", "dofs": ["u", "v", "theta", "ex", "ey", "gxy"]}]);
 
     let mut contact = load("hopping_block.json");
     contact["contact"] = json!({"model": "point", "friction": 0.3});
@@ -93,17 +100,31 @@ fn extras() -> Vec<(String, Value)> {
     }
     minimal["bodies"][0] = json!({"name": "b", "material": "concrete", "mesh": {"kind": "grid", "origin": [0, 0], "size": [1, 1], "cells": [2, 2]}});
 
-    [("all optional keys", all), ("voronoi", voronoi), ("polygons array", polygons), ("hybrid", hybrid), ("point contact", contact), ("minimal", minimal)]
-        .into_iter()
-        .map(|(n, v)| (n.to_string(), v))
-        .chain(std::iter::once(("docs/scene.md example".to_string(), docs_example())))
-        .collect()
+    [
+        ("all optional keys", all),
+        ("voronoi", voronoi),
+        ("polygons array", polygons),
+        ("hybrid", hybrid),
+        ("point contact", contact),
+        ("minimal", minimal),
+    ]
+    .into_iter()
+    .map(|(n, v)| (n.to_string(), v))
+    .chain(std::iter::once((
+        "docs/scene.md example".to_string(),
+        docs_example(),
+    )))
+    .collect()
 }
 
 /// The complete minimal example of `docs/scene.md` (the first ```json block).
 fn docs_example() -> Value {
-    let text = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/scene.md")).expect("docs/scene.md");
-    let start = text.find("```json\n").expect("a ```json block in docs/scene.md") + 8;
+    let text = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/scene.md"))
+        .expect("docs/scene.md");
+    let start = text
+        .find("```json\n")
+        .expect("a ```json block in docs/scene.md")
+        + 8;
     let end = start + text[start..].find("```").unwrap();
     serde_json::from_str(&text[start..end]).expect("the example of docs/scene.md is JSON")
 }
@@ -121,13 +142,18 @@ fn validator(schema: &Value) -> jsonschema::Validator {
 }
 
 fn schema_errors(v: &jsonschema::Validator, scene: &Value) -> Vec<String> {
-    v.iter_errors(scene).map(|e| format!("{}: {e}", e.instance_path())).collect()
+    v.iter_errors(scene)
+        .map(|e| format!("{}: {e}", e.instance_path()))
+        .collect()
 }
 
 #[test]
 fn the_schema_is_a_valid_draft_2020_12_schema() {
     let schema = rbsm::scene::schema();
-    assert_eq!(schema["$schema"], "https://json-schema.org/draft/2020-12/schema");
+    assert_eq!(
+        schema["$schema"],
+        "https://json-schema.org/draft/2020-12/schema"
+    );
     if let Err(e) = jsonschema::meta::validate(&schema) {
         panic!("not a valid JSON Schema: {e}");
     }
@@ -160,33 +186,97 @@ fn the_schema_refuses_what_the_parser_refuses_by_shape_or_simple_range() {
     let v = validator(&rbsm::scene::schema());
     let base = load("cantilever.json");
     let cases: Vec<(&str, Box<dyn Fn(&mut Value)>)> = vec![
-        ("unknown top-level key", Box::new(|s| s["colour"] = json!("red"))),
-        ("unknown key in a mesh", Box::new(|s| s["bodies"][0]["mesh"]["cels"] = json!(3))),
-        ("unknown mesh kind", Box::new(|s| s["bodies"][0]["mesh"]["kind"] = json!("hexagons"))),
-        ("a mesh without kind", Box::new(|s| drop(s["bodies"][0]["mesh"].as_object_mut().unwrap().remove("kind")))),
-        ("a voronoi key in a grid", Box::new(|s| s["bodies"][0]["mesh"]["sites"] = json!(10))),
-        ("nu = 0.5", Box::new(|s| s["materials"]["concrete"]["nu"] = json!(0.5))),
-        ("E = 0", Box::new(|s| s["materials"]["concrete"]["E"] = json!(0))),
+        (
+            "unknown top-level key",
+            Box::new(|s| s["colour"] = json!("red")),
+        ),
+        (
+            "unknown key in a mesh",
+            Box::new(|s| s["bodies"][0]["mesh"]["cels"] = json!(3)),
+        ),
+        (
+            "unknown mesh kind",
+            Box::new(|s| s["bodies"][0]["mesh"]["kind"] = json!("hexagons")),
+        ),
+        (
+            "a mesh without kind",
+            Box::new(|s| {
+                drop(
+                    s["bodies"][0]["mesh"]
+                        .as_object_mut()
+                        .unwrap()
+                        .remove("kind"),
+                )
+            }),
+        ),
+        (
+            "a voronoi key in a grid",
+            Box::new(|s| s["bodies"][0]["mesh"]["sites"] = json!(10)),
+        ),
+        (
+            "nu = 0.5",
+            Box::new(|s| s["materials"]["concrete"]["nu"] = json!(0.5)),
+        ),
+        (
+            "E = 0",
+            Box::new(|s| s["materials"]["concrete"]["E"] = json!(0)),
+        ),
         ("thickness < 0", Box::new(|s| s["thickness"] = json!(-0.1))),
         ("no materials", Box::new(|s| s["materials"] = json!({}))),
         ("no bodies", Box::new(|s| s["bodies"] = json!([]))),
-        ("zero cells", Box::new(|s| s["bodies"][0]["mesh"]["cells"] = json!([0, 8]))),
-        ("both dt and dt_factor", Box::new(|s| s["time"]["dt"] = json!(1e-6))),
-        ("neither end nor steps", Box::new(|s| drop(s["time"].as_object_mut().unwrap().remove("end")))),
-        ("steps = 0", Box::new(|s| s["time"] = json!({"dt": 1e-6, "steps": 0}))),
+        (
+            "zero cells",
+            Box::new(|s| s["bodies"][0]["mesh"]["cells"] = json!([0, 8])),
+        ),
+        (
+            "both dt and dt_factor",
+            Box::new(|s| s["time"]["dt"] = json!(1e-6)),
+        ),
+        (
+            "neither end nor steps",
+            Box::new(|s| drop(s["time"].as_object_mut().unwrap().remove("end"))),
+        ),
+        (
+            "steps = 0",
+            Box::new(|s| s["time"] = json!({"dt": 1e-6, "steps": 0})),
+        ),
         ("every = 0", Box::new(|s| s["output"]["every"] = json!(0))),
-        ("probe with element and at", Box::new(|s| s["output"]["probes"][0]["at"] = json!([0.1, 0.1]))),
-        ("probe of an unknown DOF", Box::new(|s| s["output"]["probes"][0]["dof"] = json!("w"))),
-        ("unknown contact model", Box::new(|s| s["contact"] = json!({"model": "mortar"}))),
-        ("negative friction", Box::new(|s| s["contact"] = json!({"model": "point", "friction": -0.1}))),
-        ("hybrid without penalty", Box::new(|s| s["formulation"] = json!({"kind": "hybrid"}))),
-        ("rigid with a penalty", Box::new(|s| s["formulation"] = json!({"kind": "rigid", "penalty": 3}))),
-        ("$schema not a string", Box::new(|s| s["$schema"] = json!(3))),
+        (
+            "probe with element and at",
+            Box::new(|s| s["output"]["probes"][0]["at"] = json!([0.1, 0.1])),
+        ),
+        (
+            "probe of an unknown DOF",
+            Box::new(|s| s["output"]["probes"][0]["dof"] = json!("w")),
+        ),
+        (
+            "unknown contact model",
+            Box::new(|s| s["contact"] = json!({"model": "mortar"})),
+        ),
+        (
+            "negative friction",
+            Box::new(|s| s["contact"] = json!({"model": "point", "friction": -0.1})),
+        ),
+        (
+            "hybrid without penalty",
+            Box::new(|s| s["formulation"] = json!({"kind": "hybrid"})),
+        ),
+        (
+            "rigid with a penalty",
+            Box::new(|s| s["formulation"] = json!({"kind": "rigid", "penalty": 3})),
+        ),
+        (
+            "$schema not a string",
+            Box::new(|s| s["$schema"] = json!(3)),
+        ),
     ];
     for (what, edit) in cases {
         let mut scene = base.clone();
         edit(&mut scene);
-        assert!(!v.is_valid(&scene), "the schema accepts a scene with {what}");
+        assert!(
+            !v.is_valid(&scene),
+            "the schema accepts a scene with {what}"
+        );
         let built = parse(&scene).and_then(|s| rbsm::model::Model::build(&s).map(|_| ()));
         assert!(built.is_err(), "rbsm accepts a scene with {what}");
     }
@@ -212,10 +302,12 @@ fn at_mut<'a>(value: &'a mut Value, path: &[Step]) -> &'a mut Value {
 }
 
 fn path_text(path: &[Step]) -> String {
-    path.iter().map(|s| match s {
-        Step::Key(k) => format!(".{k}"),
-        Step::Index(i) => format!("[{i}]"),
-    }).collect()
+    path.iter()
+        .map(|s| match s {
+            Step::Key(k) => format!(".{k}"),
+            Step::Index(i) => format!("[{i}]"),
+        })
+        .collect()
 }
 
 /// The schema with its location (a JSON pointer into the schema document).
@@ -230,14 +322,36 @@ fn resolve<'a>(root: &'a Value, mut here: Located<'a>, instance: &Value) -> Loca
     loop {
         if let Some(r) = here.schema.get("$ref").and_then(Value::as_str) {
             let pointer = r.strip_prefix('#').expect("local $ref");
-            here = Located { schema: root.pointer(pointer).unwrap_or_else(|| panic!("dangling {r}")), pointer: pointer.to_string() };
+            here = Located {
+                schema: root
+                    .pointer(pointer)
+                    .unwrap_or_else(|| panic!("dangling {r}")),
+                pointer: pointer.to_string(),
+            };
         } else if let Some(any) = here.schema.get("anyOf").and_then(Value::as_array) {
-            let (i, branch) = any.iter().enumerate().find(|(_, b)| b.get("type") != Some(&json!("null"))).expect("a non-null branch");
-            here = Located { schema: branch, pointer: format!("{}/anyOf/{i}", here.pointer) };
-        } else if let (Some(one), Some(kind)) = (here.schema.get("oneOf").and_then(Value::as_array), instance.get("kind")) {
-            let found = one.iter().enumerate().find(|(_, b)| b.pointer("/properties/kind/const") == Some(kind));
-            let (i, branch) = found.unwrap_or_else(|| panic!("no branch of {} for kind {kind}", here.pointer));
-            here = Located { schema: branch, pointer: format!("{}/oneOf/{i}", here.pointer) };
+            let (i, branch) = any
+                .iter()
+                .enumerate()
+                .find(|(_, b)| b.get("type") != Some(&json!("null")))
+                .expect("a non-null branch");
+            here = Located {
+                schema: branch,
+                pointer: format!("{}/anyOf/{i}", here.pointer),
+            };
+        } else if let (Some(one), Some(kind)) = (
+            here.schema.get("oneOf").and_then(Value::as_array),
+            instance.get("kind"),
+        ) {
+            let found = one
+                .iter()
+                .enumerate()
+                .find(|(_, b)| b.pointer("/properties/kind/const") == Some(kind));
+            let (i, branch) =
+                found.unwrap_or_else(|| panic!("no branch of {} for kind {kind}", here.pointer));
+            here = Located {
+                schema: branch,
+                pointer: format!("{}/oneOf/{i}", here.pointer),
+            };
         } else {
             return here;
         }
@@ -245,7 +359,13 @@ fn resolve<'a>(root: &'a Value, mut here: Located<'a>, instance: &Value) -> Loca
 }
 
 /// Every object of `instance` (with its path) and the schema that governs it.
-fn walk<'a>(root: &'a Value, here: Located<'a>, instance: &Value, path: Vec<Step>, out: &mut Vec<(Vec<Step>, Located<'a>)>) {
+fn walk<'a>(
+    root: &'a Value,
+    here: Located<'a>,
+    instance: &Value,
+    path: Vec<Step>,
+    out: &mut Vec<(Vec<Step>, Located<'a>)>,
+) {
     let here = resolve(root, here, instance);
     let child = |step: Step| {
         let mut p = path.clone();
@@ -257,11 +377,26 @@ fn walk<'a>(root: &'a Value, here: Located<'a>, instance: &Value, path: Vec<Step
             let props = here.schema.get("properties");
             for (key, value) in map {
                 let sub = match props.and_then(|p| p.get(key)) {
-                    Some(s) => Located { schema: s, pointer: format!("{}/properties/{key}", here.pointer) },
+                    Some(s) => Located {
+                        schema: s,
+                        pointer: format!("{}/properties/{key}", here.pointer),
+                    },
                     None => {
-                        let extra = here.schema.get("additionalProperties").filter(|a| a.is_object());
-                        let extra = extra.unwrap_or_else(|| panic!("{}: key `{key}` not in the schema at {}", path_text(&path), here.pointer));
-                        Located { schema: extra, pointer: format!("{}/additionalProperties", here.pointer) }
+                        let extra = here
+                            .schema
+                            .get("additionalProperties")
+                            .filter(|a| a.is_object());
+                        let extra = extra.unwrap_or_else(|| {
+                            panic!(
+                                "{}: key `{key}` not in the schema at {}",
+                                path_text(&path),
+                                here.pointer
+                            )
+                        });
+                        Located {
+                            schema: extra,
+                            pointer: format!("{}/additionalProperties", here.pointer),
+                        }
                     }
                 };
                 walk(root, sub, value, child(Step::Key(key.clone())), out);
@@ -270,8 +405,19 @@ fn walk<'a>(root: &'a Value, here: Located<'a>, instance: &Value, path: Vec<Step
         }
         Value::Array(items) => {
             for (i, item) in items.iter().enumerate() {
-                let s = here.schema.get("items").unwrap_or_else(|| panic!("{}: no items in {}", path_text(&path), here.pointer));
-                walk(root, Located { schema: s, pointer: format!("{}/items", here.pointer) }, item, child(Step::Index(i)), out);
+                let s = here.schema.get("items").unwrap_or_else(|| {
+                    panic!("{}: no items in {}", path_text(&path), here.pointer)
+                });
+                walk(
+                    root,
+                    Located {
+                        schema: s,
+                        pointer: format!("{}/items", here.pointer),
+                    },
+                    item,
+                    child(Step::Index(i)),
+                    out,
+                );
             }
         }
         _ => {}
@@ -286,14 +432,28 @@ fn expected_list(message: &str) -> BTreeSet<String> {
     if message.contains("there are no fields") {
         return BTreeSet::new();
     }
-    let rest = &message[message.find("expected").unwrap_or_else(|| panic!("no list in: {message}")) + "expected".len()..];
+    let rest = &message[message
+        .find("expected")
+        .unwrap_or_else(|| panic!("no list in: {message}"))
+        + "expected".len()..];
     let rest = rest.split(" at line ").next().unwrap();
-    let rest = rest.trim_start().trim_start_matches("one of").trim_start_matches(':');
-    rest.split(", ").flat_map(|p| p.split(" or ")).map(|p| p.trim().trim_matches('`').to_string()).filter(|p| !p.is_empty()).collect()
+    let rest = rest
+        .trim_start()
+        .trim_start_matches("one of")
+        .trim_start_matches(':');
+    rest.split(", ")
+        .flat_map(|p| p.split(" or "))
+        .map(|p| p.trim().trim_matches('`').to_string())
+        .filter(|p| !p.is_empty())
+        .collect()
 }
 
 fn keys(schema: &Value) -> BTreeSet<String> {
-    schema.get("properties").and_then(Value::as_object).map(|p| p.keys().cloned().collect()).unwrap_or_default()
+    schema
+        .get("properties")
+        .and_then(Value::as_object)
+        .map(|p| p.keys().cloned().collect())
+        .unwrap_or_default()
 }
 
 /// Every object schema (with `properties`) in the schema document, by pointer.
@@ -311,7 +471,10 @@ fn object_schemas(value: &Value, pointer: String, out: &mut BTreeMap<String, BTr
                 }
             }
         }
-        Value::Array(items) => items.iter().enumerate().for_each(|(i, v)| object_schemas(v, format!("{pointer}/{i}"), out)),
+        Value::Array(items) => items
+            .iter()
+            .enumerate()
+            .for_each(|(i, v)| object_schemas(v, format!("{pointer}/{i}"), out)),
         _ => {}
     }
 }
@@ -323,24 +486,56 @@ fn the_schema_names_exactly_the_keys_and_kinds_the_parser_accepts() {
     let mut kinds_checked = BTreeSet::new();
     for (name, scene) in all_scenes() {
         let mut objects = Vec::new();
-        walk(&schema, Located { schema: &schema, pointer: String::new() }, &scene, Vec::new(), &mut objects);
+        walk(
+            &schema,
+            Located {
+                schema: &schema,
+                pointer: String::new(),
+            },
+            &scene,
+            Vec::new(),
+            &mut objects,
+        );
         for (path, here) in objects {
             let where_ = format!("{name}: `{}` (schema {})", path_text(&path), here.pointer);
             let listed = keys(here.schema);
             if listed.is_empty() {
                 // A map of names (`materials`): its entries are checked as objects.
-                assert!(here.schema.get("additionalProperties").is_some_and(Value::is_object), "{where_}: neither an object nor a map");
+                assert!(
+                    here.schema
+                        .get("additionalProperties")
+                        .is_some_and(Value::is_object),
+                    "{where_}: neither an object nor a map"
+                );
                 continue;
             }
-            assert_eq!(here.schema.get("additionalProperties"), Some(&json!(false)), "{where_}: not closed");
-            let present: BTreeSet<String> = at_mut(&mut scene.clone(), &path).as_object().unwrap().keys().cloned().collect();
-            reached.entry(here.pointer.clone()).or_default().extend(present);
+            assert_eq!(
+                here.schema.get("additionalProperties"),
+                Some(&json!(false)),
+                "{where_}: not closed"
+            );
+            let present: BTreeSet<String> = at_mut(&mut scene.clone(), &path)
+                .as_object()
+                .unwrap()
+                .keys()
+                .cloned()
+                .collect();
+            reached
+                .entry(here.pointer.clone())
+                .or_default()
+                .extend(present);
 
             // The parser's keys for this object.
             let mut probe = scene.clone();
             at_mut(&mut probe, &path)[BOGUS] = json!(1);
-            let message = parse(&probe).err().unwrap_or_else(|| panic!("{where_}: an unknown key is accepted")).to_string();
-            assert!(message.contains(&format!("unknown field `{BOGUS}`")), "{where_}: {message}");
+            let message = parse(&probe)
+                .err()
+                .unwrap_or_else(|| panic!("{where_}: an unknown key is accepted"))
+                .to_string();
+            assert!(
+                message.contains(&format!("unknown field `{BOGUS}`")),
+                "{where_}: {message}"
+            );
             let mut parser = expected_list(&message);
             // `kind` is read before the variant's own keys (by the kind dispatch or serde's tag).
             if at_mut(&mut scene.clone(), &path).get("kind").is_some() {
@@ -352,11 +547,29 @@ fn the_schema_names_exactly_the_keys_and_kinds_the_parser_accepts() {
             if at_mut(&mut scene.clone(), &path).get("kind").is_some() {
                 let mut probe = scene.clone();
                 at_mut(&mut probe, &path)["kind"] = json!(BOGUS);
-                let message = parse(&probe).err().unwrap_or_else(|| panic!("{where_}: an unknown kind is accepted")).to_string();
+                let message = parse(&probe)
+                    .err()
+                    .unwrap_or_else(|| panic!("{where_}: an unknown kind is accepted"))
+                    .to_string();
                 let parser = expected_list(&message);
-                let oneof = here.pointer.rsplit_once("/oneOf/").expect("a kind branch of a oneOf").0;
-                let branches = schema.pointer(&format!("{oneof}/oneOf")).and_then(Value::as_array).unwrap();
-                let consts: BTreeSet<String> = branches.iter().map(|b| b.pointer("/properties/kind/const").and_then(Value::as_str).unwrap().to_string()).collect();
+                let oneof = here
+                    .pointer
+                    .rsplit_once("/oneOf/")
+                    .expect("a kind branch of a oneOf")
+                    .0;
+                let branches = schema
+                    .pointer(&format!("{oneof}/oneOf"))
+                    .and_then(Value::as_array)
+                    .unwrap();
+                let consts: BTreeSet<String> = branches
+                    .iter()
+                    .map(|b| {
+                        b.pointer("/properties/kind/const")
+                            .and_then(Value::as_str)
+                            .unwrap()
+                            .to_string()
+                    })
+                    .collect();
                 assert_eq!(parser, consts, "{where_}: the parser's kinds (left) differ from the schema's (right); message: {message}");
                 kinds_checked.insert(oneof.to_string());
             }
@@ -366,13 +579,27 @@ fn the_schema_names_exactly_the_keys_and_kinds_the_parser_accepts() {
     let mut all = BTreeMap::new();
     object_schemas(&schema, String::new(), &mut all);
     for (pointer, listed) in &all {
-        let seen = reached.get(pointer).unwrap_or_else(|| panic!("no scene here reaches the object schema {pointer}: add one to `extras`"));
+        let seen = reached.get(pointer).unwrap_or_else(|| {
+            panic!("no scene here reaches the object schema {pointer}: add one to `extras`")
+        });
         let unused: Vec<_> = listed.difference(seen).collect();
-        assert!(unused.is_empty(), "keys of {pointer} that no scene here uses: {unused:?}: add them to `extras`");
+        assert!(
+            unused.is_empty(),
+            "keys of {pointer} that no scene here uses: {unused:?}: add them to `extras`"
+        );
     }
     assert!(all.len() >= 20, "too few object schemas: {:?}", all.keys());
-    for oneof in ["/$defs/MeshSpec", "/$defs/SupportSpec", "/$defs/LoadSpec", "/$defs/FormulationSpec", "/$defs/ReferenceSpec"] {
-        assert!(kinds_checked.contains(oneof), "kinds of {oneof} not checked: {kinds_checked:?}");
+    for oneof in [
+        "/$defs/MeshSpec",
+        "/$defs/SupportSpec",
+        "/$defs/LoadSpec",
+        "/$defs/FormulationSpec",
+        "/$defs/ReferenceSpec",
+    ] {
+        assert!(
+            kinds_checked.contains(oneof),
+            "kinds of {oneof} not checked: {kinds_checked:?}"
+        );
     }
 }
 
@@ -383,13 +610,23 @@ fn a_top_level_schema_key_is_ignored_and_only_there() {
     parse(&scene).unwrap();
     scene["bodies"][0]["$schema"] = json!("x");
     let message = parse(&scene).unwrap_err().to_string();
-    assert!(message.contains("bodies[0]") && message.contains("$schema"), "{message}");
+    assert!(
+        message.contains("bodies[0]") && message.contains("$schema"),
+        "{message}"
+    );
 }
 
 #[test]
 fn rbsm_schema_prints_the_library_schema() {
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_rbsm")).arg("schema").output().expect("rbsm runs");
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_rbsm"))
+        .arg("schema")
+        .output()
+        .expect("rbsm runs");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let printed: Value = serde_json::from_slice(&out.stdout).expect("rbsm schema prints JSON");
     assert_eq!(printed, rbsm::scene::schema());
     assert_eq!(printed["title"], "rbsm scene");
@@ -397,15 +634,29 @@ fn rbsm_schema_prints_the_library_schema() {
 
 #[test]
 fn docs_scene_md_names_every_key_and_kind_of_the_schema() {
-    let text = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/scene.md")).unwrap();
+    let text = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/scene.md"))
+        .unwrap();
     let schema = rbsm::scene::schema();
     let mut all = BTreeMap::new();
     object_schemas(&schema, String::new(), &mut all);
     let mut names: BTreeSet<String> = all.values().flatten().cloned().collect();
     for (pointer, _) in all.iter().filter(|(p, _)| p.contains("/oneOf/")) {
-        names.insert(schema.pointer(&format!("{pointer}/properties/kind/const")).unwrap().as_str().unwrap().to_string());
+        names.insert(
+            schema
+                .pointer(&format!("{pointer}/properties/kind/const"))
+                .unwrap()
+                .as_str()
+                .unwrap()
+                .to_string(),
+        );
     }
-    let missing: Vec<_> = names.iter().filter(|n| !text.contains(&format!("`{n}`")) && !text.contains(&format!("`\"{n}\"`"))).collect();
-    assert!(missing.is_empty(), "docs/scene.md does not describe {missing:?}");
+    let missing: Vec<_> = names
+        .iter()
+        .filter(|n| !text.contains(&format!("`{n}`")) && !text.contains(&format!("`\"{n}\"`")))
+        .collect();
+    assert!(
+        missing.is_empty(),
+        "docs/scene.md does not describe {missing:?}"
+    );
     assert!(names.len() > 40, "{names:?}");
 }

@@ -3,7 +3,11 @@
 use rbsm::tradeoff::{sweep, Key, Sweep};
 
 fn column() -> String {
-    std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/examples/scenes/column_step.json")).unwrap()
+    std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/examples/scenes/column_step.json"
+    ))
+    .unwrap()
 }
 
 fn sweeps(args: &[&str]) -> Vec<Sweep> {
@@ -13,41 +17,90 @@ fn sweeps(args: &[&str]) -> Vec<Sweep> {
 #[test]
 fn bad_sweeps_are_refused_with_the_allowed_values() {
     let e = Sweep::parse("dtt=1e-6").unwrap_err().to_string();
-    assert!(e.contains("--sweep") && e.contains("dt_factor") && e.contains("refine"), "{e}");
+    assert!(
+        e.contains("--sweep") && e.contains("dt_factor") && e.contains("refine"),
+        "{e}"
+    );
     let e = Sweep::parse("refine=0,2").unwrap_err().to_string();
     assert!(e.contains("--sweep refine") && e.contains("1..=64"), "{e}");
     let e = Sweep::parse("evaluator=fast").unwrap_err().to_string();
     assert!(e.contains("assembled or element-wise"), "{e}");
     assert!(Sweep::parse("dt_factor=").is_err());
-    assert_eq!(Sweep::parse("penalty=10, 100").unwrap(), Sweep { key: Key::Penalty, values: vec!["10".into(), "100".into()] });
+    assert_eq!(
+        Sweep::parse("penalty=10, 100").unwrap(),
+        Sweep {
+            key: Key::Penalty,
+            values: vec!["10".into(), "100".into()]
+        }
+    );
     // A contact sweep needs a scene with contact.
-    let e = sweep(&column(), &sweeps(&["contact=point"]), |_| ()).unwrap_err().to_string();
+    let e = sweep(&column(), &sweeps(&["contact=point"]), |_| ())
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("declares no `contact`"), "{e}");
     // The closed form's probe must exist.
-    let e = rbsm::scene::Scene::from_json(&column().replace(r#""probe": "tip_u"}"#, r#""probe": "tip"}"#)).unwrap_err().to_string();
+    let e = rbsm::scene::Scene::from_json(
+        &column().replace(r#""probe": "tip_u"}"#, r#""probe": "tip"}"#),
+    )
+    .unwrap_err()
+    .to_string();
     assert!(e.contains("reference.probe") && e.contains("`tip`"), "{e}");
 }
 
 #[test]
 fn the_column_converges_to_the_bar_and_the_front_is_marked() {
-    let report = sweep(&column(), &sweeps(&["refine=1,2,4", "dt_factor=0.9,0.5"]), |_| ()).unwrap();
-    assert!(report.reference.contains("closed form of the bar"), "{}", report.reference);
+    let report = sweep(
+        &column(),
+        &sweeps(&["refine=1,2,4", "dt_factor=0.9,0.5"]),
+        |_| (),
+    )
+    .unwrap();
+    assert!(
+        report.reference.contains("closed form of the bar"),
+        "{}",
+        report.reference
+    );
     assert_eq!(report.points.len(), 6);
     let err = |r: &str, f: &str| {
-        report.points.iter().find(|p| p.settings[0].1 == r && p.settings[1].1 == f).and_then(|p| p.error).unwrap()
+        report
+            .points
+            .iter()
+            .find(|p| p.settings[0].1 == r && p.settings[1].1 == f)
+            .and_then(|p| p.error)
+            .unwrap()
     };
     // Refinement lowers the error at either time step; the error is a few per cent at most.
     for f in ["0.9", "0.5"] {
-        assert!(err("2", f) < err("1", f) && err("4", f) < err("2", f), "{f}: {} {} {}", err("1", f), err("2", f), err("4", f));
+        assert!(
+            err("2", f) < err("1", f) && err("4", f) < err("2", f),
+            "{f}: {} {} {}",
+            err("1", f),
+            err("2", f),
+            err("4", f)
+        );
         assert!(err("1", f) < 0.05);
     }
     // Every point is measured; the front holds the cheapest point and the most accurate one.
-    assert!(report.points.iter().all(|p| p.status == "ok" && p.steps > 0 && p.dt_crit > 0.0 && p.wall_s > 0.0));
-    let cheapest = report.points.iter().min_by(|a, b| a.wall_s.total_cmp(&b.wall_s)).unwrap();
-    let best = report.points.iter().min_by(|a, b| a.error.unwrap().total_cmp(&b.error.unwrap())).unwrap();
+    assert!(report
+        .points
+        .iter()
+        .all(|p| p.status == "ok" && p.steps > 0 && p.dt_crit > 0.0 && p.wall_s > 0.0));
+    let cheapest = report
+        .points
+        .iter()
+        .min_by(|a, b| a.wall_s.total_cmp(&b.wall_s))
+        .unwrap();
+    let best = report
+        .points
+        .iter()
+        .min_by(|a, b| a.error.unwrap().total_cmp(&b.error.unwrap()))
+        .unwrap();
     assert!(cheapest.pareto && best.pareto);
     for p in report.points.iter().filter(|p| p.pareto) {
-        let beaten = report.points.iter().any(|q| q.wall_s < p.wall_s && q.error.unwrap() < p.error.unwrap());
+        let beaten = report
+            .points
+            .iter()
+            .any(|q| q.wall_s < p.wall_s && q.error.unwrap() < p.error.unwrap());
         assert!(!beaten, "a front point is beaten: {:?}", p.settings);
     }
     let dir = tempfile::tempdir().unwrap();
@@ -57,7 +110,9 @@ fn the_column_converges_to_the_bar_and_the_front_is_marked() {
     assert!(csv.starts_with("refine,dt_factor,elements,"));
     let svg = std::fs::read_to_string(dir.path().join("tradeoff.svg")).unwrap();
     assert!(svg.contains("<svg") && svg.contains("Pareto front"));
-    assert!(std::fs::read_to_string(dir.path().join("tradeoff.md")).unwrap().contains("| refine | dt_factor |"));
+    assert!(std::fs::read_to_string(dir.path().join("tradeoff.md"))
+        .unwrap()
+        .contains("| refine | dt_factor |"));
 }
 
 #[test]
@@ -66,8 +121,18 @@ fn without_a_closed_form_the_finest_run_is_the_reference_and_diverged_runs_are_k
     let mut scene: serde_json::Value = serde_json::from_str(&column()).unwrap();
     scene.as_object_mut().unwrap().remove("reference");
     let json = scene.to_string();
-    let report = sweep(&json, &sweeps(&["refine=1,2", "dt_factor=0.5,0.25,1.05"]), |_| ()).unwrap();
-    assert!(report.reference.contains("finest run") && report.reference.contains("refine=2, dt_factor=0.25"), "{}", report.reference);
+    let report = sweep(
+        &json,
+        &sweeps(&["refine=1,2", "dt_factor=0.5,0.25,1.05"]),
+        |_| (),
+    )
+    .unwrap();
+    assert!(
+        report.reference.contains("finest run")
+            && report.reference.contains("refine=2, dt_factor=0.25"),
+        "{}",
+        report.reference
+    );
     for p in &report.points {
         let f = &p.settings[1].1;
         if f == "1.05" {
@@ -77,16 +142,29 @@ fn without_a_closed_form_the_finest_run_is_the_reference_and_diverged_runs_are_k
         } else if p.settings[0].1 == "2" && f == "0.25" {
             assert!(p.error.is_none() && p.status == "ok");
         } else {
-            assert!(p.error.is_some_and(|e| e > 0.0 && e < 0.1), "{:?}: {:?}", p.settings, p.error);
+            assert!(
+                p.error.is_some_and(|e| e > 0.0 && e < 0.1),
+                "{:?}: {:?}",
+                p.settings,
+                p.error
+            );
         }
     }
 }
 
 #[test]
 fn the_hopping_block_is_measured_against_its_theory() {
-    let json = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/examples/scenes/hopping_block.json")).unwrap();
+    let json = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/examples/scenes/hopping_block.json"
+    ))
+    .unwrap();
     let report = sweep(&json, &sweeps(&["dt=8e-6,2e-6"]), |_| ()).unwrap();
-    assert!(report.reference.contains("hopping block") && report.reference.contains("H = 1"), "{}", report.reference);
+    assert!(
+        report.reference.contains("hopping block") && report.reference.contains("H = 1"),
+        "{}",
+        report.reference
+    );
     let e: Vec<f64> = report.points.iter().map(|p| p.error.unwrap()).collect();
     // The apex error falls with the time step, near second order (validation §8.2).
     assert!(e[0] < 1e-2 && e[1] < e[0] / 4.0, "{e:?}");
@@ -94,7 +172,10 @@ fn the_hopping_block_is_measured_against_its_theory() {
 
 #[test]
 fn the_command_line_writes_the_trade_and_refuses_bad_sweeps() {
-    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/examples/scenes/column_step.json");
+    let scene = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/examples/scenes/column_step.json"
+    );
     let dir = tempfile::tempdir().unwrap();
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_rbsm"))
         .args(["tradeoff", scene, "--sweep", "refine=1,2", "--out"])
@@ -102,15 +183,28 @@ fn the_command_line_writes_the_trade_and_refuses_bad_sweeps() {
         .args(["--json", "--quiet"])
         .output()
         .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(report["points"].as_array().unwrap().len(), 2);
-    assert!(report["reference"].as_str().unwrap().contains("closed form"));
+    assert!(report["reference"]
+        .as_str()
+        .unwrap()
+        .contains("closed form"));
     for f in ["tradeoff.csv", "tradeoff.md", "tradeoff.svg"] {
         assert!(dir.path().join(f).exists(), "{f}");
     }
-    let bad = std::process::Command::new(env!("CARGO_BIN_EXE_rbsm")).args(["tradeoff", scene, "--sweep", "refine=x"]).output().unwrap();
+    let bad = std::process::Command::new(env!("CARGO_BIN_EXE_rbsm"))
+        .args(["tradeoff", scene, "--sweep", "refine=x"])
+        .output()
+        .unwrap();
     assert_eq!(bad.status.code(), Some(1));
     let err = String::from_utf8_lossy(&bad.stderr);
-    assert!(err.contains("--sweep refine") && err.contains("1..=64"), "{err}");
+    assert!(
+        err.contains("--sweep refine") && err.contains("1..=64"),
+        "{err}"
+    );
 }

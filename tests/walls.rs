@@ -18,7 +18,15 @@ const G: f64 = 9.80665;
 
 /// `nx × ny` of the paper's bricks, `GAP` apart, every odd row shifted by `offset`, on a
 /// ground segment, as one brick with an `array`.
-fn wall(nx: usize, ny: usize, offset: f64, model: &str, friction: Option<f64>, damping: f64, dt_factor: f64) -> Scene {
+fn wall(
+    nx: usize,
+    ny: usize,
+    offset: f64,
+    model: &str,
+    friction: Option<f64>,
+    damping: f64,
+    dt_factor: f64,
+) -> Scene {
     let friction = friction.map_or("null".into(), |m| m.to_string());
     Scene::from_json(&format!(
         r#"{{"name": "wall", "plane": "stress", "thickness": {T}, "formulation": {{"kind": "rigid"}},
@@ -60,7 +68,8 @@ fn settle(scene: &Scene, every: u64) -> Settled {
             let total = cd.total_with_stored_contact(e);
             let e0 = *first.get_or_insert(total);
             worst = worst.max((total - e0).abs());
-            scale = scale.max(e.kinetic + cd.contact.as_ref().unwrap().stored() + e.potential.abs());
+            scale =
+                scale.max(e.kinetic + cd.contact.as_ref().unwrap().stored() + e.potential.abs());
         })
         .unwrap();
     assert_eq!(status, Status::Ok, "{}", scene.name);
@@ -68,7 +77,9 @@ fn settle(scene: &Scene, every: u64) -> Settled {
     let r = c.ground_reaction();
     Settled {
         reaction: [r.x, r.y],
-        lift: (0..p.model.elements.len()).map(|e| c.element_force(e)[1]).collect(),
+        lift: (0..p.model.elements.len())
+            .map(|e| c.element_force(e)[1])
+            .collect(),
         u: cd.u.clone(),
         drift: worst / scale,
         tests_per_step: c.stats.tests as f64 / c.stats.steps as f64,
@@ -102,12 +113,27 @@ fn running_bond_walls_settle_on_the_ground() {
                 "{nx}x{ny} {model}: reaction {:?} N, weight {weight} N, tests/step {:.0}, contacts {:.0}",
                 s.reaction, s.tests_per_step, s.mean_pairs
             );
-            assert!((s.reaction[1] - weight).abs() < 1e-3 * weight, "{model}: reaction {} N for a weight of {weight} N", s.reaction[1]);
-            assert!(s.reaction[0].abs() < 1e-3 * weight, "{model}: a horizontal reaction of {} N", s.reaction[0]);
+            assert!(
+                (s.reaction[1] - weight).abs() < 1e-3 * weight,
+                "{model}: reaction {} N for a weight of {weight} N",
+                s.reaction[1]
+            );
+            assert!(
+                s.reaction[0].abs() < 1e-3 * weight,
+                "{model}: a horizontal reaction of {} N",
+                s.reaction[0]
+            );
             for j in 0..ny {
                 // The gaps below row j close, and each joint below shortens under the rows above.
                 let closed = (j + 1) as f64 * GAP;
-                let settle: f64 = (0..=j).map(|r| joint_shortening((ny - r) as f64 * nx as f64 * brick_weight() / nx as f64, r == 0)).sum();
+                let settle: f64 = (0..=j)
+                    .map(|r| {
+                        joint_shortening(
+                            (ny - r) as f64 * nx as f64 * brick_weight() / nx as f64,
+                            r == 0,
+                        )
+                    })
+                    .sum();
                 for i in 0..nx {
                     let e = i + nx * j;
                     let (ux, uy, th) = (s.u[3 * e], s.u[3 * e + 1], s.u[3 * e + 2]);
@@ -115,7 +141,10 @@ fn running_bond_walls_settle_on_the_ground() {
                         uy < -closed + 1e-7 && uy > -closed - 2.0 * settle - 1e-7,
                         "{model}: brick ({i}, {j}) sank by {uy:e} m; gaps {closed:e}, settlement {settle:e}"
                     );
-                    assert!(ux.abs() < GAP && (th * W).abs() < GAP, "{model}: brick ({i}, {j}) moved by {ux:e} m, turned by {th:e}");
+                    assert!(
+                        ux.abs() < GAP && (th * W).abs() < GAP,
+                        "{model}: brick ({i}, {j}) moved by {ux:e} m, turned by {th:e}"
+                    );
                 }
             }
         }
@@ -129,9 +158,13 @@ fn running_bond_walls_settle_on_the_ground() {
 #[test]
 fn a_frictionless_wall_keeps_its_energy() {
     for model in ["edge-to-edge", "point"] {
-        let drift = |dt_factor: f64| settle(&wall(3, 3, 0.5 * W, model, Some(0.0), 0.0, dt_factor), 100).drift;
+        let drift = |dt_factor: f64| {
+            settle(&wall(3, 3, 0.5 * W, model, Some(0.0), 0.0, dt_factor), 100).drift
+        };
         let (coarse, fine) = (drift(0.2), drift(0.05));
-        eprintln!("3x3 {model}, no friction: energy drift {coarse:e} at 0.2 Δt_crit, {fine:e} at 0.05");
+        eprintln!(
+            "3x3 {model}, no friction: energy drift {coarse:e} at 0.2 Δt_crit, {fine:e} at 0.05"
+        );
         // Point contact is not built on a potential: a vertex that leaves its edge's span, or a
         // corner counted from both bodies, takes or gives energy at events, so its drift falls
         // with the step only as a trend (measured at 0.4, 0.2, 0.1, 0.05, 0.025 Δt_crit:
@@ -144,11 +177,20 @@ fn a_frictionless_wall_keeps_its_energy() {
             let (widest, finest) = (drift(0.4), drift(0.025));
             assert!(finest < 0.1 * widest, "point: the drift does not fall with the step: {widest:e} at 0.4 Δt_crit → {finest:e} at 0.025");
         } else {
-            assert!(fine < 0.5 * coarse, "{model}: the drift does not fall with the step: {coarse:e} → {fine:e}");
+            assert!(
+                fine < 0.5 * coarse,
+                "{model}: the drift does not fall with the step: {coarse:e} → {fine:e}"
+            );
         }
     }
-    let s = settle(&wall(20, 20, 0.5 * W, "edge-to-edge", Some(0.0), 0.0, 0.035), 100);
-    eprintln!("20x20 edge-to-edge, no friction: energy drift {:e}", s.drift);
+    let s = settle(
+        &wall(20, 20, 0.5 * W, "edge-to-edge", Some(0.0), 0.0, 0.035),
+        100,
+    );
+    eprintln!(
+        "20x20 edge-to-edge, no friction: energy drift {:e}",
+        s.drift
+    );
     assert!(s.drift < 1e-4, "20x20: drift {:e}", s.drift);
 }
 
@@ -165,9 +207,16 @@ fn a_column_carries_the_weight_above_every_joint() {
         for j in 0..10 {
             let carried: f64 = s.lift[j..].iter().sum();
             let expected = (10 - j) as f64 * m_g;
-            assert!((carried - expected).abs() < 1e-3 * expected, "{model}: joint below brick {j} carries {carried} N, not {expected} N");
+            assert!(
+                (carried - expected).abs() < 1e-3 * expected,
+                "{model}: joint below brick {j} carries {carried} N, not {expected} N"
+            );
         }
-        assert!((s.reaction[1] - 10.0 * m_g).abs() < 1e-3 * 10.0 * m_g, "{model}: ground reaction {:?}", s.reaction);
+        assert!(
+            (s.reaction[1] - 10.0 * m_g).abs() < 1e-3 * 10.0 * m_g,
+            "{model}: ground reaction {:?}",
+            s.reaction
+        );
     }
 }
 
@@ -179,16 +228,35 @@ fn the_wall_steps_to_the_same_bits_on_any_thread_count() {
     let scene = wall(20, 20, 0.5 * W, "edge-to-edge", Some(0.5), 0.0, 0.2);
     let p = Prepared::new(&scene, &RunOptions::default()).expect("model");
     let state = |threads: usize| {
-        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
         pool.install(|| {
             let mut cd = p.integrator(p.dt);
             cd.step_only(400);
             let c = cd.contact.as_ref().unwrap();
-            assert!(c.live() > 100, "the wall is in contact: {} pieces", c.live());
+            assert!(
+                c.live() > 100,
+                "the wall is in contact: {} pieces",
+                c.live()
+            );
             (cd.u.clone(), cd.v.clone())
         })
     };
     let (one, two) = (state(1), state(2));
-    assert!(one.0.iter().zip(&two.0).all(|(a, b)| a.to_bits() == b.to_bits()), "U differs between 1 and 2 threads");
-    assert!(one.1.iter().zip(&two.1).all(|(a, b)| a.to_bits() == b.to_bits()), "v differs between 1 and 2 threads");
+    assert!(
+        one.0
+            .iter()
+            .zip(&two.0)
+            .all(|(a, b)| a.to_bits() == b.to_bits()),
+        "U differs between 1 and 2 threads"
+    );
+    assert!(
+        one.1
+            .iter()
+            .zip(&two.1)
+            .all(|(a, b)| a.to_bits() == b.to_bits()),
+        "v differs between 1 and 2 threads"
+    );
 }

@@ -10,8 +10,18 @@ use std::path::Path;
 
 use rbsm::hopping::brick::{self, DEPTH as D, E, G, NU, RHO};
 
-fn brick_scene(cells: [usize; 2], model: &str, friction: Option<f64>, tilt: f64, height: f64, slope: f64) -> Scene {
-    Scene::from_json(&rbsm::hopping::brick::scene(cells, model, friction, tilt, height, slope)).unwrap()
+fn brick_scene(
+    cells: [usize; 2],
+    model: &str,
+    friction: Option<f64>,
+    tilt: f64,
+    height: f64,
+    slope: f64,
+) -> Scene {
+    Scene::from_json(&rbsm::hopping::brick::scene(
+        cells, model, friction, tilt, height, slope,
+    ))
+    .unwrap()
 }
 
 /// What one run gives.
@@ -31,7 +41,14 @@ struct Run {
 }
 
 fn run(scene: &Scene, dt: Option<f64>, end: f64, sample: f64) -> Run {
-    let probe = Prepared::new(scene, &RunOptions { dt, ..Default::default() }).unwrap();
+    let probe = Prepared::new(
+        scene,
+        &RunOptions {
+            dt,
+            ..Default::default()
+        },
+    )
+    .unwrap();
     let dt = probe.dt;
     let steps = (end / dt).ceil() as u64;
     let p = probe;
@@ -71,17 +88,32 @@ fn run(scene: &Scene, dt: Option<f64>, end: f64, sample: f64) -> Run {
         dt,
         final_u: cd.u.clone(),
         final_v: cd.velocity().to_vec(),
-        pairs: (st.pairs as f64 / st.steps as f64, st.max_pairs, st.tests as f64 / st.steps as f64, st.time_s),
+        pairs: (
+            st.pairs as f64 / st.steps as f64,
+            st.max_pairs,
+            st.tests as f64 / st.steps as f64,
+            st.time_s,
+        ),
     }
 }
 
 /// A linear plot of several series, with an optional dashed reference.
-fn plot_lines(path: &Path, title: &str, x_label: &str, y_label: &str, series: &[(&str, Vec<(f64, f64)>)]) {
+fn plot_lines(
+    path: &Path,
+    title: &str,
+    x_label: &str,
+    y_label: &str,
+    series: &[(&str, Vec<(f64, f64)>)],
+) {
     let root = SVGBackend::new(path, (760, 440)).into_drawing_area();
     root.fill(&WHITE).unwrap();
     let all: Vec<(f64, f64)> = series.iter().flat_map(|s| s.1.iter().copied()).collect();
-    let (x0, x1) = all.iter().fold((f64::MAX, f64::MIN), |a, p| (a.0.min(p.0), a.1.max(p.0)));
-    let (y0, y1) = all.iter().fold((f64::MAX, f64::MIN), |a, p| (a.0.min(p.1), a.1.max(p.1)));
+    let (x0, x1) = all
+        .iter()
+        .fold((f64::MAX, f64::MIN), |a, p| (a.0.min(p.0), a.1.max(p.0)));
+    let (y0, y1) = all
+        .iter()
+        .fold((f64::MAX, f64::MIN), |a, p| (a.0.min(p.1), a.1.max(p.1)));
     let pad = 0.05 * (y1 - y0).max(1e-12);
     let mut chart = ChartBuilder::on(&root)
         .caption(title, ("sans-serif", 18))
@@ -90,16 +122,31 @@ fn plot_lines(path: &Path, title: &str, x_label: &str, y_label: &str, series: &[
         .y_label_area_size(60)
         .build_cartesian_2d(x0..x1, y0 - pad..y1 + pad)
         .unwrap();
-    chart.configure_mesh().x_desc(x_label).y_desc(y_label).draw().unwrap();
+    chart
+        .configure_mesh()
+        .x_desc(x_label)
+        .y_desc(y_label)
+        .draw()
+        .unwrap();
     for (i, (name, pts)) in series.iter().enumerate() {
         let color = Palette99::pick(i).to_rgba();
         chart
-            .draw_series(LineSeries::new(pts.clone(), color.stroke_width(if i == 0 { 3 } else { 1 })))
+            .draw_series(LineSeries::new(
+                pts.clone(),
+                color.stroke_width(if i == 0 { 3 } else { 1 }),
+            ))
             .unwrap()
             .label(*name)
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2)));
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
+            });
     }
-    chart.configure_series_labels().background_style(WHITE.mix(0.8)).border_style(BLACK).draw().unwrap();
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .draw()
+        .unwrap();
     root.present().unwrap();
 }
 
@@ -115,7 +162,11 @@ fn theory_curve(th: &Theory, end: f64, n: usize) -> Vec<(f64, f64)> {
             } else {
                 let tau = (t - ti) % th.period();
                 let flight = tau - th.contact_time();
-                if flight < 0.0 { 0.0 } else { th.impact_speed() * flight - 0.5 * G * flight * flight }
+                if flight < 0.0 {
+                    0.0
+                } else {
+                    th.impact_speed() * flight - 0.5 * G * flight * flight
+                }
             };
             (t, y)
         })
@@ -155,12 +206,21 @@ pub fn contact(r: &mut Report) {
     r.line("|---|---|---|---|---|---|---|");
     let mut traces = vec![("theory", theory_curve(&th, end, 4000))];
     for model in ["edge-to-edge", "point"] {
-        let o = run(&brick_scene([1, 1], model, None, 0.0, h, 0.0), Some(1e-6), end, 1e-3);
+        let o = run(
+            &brick_scene([1, 1], model, None, 0.0, h, 0.0),
+            Some(1e-6),
+            end,
+            1e-3,
+        );
         let b = &o.tracker.bounces;
         let key = model.replace('-', "_");
         let tilt = |i: usize| {
             let (t0, t1) = (b[i].impact, b.get(i + 1).map_or(f64::MAX, |n| n.impact));
-            o.trace.iter().filter(|p| p.0 >= t0 && p.0 < t1).map(|p| p.2.abs()).fold(0.0, f64::max)
+            o.trace
+                .iter()
+                .filter(|p| p.0 >= t0 && p.0 < t1)
+                .map(|p| p.2.abs())
+                .fold(0.0, f64::max)
         };
         for i in 0..b.len().min(10) {
             let expected_impact = th.impact_time() + i as f64 * th.period();
@@ -176,17 +236,57 @@ pub fn contact(r: &mut Report) {
         }
         let first = 3;
         let worst = |f: &dyn Fn(usize) -> f64| (0..first).map(f).fold(0.0, f64::max);
-        r.bound(&format!("8.1 {key} impact time rel. error"), (b[0].impact - th.impact_time()).abs() / th.impact_time(), 1e-5);
-        r.bound(&format!("8.1 {key} contact time / theory - 1, bounces 1-3"), worst(&|i| ((b[i].release - b[i].impact) / th.contact_time() - 1.0).abs()), 0.01);
-        r.bound(&format!("8.1 {key} rebound / impact speed - 1, bounces 1-3"), worst(&|i| (b[i].rebound_speed / b[i].impact_speed - 1.0).abs()), 1e-3);
-        r.bound(&format!("8.1 {key} apex rel. error, bounces 1-3"), worst(&|i| ((b[i].apex - h) / h).abs()), 5e-3);
+        r.bound(
+            &format!("8.1 {key} impact time rel. error"),
+            (b[0].impact - th.impact_time()).abs() / th.impact_time(),
+            1e-5,
+        );
+        r.bound(
+            &format!("8.1 {key} contact time / theory - 1, bounces 1-3"),
+            worst(&|i| ((b[i].release - b[i].impact) / th.contact_time() - 1.0).abs()),
+            0.01,
+        );
+        r.bound(
+            &format!("8.1 {key} rebound / impact speed - 1, bounces 1-3"),
+            worst(&|i| (b[i].rebound_speed / b[i].impact_speed - 1.0).abs()),
+            1e-3,
+        );
+        r.bound(
+            &format!("8.1 {key} apex rel. error, bounces 1-3"),
+            worst(&|i| ((b[i].apex - h) / h).abs()),
+            5e-3,
+        );
         r.bound(&format!("8.1 {key} tilt after bounce 1"), tilt(0), 1e-9);
-        r.figure(&format!("8.1 {key} tilt growth per bounce (2 to 3)"), tilt(2) / tilt(1), 0.5);
+        r.figure(
+            &format!("8.1 {key} tilt growth per bounce (2 to 3)"),
+            tilt(2) / tilt(1),
+            0.5,
+        );
         r.bound(&format!("8.1 {key} energy drift"), o.drift, 5e-3);
-        r.csv(&format!("hopping_{key}.csv"), "t,lowest_point,theta", &o.trace.iter().map(|p| vec![p.0, p.1, p.2]).collect::<Vec<_>>());
-        traces.push((if model == "point" { "point" } else { "edge-to-edge" }, o.trace.iter().map(|p| (p.0, p.1)).collect()));
+        r.csv(
+            &format!("hopping_{key}.csv"),
+            "t,lowest_point,theta",
+            &o.trace
+                .iter()
+                .map(|p| vec![p.0, p.1, p.2])
+                .collect::<Vec<_>>(),
+        );
+        traces.push((
+            if model == "point" {
+                "point"
+            } else {
+                "edge-to-edge"
+            },
+            o.trace.iter().map(|p| (p.0, p.1)).collect(),
+        ));
     }
-    plot_lines(&r.dir.join("hopping_block.svg"), "Hopping block: height of the lower face, H = 1 m", "t (s)", "height (m)", &traces);
+    plot_lines(
+        &r.dir.join("hopping_block.svg"),
+        "Hopping block: height of the lower face, H = 1 m",
+        "t (s)",
+        "height (m)",
+        &traces,
+    );
     r.line("\n![hopping block](hopping_block.svg)\n");
 
     // 8.2 Convergence of the apex error with Δt.
@@ -195,11 +295,17 @@ pub fn contact(r: &mut Report) {
     r.line("|---|---|---|---|");
     let h2 = 0.2;
     let th2 = brick::theory(h2);
-    let mut series: Vec<(&str, Vec<(f64, f64)>)> = vec![("edge-to-edge", vec![]), ("point", vec![])];
+    let mut series: Vec<(&str, Vec<(f64, f64)>)> =
+        vec![("edge-to-edge", vec![]), ("point", vec![])];
     for dt in [8e-6, 4e-6, 2e-6, 1e-6, 5e-7] {
         let mut row = format!("| {dt:.0e} |");
         for (k, model) in ["edge-to-edge", "point"].iter().enumerate() {
-            let o = run(&brick_scene([1, 1], model, None, 0.0, h2, 0.0), Some(dt), 1.3 * th2.period(), 1.0);
+            let o = run(
+                &brick_scene([1, 1], model, None, 0.0, h2, 0.0),
+                Some(dt),
+                1.3 * th2.period(),
+                1.0,
+            );
             let err = ((o.tracker.bounces[0].apex - h2) / h2).abs();
             series[k].1.push((dt, err));
             row.push_str(&format!(" {err:.3e} |"));
@@ -207,19 +313,32 @@ pub fn contact(r: &mut Report) {
         row.push_str(&format!(" {:.0} |", th2.contact_time() / dt));
         r.line(&row);
     }
-    let order = |s: &Vec<(f64, f64)>| (s[0].1 / s[s.len() - 1].1).ln() / (s[0].0 / s[s.len() - 1].0).ln();
+    let order =
+        |s: &Vec<(f64, f64)>| (s[0].1 / s[s.len() - 1].1).ln() / (s[0].0 / s[s.len() - 1].0).ln();
     r.line(&format!(
         "\nObserved order between 8 µs and 0.5 µs: edge-to-edge {:.2}, point {:.2} (both models give the same flat-landing \
          spring, so the same figures).\n",
         order(&series[0].1),
         order(&series[1].1)
     ));
-    r.bound("8.2 apex error order (edge-to-edge) >= 1", 1.0 / order(&series[0].1), 1.0);
-    plot(&r.dir.join("hopping_apex_dt.svg"), "Apex error against Δt", "Δt (s)", "|apex − H| / H", &series);
+    r.bound(
+        "8.2 apex error order (edge-to-edge) >= 1",
+        1.0 / order(&series[0].1),
+        1.0,
+    );
+    plot(
+        &r.dir.join("hopping_apex_dt.svg"),
+        "Apex error against Δt",
+        "Δt (s)",
+        "|apex − H| / H",
+        &series,
+    );
     r.line("![apex error](hopping_apex_dt.svg)\n");
 
     // 8.3 Meshed block.
-    r.line("### 8.3 The block as 21 × 6 rigid elements (two bounces from 0.2 m, Δt = 0.5 Δt_crit)\n");
+    r.line(
+        "### 8.3 The block as 21 × 6 rigid elements (two bounces from 0.2 m, Δt = 0.5 Δt_crit)\n",
+    );
     r.line("The meshed block is an elastic body: the impact excites its internal vibration, so part of the energy stays in \
             the body and the apex is lower than H; the contact time is governed by the elastic wave in the block \
             (2D/c' = 2 · 0.06 m / √(E'/ρ) for a bar) rather than the spring of one rigid element.\n");
@@ -228,7 +347,12 @@ pub fn contact(r: &mut Report) {
     r.timing("\n## 8.3 The block as 21 × 6 rigid elements\n\n| model | contact share of the step time | wall (s) |\n|---|---|---|");
     let c_bar = (E / (1.0 - NU * NU) / RHO).sqrt();
     for model in ["edge-to-edge", "point"] {
-        let o = run(&brick_scene([21, 6], model, None, 0.0, h2, 0.0), None, 2.0 * th2.period() + 0.05, 1e-3);
+        let o = run(
+            &brick_scene([21, 6], model, None, 0.0, h2, 0.0),
+            None,
+            2.0 * th2.period() + 0.05,
+            1e-3,
+        );
         let b = &o.tracker.bounces;
         let apex = |i: usize| b.get(i).map_or(f64::NAN, |x| (x.apex - h2) / h2);
         r.line(&format!(
@@ -242,7 +366,11 @@ pub fn contact(r: &mut Report) {
             o.pairs.0,
             o.pairs.1,
         ));
-        r.timing(&format!("| {model} | {:.0} % | {:.1} |", 100.0 * o.pairs.3 / o.step_time, o.step_time));
+        r.timing(&format!(
+            "| {model} | {:.0} % | {:.1} |",
+            100.0 * o.pairs.3 / o.step_time,
+            o.step_time
+        ));
         let key = model.replace('-', "_");
         r.bound(&format!("8.3 {key} meshed energy drift"), o.drift, 0.01);
         r.figure(&format!("8.3 {key} meshed apex rel. error"), apex(0), 0.05);
@@ -260,30 +388,58 @@ pub fn contact(r: &mut Report) {
     let mut tilt_traces = Vec::new();
     for friction in [Some(0.0), None] {
         for model in ["edge-to-edge", "point"] {
-            let o = run(&brick_scene([1, 1], model, friction, 5.0, h2, 0.0), Some(1e-6), 0.6, 1e-3);
+            let o = run(
+                &brick_scene([1, 1], model, friction, 5.0, h2, 0.0),
+                Some(1e-6),
+                0.6,
+                1e-3,
+            );
             let apex = o.tracker.bounces.first().map_or(f64::NAN, |b| b.apex);
             r.line(&format!(
                 "| {model} | {} | {apex:.5} | {:.4} | {:.4} | {:.4} | {:.1e} |",
-                if friction.is_some() { "μ = 0" } else { "none (stick)" },
+                if friction.is_some() {
+                    "μ = 0"
+                } else {
+                    "none (stick)"
+                },
                 o.final_u[2],
                 o.final_v[2],
                 o.contact_final,
                 o.drift
             ));
-            let key = format!("{}_{}", model.replace('-', "_"), if friction.is_some() { "mu0" } else { "stick" });
+            let key = format!(
+                "{}_{}",
+                model.replace('-', "_"),
+                if friction.is_some() { "mu0" } else { "stick" }
+            );
             r.bound(&format!("8.4 {key} energy drift"), o.drift, 2e-3);
             r.figure(&format!("8.4 {key} spin at 0.6 s"), o.final_v[2], 0.05);
             if friction.is_some() {
-                tilt_traces.push((if model == "point" { "point, θ" } else { "edge-to-edge, θ" }, o.trace.iter().map(|p| (p.0, p.2)).collect()));
+                tilt_traces.push((
+                    if model == "point" {
+                        "point, θ"
+                    } else {
+                        "edge-to-edge, θ"
+                    },
+                    o.trace.iter().map(|p| (p.0, p.2)).collect(),
+                ));
             }
         }
     }
     r.line("");
-    plot_lines(&r.dir.join("tilted_block_rotation.svg"), "Tilted brick (5°, μ = 0): rotation of the brick", "t (s)", "θ (rad)", &tilt_traces);
+    plot_lines(
+        &r.dir.join("tilted_block_rotation.svg"),
+        "Tilted brick (5°, μ = 0): rotation of the brick",
+        "t (s)",
+        "θ (rad)",
+        &tilt_traces,
+    );
     r.line("![tilted block](tilted_block_rotation.svg)\n");
 
     // 8.5 Incline and rest.
-    r.line("### 8.5 Friction on a 20° incline, and a block at rest (one rigid element, Δt = 1 µs)\n");
+    r.line(
+        "### 8.5 Friction on a 20° incline, and a block at rest (one rigid element, Δt = 1 µs)\n",
+    );
     r.line("The brick is placed on the ground line at its static penetration `m g cos α / K_c` (contacts that start \
             inside are caught at the first step). Acceleration measured down the slope from the velocities at 0.05 s \
             and 0.1 s, against `a = g (sin α − μ cos α)` (and 0 when μ ≥ tan α).\n");
@@ -300,19 +456,43 @@ pub fn contact(r: &mut Report) {
             };
             let a = (speed(0.1) - speed(0.05)) / 0.05;
             let expected = (G * (alpha.sin() - mu * alpha.cos())).max(0.0);
-            let err = if expected > 0.0 { (a - expected).abs() / expected } else { a.abs() };
-            r.line(&format!("| {model} | {mu} | {a:.5} | {expected:.5} | {err:.1e}{} |", if expected > 0.0 { "" } else { " (abs.)" }));
-            r.bound(&format!("8.5 {} incline mu {mu} error", model.replace('-', "_")), err, if expected > 0.0 { 0.01 } else { 1e-3 });
+            let err = if expected > 0.0 {
+                (a - expected).abs() / expected
+            } else {
+                a.abs()
+            };
+            r.line(&format!(
+                "| {model} | {mu} | {a:.5} | {expected:.5} | {err:.1e}{} |",
+                if expected > 0.0 { "" } else { " (abs.)" }
+            ));
+            r.bound(
+                &format!("8.5 {} incline mu {mu} error", model.replace('-', "_")),
+                err,
+                if expected > 0.0 { 0.01 } else { 1e-3 },
+            );
         }
     }
     r.line("\n| model | steps at rest | static penetration (m) | max |v| at the end (m/s) | max |u| at the end (m) |");
     r.line("|---|---|---|---|---|");
     for model in ["edge-to-edge", "point"] {
-        let o = run(&brick_scene([1, 1], model, None, 0.0, -depth(1.0), 0.0), Some(1e-6), 0.1, 1.0);
+        let o = run(
+            &brick_scene([1, 1], model, None, 0.0, -depth(1.0), 0.0),
+            Some(1e-6),
+            0.1,
+            1.0,
+        );
         let v = o.final_v[..3].iter().fold(0.0f64, |a, x| a.max(x.abs()));
         let u = o.final_u[..3].iter().fold(0.0f64, |a, x| a.max(x.abs()));
-        r.line(&format!("| {model} | {} | {:.3e} | {v:.1e} | {u:.1e} |", o.steps, depth(1.0)));
-        r.bound(&format!("8.5 {} resting block max |v|", model.replace('-', "_")), v, 1e-9);
+        r.line(&format!(
+            "| {model} | {} | {:.3e} | {v:.1e} | {u:.1e} |",
+            o.steps,
+            depth(1.0)
+        ));
+        r.bound(
+            &format!("8.5 {} resting block max |v|", model.replace('-', "_")),
+            v,
+            1e-9,
+        );
     }
 
     // 8.6 Toppling stack.
@@ -323,18 +503,39 @@ pub fn contact(r: &mut Report) {
     r.timing("\n## 8.6 A toppling stack of four bricks\n\n| model | contact share of step time | µs per step |\n|---|---|---|");
     let mut stack_traces = Vec::new();
     for model in ["edge-to-edge", "point"] {
-        let json = include_str!("../examples/scenes/toppling_stack.json").replace("\"edge-to-edge\"", &format!("\"{model}\""));
+        let json = include_str!("../examples/scenes/toppling_stack.json")
+            .replace("\"edge-to-edge\"", &format!("\"{model}\""));
         let sc = Scene::from_json(&json).unwrap();
         let o = run(&sc, None, 1.5, 2e-3);
         let p = Prepared::new(&scene, &RunOptions::default()).unwrap();
         let edges: usize = p.model.bodies.iter().map(|b| b.mesh.boundary.len()).sum();
         let all = edges * (edges - edges / p.model.bodies.len() + p.model.ground.len());
-        r.line(&format!("| {model} | {} | {:.2e} | {:.2}, {} | {:.1} | {all} | {:.1e} |", o.steps, o.dt, o.pairs.0, o.pairs.1, o.pairs.2, o.drift));
-        r.timing(&format!("| {model} | {:.0} % | {:.2} |", 100.0 * o.pairs.3 / o.step_time, 1e6 * o.step_time / o.steps as f64));
-        r.bound(&format!("8.6 {} stack energy drift", model.replace('-', "_")), o.drift, 0.01);
-        stack_traces.push((model, o.trace.iter().map(|p| (p.0, p.2)).collect::<Vec<_>>()));
+        r.line(&format!(
+            "| {model} | {} | {:.2e} | {:.2}, {} | {:.1} | {all} | {:.1e} |",
+            o.steps, o.dt, o.pairs.0, o.pairs.1, o.pairs.2, o.drift
+        ));
+        r.timing(&format!(
+            "| {model} | {:.0} % | {:.2} |",
+            100.0 * o.pairs.3 / o.step_time,
+            1e6 * o.step_time / o.steps as f64
+        ));
+        r.bound(
+            &format!("8.6 {} stack energy drift", model.replace('-', "_")),
+            o.drift,
+            0.01,
+        );
+        stack_traces.push((
+            model,
+            o.trace.iter().map(|p| (p.0, p.2)).collect::<Vec<_>>(),
+        ));
     }
-    plot_lines(&r.dir.join("toppling_stack.svg"), "Toppling stack: rotation of the bottom brick", "t (s)", "θ (rad)", &stack_traces);
+    plot_lines(
+        &r.dir.join("toppling_stack.svg"),
+        "Toppling stack: rotation of the bottom brick",
+        "t (s)",
+        "θ (rad)",
+        &stack_traces,
+    );
     r.line("\n![toppling stack](toppling_stack.svg)\n");
 
     walls(r);
@@ -354,7 +555,13 @@ struct WallRun {
 fn wall_run(json: &str, every: u64) -> WallRun {
     let scene = Scene::from_json(json).unwrap();
     let p = Prepared::new(&scene, &RunOptions::default()).unwrap();
-    let weight: f64 = p.model.elements.iter().map(|e| e.rho * e.props.area * p.model.thickness).sum::<f64>() * G;
+    let weight: f64 = p
+        .model
+        .elements
+        .iter()
+        .map(|e| e.rho * e.props.area * p.model.thickness)
+        .sum::<f64>()
+        * G;
     let mut cd = p.integrator(p.dt);
     let (mut history, mut first, mut worst, mut scale) = (Vec::new(), None, 0.0f64, 0.0f64);
     let status = cd
@@ -364,13 +571,27 @@ fn wall_run(json: &str, every: u64) -> WallRun {
             let e0 = *first.get_or_insert(total);
             worst = worst.max((total - e0).abs());
             scale = scale.max(e.kinetic + c.stored() + e.potential.abs());
-            history.push([e.t, e.kinetic, c.stored(), e.contact, e.potential, c.ground_reaction().y / weight]);
+            history.push([
+                e.t,
+                e.kinetic,
+                c.stored(),
+                e.contact,
+                e.potential,
+                c.ground_reaction().y / weight,
+            ]);
         })
         .unwrap();
     assert_eq!(status, Status::Ok, "wall run diverged");
     let c = cd.contact.as_ref().unwrap();
-    let tests_per_body_step = c.stats.tests as f64 / c.stats.steps as f64 / p.model.bodies.len() as f64;
-    WallRun { history, drift: worst / scale, u: cd.u.clone(), tests_per_body_step, model: p.model }
+    let tests_per_body_step =
+        c.stats.tests as f64 / c.stats.steps as f64 / p.model.bodies.len() as f64;
+    WallRun {
+        history,
+        drift: worst / scale,
+        u: cd.u.clone(),
+        tests_per_body_step,
+        model: p.model,
+    }
 }
 
 /// The bricks at their final places (finite rotation), shaded by how far each settled.
@@ -391,7 +612,10 @@ fn draw_wall(path: &Path, title: &str, w: &WallRun) {
         })
         .collect();
     let deepest = polygons.iter().map(|p| p.1).fold(0.0f64, f64::min);
-    let (x1, y1) = polygons.iter().flat_map(|p| p.0.iter()).fold((0.0f64, 0.0f64), |a, p| (a.0.max(p.0), a.1.max(p.1)));
+    let (x1, y1) = polygons
+        .iter()
+        .flat_map(|p| p.0.iter())
+        .fold((0.0f64, 0.0f64), |a, p| (a.0.max(p.0), a.1.max(p.1)));
     let root = SVGBackend::new(path, (760, 420)).into_drawing_area();
     root.fill(&WHITE).unwrap();
     let mut chart = ChartBuilder::on(&root)
@@ -401,16 +625,38 @@ fn draw_wall(path: &Path, title: &str, w: &WallRun) {
         .y_label_area_size(50)
         .build_cartesian_2d(-0.1..x1 + 0.1, -0.05..y1 + 0.05)
         .unwrap();
-    chart.configure_mesh().x_desc("x (m)").y_desc("y (m)").disable_mesh().draw().unwrap();
+    chart
+        .configure_mesh()
+        .x_desc("x (m)")
+        .y_desc("y (m)")
+        .disable_mesh()
+        .draw()
+        .unwrap();
     for (pts, uy) in &polygons {
         let shade = if deepest < 0.0 { uy / deepest } else { 0.0 };
-        let color = RGBColor((255.0 * (1.0 - 0.8 * shade)) as u8, (200.0 * (1.0 - 0.5 * shade)) as u8, (120.0 + 100.0 * shade) as u8);
-        chart.draw_series(std::iter::once(Polygon::new(pts.clone(), color.filled()))).unwrap();
+        let color = RGBColor(
+            (255.0 * (1.0 - 0.8 * shade)) as u8,
+            (200.0 * (1.0 - 0.5 * shade)) as u8,
+            (120.0 + 100.0 * shade) as u8,
+        );
+        chart
+            .draw_series(std::iter::once(Polygon::new(pts.clone(), color.filled())))
+            .unwrap();
         let mut closed = pts.clone();
         closed.push(pts[0]);
-        chart.draw_series(std::iter::once(PathElement::new(closed, BLACK.stroke_width(1)))).unwrap();
+        chart
+            .draw_series(std::iter::once(PathElement::new(
+                closed,
+                BLACK.stroke_width(1),
+            )))
+            .unwrap();
     }
-    chart.draw_series(std::iter::once(PathElement::new(vec![(-0.1, 0.0), (x1 + 0.1, 0.0)], BLACK.stroke_width(3)))).unwrap();
+    chart
+        .draw_series(std::iter::once(PathElement::new(
+            vec![(-0.1, 0.0), (x1 + 0.1, 0.0)],
+            BLACK.stroke_width(3),
+        )))
+        .unwrap();
     root.present().unwrap();
 }
 
@@ -432,7 +678,10 @@ fn walls(r: &mut Report) {
     let mut kinetic = Vec::new();
     let mut reaction = Vec::new();
     for model in ["edge-to-edge", "point"] {
-        let json = scene.replace("\"model\": \"edge-to-edge\"", &format!("\"model\": \"{model}\""));
+        let json = scene.replace(
+            "\"model\": \"edge-to-edge\"",
+            &format!("\"model\": \"{model}\""),
+        );
         let w = wall_run(&json, 50);
         let last = *w.history.last().unwrap();
         let free = |f: f64| {
@@ -449,23 +698,67 @@ fn walls(r: &mut Report) {
             last[5], last[1], last[3], w.tests_per_body_step
         ));
         let tag = model.replace('-', "_");
-        r.bound(&format!("8.7 {tag} wall ground reaction / weight - 1"), (last[5] - 1.0).abs(), 1e-3);
+        r.bound(
+            &format!("8.7 {tag} wall ground reaction / weight - 1"),
+            (last[5] - 1.0).abs(),
+            1e-3,
+        );
         if model == "edge-to-edge" {
             // Second order would give 16 between 0.2 and 0.05 Δt_crit.
             r.bound("8.7 edge_to_edge frictionless wall: drift(0.05) / drift(0.2) (1/16 at second order)", fine / coarse, 1.0 / 8.0);
-            r.bound("8.7 edge_to_edge frictionless wall drift at 0.035 dt_crit", finer, 1e-4);
+            r.bound(
+                "8.7 edge_to_edge frictionless wall drift at 0.035 dt_crit",
+                finer,
+                1e-4,
+            );
         }
-        r.figure(&format!("8.7 {tag} frictionless wall drift at 0.2 dt_crit"), coarse, 0.5);
-        kinetic.push((model, w.history.iter().map(|h| (1e3 * h[0], h[1].max(1e-12).log10())).collect::<Vec<_>>()));
-        reaction.push((model, w.history.iter().map(|h| (1e3 * h[0], h[5])).collect::<Vec<_>>()));
+        r.figure(
+            &format!("8.7 {tag} frictionless wall drift at 0.2 dt_crit"),
+            coarse,
+            0.5,
+        );
+        kinetic.push((
+            model,
+            w.history
+                .iter()
+                .map(|h| (1e3 * h[0], h[1].max(1e-12).log10()))
+                .collect::<Vec<_>>(),
+        ));
+        reaction.push((
+            model,
+            w.history
+                .iter()
+                .map(|h| (1e3 * h[0], h[5]))
+                .collect::<Vec<_>>(),
+        ));
         if model == "edge-to-edge" {
-            draw_wall(&r.dir.join("wall.svg"), "10 × 10 wall after 50 ms (edge-to-edge; darker = settled more)", &w);
+            draw_wall(
+                &r.dir.join("wall.svg"),
+                "10 × 10 wall after 50 ms (edge-to-edge; darker = settled more)",
+                &w,
+            );
         }
         let rows: Vec<Vec<f64>> = w.history.iter().map(|h| h.to_vec()).collect();
-        r.csv(&format!("wall_{tag}.csv"), "t,kinetic,stored_contact,contact,potential,reaction_over_weight", &rows);
+        r.csv(
+            &format!("wall_{tag}.csv"),
+            "t,kinetic,stored_contact,contact,potential,reaction_over_weight",
+            &rows,
+        );
     }
-    plot_lines(&r.dir.join("wall_kinetic.svg"), "10 × 10 wall settling: kinetic energy", "t (ms)", "log10 kinetic energy (J)", &kinetic);
-    plot_lines(&r.dir.join("wall_reaction.svg"), "10 × 10 wall settling: ground reaction / weight", "t (ms)", "reaction / weight", &reaction);
+    plot_lines(
+        &r.dir.join("wall_kinetic.svg"),
+        "10 × 10 wall settling: kinetic energy",
+        "t (ms)",
+        "log10 kinetic energy (J)",
+        &kinetic,
+    );
+    plot_lines(
+        &r.dir.join("wall_reaction.svg"),
+        "10 × 10 wall settling: ground reaction / weight",
+        "t (ms)",
+        "reaction / weight",
+        &reaction,
+    );
     r.line("\n![wall](wall.svg)\n\n![kinetic energy](wall_kinetic.svg)\n\n![reaction](wall_reaction.svg)\n");
     r.line("Histories: `validation/wall_edge_to_edge.csv`, `validation/wall_point.csv` (t, kinetic, stored contact, contact work, potential, reaction / weight).\n");
 }

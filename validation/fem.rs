@@ -6,7 +6,17 @@ use nalgebra::{DMatrix, SMatrix};
 
 /// The lowest `k` circular frequencies (rad/s) of a cantilever `length × depth`, thickness `t`,
 /// meshed with `nx × ny` Q8 elements, left edge clamped.
-pub fn cantilever_frequencies(length: f64, depth: f64, t: f64, e: f64, nu: f64, rho: f64, nx: usize, ny: usize, k: usize) -> Vec<f64> {
+pub fn cantilever_frequencies(
+    length: f64,
+    depth: f64,
+    t: f64,
+    e: f64,
+    nu: f64,
+    rho: f64,
+    nx: usize,
+    ny: usize,
+    k: usize,
+) -> Vec<f64> {
     // Nodes on a (2nx+1) × (2ny+1) lattice, minus the element centres.
     let (cols, rows) = (2 * nx + 1, 2 * ny + 1);
     let mut id = vec![usize::MAX; cols * rows];
@@ -17,23 +27,51 @@ pub fn cantilever_frequencies(length: f64, depth: f64, t: f64, e: f64, nu: f64, 
                 continue;
             }
             id[i + cols * j] = coords.len();
-            coords.push((length * i as f64 / (cols - 1) as f64, depth * j as f64 / (rows - 1) as f64));
+            coords.push((
+                length * i as f64 / (cols - 1) as f64,
+                depth * j as f64 / (rows - 1) as f64,
+            ));
         }
     }
     let n = 2 * coords.len();
     let (mut kg, mut mg) = (DMatrix::<f64>::zeros(n, n), DMatrix::<f64>::zeros(n, n));
-    let d = e / (1.0 - nu * nu) * SMatrix::<f64, 3, 3>::new(1.0, nu, 0.0, nu, 1.0, 0.0, 0.0, 0.0, 0.5 * (1.0 - nu));
+    let d = e / (1.0 - nu * nu)
+        * SMatrix::<f64, 3, 3>::new(1.0, nu, 0.0, nu, 1.0, 0.0, 0.0, 0.0, 0.5 * (1.0 - nu));
     let (hx, hy) = (length / nx as f64, depth / ny as f64);
     let gauss = [-(0.6f64).sqrt(), 0.0, (0.6f64).sqrt()];
     let weight = [5.0 / 9.0, 8.0 / 9.0, 5.0 / 9.0];
     // Serendipity nodes in natural coordinates, counter-clockwise from the lower-left corner.
-    let nat = [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0), (0.0, -1.0), (1.0, 0.0), (0.0, 1.0), (-1.0, 0.0)];
+    let nat = [
+        (-1.0, -1.0),
+        (1.0, -1.0),
+        (1.0, 1.0),
+        (-1.0, 1.0),
+        (0.0, -1.0),
+        (1.0, 0.0),
+        (0.0, 1.0),
+        (-1.0, 0.0),
+    ];
     for ej in 0..ny {
         for ei in 0..nx {
             let (i0, j0) = (2 * ei, 2 * ej);
-            let lattice = [(0, 0), (2, 0), (2, 2), (0, 2), (1, 0), (2, 1), (1, 2), (0, 1)];
-            let nodes: Vec<usize> = lattice.iter().map(|&(a, b)| id[(i0 + a) + cols * (j0 + b)]).collect();
-            let (mut ke, mut me) = (SMatrix::<f64, 16, 16>::zeros(), SMatrix::<f64, 16, 16>::zeros());
+            let lattice = [
+                (0, 0),
+                (2, 0),
+                (2, 2),
+                (0, 2),
+                (1, 0),
+                (2, 1),
+                (1, 2),
+                (0, 1),
+            ];
+            let nodes: Vec<usize> = lattice
+                .iter()
+                .map(|&(a, b)| id[(i0 + a) + cols * (j0 + b)])
+                .collect();
+            let (mut ke, mut me) = (
+                SMatrix::<f64, 16, 16>::zeros(),
+                SMatrix::<f64, 16, 16>::zeros(),
+            );
             for (gx, wx) in gauss.iter().zip(weight) {
                 for (gy, wy) in gauss.iter().zip(weight) {
                     let (xi, eta) = (*gx, *gy);
@@ -42,7 +80,8 @@ pub fn cantilever_frequencies(length: f64, depth: f64, t: f64, e: f64, nu: f64, 
                     let mut deta = [0.0; 8];
                     for (a, &(s, r)) in nat.iter().enumerate() {
                         if a < 4 {
-                            shape[a] = 0.25 * (1.0 + s * xi) * (1.0 + r * eta) * (s * xi + r * eta - 1.0);
+                            shape[a] =
+                                0.25 * (1.0 + s * xi) * (1.0 + r * eta) * (s * xi + r * eta - 1.0);
                             dxi[a] = 0.25 * s * (1.0 + r * eta) * (2.0 * s * xi + r * eta);
                             deta[a] = 0.25 * r * (1.0 + s * xi) * (s * xi + 2.0 * r * eta);
                         } else if s == 0.0 {
@@ -82,10 +121,15 @@ pub fn cantilever_frequencies(length: f64, depth: f64, t: f64, e: f64, nu: f64, 
             }
         }
     }
-    let free: Vec<usize> = (0..n).filter(|&dof| coords[dof / 2].0 > 1e-12 * length).collect();
+    let free: Vec<usize> = (0..n)
+        .filter(|&dof| coords[dof / 2].0 > 1e-12 * length)
+        .collect();
     let kf = DMatrix::from_fn(free.len(), free.len(), |i, j| kg[(free[i], free[j])]);
     let mf = DMatrix::from_fn(free.len(), free.len(), |i, j| mg[(free[i], free[j])]);
-    let l = mf.cholesky().expect("the consistent mass is positive definite").l();
+    let l = mf
+        .cholesky()
+        .expect("the consistent mass is positive definite")
+        .l();
     let li = l.try_inverse().expect("invertible factor");
     let a = &li * kf * li.transpose();
     let (values, _) = rbsm::eigen::symmetric_eigen(0.5 * (&a + a.transpose()));
@@ -95,9 +139,17 @@ pub fn cantilever_frequencies(length: f64, depth: f64, t: f64, e: f64, nu: f64, 
 /// Static displacements of linear triangles (constant strain, plane stress) on the given
 /// vertices and triangles: nodes with `x ≤ x_min + tol` clamped, a uniform traction `q`
 /// (N/m², global) on the edges lying on `x = x_max`. Returns `(u, v)` per vertex.
-pub fn cst_static(vertices: &[(f64, f64)], triangles: &[[usize; 3]], t: f64, e: f64, nu: f64, q: (f64, f64)) -> Vec<(f64, f64)> {
+pub fn cst_static(
+    vertices: &[(f64, f64)],
+    triangles: &[[usize; 3]],
+    t: f64,
+    e: f64,
+    nu: f64,
+    q: (f64, f64),
+) -> Vec<(f64, f64)> {
     let n = 2 * vertices.len();
-    let d = e / (1.0 - nu * nu) * SMatrix::<f64, 3, 3>::new(1.0, nu, 0.0, nu, 1.0, 0.0, 0.0, 0.0, 0.5 * (1.0 - nu));
+    let d = e / (1.0 - nu * nu)
+        * SMatrix::<f64, 3, 3>::new(1.0, nu, 0.0, nu, 1.0, 0.0, 0.0, 0.0, 0.5 * (1.0 - nu));
     let mut k = DMatrix::<f64>::zeros(n, n);
     let mut f = nalgebra::DVector::<f64>::zeros(n);
     for tri in triangles {
@@ -120,7 +172,10 @@ pub fn cst_static(vertices: &[(f64, f64)], triangles: &[[usize; 3]], t: f64, e: 
         }
     }
     let x_min = vertices.iter().map(|p| p.0).fold(f64::INFINITY, f64::min);
-    let x_max = vertices.iter().map(|p| p.0).fold(f64::NEG_INFINITY, f64::max);
+    let x_max = vertices
+        .iter()
+        .map(|p| p.0)
+        .fold(f64::NEG_INFINITY, f64::max);
     let tol = 1e-9 * (x_max - x_min);
     for tri in triangles {
         for a in 0..3 {
@@ -134,10 +189,15 @@ pub fn cst_static(vertices: &[(f64, f64)], triangles: &[[usize; 3]], t: f64, e: 
             }
         }
     }
-    let free: Vec<usize> = (0..n).filter(|&dof| vertices[dof / 2].0 > x_min + tol).collect();
+    let free: Vec<usize> = (0..n)
+        .filter(|&dof| vertices[dof / 2].0 > x_min + tol)
+        .collect();
     let kf = DMatrix::from_fn(free.len(), free.len(), |i, j| k[(free[i], free[j])]);
     let ff = nalgebra::DVector::from_fn(free.len(), |i, _| f[free[i]]);
-    let uf = kf.cholesky().expect("a clamped CST model is positive definite").solve(&ff);
+    let uf = kf
+        .cholesky()
+        .expect("a clamped CST model is positive definite")
+        .solve(&ff);
     let mut u = vec![(0.0, 0.0); vertices.len()];
     for (i, &dof) in free.iter().enumerate() {
         if dof % 2 == 0 {

@@ -63,7 +63,11 @@ pub fn frame(b1: Vec2, b2: Vec2) -> (Vec2, Vec2, f64) {
 pub fn gap(m: Vec2, b1: Vec2, b2: Vec2, lambda: f64) -> Gap {
     let (s, n, l) = frame(b1, b2);
     let c = b1 + lambda * (b2 - b1);
-    Gap { normal: -(m - c).dot(&n), tangential: (m - c).dot(&s), along: (m - b1).dot(&s) / l }
+    Gap {
+        normal: -(m - c).dot(&n),
+        tangential: (m - c).dot(&s),
+        along: (m - b1).dot(&s) / l,
+    }
 }
 
 #[cfg(test)]
@@ -85,24 +89,50 @@ mod tests {
         let lambda = entry(v(0.5, 0.1), v(0.3, -0.1), b1, b2).expect("crosses");
         assert!((lambda - 0.3).abs() < 1e-15, "λ = {lambda}");
         let g = gap(v(0.3, -0.1), b1, b2, lambda);
-        assert!((g.normal - 0.1).abs() < 1e-15 && (g.tangential - 0.1).abs() < 1e-15, "{g:?}");
+        assert!(
+            (g.normal - 0.1).abs() < 1e-15 && (g.tangential - 0.1).abs() < 1e-15,
+            "{g:?}"
+        );
         assert!((g.along - 0.35).abs() < 1e-15);
     }
 
     #[test]
     fn no_entry_when_leaving_passing_beside_or_staying_outside() {
         let (b1, b2) = (v(B1.0, B1.1), v(B2.0, B2.1));
-        assert!(entry(v(0.3, -0.1), v(0.5, 0.1), b1, b2).is_none(), "leaving the solid");
-        assert!(entry(v(1.5, 0.1), v(1.5, -0.1), b1, b2).is_none(), "beside the edge");
-        assert!(entry(v(0.0, 0.2), v(0.0, 0.1), b1, b2).is_none(), "still outside");
-        assert!(entry(v(0.0, -0.1), v(0.0, -0.2), b1, b2).is_none(), "already inside");
+        assert!(
+            entry(v(0.3, -0.1), v(0.5, 0.1), b1, b2).is_none(),
+            "leaving the solid"
+        );
+        assert!(
+            entry(v(1.5, 0.1), v(1.5, -0.1), b1, b2).is_none(),
+            "beside the edge"
+        );
+        assert!(
+            entry(v(0.0, 0.2), v(0.0, 0.1), b1, b2).is_none(),
+            "still outside"
+        );
+        assert!(
+            entry(v(0.0, -0.1), v(0.0, -0.2), b1, b2).is_none(),
+            "already inside"
+        );
     }
 
     #[test]
     fn starts_on_the_line_and_corners_count() {
         let (b1, b2) = (v(B1.0, B1.1), v(B2.0, B2.1));
-        assert_eq!(entry(v(0.0, 0.0), v(0.0, -1e-9), b1, b2), Some(0.5), "touching, then pressing");
-        assert_eq!(entry(v(1.0, 0.1), v(1.0, -0.1), b1, b2), Some(0.0), "through the end point b1");
-        assert!(entry(v(0.0, 0.0), v(0.5, 0.0), b1, b2).is_none(), "sliding along the line");
+        assert_eq!(
+            entry(v(0.0, 0.0), v(0.0, -1e-9), b1, b2),
+            Some(0.5),
+            "touching, then pressing"
+        );
+        assert_eq!(
+            entry(v(1.0, 0.1), v(1.0, -0.1), b1, b2),
+            Some(0.0),
+            "through the end point b1"
+        );
+        assert!(
+            entry(v(0.0, 0.0), v(0.5, 0.0), b1, b2).is_none(),
+            "sliding along the line"
+        );
     }
 }

@@ -36,8 +36,8 @@ use crate::formulation::{rotation, Formulation};
 use crate::geometry::Vec2;
 use crate::model::{Model, GROUND};
 use crate::scene::EvaluatorKind;
-use std::time::Instant;
 use overlap::Overlap;
+use std::time::Instant;
 use work::Ledger;
 
 /// The contact model of a scene (`contact.model`).
@@ -205,7 +205,12 @@ impl Contact {
                 let id = edges.len() as u32;
                 let mut end = |v: u32, p: Vec2| {
                     *index.entry((element, v)).or_insert_with(|| {
-                        vertices.push(Vertex { element: element as u32, body: bi as u32, offset: p - centroid, edges: [NONE; 2] });
+                        vertices.push(Vertex {
+                            element: element as u32,
+                            body: bi as u32,
+                            offset: p - centroid,
+                            edges: [NONE; 2],
+                        });
                         vertices.len() as u32 - 1
                     })
                 };
@@ -215,26 +220,46 @@ impl Contact {
                     let k = if slot[0] == NONE { 0 } else { 1 };
                     slot[k] = id;
                 }
-                edges.push(Edge { element: element as u32, body: bi as u32, ends, compliance: [h / moduli[0], h / moduli[1]], length });
+                edges.push(Edge {
+                    element: element as u32,
+                    body: bi as u32,
+                    ends,
+                    compliance: [h / moduli[0], h / moduli[1]],
+                    length,
+                });
             }
         }
-        let mut points: Vec<Vec2> = vertices.iter().map(|v| model.elements[v.element as usize].props.centroid + v.offset).collect();
+        let mut points: Vec<Vec2> = vertices
+            .iter()
+            .map(|v| model.elements[v.element as usize].props.centroid + v.offset)
+            .collect();
         for g in &model.ground {
             // Stored `to → from`: the solid side is then on the left, as for a body's boundary.
             let at = points.len() as u32;
             points.extend([g[1], g[0]]);
-            edges.push(Edge { element: GROUND, body: NONE, ends: [at, at + 1], compliance: [0.0; 2], length: (g[1] - g[0]).norm() });
+            edges.push(Edge {
+                element: GROUND,
+                body: NONE,
+                ends: [at, at + 1],
+                compliance: [0.0; 2],
+                length: (g[1] - g[0]).norm(),
+            });
         }
         let (nv, ne) = (vertices.len(), edges.len());
         // Both neighbour lists keep a skin of a tenth of the mean boundary edge; point contact's
         // also holds the depth within which a vertex placed inside an edge touches it.
         let body_edges = edges.iter().filter(|e| e.element != GROUND);
-        let (total, longest) = body_edges.clone().fold((0.0, 0.0f64), |(t, l), e| (t + e.length, l.max(e.length)));
+        let (total, longest) = body_edges
+            .clone()
+            .fold((0.0, 0.0f64), |(t, l), e| (t + e.length, l.max(e.length)));
         let tenth = 0.1 * total / body_edges.count().max(1) as f64;
         let skin = tenth.max(0.05 * longest);
         Some(Contact {
             settings,
-            frames: Frames { formulation: model.formulation, centroids: model.elements.iter().map(|e| e.props.centroid).collect() },
+            frames: Frames {
+                formulation: model.formulation,
+                centroids: model.elements.iter().map(|e| e.props.centroid).collect(),
+            },
             thickness: model.thickness,
             factor: model.formulation.spring_factor(),
             previous: points[..vertices.len()].to_vec(),
@@ -250,7 +275,8 @@ impl Contact {
             near: Vec::with_capacity(4 * nv),
             anchors: vec![Vec2::repeat(f64::INFINITY); nv],
             skin,
-            overlap: (settings.model == ContactModel::EdgeToEdge).then(|| Overlap::new(model, settings.friction, tenth)),
+            overlap: (settings.model == ContactModel::EdgeToEdge)
+                .then(|| Overlap::new(model, settings.friction, tenth)),
             ledger: Ledger::new(model.elements.len(), model.formulation.ndof()),
             stored: 0.0,
             ground: Vec2::zeros(),
@@ -267,7 +293,9 @@ impl Contact {
     /// The number of live contacts after the last step: vertex contacts (point), or pieces of
     /// edges inside the part of one face of a target (edge-to-edge).
     pub fn live(&self) -> usize {
-        self.overlap.as_ref().map_or(self.records.len(), Overlap::len)
+        self.overlap
+            .as_ref()
+            .map_or(self.records.len(), Overlap::len)
     }
 
     /// Subtracts the contact forces `f_c^n` at step `n`, state `u = U^n`, from `f` (which holds
@@ -285,7 +313,14 @@ impl Contact {
             self.ledger.next();
             self.stored = match self.overlap.as_mut() {
                 Some(_) if idle => 0.0,
-                Some(o) => o.forces(&self.frames, u, velocity, dt, &mut self.ledger, &mut self.stats.tests),
+                Some(o) => o.forces(
+                    &self.frames,
+                    u,
+                    velocity,
+                    dt,
+                    &mut self.ledger,
+                    &mut self.stats.tests,
+                ),
                 None => {
                     self.place(u);
                     self.detect();
@@ -362,7 +397,13 @@ impl Contact {
                 let found = if self.step.is_some() {
                     // The path relative to the edge: where `p` was with respect to the edge's
                     // previous position, carried to its current one (`p` itself for ground).
-                    let [a1, a2] = edge.ends.map(|i| if (i as usize) < n { self.previous[i as usize] } else { self.points[i as usize] });
+                    let [a1, a2] = edge.ends.map(|i| {
+                        if (i as usize) < n {
+                            self.previous[i as usize]
+                        } else {
+                            self.points[i as usize]
+                        }
+                    });
                     let p = relative_start(p, a1, a2, b1, b2);
                     entry(p, m, b1, b2).map(|lambda| (gap(m, b1, b2, lambda).normal, lambda))
                 } else {
@@ -434,7 +475,11 @@ impl Contact {
     /// inside another body counts as touching it.
     fn size(&self, v: usize) -> f64 {
         let vx = &self.vertices[v];
-        vx.edges.iter().filter(|&&e| e != NONE).map(|&e| self.edges[e as usize].length).fold(0.0, f64::max)
+        vx.edges
+            .iter()
+            .filter(|&&e| e != NONE)
+            .map(|&e| self.edges[e as usize].length)
+            .fold(0.0, f64::max)
     }
 
     /// A new contact of vertex `v` with edge `e`: its tributary length and springs.
@@ -450,7 +495,11 @@ impl Contact {
             let [a, b] = self.edges[k as usize].ends.map(|i| self.points[i as usize]);
             frame(a, b).1.dot(&n_target) <= -0.5
         };
-        let mine = self.vertices[v as usize].edges.map(|k| (k != NONE).then_some(k)).into_iter().flatten();
+        let mine = self.vertices[v as usize]
+            .edges
+            .map(|k| (k != NONE).then_some(k))
+            .into_iter()
+            .flatten();
         let any_facing = mine.clone().any(faces);
         let (mut ell, mut compliance) = (0.0, [0.0; 2]);
         for k in mine.filter(|&k| !any_facing || faces(k)) {
@@ -461,12 +510,21 @@ impl Contact {
             }
         }
         let k = [0, 1].map(|c| self.factor / (compliance[c] / ell + target.compliance[c]));
-        Record { vertex: v, edge: e, lambda, ell, k, gap: [0.0; 2] }
+        Record {
+            vertex: v,
+            edge: e,
+            lambda,
+            ell,
+            k,
+            gap: [0.0; 2],
+        }
     }
 
     /// Index of the live contact of vertex `v` with edge `e`.
     fn find(&self, v: u32, e: u32) -> Option<usize> {
-        self.records.binary_search_by_key(&(v, e), |r| (r.vertex, r.edge)).ok()
+        self.records
+            .binary_search_by_key(&(v, e), |r| (r.vertex, r.edge))
+            .ok()
     }
 
     /// Eq. 17 for every contact; releases those whose gap opened or that left their edge, and
@@ -508,9 +566,16 @@ impl Contact {
             let scale = self.thickness * r.ell;
             let force = scale * (r.k[0] * dn * n - r.k[1] * ds * s);
             let x = self.points[r.vertex as usize];
-            self.frames.push(u, &mut self.ledger, self.vertices[r.vertex as usize].element, x, force);
+            self.frames.push(
+                u,
+                &mut self.ledger,
+                self.vertices[r.vertex as usize].element,
+                x,
+                force,
+            );
             if target.element != GROUND {
-                self.frames.push(u, &mut self.ledger, target.element, x, -force);
+                self.frames
+                    .push(u, &mut self.ledger, target.element, x, -force);
             } else {
                 self.ground += force;
             }
@@ -532,7 +597,8 @@ impl Frames {
     /// Current position of the point at reference offset `d` of element `e`.
     fn place(&self, u: &[f64], e: usize, d: Vec2) -> Vec2 {
         let nd = self.formulation.ndof();
-        self.formulation.current_position(self.centroids[e], &u[e * nd..(e + 1) * nd], d)
+        self.formulation
+            .current_position(self.centroids[e], &u[e * nd..(e + 1) * nd], d)
     }
 
     /// [`Frames::place`] for several offsets of one element.
@@ -568,7 +634,10 @@ impl Frames {
     /// `f_c += N_eᵀ F` for a force `F` at the current point `x` of element `e`, through the
     /// element's current position and rotation.
     fn push(&self, u: &[f64], ledger: &mut Ledger, e: u32, x: Vec2, force: Vec2) {
-        ledger.add(e as usize, &self.generalised(u, e, x, force)[..self.formulation.ndof()]);
+        ledger.add(
+            e as usize,
+            &self.generalised(u, e, x, force)[..self.formulation.ndof()],
+        );
     }
 
     /// `N_eᵀ F` for a force `F` at the current point `x` of element `e` (the first `ndof`
@@ -585,7 +654,8 @@ impl Frames {
             return q;
         }
         let r = rotation(ue[2]);
-        self.formulation.add_point_force(&mut q[..nd], r.transpose() * arm, r.transpose() * force);
+        self.formulation
+            .add_point_force(&mut q[..nd], r.transpose() * arm, r.transpose() * force);
         // The translation entries hold Rᵀ F, in the element's frame: back to global axes.
         q[0] = force.x;
         q[1] = force.y;
@@ -614,7 +684,6 @@ fn start_inside(m: Vec2, b1: Vec2, b2: Vec2, tol: f64) -> Option<(f64, f64)> {
     (depth > 0.0 && depth <= 0.05 * tol && (0.0..=1.0).contains(&along)).then_some((depth, along))
 }
 
-
 /// The stiffness of every contact closed at once against rigid ground, per element (row-major
 /// `ndof × ndof` blocks): each boundary edge pressed with `k_n` in every direction
 /// (edge-to-edge), or each boundary vertex with `k_n ℓ_trib` (point). Contacts between bodies
@@ -626,10 +695,12 @@ pub fn stiffness_estimate(model: &Model, contact: &Contact) -> Vec<f64> {
     let mut blocks = vec![0.0; model.elements.len() * nd * nd];
     let mut add = |e: usize, d: Vec2, weight: f64| {
         // weight · N(d)ᵀ N(d), with the rows of N from the generalised forces of unit forces.
-        let rows = [Vec2::new(1.0, 0.0), Vec2::new(0.0, 1.0)].map(|dir| model.formulation.point_load(d, dir, 0.0));
+        let rows = [Vec2::new(1.0, 0.0), Vec2::new(0.0, 1.0)]
+            .map(|dir| model.formulation.point_load(d, dir, 0.0));
         for i in 0..nd {
             for j in 0..nd {
-                blocks[(e * nd + i) * nd + j] += weight * (rows[0][i] * rows[0][j] + rows[1][i] * rows[1][j]);
+                blocks[(e * nd + i) * nd + j] +=
+                    weight * (rows[0][i] * rows[0][j] + rows[1][i] * rows[1][j]);
             }
         }
     };
@@ -648,7 +719,11 @@ pub fn stiffness_estimate(model: &Model, contact: &Contact) -> Vec<f64> {
             // stiffest of its edges' (the record averages them).
             ContactModel::Point => {
                 for v in edge.ends {
-                    add(e, contact.vertices[v as usize].offset, t * k * 0.5 * edge.length);
+                    add(
+                        e,
+                        contact.vertices[v as usize].offset,
+                        t * k * 0.5 * edge.length,
+                    );
                 }
             }
         }

@@ -222,7 +222,8 @@ impl Overlap {
         let mut sources = Vec::new();
         for (bi, body) in model.bodies.iter().enumerate() {
             let mesh = &body.mesh;
-            let on_boundary: HashSet<(u32, u32)> = mesh.boundary.iter().map(|e| (e.cell, e.v1)).collect();
+            let on_boundary: HashSet<(u32, u32)> =
+                mesh.boundary.iter().map(|e| (e.cell, e.v1)).collect();
             let mut cells: Vec<u32> = mesh.boundary.iter().map(|e| e.cell).collect();
             cells.sort_unstable();
             cells.dedup();
@@ -232,19 +233,35 @@ impl Overlap {
                 let cell = mesh.cell(c as usize);
                 let first = offsets.len() as u32;
                 for (k, &v) in cell.iter().enumerate() {
-                    let (p1, p2) = (mesh.vertices[v as usize], mesh.vertices[cell[(k + 1) % cell.len()] as usize]);
+                    let (p1, p2) = (
+                        mesh.vertices[v as usize],
+                        mesh.vertices[cell[(k + 1) % cell.len()] as usize],
+                    );
                     let (_, n, _) = frame(p1, p2);
                     let h = (p1 - centroid).dot(&n).abs();
                     let compliance = [h / body.moduli[0], h / body.moduli[1]];
                     let surface = on_boundary.contains(&(c, v));
                     offsets.push(p1 - centroid);
-                    faces.push(Face { compliance, surface });
+                    faces.push(Face {
+                        compliance,
+                        surface,
+                    });
                     if surface {
                         let ends = [first + k as u32, first + ((k + 1) % cell.len()) as u32];
-                        sources.push(Source { element: element as u32, body: bi as u32, ends, compliance });
+                        sources.push(Source {
+                            element: element as u32,
+                            body: bi as u32,
+                            ends,
+                            compliance,
+                        });
                     }
                 }
-                targets.push(Target { element: element as u32, body: bi as u32, first, count: cell.len() as u32 });
+                targets.push(Target {
+                    element: element as u32,
+                    body: bi as u32,
+                    first,
+                    count: cell.len() as u32,
+                });
             }
         }
         for (gi, g) in model.ground.iter().enumerate() {
@@ -257,7 +274,11 @@ impl Overlap {
             let wall = |at: Vec2, other: Option<Vec2>| match other {
                 // The other segment's normal at the joint: the wall bisects the two.
                 Some(o) => {
-                    let (_, m, _) = if at == from { frame(from, o) } else { frame(o, to) };
+                    let (_, m, _) = if at == from {
+                        frame(from, o)
+                    } else {
+                        frame(o, to)
+                    };
                     (-(n + m).normalize(), false)
                 }
                 None => (-n, true),
@@ -274,19 +295,39 @@ impl Overlap {
             let first = offsets.len() as u32;
             offsets.extend([to, from, from + depth * down_from, to + depth * down_to]);
             faces.extend([
-                Face { compliance: [0.0; 2], surface: true },
-                Face { compliance: [0.0; 2], surface: free_from },
-                Face { compliance: [0.0; 2], surface: false },
-                Face { compliance: [0.0; 2], surface: free_to },
+                Face {
+                    compliance: [0.0; 2],
+                    surface: true,
+                },
+                Face {
+                    compliance: [0.0; 2],
+                    surface: free_from,
+                },
+                Face {
+                    compliance: [0.0; 2],
+                    surface: false,
+                },
+                Face {
+                    compliance: [0.0; 2],
+                    surface: free_to,
+                },
             ]);
-            targets.push(Target { element: GROUND, body: NONE, first, count: 4 });
+            targets.push(Target {
+                element: GROUND,
+                body: NONE,
+                first,
+                count: 4,
+            });
         }
         let corners = offsets.clone();
         let lines = vec![(Vec2::zeros(), Vec2::zeros(), Vec2::zeros()); corners.len()];
         let reach = targets
             .iter()
             .map(|t| {
-                let r = offsets[t.first as usize..(t.first + t.count) as usize].iter().map(|d| d.norm()).fold(0.0, f64::max);
+                let r = offsets[t.first as usize..(t.first + t.count) as usize]
+                    .iter()
+                    .map(|d| d.norm())
+                    .fold(0.0, f64::max);
                 (r, [0.0; 3])
             })
             .collect();
@@ -322,7 +363,15 @@ impl Overlap {
     /// that led here moved the bodies by `Δt v^{n−½}` (not used at the first evaluation).
     /// Returns the energy stored in the contact springs (J).
     /// `tests` counts the narrow-phase tests (source edge against target).
-    pub fn forces(&mut self, frames: &Frames, u: &[f64], velocity: &[f64], dt: f64, ledger: &mut Ledger, tests: &mut u64) -> f64 {
+    pub fn forces(
+        &mut self,
+        frames: &Frames,
+        u: &[f64],
+        velocity: &[f64],
+        dt: f64,
+        ledger: &mut Ledger,
+        tests: &mut u64,
+    ) -> f64 {
         self.place(frames, u);
         if moved_beyond(&self.corners, &self.anchors, 0.5 * self.skin) {
             self.rebuild(u);
@@ -342,7 +391,12 @@ impl Overlap {
             self.blocks.resize_with(n, Block::default);
         }
         let mut blocks = std::mem::take(&mut self.blocks);
-        let at = Step { frames, u, velocity, dt };
+        let at = Step {
+            frames,
+            u,
+            velocity,
+            dt,
+        };
         let this = &*self;
         let work = |(block, chunk): (&mut Block, &[(u32, u32)])| {
             block.clear(chunk.len());
@@ -353,9 +407,15 @@ impl Overlap {
             block.finish();
         };
         if n > 1 {
-            blocks[..n].par_iter_mut().zip(self.candidates.par_chunks(BLOCK)).for_each(work);
+            blocks[..n]
+                .par_iter_mut()
+                .zip(self.candidates.par_chunks(BLOCK))
+                .for_each(work);
         } else {
-            blocks[..n].iter_mut().zip(self.candidates.chunks(BLOCK)).for_each(work);
+            blocks[..n]
+                .iter_mut()
+                .zip(self.candidates.chunks(BLOCK))
+                .for_each(work);
         }
         self.next.clear();
         self.ground = Vec2::zeros();
@@ -402,13 +462,22 @@ impl Overlap {
     fn place(&mut self, frames: &Frames, u: &[f64]) {
         for t in self.targets.iter().filter(|t| t.element != GROUND) {
             let r = t.first as usize..(t.first + t.count) as usize;
-            frames.place_all(u, t.element as usize, &self.offsets[r.clone()], &mut self.corners[r]);
+            frames.place_all(
+                u,
+                t.element as usize,
+                &self.offsets[r.clone()],
+                &mut self.corners[r],
+            );
         }
     }
 
     /// Current face lines of the body targets, or with `ground`, of the ground's (fixed).
     fn place_lines(&mut self, ground: bool) {
-        for t in self.targets.iter().filter(|t| (t.element == GROUND) == ground) {
+        for t in self
+            .targets
+            .iter()
+            .filter(|t| (t.element == GROUND) == ground)
+        {
             let r = t.first as usize..(t.first + t.count) as usize;
             let (corners, m) = (&self.corners[r.clone()], t.count as usize);
             for (k, line) in self.lines[r].iter_mut().enumerate() {
@@ -424,7 +493,12 @@ impl Overlap {
     fn rebuild(&mut self, u: &[f64]) {
         self.anchors.copy_from_slice(&self.corners);
         if self.rigid {
-            for (t, reach) in self.targets.iter().zip(&mut self.reach).filter(|(t, _)| t.element != GROUND) {
+            for (t, reach) in self
+                .targets
+                .iter()
+                .zip(&mut self.reach)
+                .filter(|(t, _)| t.element != GROUND)
+            {
                 let e = t.element as usize;
                 reach.1 = [u[3 * e], u[3 * e + 1], u[3 * e + 2]];
             }
@@ -432,7 +506,9 @@ impl Overlap {
         let widen = Vec2::repeat(self.skin);
         let boxes = |t: &Target| {
             let c = &self.corners[t.first as usize..(t.first + t.count) as usize];
-            let (lo, hi) = c.iter().fold((c[0], c[0]), |(lo, hi), x| (lo.inf(x), hi.sup(x)));
+            let (lo, hi) = c
+                .iter()
+                .fold((c[0], c[0]), |(lo, hi), x| (lo.inf(x), hi.sup(x)));
             (lo - widen, hi + widen)
         };
         // The grid spans the bodies; the ground strips, deep below their segments, are filed
@@ -445,7 +521,8 @@ impl Overlap {
         }
         let grid = Buckets::new(lo, hi, self.targets.len());
         let targets = &self.targets;
-        self.buckets.fill(&grid, targets.len(), |k| boxes(&targets[k]));
+        self.buckets
+            .fill(&grid, targets.len(), |k| boxes(&targets[k]));
         self.candidates.clear();
         for (si, s) in self.sources.iter().enumerate() {
             let [a, b] = s.ends.map(|i| self.corners[i as usize]);
@@ -478,13 +555,30 @@ impl Overlap {
         if now.len() < tgt.count as usize {
             now.resize(tgt.count as usize, FaceNow::default());
         }
-        self.pieces_of(at, block, si, &src, &tgt, [q1, q2], &mut now[..tgt.count as usize]);
+        self.pieces_of(
+            at,
+            block,
+            si,
+            &src,
+            &tgt,
+            [q1, q2],
+            &mut now[..tgt.count as usize],
+        );
         block.faces = now;
     }
 
     /// [`Overlap::pair`] with room for the target's faces in `now`.
     #[allow(clippy::too_many_arguments)]
-    fn pieces_of(&self, at: &Step, block: &mut Block, si: u32, src: &Source, tgt: &Target, [q1, q2]: [Vec2; 2], now: &mut [FaceNow]) {
+    fn pieces_of(
+        &self,
+        at: &Step,
+        block: &mut Block,
+        si: u32,
+        src: &Source,
+        tgt: &Target,
+        [q1, q2]: [Vec2; 2],
+        now: &mut [FaceNow],
+    ) {
         let m = tgt.count as usize;
         // Depth below each face line at both ends of the source edge (linear along it), and
         // the face's frame.
@@ -499,7 +593,8 @@ impl Overlap {
         // The normal spring of eq. 12 with both sides' compliances on each surface face (the
         // tangential one only where a piece forms).
         let half = if tgt.element == GROUND { 1.0 } else { 0.5 };
-        let spring = |face: &Face, c: usize| half * self.factor / (src.compliance[c] + face.compliance[c]);
+        let spring =
+            |face: &Face, c: usize| half * self.factor / (src.compliance[c] + face.compliance[c]);
         for (k, f) in now.iter_mut().enumerate() {
             let face = &self.faces[tgt.first as usize + k];
             f.surface = face.surface;
@@ -546,15 +641,34 @@ impl Overlap {
             if !inside || b <= a {
                 continue;
             }
-            let ki = [now[i].spring, spring(&self.faces[tgt.first as usize + i], 1)];
-            let piece = Span { face: i, k: ki, depth: now[i].depth, axes: now[i].axes, ends: [q1, q2], range: (a, b), length };
+            let ki = [
+                now[i].spring,
+                spring(&self.faces[tgt.first as usize + i], 1),
+            ];
+            let piece = Span {
+                face: i,
+                k: ki,
+                depth: now[i].depth,
+                axes: now[i].axes,
+                ends: [q1, q2],
+                range: (a, b),
+                length,
+            };
             self.piece(at, block, src, tgt, si, &piece);
         }
     }
 
     /// One piece of source edge `si` in the part of one face of `tgt`.
     fn piece(&self, at: &Step, block: &mut Block, src: &Source, tgt: &Target, si: u32, p: &Span) {
-        let Span { face: i, k, depth, axes: (s, n), ends: [q1, q2], range: (a, b), length } = *p;
+        let Span {
+            face: i,
+            k,
+            depth,
+            axes: (s, n),
+            ends: [q1, q2],
+            range: (a, b),
+            length,
+        } = *p;
         let face = tgt.first + i as u32;
         let lerp = |v: [f64; 2], xi: f64| v[0] + xi * (v[1] - v[0]);
         let half = 0.5 * (b - a);
@@ -577,28 +691,46 @@ impl Overlap {
         if mean > 0.0 && !self.fresh {
             let centre = (d[0] * gauss[0] + d[1] * gauss[1]) / (d[0] + d[1]);
             let x = q1 + centre * (q2 - q1);
-            let mut step = at.frames.increment(at.u, at.velocity, at.dt, src.element as usize, x);
+            let mut step = at
+                .frames
+                .increment(at.u, at.velocity, at.dt, src.element as usize, x);
             if tgt.element != GROUND {
-                step -= at.frames.increment(at.u, at.velocity, at.dt, tgt.element as usize, x);
+                step -= at
+                    .frames
+                    .increment(at.u, at.velocity, at.dt, tgt.element as usize, x);
             }
             slip += step.dot(&s);
         }
         if let Some(mu) = self.friction {
             // A depth that round-off leaves a hair below zero (bodies stacked on one another)
             // holds no friction.
-            let limit = if k[1] > 0.0 { (mu * k[0] * mean / k[1]).max(0.0) } else { 0.0 };
+            let limit = if k[1] > 0.0 {
+                (mu * k[0] * mean / k[1]).max(0.0)
+            } else {
+                0.0
+            };
             slip = slip.clamp(-limit, limit);
         }
-        block.pieces.push(Piece { source: si, face, slip });
+        block.pieces.push(Piece {
+            source: si,
+            face,
+            slip,
+        });
         let (mut on_source, mut on_target) = ([0.0; 6], [0.0; 6]);
         for (xi, di) in gauss.into_iter().zip(d) {
             let stretch = if mean > 0.0 { slip * di / mean } else { 0.0 };
             let (tn, ts) = (k[0] * di, -k[1] * stretch);
             let x = q1 + xi * (q2 - q1);
             let force = w * (tn * n + ts * s);
-            add(&mut on_source, &at.frames.generalised(at.u, src.element, x, force));
+            add(
+                &mut on_source,
+                &at.frames.generalised(at.u, src.element, x, force),
+            );
             if tgt.element != GROUND {
-                add(&mut on_target, &at.frames.generalised(at.u, tgt.element, x, -force));
+                add(
+                    &mut on_target,
+                    &at.frames.generalised(at.u, tgt.element, x, -force),
+                );
             } else {
                 block.ground += force;
             }

@@ -2,9 +2,9 @@
 //! block-sparse matrix with one `N × N` block per element pair, and `f_int = K U`.
 
 use super::Evaluator;
-use crate::parallel::for_each_chunk;
 use crate::formulation::Kinematics;
 use crate::model::{Interface, Model, GROUND};
+use crate::parallel::for_each_chunk;
 use crate::scene::EvaluatorKind;
 use nalgebra::{Matrix2, SMatrix};
 use std::marker::PhantomData;
@@ -74,7 +74,11 @@ impl<const N: usize> BlockCsr<N> {
         for r in 0..n_rows {
             row_start[r + 1] += row_start[r];
         }
-        BlockCsr { row_start, cols, blocks }
+        BlockCsr {
+            row_start,
+            cols,
+            blocks,
+        }
     }
 
     /// Number of block rows.
@@ -143,8 +147,13 @@ impl<K: Kinematics<N>, const N: usize> Assembled<K, N> {
         let mut triplets = Vec::with_capacity(4 * model.interfaces.len());
         let centroid = |e: u32| model.elements[e as usize].props.centroid;
         for i in &model.interfaces {
-            let xb = if i.b == GROUND { i.midpoint() } else { centroid(i.b) };
-            let [kaa, kab, kba, kbb] = interface_stiffness::<K, N>(i, centroid(i.a), xb, model.thickness);
+            let xb = if i.b == GROUND {
+                i.midpoint()
+            } else {
+                centroid(i.b)
+            };
+            let [kaa, kab, kba, kbb] =
+                interface_stiffness::<K, N>(i, centroid(i.a), xb, model.thickness);
             triplets.push((i.a, i.a, kaa));
             if i.b != GROUND {
                 triplets.push((i.a, i.b, kab));
@@ -155,10 +164,17 @@ impl<K: Kinematics<N>, const N: usize> Assembled<K, N> {
         // Every element gets a diagonal block (its interior stiffness, the `+D` of eq. 8, or
         // zero), so that an unconnected element is still a row.
         triplets.extend(model.elements.iter().enumerate().map(|(e, el)| {
-            let k = if K::HAS_INTERIOR { K::interior_stiffness(&el.props, &el.d, model.thickness) } else { SMatrix::zeros() };
+            let k = if K::HAS_INTERIOR {
+                K::interior_stiffness(&el.props, &el.d, model.thickness)
+            } else {
+                SMatrix::zeros()
+            };
             (e as u32, e as u32, k)
         }));
-        Assembled { stiffness: BlockCsr::from_triplets(model.elements.len(), triplets), kinematics: PhantomData }
+        Assembled {
+            stiffness: BlockCsr::from_triplets(model.elements.len(), triplets),
+            kinematics: PhantomData,
+        }
     }
 }
 
@@ -169,7 +185,9 @@ impl<K: Kinematics<N>, const N: usize> Evaluator for Assembled<K, N> {
 
     fn bytes(&self) -> usize {
         let k = &self.stiffness;
-        std::mem::size_of_val(&k.row_start[..]) + std::mem::size_of_val(&k.cols[..]) + std::mem::size_of_val(&k.blocks[..])
+        std::mem::size_of_val(&k.row_start[..])
+            + std::mem::size_of_val(&k.cols[..])
+            + std::mem::size_of_val(&k.blocks[..])
     }
 
     fn internal_force(&self, u: &[f64], f: &mut [f64]) {

@@ -112,11 +112,24 @@ impl<K: Kinematics<N>, const N: usize> ElementWise<K, N> {
             .map(|i| {
                 let ([g0, g1], _) = i.gauss_points();
                 let (mid, tl) = (i.midpoint(), t * i.length);
-                let offset = |e: u32| if e == GROUND { Vec2::zeros() } else { mid - model.elements[e as usize].props.centroid };
+                let offset = |e: u32| {
+                    if e == GROUND {
+                        Vec2::zeros()
+                    } else {
+                        mid - model.elements[e as usize].props.centroid
+                    }
+                };
                 // `S` is even in the normal and `λ` odd in `δ = u_b − u_a`: the sides may swap.
                 let (a, b) = if i.b < i.a { (i.b, i.a) } else { (i.a, i.b) };
                 let springs = Springs::new(i.normal, i.k_n * tl, i.k_s * tl);
-                Face { a, b, da: offset(a), db: offset(b), springs, odd: K::edge_odd(0.5 * (g1 - g0), &springs) }
+                Face {
+                    a,
+                    b,
+                    da: offset(a),
+                    db: offset(b),
+                    springs,
+                    odd: K::edge_odd(0.5 * (g1 - g0), &springs),
+                }
             })
             .collect();
         faces.sort_by_key(|f| (f.a, f.b));
@@ -131,25 +144,46 @@ impl<K: Kinematics<N>, const N: usize> ElementWise<K, N> {
             let is_inner = |f: &Face<K, N>| f.b != GROUND && (f.b as usize) < elements.end;
             faces[here.clone()].sort_by_key(|f| !is_inner(f));
             let inner = here.start + faces[here.clone()].partition_point(is_inner);
-            let reach = faces[here.start..inner].iter().map(|f| (f.b - f.a) as usize).max();
+            let reach = faces[here.start..inner]
+                .iter()
+                .map(|f| (f.b - f.a) as usize)
+                .max();
             let ring = (reach.unwrap_or(0) + 1).next_power_of_two();
             let before = crossing.len();
-            crossing.extend((inner..here.end).filter(|&k| faces[k].b != GROUND).map(|k| k as u32));
+            crossing.extend(
+                (inner..here.end)
+                    .filter(|&k| faces[k].b != GROUND)
+                    .map(|k| k as u32),
+            );
             let outgoing = before..crossing.len();
-            blocks.push(Block { elements, inner: here.start..inner, rest: inner..here.end, outgoing, incoming: 0..0, ring });
+            blocks.push(Block {
+                elements,
+                inner: here.start..inner,
+                rest: inner..here.end,
+                outgoing,
+                incoming: 0..0,
+                ring,
+            });
         }
         let mut incoming = Vec::new();
         for block in &mut blocks {
             let before = incoming.len();
             incoming.extend(crossing.iter().enumerate().filter_map(|(c, &k)| {
                 let b = faces[k as usize].b;
-                block.elements.contains(&(b as usize)).then_some((b, c as u32))
+                block
+                    .elements
+                    .contains(&(b as usize))
+                    .then_some((b, c as u32))
             }));
             incoming[before..].sort_unstable();
             block.incoming = before..incoming.len();
         }
         let interior = if K::HAS_INTERIOR {
-            model.elements.iter().map(|e| e.d * (model.thickness * e.props.area)).collect()
+            model
+                .elements
+                .iter()
+                .map(|e| e.d * (model.thickness * e.props.area))
+                .collect()
         } else {
             Vec::new()
         };
@@ -157,7 +191,15 @@ impl<K: Kinematics<N>, const N: usize> ElementWise<K, N> {
             crossing: vec![[[0.0; N]; 2]; crossing.len()],
             rings: blocks.iter().map(|b| vec![[0.0; N]; b.ring]).collect(),
         });
-        ElementWise { faces, blocks, crossing, incoming, scratch, interior, kinematics: PhantomData }
+        ElementWise {
+            faces,
+            blocks,
+            crossing,
+            incoming,
+            scratch,
+            interior,
+            kinematics: PhantomData,
+        }
     }
 
     /// The generalised forces that face `f` puts on its sides `a` and `b` (`ub = None` on
@@ -185,10 +227,15 @@ impl<K: Kinematics<N>, const N: usize> ElementWise<K, N> {
     /// before any block moves.
     fn crossing_pass(&self, u: &[[f64; N]]) -> std::sync::MutexGuard<'_, Scratch<N>> {
         let mut scratch = self.scratch.lock().unwrap_or_else(|e| e.into_inner());
-        scratch.crossing.par_iter_mut().zip(self.crossing.par_iter()).with_min_len(1024).for_each(|(out, &k)| {
-            let f = &self.faces[k as usize];
-            *out = self.face_forces(f, &u[f.a as usize], Some(&u[f.b as usize]));
-        });
+        scratch
+            .crossing
+            .par_iter_mut()
+            .zip(self.crossing.par_iter())
+            .with_min_len(1024)
+            .for_each(|(out, &k)| {
+                let f = &self.faces[k as usize];
+                *out = self.face_forces(f, &u[f.a as usize], Some(&u[f.b as usize]));
+            });
         scratch
     }
 
@@ -201,7 +248,13 @@ impl<K: Kinematics<N>, const N: usize> ElementWise<K, N> {
     /// instructions: fewer of them). The arithmetic is the same, with no fused multiply-add, so
     /// the forces are the same bits on every processor.
     #[inline(always)]
-    fn sweep<S: BlockState<N>>(&self, block: &Block, crossing: &[[[f64; N]; 2]], ring: &mut [[f64; N]], state: S) {
+    fn sweep<S: BlockState<N>>(
+        &self,
+        block: &Block,
+        crossing: &[[[f64; N]; 2]],
+        ring: &mut [[f64; N]],
+        state: S,
+    ) {
         #[cfg(target_arch = "x86_64")]
         if let Some(simd) = pulp::x86::V3::try_new() {
             return simd.vectorize(move || self.sweep_in_order(block, crossing, ring, state));
@@ -211,7 +264,13 @@ impl<K: Kinematics<N>, const N: usize> ElementWise<K, N> {
 
     /// [`ElementWise::sweep`], as compiled for the processor at hand.
     #[inline(always)]
-    fn sweep_in_order<S: BlockState<N>>(&self, block: &Block, crossing: &[[[f64; N]; 2]], ring: &mut [[f64; N]], mut state: S) {
+    fn sweep_in_order<S: BlockState<N>>(
+        &self,
+        block: &Block,
+        crossing: &[[[f64; N]; 2]],
+        ring: &mut [[f64; N]],
+        mut state: S,
+    ) {
         let first = block.elements.start;
         let mask = ring.len() - 1;
         let ring = &mut ring[..=mask];
@@ -367,8 +426,28 @@ struct AdvanceBlock<'a, K: Kinematics<N>, const N: usize> {
 
 impl<K: Kinematics<N>, const N: usize> WithUpdate<N> for AdvanceBlock<'_, K, N> {
     fn run<E: ElementUpdate<N>>(self, update: E) {
-        let AdvanceBlock { evaluator, block, crossing, ring, u, v, force, loaded } = self;
-        evaluator.sweep(block, crossing, ring, Advance { u, v, force, loaded, update });
+        let AdvanceBlock {
+            evaluator,
+            block,
+            crossing,
+            ring,
+            u,
+            v,
+            force,
+            loaded,
+        } = self;
+        evaluator.sweep(
+            block,
+            crossing,
+            ring,
+            Advance {
+                u,
+                v,
+                force,
+                loaded,
+                update,
+            },
+        );
     }
 }
 
@@ -380,9 +459,17 @@ impl<K: Kinematics<N>, const N: usize> Evaluator for ElementWise<K, N> {
     fn bytes(&self) -> usize {
         use std::mem::size_of_val;
         let crossing_forces = self.crossing.len() * std::mem::size_of::<[[f64; N]; 2]>();
-        let rings: usize = self.blocks.iter().map(|b| b.ring * std::mem::size_of::<[f64; N]>()).sum();
-        size_of_val(&self.faces[..]) + size_of_val(&self.crossing[..])
-            + size_of_val(&self.incoming[..]) + size_of_val(&self.interior[..]) + crossing_forces + rings
+        let rings: usize = self
+            .blocks
+            .iter()
+            .map(|b| b.ring * std::mem::size_of::<[f64; N]>())
+            .sum();
+        size_of_val(&self.faces[..])
+            + size_of_val(&self.crossing[..])
+            + size_of_val(&self.incoming[..])
+            + size_of_val(&self.interior[..])
+            + crossing_forces
+            + rings
     }
 
     fn internal_force(&self, u: &[f64], f: &mut [f64]) {
@@ -390,13 +477,22 @@ impl<K: Kinematics<N>, const N: usize> Evaluator for ElementWise<K, N> {
         let (f, _) = f.as_chunks_mut::<N>();
         let mut scratch = self.crossing_pass(u);
         let Scratch { crossing, rings } = &mut *scratch;
-        type Parts<'a, const N: usize> = ((&'a Block, &'a mut Vec<[f64; N]>), (&'a [[f64; N]], &'a mut [[f64; N]]));
-        let work = |((block, ring), (u, f)): Parts<N>| self.sweep(block, crossing, ring, Evaluate { u, f });
+        type Parts<'a, const N: usize> = (
+            (&'a Block, &'a mut Vec<[f64; N]>),
+            (&'a [[f64; N]], &'a mut [[f64; N]]),
+        );
+        let work = |((block, ring), (u, f)): Parts<N>| {
+            self.sweep(block, crossing, ring, Evaluate { u, f })
+        };
         match &self.blocks[..] {
             [block] => work(((block, &mut rings[0]), (u, f))),
             blocks => {
                 let len = blocks.first().map_or(1, |b| b.elements.len());
-                blocks.par_iter().zip(rings.par_iter_mut()).zip(u.par_chunks(len).zip(f.par_chunks_mut(len))).for_each(work);
+                blocks
+                    .par_iter()
+                    .zip(rings.par_iter_mut())
+                    .zip(u.par_chunks(len).zip(f.par_chunks_mut(len)))
+                    .for_each(work);
             }
         }
     }
@@ -405,13 +501,23 @@ impl<K: Kinematics<N>, const N: usize> Evaluator for ElementWise<K, N> {
         true
     }
 
-    fn advance(&self, u: &mut [f64], v: &mut [f64], force: &mut [f64], loaded: Option<&[u32]>, update: &Update) {
+    fn advance(
+        &self,
+        u: &mut [f64],
+        v: &mut [f64],
+        force: &mut [f64],
+        loaded: Option<&[u32]>,
+        update: &Update,
+    ) {
         let (u, _) = u.as_chunks_mut::<N>();
         let (v, _) = v.as_chunks_mut::<N>();
         let (force, _) = force.as_chunks_mut::<N>();
         let mut scratch = self.crossing_pass(u);
         let Scratch { crossing, rings } = &mut *scratch;
-        type Parts<'a, const N: usize> = ((&'a Block, &'a mut Vec<[f64; N]>), ((&'a mut [[f64; N]], &'a mut [[f64; N]]), &'a mut [[f64; N]]));
+        type Parts<'a, const N: usize> = (
+            (&'a Block, &'a mut Vec<[f64; N]>),
+            ((&'a mut [[f64; N]], &'a mut [[f64; N]]), &'a mut [[f64; N]]),
+        );
         let work = |((block, ring), ((u, v), force)): Parts<N>| {
             // The loaded elements of this block.
             let loaded = loaded.map(|l| {
@@ -419,14 +525,33 @@ impl<K: Kinematics<N>, const N: usize> Evaluator for ElementWise<K, N> {
                 &l[at(block.elements.start)..at(block.elements.end)]
             });
             let ring = &mut ring[..];
-            update.resolve(block.elements.clone(), AdvanceBlock { evaluator: self, block, crossing, ring, u, v, force, loaded });
+            update.resolve(
+                block.elements.clone(),
+                AdvanceBlock {
+                    evaluator: self,
+                    block,
+                    crossing,
+                    ring,
+                    u,
+                    v,
+                    force,
+                    loaded,
+                },
+            );
         };
         match &self.blocks[..] {
             [block] => work(((block, &mut rings[0]), ((u, v), force))),
             blocks => {
                 let len = blocks.first().map_or(1, |b| b.elements.len());
-                let vectors = u.par_chunks_mut(len).zip(v.par_chunks_mut(len)).zip(force.par_chunks_mut(len));
-                blocks.par_iter().zip(rings.par_iter_mut()).zip(vectors).for_each(work);
+                let vectors = u
+                    .par_chunks_mut(len)
+                    .zip(v.par_chunks_mut(len))
+                    .zip(force.par_chunks_mut(len));
+                blocks
+                    .par_iter()
+                    .zip(rings.par_iter_mut())
+                    .zip(vectors)
+                    .for_each(work);
             }
         }
     }
@@ -440,7 +565,10 @@ mod tests {
     use crate::scene::Scene;
 
     /// `f_int` swept by the plain build, block after block.
-    fn plain_forces<K: Kinematics<N>, const N: usize>(ev: &ElementWise<K, N>, u: &[f64]) -> Vec<f64> {
+    fn plain_forces<K: Kinematics<N>, const N: usize>(
+        ev: &ElementWise<K, N>,
+        u: &[f64],
+    ) -> Vec<f64> {
         let mut f = vec![0.0; u.len()];
         let (u, _) = u.as_chunks::<N>();
         let (fc, _) = f.as_chunks_mut::<N>();
@@ -448,7 +576,15 @@ mod tests {
         let Scratch { crossing, rings } = &mut *scratch;
         for (block, ring) in ev.blocks.iter().zip(rings.iter_mut()) {
             let r = block.elements.clone();
-            ev.sweep_in_order(block, crossing, ring, Evaluate { u: &u[r.clone()], f: &mut fc[r] });
+            ev.sweep_in_order(
+                block,
+                crossing,
+                ring,
+                Evaluate {
+                    u: &u[r.clone()],
+                    f: &mut fc[r],
+                },
+            );
         }
         drop(scratch);
         f
@@ -471,14 +607,28 @@ mod tests {
         fn check<K: Kinematics<N>, const N: usize>(model: &Model) {
             let ev = ElementWise::<K, N>::new(model);
             assert!(ev.blocks.len() >= 2 && !ev.crossing.is_empty());
-            let u: Vec<f64> = (0..model.n_dofs()).map(|i| ((i * 7919) % 1000) as f64 * 1e-6 - 5e-4).collect();
+            let u: Vec<f64> = (0..model.n_dofs())
+                .map(|i| ((i * 7919) % 1000) as f64 * 1e-6 - 5e-4)
+                .collect();
             let mut f = vec![0.0; u.len()];
             ev.internal_force(&u, &mut f);
             let plain = plain_forces(&ev, &u);
-            assert!(f.iter().zip(&plain).all(|(a, b)| a.to_bits() == b.to_bits()), "the two builds differ");
+            assert!(
+                f.iter()
+                    .zip(&plain)
+                    .all(|(a, b)| a.to_bits() == b.to_bits()),
+                "the two builds differ"
+            );
         }
-        check::<Rigid, 3>(&Model::build(&Scene::from_json(&json(r#"{"kind": "rigid"}"#)).unwrap()).unwrap());
-        check::<Hybrid, 6>(&Model::build(&Scene::from_json(&json(r#"{"kind": "hybrid", "penalty": 10}"#)).unwrap()).unwrap());
+        check::<Rigid, 3>(
+            &Model::build(&Scene::from_json(&json(r#"{"kind": "rigid"}"#)).unwrap()).unwrap(),
+        );
+        check::<Hybrid, 6>(
+            &Model::build(
+                &Scene::from_json(&json(r#"{"kind": "hybrid", "penalty": 10}"#)).unwrap(),
+            )
+            .unwrap(),
+        );
     }
 
     /// On a grid of 5000 × 3 cells, in four blocks, an element's upper neighbour lies in the next
@@ -496,17 +646,30 @@ mod tests {
         let ev = ElementWise::<Rigid, 3>::new(&model);
         assert!(ev.blocks.len() >= 3 && ev.blocks.iter().all(|b| b.ring == 2));
         let late = ev.blocks.iter().flat_map(|b| {
-            ev.incoming[b.incoming.clone()].iter().filter(move |&&(e, _)| e as usize - b.elements.start >= b.ring)
+            ev.incoming[b.incoming.clone()]
+                .iter()
+                .filter(move |&&(e, _)| e as usize - b.elements.start >= b.ring)
         });
-        assert!(late.count() > 0, "no interface enters a ring late: the test mesh does not exercise it");
-        let u: Vec<f64> = (0..model.n_dofs()).map(|i| ((i * 7919) % 1000) as f64 * 1e-6 - 5e-4).collect();
+        assert!(
+            late.count() > 0,
+            "no interface enters a ring late: the test mesh does not exercise it"
+        );
+        let u: Vec<f64> = (0..model.n_dofs())
+            .map(|i| ((i * 7919) % 1000) as f64 * 1e-6 - 5e-4)
+            .collect();
         let (mut fa, mut fe) = (vec![0.0; u.len()], vec![0.0; u.len()]);
         Assembled::<Rigid, 3>::new(&model).internal_force(&u, &mut fa);
         ev.internal_force(&u, &mut fe);
         let scale = fa.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-        let diff = fa.iter().zip(&fe).fold(0.0f64, |m, (a, e)| m.max((a - e).abs()));
+        let diff = fa
+            .iter()
+            .zip(&fe)
+            .fold(0.0f64, |m, (a, e)| m.max((a - e).abs()));
         assert!(diff <= 1e-12 * scale, "|Δf| = {diff:e} of {scale:e}");
         let scratch = ev.scratch.lock().unwrap();
-        assert!(scratch.rings.iter().flatten().all(|s| *s == [0.0; 3]), "a ring was left with a pending force");
+        assert!(
+            scratch.rings.iter().flatten().all(|s| *s == [0.0; 3]),
+            "a ring was left with a pending force"
+        );
     }
 }

@@ -35,7 +35,14 @@ pub trait Evaluator: Send + Sync {
     /// order, the only elements where `force` may be non-zero (`None`: any element), so that a
     /// step need not read the rest. Only for an evaluator that [`fuses`](Evaluator::fuses); the
     /// others are evaluated and advanced in two passes.
-    fn advance(&self, _u: &mut [f64], _v: &mut [f64], _force: &mut [f64], _loaded: Option<&[u32]>, _update: &Update) {
+    fn advance(
+        &self,
+        _u: &mut [f64],
+        _v: &mut [f64],
+        _force: &mut [f64],
+        _loaded: Option<&[u32]>,
+        _update: &Update,
+    ) {
         unreachable!("advance is only called on an evaluator that fuses")
     }
 }
@@ -51,9 +58,17 @@ pub fn stiffness_triplets(model: &Model) -> Vec<(usize, usize, f64)> {
 /// The evaluator `kind` for the model's formulation.
 pub fn build(model: &Model, kind: EvaluatorKind) -> Box<dyn Evaluator> {
     match (model.formulation, kind) {
-        (Formulation::Rigid, EvaluatorKind::Assembled) => Box::new(Assembled::<Rigid, 3>::new(model)),
-        (Formulation::Rigid, EvaluatorKind::ElementWise) => Box::new(ElementWise::<Rigid, 3>::new(model)),
-        (Formulation::Hybrid { .. }, EvaluatorKind::Assembled) => Box::new(Assembled::<Hybrid, 6>::new(model)),
-        (Formulation::Hybrid { .. }, EvaluatorKind::ElementWise) => Box::new(ElementWise::<Hybrid, 6>::new(model)),
+        (Formulation::Rigid, EvaluatorKind::Assembled) => {
+            Box::new(Assembled::<Rigid, 3>::new(model))
+        }
+        (Formulation::Rigid, EvaluatorKind::ElementWise) => {
+            Box::new(ElementWise::<Rigid, 3>::new(model))
+        }
+        (Formulation::Hybrid { .. }, EvaluatorKind::Assembled) => {
+            Box::new(Assembled::<Hybrid, 6>::new(model))
+        }
+        (Formulation::Hybrid { .. }, EvaluatorKind::ElementWise) => {
+            Box::new(ElementWise::<Hybrid, 6>::new(model))
+        }
     }
 }

@@ -29,8 +29,10 @@ pub fn read(body: &str, path: &Path) -> Result<Mesh> {
     let bytes = crate::scene::read_limited(path, MAX_MESH_BYTES, "a mesh file")?;
     let field = format!("mesh `{body}` ({})", path.display());
     let fail = |message: String| Error::scene(field.clone(), message);
-    let header = format_header(&bytes).ok_or_else(|| fail("not a gmsh MSH file: no `$MeshFormat` header".into()))?;
-    let [version, file_type, data_size] = [0, 1, 2].map(|i| header.get(i).map_or("", String::as_str));
+    let header = format_header(&bytes)
+        .ok_or_else(|| fail("not a gmsh MSH file: no `$MeshFormat` header".into()))?;
+    let [version, file_type, data_size] =
+        [0, 1, 2].map(|i| header.get(i).map_or("", String::as_str));
     if version != "4.1" {
         return Err(fail(format!("MSH version {version} is not supported; save the mesh as MSH 4.1 (`gmsh -2 -format msh41 file.geo`)")));
     }
@@ -41,10 +43,19 @@ pub fn read(body: &str, path: &Path) -> Result<Mesh> {
         )));
     }
     // The reader panics on some malformed files; that is an error in the file, not a crash.
-    let parsed = std::panic::catch_unwind(|| mshio::parse_msh_bytes(&bytes)).map_err(|_| fail("the MSH 4.1 reader failed on malformed data in this file".into()))?;
+    let parsed = std::panic::catch_unwind(|| mshio::parse_msh_bytes(&bytes))
+        .map_err(|_| fail("the MSH 4.1 reader failed on malformed data in this file".into()))?;
     let msh = parsed.map_err(|e| fail(format!("cannot parse the MSH 4.1 file: {e}")))?;
-    let nodes = msh.data.nodes.as_ref().ok_or_else(|| fail("the file has no `$Nodes` section".into()))?;
-    let elements = msh.data.elements.as_ref().ok_or_else(|| fail("the file has no `$Elements` section".into()))?;
+    let nodes = msh
+        .data
+        .nodes
+        .as_ref()
+        .ok_or_else(|| fail("the file has no `$Nodes` section".into()))?;
+    let elements = msh
+        .data
+        .elements
+        .as_ref()
+        .ok_or_else(|| fail("the file has no `$Elements` section".into()))?;
     // Node tag → coordinates. Without a tag map a block's tags run on from the smallest tag.
     let mut coordinates: HashMap<u64, Vec2> = HashMap::new();
     let mut next = nodes.min_node_tag;
@@ -65,18 +76,30 @@ pub fn read(body: &str, path: &Path) -> Result<Mesh> {
         }
     }
     let names = physical_names(&bytes);
-    let curve_groups: HashMap<i32, Vec<i32>> = msh.data.entities.as_ref().map_or_else(HashMap::new, |e| {
-        e.curves.iter().map(|c| (c.tag, c.physical_tags.clone())).collect()
-    });
+    let curve_groups: HashMap<i32, Vec<i32>> =
+        msh.data.entities.as_ref().map_or_else(HashMap::new, |e| {
+            e.curves
+                .iter()
+                .map(|c| (c.tag, c.physical_tags.clone()))
+                .collect()
+        });
     let mut cells: Vec<Vec<u64>> = Vec::new();
     let mut lines: BTreeMap<String, Vec<[u64; 2]>> = BTreeMap::new();
     for block in &elements.element_blocks {
         match block.element_type {
-            ElementType::Tri3 | ElementType::Qua4 => cells.extend(block.elements.iter().map(|e| e.nodes.clone())),
+            ElementType::Tri3 | ElementType::Qua4 => {
+                cells.extend(block.elements.iter().map(|e| e.nodes.clone()))
+            }
             ElementType::Lin2 => {
                 for &group in curve_groups.get(&block.entity_tag).into_iter().flatten() {
-                    let name = names.get(&(1, group)).cloned().unwrap_or_else(|| group.to_string());
-                    lines.entry(name).or_default().extend(block.elements.iter().map(|e| [e.nodes[0], e.nodes[1]]));
+                    let name = names
+                        .get(&(1, group))
+                        .cloned()
+                        .unwrap_or_else(|| group.to_string());
+                    lines
+                        .entry(name)
+                        .or_default()
+                        .extend(block.elements.iter().map(|e| [e.nodes[0], e.nodes[1]]));
                 }
             }
             ElementType::Pnt => {}
@@ -95,16 +118,27 @@ pub fn read(body: &str, path: &Path) -> Result<Mesh> {
             add a `Physical Surface(\"body\") = {...};` for the meshed surface to the .geo (gmsh saves only the elements of physical groups once one is defined)".into()));
     }
     if cells.is_empty() {
-        return Err(fail("the file has no triangles or quadrilaterals: mesh the surface in 2D (`gmsh -2`)".into()));
+        return Err(fail(
+            "the file has no triangles or quadrilaterals: mesh the surface in 2D (`gmsh -2`)"
+                .into(),
+        ));
     }
     // Vertices: the nodes the cells use, in tag order.
     let mut used: Vec<u64> = cells.iter().flatten().copied().collect();
     used.sort_unstable();
     used.dedup();
-    let index: HashMap<u64, u32> = used.iter().enumerate().map(|(i, &t)| (t, i as u32)).collect();
+    let index: HashMap<u64, u32> = used
+        .iter()
+        .enumerate()
+        .map(|(i, &t)| (t, i as u32))
+        .collect();
     let mut vertices = Vec::with_capacity(used.len());
     for t in &used {
-        vertices.push(*coordinates.get(t).ok_or_else(|| fail(format!("node {t} is used by a cell but not defined")))?);
+        vertices.push(
+            *coordinates
+                .get(t)
+                .ok_or_else(|| fail(format!("node {t} is used by a cell but not defined")))?,
+        );
     }
     let cells: Vec<Vec<u32>> = cells
         .iter()
@@ -122,7 +156,9 @@ pub fn read(body: &str, path: &Path) -> Result<Mesh> {
         let mut edges = Vec::with_capacity(pairs.len());
         for [p, q] in pairs {
             let (Some(&a), Some(&b)) = (index.get(&p), index.get(&q)) else {
-                return Err(fail(format!("group `{name}`: the line {p}–{q} is not an edge of any cell")));
+                return Err(fail(format!(
+                    "group `{name}`: the line {p}–{q} is not an edge of any cell"
+                )));
             };
             edges.push([a.min(b), a.max(b)]);
         }
@@ -137,7 +173,11 @@ fn format_header(bytes: &[u8]) -> Option<Vec<String>> {
     let head = String::from_utf8_lossy(&bytes[..bytes.len().min(256)]).into_owned();
     let mut lines = head.lines().map(str::trim);
     lines.find(|l| *l == "$MeshFormat")?;
-    let words: Vec<String> = lines.next()?.split_whitespace().map(str::to_string).collect();
+    let words: Vec<String> = lines
+        .next()?
+        .split_whitespace()
+        .map(str::to_string)
+        .collect();
     (!words.is_empty()).then_some(words)
 }
 
@@ -148,7 +188,10 @@ fn physical_names(bytes: &[u8]) -> HashMap<(i32, i32), String> {
     let Some(start) = bytes.windows(14).position(|w| w == b"$PhysicalNames") else {
         return out;
     };
-    let end = bytes[start..].windows(17).position(|w| w == b"$EndPhysicalNames").map_or(bytes.len(), |e| start + e);
+    let end = bytes[start..]
+        .windows(17)
+        .position(|w| w == b"$EndPhysicalNames")
+        .map_or(bytes.len(), |e| start + e);
     let text = String::from_utf8_lossy(&bytes[start..end]).into_owned();
     for line in text.lines().skip(2) {
         let mut parts = line.trim().splitn(3, ' ');

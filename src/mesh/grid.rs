@@ -5,7 +5,9 @@ use crate::error::Result;
 use crate::geometry::Vec2;
 
 /// The cell shape of a structured grid (`mesh.cell` in the scene).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize, schemars::JsonSchema,
+)]
 #[serde(rename_all = "lowercase")]
 pub enum Cell {
     /// One rectangle per grid cell.
@@ -16,11 +18,20 @@ pub enum Cell {
 
 /// A grid of `nx × ny` cells covering `origin .. origin + size`, numbered row by row from the
 /// lower-left (`c = i + nx·j`; with triangles, elements `2c` and `2c + 1`).
-pub fn grid(body: &str, origin: Vec2, size: Vec2, nx: usize, ny: usize, cell: Cell) -> Result<Mesh> {
+pub fn grid(
+    body: &str,
+    origin: Vec2,
+    size: Vec2,
+    nx: usize,
+    ny: usize,
+    cell: Cell,
+) -> Result<Mesh> {
     let mut vertices = Vec::with_capacity((nx + 1) * (ny + 1));
     for j in 0..=ny {
         for i in 0..=nx {
-            vertices.push(origin + Vec2::new(size.x * i as f64 / nx as f64, size.y * j as f64 / ny as f64));
+            vertices.push(
+                origin + Vec2::new(size.x * i as f64 / nx as f64, size.y * j as f64 / ny as f64),
+            );
         }
     }
     let v = |i: usize, j: usize| (i + (nx + 1) * j) as u32;
@@ -59,7 +70,14 @@ mod tests {
         assert_eq!(m.n_cells(), 4);
         // Rectangle 1 (i = 1, j = 0): element 2 is its lower-right triangle.
         let p = m.cell_points(2);
-        assert_eq!(p, vec![Vec2::new(1.0, 0.0), Vec2::new(2.0, 0.0), Vec2::new(2.0, 1.0)]);
+        assert_eq!(
+            p,
+            vec![
+                Vec2::new(1.0, 0.0),
+                Vec2::new(2.0, 0.0),
+                Vec2::new(2.0, 1.0)
+            ]
+        );
         assert_eq!(m.shared.len(), 2 + 1);
     }
 }

@@ -143,7 +143,10 @@ impl Mesh {
 
     /// Coordinates of the vertices of cell `c`.
     pub fn cell_points(&self, c: usize) -> Vec<Vec2> {
-        self.cell(c).iter().map(|&v| self.vertices[v as usize]).collect()
+        self.cell(c)
+            .iter()
+            .map(|&v| self.vertices[v as usize])
+            .collect()
     }
 
     /// Lower-left and upper-right corners of the mesh's bounding box.
@@ -160,24 +163,43 @@ impl Mesh {
     /// The boundary edges in `set`, in boundary order; `Err` with the reason when there are none.
     pub fn edges_in(&self, set: &EdgeSet) -> std::result::Result<Vec<&BoundaryEdge>, String> {
         let edges: Vec<&BoundaryEdge> = match set {
-            EdgeSet::Side(side) => self.boundary.iter().filter(|e| e.side == Some(*side)).collect(),
+            EdgeSet::Side(side) => self
+                .boundary
+                .iter()
+                .filter(|e| e.side == Some(*side))
+                .collect(),
             EdgeSet::Group(name) => {
                 let Some(group) = self.groups.iter().find(|g| &g.name == name) else {
                     let known: Vec<&str> = self.groups.iter().map(|g| g.name.as_str()).collect();
                     return Err(format!(
                         "no side or edge group `{name}`: use left, right, bottom, top{}",
-                        if known.is_empty() { String::new() } else { format!(" or a group of the mesh: {}", known.join(", ")) }
+                        if known.is_empty() {
+                            String::new()
+                        } else {
+                            format!(" or a group of the mesh: {}", known.join(", "))
+                        }
                     ));
                 };
                 let mut pairs = group.edges.clone();
                 pairs.sort_unstable();
-                self.boundary.iter().filter(|e| pairs.binary_search(&[e.v1.min(e.v2), e.v1.max(e.v2)]).is_ok()).collect()
+                self.boundary
+                    .iter()
+                    .filter(|e| {
+                        pairs
+                            .binary_search(&[e.v1.min(e.v2), e.v1.max(e.v2)])
+                            .is_ok()
+                    })
+                    .collect()
             }
         };
         if edges.is_empty() {
             return Err(match set {
-                EdgeSet::Side(side) => format!("no boundary edge lies on side `{side:?}` of the body's bounding box"),
-                EdgeSet::Group(name) => format!("edge group `{name}` holds no boundary edge of the mesh"),
+                EdgeSet::Side(side) => {
+                    format!("no boundary edge lies on side `{side:?}` of the body's bounding box")
+                }
+                EdgeSet::Group(name) => {
+                    format!("edge group `{name}` holds no boundary edge of the mesh")
+                }
             });
         }
         Ok(edges)
@@ -190,20 +212,38 @@ impl Mesh {
     pub fn from_polygons(body: &str, vertices: Vec<Vec2>, cells: &[Vec<usize>]) -> Result<Self> {
         for (c, cell) in cells.iter().enumerate() {
             if let Some(&v) = cell.iter().find(|&&v| v >= vertices.len()) {
-                return Err(Error::mesh(body, c, format!("vertex index {v} is out of range (0..{})", vertices.len())));
+                return Err(Error::mesh(
+                    body,
+                    c,
+                    format!("vertex index {v} is out of range (0..{})", vertices.len()),
+                ));
             }
         }
-        let cells: Vec<Vec<u32>> = cells.iter().map(|c| c.iter().map(|&v| v as u32).collect()).collect();
+        let cells: Vec<Vec<u32>> = cells
+            .iter()
+            .map(|c| c.iter().map(|&v| v as u32).collect())
+            .collect();
         Mesh::build(body, vertices, &cells, Checks::UserInput)
     }
 
     /// Checks the cells, finds every edge once and tags boundary edges by side.
-    pub(crate) fn build(body: &str, vertices: Vec<Vec2>, cells: &[Vec<u32>], checks: Checks) -> Result<Self> {
+    pub(crate) fn build(
+        body: &str,
+        vertices: Vec<Vec2>,
+        cells: &[Vec<u32>],
+        checks: Checks,
+    ) -> Result<Self> {
         if cells.is_empty() {
             return Err(Error::mesh(body, 0, "the mesh has no cells"));
         }
-        if let Some(i) = vertices.iter().position(|v| !v.x.is_finite() || !v.y.is_finite()) {
-            return Err(Error::scene(format!("mesh.vertices[{i}]"), "coordinates must be finite numbers"));
+        if let Some(i) = vertices
+            .iter()
+            .position(|v| !v.x.is_finite() || !v.y.is_finite())
+        {
+            return Err(Error::scene(
+                format!("mesh.vertices[{i}]"),
+                "coordinates must be finite numbers",
+            ));
         }
         let mut cell_start = Vec::with_capacity(cells.len() + 1);
         let mut cell_vertices = Vec::with_capacity(cells.iter().map(Vec::len).sum());
@@ -213,7 +253,14 @@ impl Mesh {
             cell_vertices.extend_from_slice(cell);
             cell_start.push(cell_vertices.len() as u32);
         }
-        let mut mesh = Mesh { vertices, cell_start, cell_vertices, shared: Vec::new(), boundary: Vec::new(), groups: Vec::new() };
+        let mut mesh = Mesh {
+            vertices,
+            cell_start,
+            cell_vertices,
+            shared: Vec::new(),
+            boundary: Vec::new(),
+            groups: Vec::new(),
+        };
         mesh.match_edges(body)?;
         if checks == Checks::UserInput {
             mesh.check_conforming(body)?;
@@ -243,14 +290,23 @@ impl Mesh {
             }
             let (_, a, v1, v2) = keys[i];
             match j - i {
-                1 => self.boundary.push(BoundaryEdge { cell: a, v1, v2, side: None }),
+                1 => self.boundary.push(BoundaryEdge {
+                    cell: a,
+                    v1,
+                    v2,
+                    side: None,
+                }),
                 2 => {
                     let (_, b, w1, _) = keys[i + 1];
                     if w1 == v1 {
                         return Err(Error::mesh(body, a.max(b) as usize, format!(
                             "overlaps cell {}: both run their common edge ({v1}, {v2}) in the same direction", a.min(b))));
                     }
-                    let (a, b, v1, v2) = if a < b { (a, b, v1, v2) } else { (b, a, v2, v1) };
+                    let (a, b, v1, v2) = if a < b {
+                        (a, b, v1, v2)
+                    } else {
+                        (b, a, v2, v1)
+                    };
                     self.shared.push(SharedEdge { a, b, v1, v2 });
                 }
                 _ => {
@@ -272,7 +328,9 @@ impl Mesh {
         let scale = (hi - lo).norm();
         let grid = Buckets::new(lo, hi, self.vertices.len());
         let mut vertex_buckets = BucketLists::default();
-        vertex_buckets.fill(&grid, self.vertices.len(), |i| (self.vertices[i], self.vertices[i]));
+        vertex_buckets.fill(&grid, self.vertices.len(), |i| {
+            (self.vertices[i], self.vertices[i])
+        });
         for e in &self.boundary {
             let (p, q) = (self.vertices[e.v1 as usize], self.vertices[e.v2 as usize]);
             let d = q - p;
@@ -302,13 +360,18 @@ impl Mesh {
         let mut cell_buckets = BucketLists::default();
         cell_buckets.fill(&grid, self.n_cells(), |c| {
             let pts = self.cell_points(c);
-            pts.iter().fold((pts[0], pts[0]), |(a, b), p| (a.inf(p), b.sup(p)))
+            pts.iter()
+                .fold((pts[0], pts[0]), |(a, b), p| (a.inf(p), b.sup(p)))
         });
         for d in 0..self.n_cells() {
             let centroid = area_properties(&self.cell_points(d)).centroid;
             for &c in cell_buckets.bucket(grid.index(centroid)) {
                 if c as usize != d && point_in_polygon(centroid, &self.cell_points(c as usize)) {
-                    return Err(Error::mesh(body, d, format!("overlaps cell {c}: its centroid lies inside it")));
+                    return Err(Error::mesh(
+                        body,
+                        d,
+                        format!("overlaps cell {c}: its centroid lies inside it"),
+                    ));
                 }
             }
         }
@@ -341,22 +404,40 @@ impl Mesh {
 /// input no self-intersection.
 fn check_cell(body: &str, c: usize, cell: &[u32], vertices: &[Vec2], checks: Checks) -> Result<()> {
     if cell.len() < 3 {
-        return Err(Error::mesh(body, c, format!("has {} vertices; a cell needs at least 3", cell.len())));
+        return Err(Error::mesh(
+            body,
+            c,
+            format!("has {} vertices; a cell needs at least 3", cell.len()),
+        ));
     }
     let pts: Vec<Vec2> = cell.iter().map(|&v| vertices[v as usize]).collect();
     let mut seen = HashMap::with_capacity(cell.len());
     for (k, &v) in cell.iter().enumerate() {
         if let Some(first) = seen.insert(v, k) {
-            return Err(Error::mesh(body, c, format!("is degenerate: vertex {v} appears twice (positions {first} and {k})")));
+            return Err(Error::mesh(
+                body,
+                c,
+                format!("is degenerate: vertex {v} appears twice (positions {first} and {k})"),
+            ));
         }
     }
-    let perimeter: f64 = (0..pts.len()).map(|k| (pts[(k + 1) % pts.len()] - pts[k]).norm()).sum();
+    let perimeter: f64 = (0..pts.len())
+        .map(|k| (pts[(k + 1) % pts.len()] - pts[k]).norm())
+        .sum();
     let area = area_properties(&pts).area;
     if area.abs() <= 1e-12 * perimeter * perimeter {
-        return Err(Error::mesh(body, c, format!("is degenerate: its area {area:e} m² is zero")));
+        return Err(Error::mesh(
+            body,
+            c,
+            format!("is degenerate: its area {area:e} m² is zero"),
+        ));
     }
     if area < 0.0 {
-        return Err(Error::mesh(body, c, "is clockwise; list its vertices counter-clockwise"));
+        return Err(Error::mesh(
+            body,
+            c,
+            "is clockwise; list its vertices counter-clockwise",
+        ));
     }
     if checks == Checks::UserInput {
         let n = pts.len();
@@ -367,7 +448,11 @@ fn check_cell(body: &str, c: usize, cell: &[u32], vertices: &[Vec2], checks: Che
                 }
                 let (p, q) = ((pts[i], pts[(i + 1) % n]), (pts[j], pts[(j + 1) % n]));
                 if segments_cross(p.0, p.1, q.0, q.1) {
-                    return Err(Error::mesh(body, c, format!("is self-intersecting: edges {i} and {j} cross")));
+                    return Err(Error::mesh(
+                        body,
+                        c,
+                        format!("is self-intersecting: edges {i} and {j} cross"),
+                    ));
                 }
                 let gap = segment_distance(p.0, p.1, q.0, q.1);
                 if gap <= 1e-9 * perimeter {
@@ -384,7 +469,12 @@ mod tests {
     use super::*;
 
     fn square(x: f64, y: f64) -> Vec<Vec2> {
-        vec![Vec2::new(x, y), Vec2::new(x + 1.0, y), Vec2::new(x + 1.0, y + 1.0), Vec2::new(x, y + 1.0)]
+        vec![
+            Vec2::new(x, y),
+            Vec2::new(x + 1.0, y),
+            Vec2::new(x + 1.0, y + 1.0),
+            Vec2::new(x, y + 1.0),
+        ]
     }
 
     #[test]
@@ -392,15 +482,37 @@ mod tests {
         let mut v = square(0.0, 0.0);
         v.extend([Vec2::new(2.0, 0.0), Vec2::new(2.0, 1.0)]);
         let m = Mesh::from_polygons("b", v, &[vec![0, 1, 2, 3], vec![1, 4, 5, 2]]).unwrap();
-        assert_eq!(m.shared, vec![SharedEdge { a: 0, b: 1, v1: 1, v2: 2 }]);
+        assert_eq!(
+            m.shared,
+            vec![SharedEdge {
+                a: 0,
+                b: 1,
+                v1: 1,
+                v2: 2
+            }]
+        );
         assert_eq!(m.boundary.len(), 6);
-        assert_eq!(m.boundary.iter().filter(|e| e.side == Some(Side::Left)).count(), 1);
-        assert_eq!(m.boundary.iter().filter(|e| e.side == Some(Side::Bottom)).count(), 2);
+        assert_eq!(
+            m.boundary
+                .iter()
+                .filter(|e| e.side == Some(Side::Left))
+                .count(),
+            1
+        );
+        assert_eq!(
+            m.boundary
+                .iter()
+                .filter(|e| e.side == Some(Side::Bottom))
+                .count(),
+            2
+        );
     }
 
     #[test]
     fn clockwise_cell_is_named() {
-        let err = Mesh::from_polygons("b", square(0.0, 0.0), &[vec![0, 3, 2, 1]]).unwrap_err().to_string();
+        let err = Mesh::from_polygons("b", square(0.0, 0.0), &[vec![0, 3, 2, 1]])
+            .unwrap_err()
+            .to_string();
         assert!(err.contains("cell 0") && err.contains("clockwise"), "{err}");
     }
 
@@ -408,36 +520,87 @@ mod tests {
     fn hanging_vertex_is_non_conforming() {
         // Cell 0 is 2 x 1; cells 1 and 2 sit on top of it, meeting at (1, 1).
         let v = vec![
-            Vec2::new(0.0, 0.0), Vec2::new(2.0, 0.0), Vec2::new(2.0, 1.0), Vec2::new(1.0, 1.0),
-            Vec2::new(0.0, 1.0), Vec2::new(0.0, 2.0), Vec2::new(1.0, 2.0), Vec2::new(2.0, 2.0),
+            Vec2::new(0.0, 0.0),
+            Vec2::new(2.0, 0.0),
+            Vec2::new(2.0, 1.0),
+            Vec2::new(1.0, 1.0),
+            Vec2::new(0.0, 1.0),
+            Vec2::new(0.0, 2.0),
+            Vec2::new(1.0, 2.0),
+            Vec2::new(2.0, 2.0),
         ];
-        let err = Mesh::from_polygons("b", v, &[vec![0, 1, 2, 4], vec![4, 3, 6, 5], vec![3, 2, 7, 6]])
-            .unwrap_err()
-            .to_string();
-        assert!(err.contains("non-conforming") && err.contains("vertex 3"), "{err}");
+        let err = Mesh::from_polygons(
+            "b",
+            v,
+            &[vec![0, 1, 2, 4], vec![4, 3, 6, 5], vec![3, 2, 7, 6]],
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            err.contains("non-conforming") && err.contains("vertex 3"),
+            "{err}"
+        );
     }
 
     #[test]
     fn nested_and_same_direction_cells_overlap() {
         let mut v = square(0.0, 0.0);
-        v.extend([Vec2::new(0.25, 0.25), Vec2::new(0.5, 0.25), Vec2::new(0.5, 0.5)]);
-        let err = Mesh::from_polygons("b", v.clone(), &[vec![0, 1, 2, 3], vec![4, 5, 6]]).unwrap_err().to_string();
+        v.extend([
+            Vec2::new(0.25, 0.25),
+            Vec2::new(0.5, 0.25),
+            Vec2::new(0.5, 0.5),
+        ]);
+        let err = Mesh::from_polygons("b", v.clone(), &[vec![0, 1, 2, 3], vec![4, 5, 6]])
+            .unwrap_err()
+            .to_string();
         assert!(err.contains("overlaps"), "{err}");
-        let err = Mesh::from_polygons("b", square(0.0, 0.0), &[vec![0, 1, 2, 3], vec![0, 1, 2]]).unwrap_err().to_string();
-        assert!(err.contains("overlaps") || err.contains("same direction"), "{err}");
+        let err = Mesh::from_polygons("b", square(0.0, 0.0), &[vec![0, 1, 2, 3], vec![0, 1, 2]])
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("overlaps") || err.contains("same direction"),
+            "{err}"
+        );
     }
 
     #[test]
     fn degenerate_and_self_intersecting_cells_are_errors() {
-        let v = vec![Vec2::new(0.0, 0.0), Vec2::new(1.0, 0.0), Vec2::new(2.0, 0.0)];
-        let err = Mesh::from_polygons("b", v, &[vec![0, 1, 2]]).unwrap_err().to_string();
+        let v = vec![
+            Vec2::new(0.0, 0.0),
+            Vec2::new(1.0, 0.0),
+            Vec2::new(2.0, 0.0),
+        ];
+        let err = Mesh::from_polygons("b", v, &[vec![0, 1, 2]])
+            .unwrap_err()
+            .to_string();
         assert!(err.contains("degenerate"), "{err}");
-        let v = vec![Vec2::new(0.0, 0.0), Vec2::new(1.0, 1.0), Vec2::new(1.0, 0.0), Vec2::new(0.0, 1.0)];
-        let err = Mesh::from_polygons("b", v, &[vec![0, 1, 2, 3]]).unwrap_err().to_string();
-        assert!(err.contains("self-intersecting") || err.contains("degenerate"), "{err}");
+        let v = vec![
+            Vec2::new(0.0, 0.0),
+            Vec2::new(1.0, 1.0),
+            Vec2::new(1.0, 0.0),
+            Vec2::new(0.0, 1.0),
+        ];
+        let err = Mesh::from_polygons("b", v, &[vec![0, 1, 2, 3]])
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("self-intersecting") || err.contains("degenerate"),
+            "{err}"
+        );
         // A figure 8: two triangles that meet at (1, 1), listed as one cell.
-        let v = [(0.0, 0.0), (2.0, 0.0), (1.0, 1.0), (2.0, 2.0), (0.0, 2.0), (1.0, 1.0)].map(|(x, y)| Vec2::new(x, y)).to_vec();
-        let err = Mesh::from_polygons("b", v, &[vec![0, 1, 2, 3, 4, 5]]).unwrap_err().to_string();
+        let v = [
+            (0.0, 0.0),
+            (2.0, 0.0),
+            (1.0, 1.0),
+            (2.0, 2.0),
+            (0.0, 2.0),
+            (1.0, 1.0),
+        ]
+        .map(|(x, y)| Vec2::new(x, y))
+        .to_vec();
+        let err = Mesh::from_polygons("b", v, &[vec![0, 1, 2, 3, 4, 5]])
+            .unwrap_err()
+            .to_string();
         assert!(err.contains("touches itself: edges 1 and 4"), "{err}");
     }
 }

@@ -11,19 +11,35 @@ use voronoice::{BoundingBox, Point, VoronoiBuilder};
 
 /// `sites` cells in the rectangle `origin .. origin + size`, after `lloyd` centroid iterations;
 /// the same `seed` gives the same mesh on every machine (ChaCha8 generator).
-pub fn voronoi(body: &str, origin: Vec2, size: Vec2, sites: usize, seed: u64, lloyd: usize) -> Result<Mesh> {
+pub fn voronoi(
+    body: &str,
+    origin: Vec2,
+    size: Vec2,
+    sites: usize,
+    seed: u64,
+    lloyd: usize,
+) -> Result<Mesh> {
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
-    let mut pts: Vec<Vec2> =
-        (0..sites).map(|_| origin + Vec2::new(rng.random::<f64>() * size.x, rng.random::<f64>() * size.y)).collect();
+    let mut pts: Vec<Vec2> = (0..sites)
+        .map(|_| origin + Vec2::new(rng.random::<f64>() * size.x, rng.random::<f64>() * size.y))
+        .collect();
     for _ in 0..lloyd {
-        pts = clipped_cells(body, origin, size, &pts)?.iter().map(|c| area_properties(c).centroid).collect();
+        pts = clipped_cells(body, origin, size, &pts)?
+            .iter()
+            .map(|c| area_properties(c).centroid)
+            .collect();
     }
     // Cells numbered strip by strip, as in a grid: neighbours get nearby numbers, so the
     // evaluators walk memory forwards instead of at random (10× faster at 10⁵ cells).
     let strips = ((sites as f64 * size.y / size.x).sqrt().round() as usize).max(1);
     let strip = |p: &Vec2| (((p.y - origin.y) / size.y * strips as f64) as usize).min(strips - 1);
     pts.sort_by(|p, q| strip(p).cmp(&strip(q)).then(p.x.total_cmp(&q.x)));
-    weld(body, origin, size, &clipped_cells(body, origin, size, &pts)?)
+    weld(
+        body,
+        origin,
+        size,
+        &clipped_cells(body, origin, size, &pts)?,
+    )
 }
 
 /// The Voronoi cells of `sites`, clipped to the rectangle, as coordinate lists.
@@ -31,16 +47,41 @@ fn clipped_cells(body: &str, origin: Vec2, size: Vec2, sites: &[Vec2]) -> Result
     let centre = origin + 0.5 * size;
     let diagram = VoronoiBuilder::default()
         .set_sites(sites.iter().map(|p| Point { x: p.x, y: p.y }).collect())
-        .set_bounding_box(BoundingBox::new(Point { x: centre.x, y: centre.y }, size.x, size.y))
+        .set_bounding_box(BoundingBox::new(
+            Point {
+                x: centre.x,
+                y: centre.y,
+            },
+            size.x,
+            size.y,
+        ))
         .build()
-        .ok_or_else(|| Error::mesh(body, 0, "the Voronoi diagram could not be built (too few or coincident sites)"))?;
+        .ok_or_else(|| {
+            Error::mesh(
+                body,
+                0,
+                "the Voronoi diagram could not be built (too few or coincident sites)",
+            )
+        })?;
     if diagram.sites().len() != sites.len() {
-        return Err(Error::mesh(body, 0, "some Voronoi sites fell outside the rectangle"));
+        return Err(Error::mesh(
+            body,
+            0,
+            "some Voronoi sites fell outside the rectangle",
+        ));
     }
     let v = diagram.vertices();
-    let cells: Vec<Vec<Vec2>> = diagram.cells().iter().map(|c| c.iter().map(|&i| Vec2::new(v[i].x, v[i].y)).collect()).collect();
+    let cells: Vec<Vec<Vec2>> = diagram
+        .cells()
+        .iter()
+        .map(|c| c.iter().map(|&i| Vec2::new(v[i].x, v[i].y)).collect())
+        .collect();
     match cells.iter().position(|c| c.len() < 3) {
-        Some(c) => Err(Error::mesh(body, c, "the Voronoi cell is degenerate (coincident sites, or an extreme rectangle)")),
+        Some(c) => Err(Error::mesh(
+            body,
+            c,
+            "the Voronoi cell is degenerate (coincident sites, or an extreme rectangle)",
+        )),
         None => Ok(cells),
     }
 }
@@ -50,7 +91,12 @@ fn clipped_cells(body: &str, origin: Vec2, size: Vec2, sites: &[Vec2]) -> Result
 /// cell counter-clockwise.
 fn weld(body: &str, origin: Vec2, size: Vec2, cells: &[Vec<Vec2>]) -> Result<Mesh> {
     let tol = 1e-10 * size.norm();
-    let key = |p: Vec2| (((p.x - origin.x) / tol).round() as i64, ((p.y - origin.y) / tol).round() as i64);
+    let key = |p: Vec2| {
+        (
+            ((p.x - origin.x) / tol).round() as i64,
+            ((p.y - origin.y) / tol).round() as i64,
+        )
+    };
     let mut index: HashMap<(i64, i64), u32> = HashMap::new();
     let mut vertices: Vec<Vec2> = Vec::new();
     let mut out = Vec::with_capacity(cells.len());
@@ -93,7 +139,9 @@ mod tests {
         let (o, s) = (Vec2::new(1.0, 2.0), Vec2::new(2.0, 1.0));
         let m = voronoi("b", o, s, 60, 7, 5).unwrap();
         assert_eq!(m.n_cells(), 60);
-        let total: f64 = (0..60).map(|c| area_properties(&m.cell_points(c)).area).sum();
+        let total: f64 = (0..60)
+            .map(|c| area_properties(&m.cell_points(c)).area)
+            .sum();
         assert!((total - 2.0).abs() < 1e-12, "{total}");
         // Every boundary edge lies on the rectangle: the cells conform inside.
         assert!(m.boundary.iter().all(|e| e.side.is_some()));

@@ -29,10 +29,14 @@ pub const SUPPORTS: &str = r#"[{"edge": "left", "kind": "ground-spring"}, {"edge
 
 /// Seeded pseudo-random numbers in (-1, 1) (a small LCG, enough for test vectors).
 pub fn random_vector(n: usize, seed: u64) -> Vec<f64> {
-    let mut s = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+    let mut s = seed
+        .wrapping_mul(6364136223846793005)
+        .wrapping_add(1442695040888963407);
     (0..n)
         .map(|_| {
-            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
             ((s >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
         })
         .collect()
@@ -43,7 +47,8 @@ pub fn forces(model: &Model, u: &[f64]) -> (Vec<f64>, Vec<f64>) {
     let n = model.n_dofs();
     let (mut fa, mut fe) = (vec![0.0; n], vec![0.0; n]);
     rbsm::evaluator::build(model, rbsm::scene::EvaluatorKind::Assembled).internal_force(u, &mut fa);
-    rbsm::evaluator::build(model, rbsm::scene::EvaluatorKind::ElementWise).internal_force(u, &mut fe);
+    rbsm::evaluator::build(model, rbsm::scene::EvaluatorKind::ElementWise)
+        .internal_force(u, &mut fe);
     (fa, fe)
 }
 
@@ -52,5 +57,8 @@ pub fn norm(x: &[f64]) -> f64 {
 }
 
 pub fn max_abs_diff(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max)
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f64::max)
 }
