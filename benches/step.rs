@@ -10,12 +10,12 @@
 //! which the summary is left as it was.
 
 use criterion::{Criterion, SamplingMode};
-use rbsm::integrator::CentralDifference;
-use rbsm::loads::Loads;
-use rbsm::mass::Mass;
+use rbsm::step::integrator::CentralDifference;
+use rbsm::model::loads::Loads;
+use rbsm::model::mass::Mass;
 use rbsm::model::Model;
-use rbsm::scene::{EvaluatorKind, Scene};
-use rbsm::{eigen, evaluator};
+use rbsm::input::scene::{EvaluatorKind, Scene};
+use rbsm::{analysis::eigen, force::evaluator};
 use std::cell::RefCell;
 use std::fmt::Write as _;
 use std::time::{Duration, Instant};

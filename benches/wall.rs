@@ -8,8 +8,8 @@
 //! needs `pip install pymunk`; without it the peer's column says so. `RBSM_WALL=30` runs a
 //! 30 × 30 wall instead, for a quick look (the summary is then left as it was).
 
-use rbsm::run::{Prepared, RunOptions};
-use rbsm::scene::Scene;
+use rbsm::analysis::run::{Prepared, RunOptions};
+use rbsm::input::scene::Scene;
 use std::fmt::Write as _;
 use std::process::Command;
 use std::time::Instant;

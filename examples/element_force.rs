@@ -22,10 +22,10 @@
 //! element-wise evaluator, relative to `|R_e|`: round-off, below 1e-15. The assembled `K U`
 //! agrees to round-off too.
 
-use rbsm::evaluator;
-use rbsm::geometry::Vec2;
+use rbsm::force::evaluator;
+use rbsm::mesh::geometry::Vec2;
 use rbsm::model::{Model, GROUND};
-use rbsm::scene::{EvaluatorKind, Scene};
+use rbsm::input::scene::{EvaluatorKind, Scene};
 
 /// The element whose force is traced: the middle of the bottom row, with three neighbours and
 /// one edge on ground springs.

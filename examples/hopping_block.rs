@@ -21,9 +21,9 @@
 //! speed and the apex match the theory to the same order. `examples/scenes/hopping_block.json`
 //! runs ten bounces, and validation §8.1 shows how the flat landing turns into rocking.
 
-use rbsm::hopping::{brick, centre_velocity, lowest_point, Bounce, Tracker};
-use rbsm::run::{Prepared, RunOptions};
-use rbsm::scene::Scene;
+use rbsm::analysis::hopping::{brick, centre_velocity, lowest_point, Bounce, Tracker};
+use rbsm::analysis::run::{Prepared, RunOptions};
+use rbsm::input::scene::Scene;
 
 /// Drop height (m) and time step (s): 1 µs resolves the contact, about 80 µs, in 80 steps.
 const HEIGHT: f64 = 1.0;
@@ -31,7 +31,7 @@ const DT: f64 = 1e-6;
 
 /// What the example prints and the test checks.
 struct Outcome {
-    theory: rbsm::hopping::Theory,
+    theory: rbsm::analysis::hopping::Theory,
     bounce: Bounce,
     steps: u64,
 }

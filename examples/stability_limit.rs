@@ -22,9 +22,9 @@
 //! **Key number.** At 1.01 `Δt_crit` the elastic energy grows by `z² = 1.760` per step, as the
 //! closed form predicts. The runs at 0.9 and 0.99 stay bounded.
 
-use rbsm::run::{Prepared, RunOptions};
-use rbsm::scene::Scene;
-use rbsm::stability::run_at_fraction;
+use rbsm::analysis::run::{Prepared, RunOptions};
+use rbsm::input::scene::Scene;
+use rbsm::analysis::stability::run_at_fraction;
 
 /// What the example prints and the test checks.
 struct Outcome {

@@ -22,7 +22,7 @@
 
 use nalgebra::{SMatrix, SVector};
 use rbsm::model::Model;
-use rbsm::scene::Scene;
+use rbsm::input::scene::Scene;
 
 /// Young's modulus (Pa), Poisson's ratio, thickness (m).
 const E: f64 = 3.0e10;
@@ -73,7 +73,7 @@ struct Outcome {
 fn compute() -> Outcome {
     let model = Model::build(&scene()).expect("the model builds");
     let mut library = SMatrix::<f64, 6, 6>::zeros();
-    for (i, j, v) in rbsm::evaluator::stiffness_triplets(&model) {
+    for (i, j, v) in rbsm::force::evaluator::stiffness_triplets(&model) {
         library[(i, j)] += v;
     }
     let by_hand = stiffness_by_hand();
@@ -111,7 +111,7 @@ fn main() {
         o.by_hand
     );
     println!(
-        "K from rbsm::evaluator::stiffness_triplets:{:.6e}",
+        "K from rbsm::force::evaluator::stiffness_triplets:{:.6e}",
         o.library
     );
     println!(

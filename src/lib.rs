@@ -21,7 +21,7 @@
 //! $\Delta x = x - x_e$ and $\Delta y = y - y_e$ measured from its centroid, the displacement is
 //! $u(x) = N_e(x) U_e$ with
 //! $$N_e(x) = \begin{bmatrix} 1 & 0 & -\Delta y & \Delta x & 0 & \Delta y/2 \cr 0 & 1 & \Delta x & 0 & \Delta y & \Delta x/2 \end{bmatrix}$$
-//! (the first three columns for a rigid element). See [`formulation`].
+//! (the first three columns for a rigid element). See [`model::formulation`].
 //!
 //! **Interfaces** (eqs. 6, 11, 12). On an edge shared by $a$ and $b$, with unit normal $n$ from
 //! $a$ to $b$ and tangent $s$, the relative displacement is
@@ -35,79 +35,62 @@
 //! $$M \ddot U + K U = P, \qquad K = \sum_{\rm interfaces} t \int_0^L B^T {\rm diag}(k_n, k_s) B \, d\ell + \sum_e K_e^{\rm interior},$$
 //! with $B = [n\ s]^T [-N_a, N_b]$. The two-point Gauss rule is exact. $M$ is diagonal for rigid
 //! elements, $\rho t\,{\rm diag}(A, A, I_p)$ (eq. 9), and block-diagonal for hybrid ones
-//! (eq. 8). See [`evaluator::Assembled`] and [`mass::Mass`].
+//! (eq. 8). See [`force::evaluator::Assembled`] and [`model::mass::Mass`].
 //!
 //! **Element-wise form** (eqs. 15, 16). Each element's acceleration comes from the resultant
 //! of the tractions $\tau_e = S \delta_e$ on its own boundary, with $\delta_e$ the neighbour's
 //! displacement minus its own:
 //! $$M_e \ddot U_e = t \oint_{\partial \Omega_e} N_e^T \tau_e \, d\ell + P_e.$$
-//! See [`evaluator::ElementWise`]; `examples/element_force.rs` traces it for one element.
+//! See [`force::evaluator::ElementWise`]; `examples/element_force.rs` traces it for one element.
 //!
 //! **Central difference** (velocity form; `paper_notes.md` item 9), with $f = f_{\rm int}(U^n) - P^n - f_c^n$:
 //! $$v^{n+1/2} = v^{n-1/2} - \Delta t M^{-1} f, \qquad U^{n+1} = U^n + \Delta t v^{n+1/2}.$$
 //! It is stable for $\Delta t \le \Delta t_{\rm crit} = 2/\omega_{\max}$, where $\omega_{\max}^2$
-//! is the largest eigenvalue of $K \phi = \omega^2 M \phi$. See [`integrator`], [`eigen`] and
-//! [`stability`].
+//! is the largest eigenvalue of $K \phi = \omega^2 M \phi$. See [`step::integrator`], [`analysis::eigen`] and
+//! [`analysis::stability`].
 //!
 //! **Contact** (eqs. 17–20). Edge-to-edge contact (the paper's) holds the part of a boundary
 //! edge that lies inside another body by a temporary interface, with the depth measured to the
 //! nearest surface face, so that its normal tractions derive from one energy; DEM point contact
 //! finds a vertex that crosses an edge of another body by its crossing point and holds it by
-//! one spring. Both search neighbour lists kept within a skin. See [`contact`].
+//! one spring. Both search neighbour lists kept within a skin. See [`force::contact`].
 //!
 //! ## Architecture
 //!
-//! Data flows from the scene to the outputs:
+//! Data flows from the scene to the outputs through seven stages, one folder each; a stage
+//! uses only the stages above it (`tests/architecture.rs` checks it), and `ARCHITECTURE.md`
+//! says where to add a mesh kind, an interface law or an analysis.
 //!
-//! | stage | modules |
-//! | --- | --- |
-//! | input | [`scene`] (the JSON scene file), [`mesh`] (grid, Voronoi, polygons, gmsh), [`checks`] (warnings for extreme inputs), [`memory`] (what a model needs, checked before it is built) |
-//! | model | [`model`] (elements, interfaces, loads), [`geometry`], [`formulation`] (rigid or hybrid $N_e$), [`mass`], [`loads`] |
-//! | forces | [`evaluator`] (assembled or element-wise $f_{\rm int}$), [`contact`] with [`buckets`] (building its neighbour lists), [`parallel`] |
-//! | time | [`integrator`] (central difference, energies, divergence guard), [`run`] (a scene from start to outputs) |
-//! | outputs | [`output`] (summary, history, final state), [`vtk`] (ParaView), [`checkpoint`] (the state for `--resume`), [`drawing`] (SVG of a model or a mode), [`plot`] (SVG histories) |
-//! | analyses | [`statics`], [`system`] (free DOFs), [`rigid_modes`] (mechanisms), [`eigen`], [`stability`], [`tradeoff`], [`extremes`], [`hopping`], [`report`] |
+//! | stage | folder | owns |
+//! | --- | --- | --- |
+//! | 1 | [`input`] | the scene file: its types, parsing, ranges and JSON Schema |
+//! | 2 | [`mesh`] | polygons and pure geometry: grids, Voronoi cells, explicit polygons, gmsh files |
+//! | 3 | [`model`] | elements, interfaces, supports and loads; the formulation ($N_e$), the mass, memory and input warnings |
+//! | 4 | [`force`] | internal forces (the two evaluators) and contact forces |
+//! | 5 | [`step`] | the explicit central-difference step, its energies and its guard |
+//! | 6 | [`output`] | the files a run writes: summary, history, final state, VTK, SVG |
+//! | 7 | [`analysis`] | the setup of a scene and the analyses on it: run, check, static, eigen, stability, tradeoff |
 //!
-//! The `rbsm` binary (`src/main.rs`) is a thin command line over [`run`] and [`report`]. Units
-//! are SI throughout: m, kg, s, N, Pa, J, rad.
+//! [`error`] and [`parallel`] (chunked parallel loops) serve every stage. The `rbsm` binary
+//! (`src/main.rs`) is a thin command line over [`analysis`]. Units are SI throughout: m, kg, s,
+//! N, Pa, J, rad.
 //!
 //! ## A first use
 //!
 //! ```no_run
-//! use rbsm::{run, scene::Scene};
+//! use rbsm::{analysis::run, input::scene::Scene};
 //! let scene = Scene::from_file("examples/scenes/cantilever.json")?;
 //! let summary = run::run(&scene, &run::RunOptions::default(), "out/cantilever".as_ref(), &mut run::Silent)?;
 //! println!("{} steps, energy drift {:e}", summary.steps, summary.energy.max_relative_drift);
 //! # Ok::<(), rbsm::error::Error>(())
 //! ```
 
-pub mod buckets;
-pub mod checkpoint;
-pub mod checks;
-pub mod contact;
-pub mod drawing;
-pub mod eigen;
+pub mod analysis;
 pub mod error;
-pub mod evaluator;
-pub mod extremes;
-pub mod formulation;
-pub mod geometry;
-pub mod hopping;
-pub mod integrator;
-pub mod loads;
-pub mod mass;
-pub mod memory;
+pub mod force;
+pub mod input;
 pub mod mesh;
 pub mod model;
 pub mod output;
 pub mod parallel;
-pub mod plot;
-pub mod report;
-pub mod rigid_modes;
-pub mod run;
-pub mod scene;
-pub mod stability;
-pub mod statics;
-pub mod system;
-pub mod tradeoff;
-pub mod vtk;
+pub mod step;

@@ -2,12 +2,51 @@
 
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use rbsm::run::{self, Monitor, RunOptions};
-use rbsm::scene::{EvaluatorKind, Scene};
+use rbsm::analysis::run::{self, Monitor, RunOptions};
+use rbsm::input::scene::{EvaluatorKind, Scene};
 use std::io::IsTerminal;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::{Duration, Instant};
+
+/// `--evaluator`: the scene's `evaluator` values.
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum EvaluatorArg {
+    /// Global sparse `K`, `f = K U` (eqs. 7–13).
+    Assembled,
+    /// Per element, the resultant of the tractions on its boundary (eqs. 15–16).
+    ElementWise,
+}
+
+impl From<EvaluatorArg> for EvaluatorKind {
+    fn from(a: EvaluatorArg) -> Self {
+        match a {
+            EvaluatorArg::Assembled => EvaluatorKind::Assembled,
+            EvaluatorArg::ElementWise => EvaluatorKind::ElementWise,
+        }
+    }
+}
+
+/// `eigen --method`.
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum MethodArg {
+    /// Dense up to 500 free DOFs, sparse above.
+    Auto,
+    /// Dense symmetric eigensolver (nalgebra), all modes.
+    Dense,
+    /// Lanczos for `ω_max`, Krylov–Schur shift-invert (faer) for the lowest modes.
+    Sparse,
+}
+
+impl From<MethodArg> for rbsm::analysis::eigen::Method {
+    fn from(a: MethodArg) -> Self {
+        match a {
+            MethodArg::Auto => Self::Auto,
+            MethodArg::Dense => Self::Dense,
+            MethodArg::Sparse => Self::Sparse,
+        }
+    }
+}
 
 #[derive(Parser)]
 #[command(
@@ -45,7 +84,7 @@ enum Command {
         resume: Option<PathBuf>,
         /// Override the scene's evaluator.
         #[arg(long, value_enum)]
-        evaluator: Option<EvaluatorKind>,
+        evaluator: Option<EvaluatorArg>,
         /// Override the time step (s).
         #[arg(long, conflicts_with = "dt_factor")]
         dt: Option<f64>,
@@ -64,7 +103,7 @@ enum Command {
         scene: PathBuf,
         /// Override the scene's evaluator.
         #[arg(long, value_enum)]
-        evaluator: Option<EvaluatorKind>,
+        evaluator: Option<EvaluatorArg>,
         /// Override the time step (s).
         #[arg(long)]
         dt: Option<f64>,
@@ -87,7 +126,7 @@ enum Command {
         modes: usize,
         /// Dense (all modes) or sparse (Krylov–Schur) solver.
         #[arg(long, value_enum, default_value = "auto")]
-        method: rbsm::eigen::Method,
+        method: MethodArg,
         /// Write the mode shapes as VTK into this directory.
         #[arg(long)]
         vtk: Option<PathBuf>,
@@ -300,7 +339,7 @@ fn print(
 fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
     match &cli.command {
         Command::Schema => {
-            say(&serde_json::to_string_pretty(&rbsm::scene::schema())
+            say(&serde_json::to_string_pretty(&rbsm::input::scene::schema())
                 .expect("the schema serialises"))?;
             Ok(ExitCode::SUCCESS)
         }
@@ -309,10 +348,10 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
             evaluator,
             dt,
         } => {
-            let r = rbsm::report::check_report(
+            let r = rbsm::analysis::report::check_report(
                 &Scene::from_file(scene)?,
                 &RunOptions {
-                    evaluator: *evaluator,
+                    evaluator: evaluator.map(Into::into),
                     dt: *dt,
                     ..Default::default()
                 },
@@ -362,7 +401,7 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
         }
         Command::Draw { scene, out } => {
             let model = rbsm::model::Model::build(&Scene::from_file(scene)?)?;
-            let svg = rbsm::drawing::model_svg(&model);
+            let svg = rbsm::output::drawing::model_svg(&model);
             std::fs::write(out, svg).map_err(|e| rbsm::error::Error::io(out, e))?;
             print(cli.json, &serde_json::json!({"written": [out]}), || {
                 format!("written: {}", out.display())
@@ -370,7 +409,7 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
             Ok(ExitCode::SUCCESS)
         }
         Command::Plot { dir } => {
-            let written = rbsm::plot::histories(dir)?;
+            let written = rbsm::output::plot::histories(dir)?;
             let lines: Vec<String> = written
                 .iter()
                 .map(|p| format!("written: {}", p.display()))
@@ -382,9 +421,9 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
         }
         Command::Static { scene, out } => {
             let scene = Scene::from_file(scene)?;
-            let (r, model, u) = rbsm::report::static_report(&scene)?;
+            let (r, model, u) = rbsm::analysis::report::static_report(&scene)?;
             if let Some(dir) = out {
-                rbsm::report::write_static(dir, &scene, &r, &model, &u)?;
+                rbsm::analysis::report::write_static(dir, &scene, &r, &model, &u)?;
             }
             print(cli.json, &r, || {
                 let max = r
@@ -405,15 +444,15 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
             out,
         } => {
             let scene = Scene::from_file(scene)?;
-            let (r, model, shapes) = rbsm::report::eigen_report(&scene, *modes, *method)?;
+            let (r, model, shapes) = rbsm::analysis::report::eigen_report(&scene, *modes, (*method).into())?;
             if let Some(dir) = out {
-                rbsm::report::write_eigen(dir, &scene, &r, &model, &shapes)?;
+                rbsm::analysis::report::write_eigen(dir, &scene, &r, &model, &shapes)?;
             }
             if let Some(dir) = vtk {
-                rbsm::vtk::write_mode_shapes(dir, &model, &shapes)?;
+                rbsm::output::vtk::write_mode_shapes(dir, &model, &shapes.shapes)?;
             }
             if let Some(dir) = svg {
-                rbsm::drawing::write_mode_shapes(dir, &model, &shapes)?;
+                rbsm::output::drawing::write_mode_shapes(dir, &model, &shapes.omega, &shapes.shapes)?;
             }
             print(cli.json, &r, || {
                 let mut t = format!(
@@ -439,9 +478,9 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
                     format!("each fraction must be > 0, got {f}"),
                 ));
             }
-            let r = rbsm::report::stability_report(&Scene::from_file(scene)?, fractions, *steps)?;
+            let r = rbsm::analysis::report::stability_report(&Scene::from_file(scene)?, fractions, *steps)?;
             if let Some(dir) = out {
-                rbsm::output::write_fraction_histories(dir, &r.fractions)?;
+                rbsm::analysis::stability::write_fraction_histories(dir, &r.fractions)?;
             }
             print(cli.json, &r, || {
                 let mut t = format!(
@@ -474,7 +513,7 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
         Command::Tradeoff { scene, sweeps, out } => {
             let sweeps = sweeps
                 .iter()
-                .map(|s| rbsm::tradeoff::Sweep::parse(s))
+                .map(|s| rbsm::analysis::tradeoff::Sweep::parse(s))
                 .collect::<rbsm::error::Result<Vec<_>>>()?;
             let text =
                 std::fs::read_to_string(scene).map_err(|e| rbsm::error::Error::io(scene, e))?;
@@ -484,12 +523,12 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
                 .unwrap_or_else(|| PathBuf::from(format!("out/tradeoff-{}", parsed.name)));
             let total: usize = sweeps.iter().map(|s| s.values.len()).product();
             let mut done = 0;
-            let report = rbsm::tradeoff::sweep(&text, &sweeps, |p| {
+            let report = rbsm::analysis::tradeoff::sweep(&text, &sweeps, |p| {
                 done += 1;
                 if !cli.quiet {
                     tell(&format!(
                         "[{done}/{total}] {}: {} steps in {:.3} s, {}",
-                        rbsm::tradeoff::describe(&p.settings),
+                        rbsm::analysis::tradeoff::describe(&p.settings),
                         p.steps,
                         p.wall_s,
                         p.status
@@ -518,7 +557,7 @@ written: {}/tradeoff.{{csv,md,svg}}",
         } => {
             let scene = Scene::from_file(scene)?;
             let opts = RunOptions {
-                evaluator: *evaluator,
+                evaluator: evaluator.map(Into::into),
                 dt: *dt,
                 dt_factor: *dt_factor,
                 steps: *steps,

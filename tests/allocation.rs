@@ -2,8 +2,8 @@
 //! warm, for both evaluators and formulations, on a model large enough to run in parallel, and
 //! on the contact scene.
 
-use rbsm::run::{Prepared, RunOptions};
-use rbsm::scene::{EvaluatorKind, Scene};
+use rbsm::analysis::run::{Prepared, RunOptions};
+use rbsm::input::scene::{EvaluatorKind, Scene};
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering};
 

@@ -1,13 +1,13 @@
 //! Static, eigen and stability analyses against closed forms (`validation/report.md` §1–5).
 
 mod common;
-use rbsm::eigen::{self, Method};
-use rbsm::evaluator;
-use rbsm::mass::Mass;
+use rbsm::analysis::eigen::{self, Method};
+use rbsm::force::evaluator;
+use rbsm::model::mass::Mass;
 use rbsm::model::Model;
-use rbsm::scene::{EvaluatorKind, Scene};
-use rbsm::statics;
-use rbsm::system::FreeSystem;
+use rbsm::input::scene::{EvaluatorKind, Scene};
+use rbsm::analysis::statics;
+use rbsm::analysis::free::FreeSystem;
 use std::f64::consts::PI;
 
 /// One row of `n` square blocks of side `h` with `supports` (JSON), `E`, `ν = 0.2`, `ρ`.
@@ -257,7 +257,7 @@ fn bounds_and_empirical_limit_on_a_square_grid() {
     let ev = evaluator::build(&model, EvaluatorKind::ElementWise);
     let omega_max = eigen::dense_modes(&sys, &mass, 0).unwrap().omega_max;
     let dt_crit = 2.0 / omega_max;
-    let bounds = rbsm::stability::bounds(&model, &sys, &mass, dt_crit);
+    let bounds = rbsm::analysis::stability::bounds(&model, &sys, &mass, dt_crit);
     for b in &bounds {
         let proven = b.name != "single-body";
         assert_eq!(
@@ -275,7 +275,7 @@ fn bounds_and_empirical_limit_on_a_square_grid() {
         );
     }
     let (_, ratio) =
-        rbsm::stability::empirical_limit(&model, ev.as_ref(), &mass, dt_crit, 2000, 1e-3);
+        rbsm::analysis::stability::empirical_limit(&model, ev.as_ref(), &mass, dt_crit, 2000, 1e-3);
     assert!(
         (ratio - 1.0).abs() <= 0.01,
         "empirical limit at {ratio} × Δt_crit"

@@ -1,13 +1,13 @@
 //! Contact (eqs. 17–20): the hopping block against its theory, tilted landings, friction on an
 //! incline, a block at rest, a falling stack, and no contact work without contact.
 
-use rbsm::contact::Contact;
-use rbsm::hopping::{centre_velocity, lowest_point, Tracker};
-use rbsm::integrator::Status;
-use rbsm::run::{Prepared, RunOptions};
-use rbsm::scene::Scene;
+use rbsm::force::contact::Contact;
+use rbsm::analysis::hopping::{centre_velocity, lowest_point, Tracker};
+use rbsm::step::integrator::Status;
+use rbsm::analysis::run::{Prepared, RunOptions};
+use rbsm::input::scene::Scene;
 
-use rbsm::hopping::brick::{self, G};
+use rbsm::analysis::hopping::brick::{self, G};
 
 struct Outcome {
     tracker: Tracker,

@@ -2,9 +2,9 @@
 //! an unstable run, and the outputs follow the README's *Outputs*.
 
 mod common;
-use rbsm::integrator::Status;
-use rbsm::run::{self, Prepared, RunOptions, Silent};
-use rbsm::scene::{EvaluatorKind, Scene};
+use rbsm::step::integrator::Status;
+use rbsm::analysis::run::{self, Prepared, RunOptions, Silent};
+use rbsm::input::scene::{EvaluatorKind, Scene};
 
 fn scene(name: &str) -> Scene {
     Scene::from_file(format!(
@@ -306,7 +306,7 @@ fn probes_by_point_read_the_displacement_there() {
         .collect();
     assert_eq!(last[7], last[8], "at the centroid, the element's own v");
     let corner = model
-        .element_at(rbsm::geometry::Vec2::new(2.0, 0.0))
+        .element_at(rbsm::mesh::geometry::Vec2::new(2.0, 0.0))
         .unwrap();
     let state: serde_json::Value = serde_json::from_str(
         &std::fs::read_to_string(dir.path().join("final_state.json")).unwrap(),
@@ -318,7 +318,7 @@ fn probes_by_point_read_the_displacement_there() {
         .iter()
         .map(|x| x.as_f64().unwrap())
         .collect();
-    let d = rbsm::geometry::Vec2::new(2.0, 0.0) - model.elements[corner].props.centroid;
+    let d = rbsm::mesh::geometry::Vec2::new(2.0, 0.0) - model.elements[corner].props.centroid;
     let expected = model.formulation.displacement(&u, d).y;
     assert!(
         (last[9] - expected).abs() <= 1e-12 * expected.abs() && expected != last[8],

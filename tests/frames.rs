@@ -2,8 +2,8 @@
 //! unstructured grids (`.vtu`), read back here with vtkio's XML parser; cells carry their own
 //! VTK type; rigid elements are drawn with their finite rotation.
 
-use rbsm::run::{self, RunOptions, Silent};
-use rbsm::scene::Scene;
+use rbsm::analysis::run::{self, RunOptions, Silent};
+use rbsm::input::scene::Scene;
 use serde_json::Value;
 use std::path::Path;
 use vtkio::model::{Attribute, CellType, DataSet, Piece, VertexNumbers};
@@ -174,9 +174,9 @@ fn a_block_spun_by_two_radians_keeps_its_shape_in_the_frames() {
 #[test]
 fn mode_shapes_open_as_a_series() {
     let s = Scene::from_json(&bundled("cantilever").to_string()).unwrap();
-    let (_, model, modes) = rbsm::report::eigen_report(&s, 3, rbsm::eigen::Method::Auto).unwrap();
+    let (_, model, modes) = rbsm::analysis::report::eigen_report(&s, 3, rbsm::analysis::eigen::Method::Auto).unwrap();
     let dir = tempfile::tempdir().unwrap();
-    rbsm::vtk::write_mode_shapes(dir.path(), &model, &modes).unwrap();
+    rbsm::output::vtk::write_mode_shapes(dir.path(), &model, &modes.shapes).unwrap();
     let pvd = std::fs::read_to_string(dir.path().join("modes.pvd")).unwrap();
     let files: Vec<&str> = pvd
         .split("file=\"")

@@ -7,9 +7,9 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use rbsm::error::Error;
-use rbsm::integrator::Status;
-use rbsm::run::{Prepared, RunOptions};
-use rbsm::scene::Scene;
+use rbsm::step::integrator::Status;
+use rbsm::analysis::run::{Prepared, RunOptions};
+use rbsm::input::scene::Scene;
 use serde_json::Value;
 use std::path::Path;
 

@@ -1,9 +1,9 @@
 //! Meshes from gmsh (issue 7): the shipped MSH 4.1 file gives the model of the equivalent
 //! built-in grid, and unsupported files are refused with a clear message.
 
-use rbsm::geometry::Vec2;
+use rbsm::mesh::geometry::Vec2;
 use rbsm::model::{Model, GROUND};
-use rbsm::scene::Scene;
+use rbsm::input::scene::Scene;
 use std::collections::HashMap;
 
 fn scene(name: &str) -> Scene {
@@ -206,7 +206,7 @@ fn a_mesh_saved_without_its_physical_surface_is_explained() {
         std::fs::read_to_string(format!("{root}/examples/scenes/cantilever_gmsh.json")).unwrap();
     let mut v: serde_json::Value = serde_json::from_str(&scene).unwrap();
     v["bodies"][0]["mesh"]["path"] = msh.to_string_lossy().into_owned().into();
-    let e = rbsm::scene::Scene::from_json(&v.to_string())
+    let e = rbsm::input::scene::Scene::from_json(&v.to_string())
         .and_then(|s| rbsm::model::Model::build(&s))
         .unwrap_err()
         .to_string();

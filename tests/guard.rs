@@ -2,9 +2,9 @@
 //! starts from (zero energy, loads ramped from zero, damping, gravity on touching bodies), and
 //! it still stops runs above `Δt_crit` within the steps it took before.
 
-use rbsm::integrator::Status;
-use rbsm::run::{Prepared, RunOptions};
-use rbsm::scene::Scene;
+use rbsm::step::integrator::Status;
+use rbsm::analysis::run::{Prepared, RunOptions};
+use rbsm::input::scene::Scene;
 use serde_json::Value;
 
 fn bundled(name: &str) -> Value {

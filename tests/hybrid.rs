@@ -3,13 +3,13 @@
 
 mod common;
 use common::*;
-use rbsm::evaluator;
-use rbsm::geometry::Vec2;
-use rbsm::integrator::Status;
+use rbsm::force::evaluator;
+use rbsm::mesh::geometry::Vec2;
+use rbsm::step::integrator::Status;
 use rbsm::model::Model;
-use rbsm::run::{Prepared, RunOptions};
-use rbsm::scene::{EvaluatorKind, Scene};
-use rbsm::statics;
+use rbsm::analysis::run::{Prepared, RunOptions};
+use rbsm::input::scene::{EvaluatorKind, Scene};
+use rbsm::analysis::statics;
 
 fn hybrid_json(mesh: &str, supports: &str, loads: &str, penalty: f64, nu: f64) -> String {
     format!(
@@ -101,7 +101,7 @@ fn hybrid_rigid_motion_and_uniform_strain() {
 #[test]
 fn hybrid_free_assembly_has_three_zero_modes() {
     for mesh in [RECT, TRI, VORONOI] {
-        let k = rbsm::evaluator::Assembled::<rbsm::formulation::Hybrid, 6>::new(&hybrid(
+        let k = rbsm::force::evaluator::Assembled::<rbsm::model::formulation::Hybrid, 6>::new(&hybrid(
             mesh, "[]", 100.0,
         ))
         .stiffness
@@ -210,7 +210,7 @@ fn hybrid_patch_error_falls_like_one_over_p() {
 /// shapes are `M`-orthonormal. Tolerances as in tests/analyses.rs (dense backward error).
 #[test]
 fn hybrid_eigen_dense_and_sparse_agree() {
-    use rbsm::{eigen, mass::Mass, system::FreeSystem};
+    use rbsm::{analysis::eigen, analysis::free::FreeSystem, model::mass::Mass};
     let model = hybrid(TRI, r#"[{"edge": "left", "kind": "ground-spring"}]"#, 100.0);
     let mass = Mass::new(&model);
     assert!(!mass.is_diagonal());

@@ -3,11 +3,11 @@
 
 mod common;
 use common::*;
-use rbsm::evaluator::{self, interface_stiffness, Assembled};
-use rbsm::formulation::Rigid;
-use rbsm::geometry::Vec2;
+use rbsm::force::evaluator::{self, interface_stiffness, Assembled};
+use rbsm::model::formulation::Rigid;
+use rbsm::mesh::geometry::Vec2;
 use rbsm::model::{Interface, Model, GROUND};
-use rbsm::scene::EvaluatorKind;
+use rbsm::input::scene::EvaluatorKind;
 
 /// `K U` and the element-wise resultant of eq. 15 agree to round-off on every mesh kind: both
 /// integrate the same tractions at the same Gauss points and differ only in summation order.
@@ -217,17 +217,17 @@ fn forces_do_not_depend_on_the_thread_count() {
 }
 
 /// The element-wise evaluator advances each element inside its sweep (eq. 15 fused with the
-/// update of `rbsm::integrator`). On a mesh of several blocks, with loads, gravity and damping, that
+/// update of `rbsm::step::integrator`). On a mesh of several blocks, with loads, gravity and damping, that
 /// gives the same steps as evaluating first and updating after, and as the assembled `K U`,
 /// up to round-off; and the same on 1 and 2 threads, bit for bit. Without gravity the fused
 /// step reads the external force only at the loaded elements, and without damping it leaves
 /// out the damping factors: the same holds.
 #[test]
 fn the_fused_step_matches_evaluation_then_update() {
-    use rbsm::evaluator::Evaluator;
-    use rbsm::integrator::CentralDifference;
-    use rbsm::loads::Loads;
-    use rbsm::mass::Mass;
+    use rbsm::force::evaluator::Evaluator;
+    use rbsm::step::integrator::CentralDifference;
+    use rbsm::model::loads::Loads;
+    use rbsm::model::mass::Mass;
     /// The same evaluator, seen through its two-pass interface only.
     struct TwoPass(Box<dyn evaluator::Evaluator>);
     impl evaluator::Evaluator for TwoPass {
@@ -256,7 +256,7 @@ fn the_fused_step_matches_evaluation_then_update() {
                     "loads": [{{"kind": "traction", "edge": "right", "value": [1e5, -1e6], "amplitude": [[0, 0], [1e-5, 1]]}}]}}],
                 "time": {{"dt": 1e-7, "steps": 10}}}}"#
         );
-        let model = Model::build(&rbsm::scene::Scene::from_json(&json).unwrap()).unwrap();
+        let model = Model::build(&rbsm::input::scene::Scene::from_json(&json).unwrap()).unwrap();
         let (mass, loads) = (Mass::new(&model), Loads::new(&model));
         let fused = evaluator::build(&model, EvaluatorKind::ElementWise);
         let two_pass = TwoPass(evaluator::build(&model, EvaluatorKind::ElementWise));

@@ -4,8 +4,8 @@
 mod common;
 use common::scene_json;
 use rbsm::model::Model;
-use rbsm::run::{Prepared, RunOptions};
-use rbsm::scene::Scene;
+use rbsm::analysis::run::{Prepared, RunOptions};
+use rbsm::input::scene::Scene;
 use serde_json::Value;
 
 fn base() -> Value {
@@ -359,7 +359,7 @@ fn array_makes_named_shifted_copies() {
     assert_eq!(s.bodies.len(), 6);
     assert_eq!(s.bodies[4].name, "b[1,1]");
     match &s.bodies[4].mesh {
-        rbsm::scene::MeshSpec::Grid(g) => assert_eq!(g.origin, [1.0 + 1.5 + 0.25, 3.0]),
+        rbsm::input::scene::MeshSpec::Grid(g) => assert_eq!(g.origin, [1.0 + 1.5 + 0.25, 3.0]),
         other => panic!("{other:?}"),
     }
     let e = scene(r#"{"count": [0, 2], "pitch": [1, 1]}"#)

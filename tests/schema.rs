@@ -1,4 +1,4 @@
-//! The JSON Schema of scene files (`rbsm schema`, `rbsm::scene::schema`) against the parser:
+//! The JSON Schema of scene files (`rbsm schema`, `rbsm::input::scene::schema`) against the parser:
 //! the bundled scenes validate against it, it names exactly the keys and kinds the parser
 //! accepts, object by object, and the command prints the library's schema.
 //!
@@ -13,7 +13,7 @@
 //! scene: a field, a struct or a kind added to the scene types shows up in the parser's lists
 //! or in the schema, and the test fails until both agree and a scene here uses it.
 
-use rbsm::scene::Scene;
+use rbsm::input::scene::Scene;
 use serde_json::{json, Value};
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -149,7 +149,7 @@ fn schema_errors(v: &jsonschema::Validator, scene: &Value) -> Vec<String> {
 
 #[test]
 fn the_schema_is_a_valid_draft_2020_12_schema() {
-    let schema = rbsm::scene::schema();
+    let schema = rbsm::input::scene::schema();
     assert_eq!(
         schema["$schema"],
         "https://json-schema.org/draft/2020-12/schema"
@@ -161,7 +161,7 @@ fn the_schema_is_a_valid_draft_2020_12_schema() {
 
 #[test]
 fn bundled_scenes_validate_against_the_schema() {
-    let v = validator(&rbsm::scene::schema());
+    let v = validator(&rbsm::input::scene::schema());
     for (name, scene) in bundled() {
         let errors = schema_errors(&v, &scene);
         assert!(errors.is_empty(), "{name} fails the schema: {errors:#?}");
@@ -171,7 +171,7 @@ fn bundled_scenes_validate_against_the_schema() {
 
 #[test]
 fn scenes_with_every_optional_key_parse_and_validate_against_the_schema() {
-    let v = validator(&rbsm::scene::schema());
+    let v = validator(&rbsm::input::scene::schema());
     for (name, scene) in extras() {
         let errors = schema_errors(&v, &scene);
         assert!(errors.is_empty(), "{name} fails the schema: {errors:#?}");
@@ -183,7 +183,7 @@ fn scenes_with_every_optional_key_parse_and_validate_against_the_schema() {
 
 #[test]
 fn the_schema_refuses_what_the_parser_refuses_by_shape_or_simple_range() {
-    let v = validator(&rbsm::scene::schema());
+    let v = validator(&rbsm::input::scene::schema());
     let base = load("cantilever.json");
     let cases: Vec<(&str, Box<dyn Fn(&mut Value)>)> = vec![
         (
@@ -481,7 +481,7 @@ fn object_schemas(value: &Value, pointer: String, out: &mut BTreeMap<String, BTr
 
 #[test]
 fn the_schema_names_exactly_the_keys_and_kinds_the_parser_accepts() {
-    let schema = rbsm::scene::schema();
+    let schema = rbsm::input::scene::schema();
     let mut reached: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
     let mut kinds_checked = BTreeSet::new();
     for (name, scene) in all_scenes() {
@@ -628,7 +628,7 @@ fn rbsm_schema_prints_the_library_schema() {
         String::from_utf8_lossy(&out.stderr)
     );
     let printed: Value = serde_json::from_slice(&out.stdout).expect("rbsm schema prints JSON");
-    assert_eq!(printed, rbsm::scene::schema());
+    assert_eq!(printed, rbsm::input::scene::schema());
     assert_eq!(printed["title"], "rbsm scene");
 }
 
@@ -636,7 +636,7 @@ fn rbsm_schema_prints_the_library_schema() {
 fn docs_scene_md_names_every_key_and_kind_of_the_schema() {
     let text = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/scene.md"))
         .unwrap();
-    let schema = rbsm::scene::schema();
+    let schema = rbsm::input::scene::schema();
     let mut all = BTreeMap::new();
     object_schemas(&schema, String::new(), &mut all);
     let mut names: BTreeSet<String> = all.values().flatten().cloned().collect();

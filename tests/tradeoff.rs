@@ -1,6 +1,6 @@
 //! `rbsm tradeoff`: sweeps, references, the Pareto front and the files it writes.
 
-use rbsm::tradeoff::{sweep, Key, Sweep};
+use rbsm::analysis::tradeoff::{sweep, Key, Sweep};
 
 fn column() -> String {
     std::fs::read_to_string(concat!(
@@ -39,7 +39,7 @@ fn bad_sweeps_are_refused_with_the_allowed_values() {
         .to_string();
     assert!(e.contains("declares no `contact`"), "{e}");
     // The closed form's probe must exist.
-    let e = rbsm::scene::Scene::from_json(
+    let e = rbsm::input::scene::Scene::from_json(
         &column().replace(r#""probe": "tip_u"}"#, r#""probe": "tip"}"#),
     )
     .unwrap_err()

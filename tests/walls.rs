@@ -3,9 +3,9 @@
 //! its energy up to the time step's error, and a column carries the weight of the bricks above
 //! it at every joint.
 
-use rbsm::integrator::Status;
-use rbsm::run::{Prepared, RunOptions};
-use rbsm::scene::Scene;
+use rbsm::step::integrator::Status;
+use rbsm::analysis::run::{Prepared, RunOptions};
+use rbsm::input::scene::Scene;
 
 const W: f64 = 0.2;
 const H: f64 = 0.1;

@@ -2,13 +2,13 @@
 
 use super::{plot, Report};
 use plotters::prelude::*;
-use rbsm::hopping::{centre_velocity, lowest_point, Theory, Tracker};
-use rbsm::integrator::Status;
-use rbsm::run::{Prepared, RunOptions};
-use rbsm::scene::Scene;
+use rbsm::analysis::hopping::{centre_velocity, lowest_point, Theory, Tracker};
+use rbsm::step::integrator::Status;
+use rbsm::analysis::run::{Prepared, RunOptions};
+use rbsm::input::scene::Scene;
 use std::path::Path;
 
-use rbsm::hopping::brick::{self, DEPTH as D, E, G, NU, RHO};
+use rbsm::analysis::hopping::brick::{self, DEPTH as D, E, G, NU, RHO};
 
 fn brick_scene(
     cells: [usize; 2],
@@ -18,7 +18,7 @@ fn brick_scene(
     height: f64,
     slope: f64,
 ) -> Scene {
-    Scene::from_json(&rbsm::hopping::brick::scene(
+    Scene::from_json(&rbsm::analysis::hopping::brick::scene(
         cells, model, friction, tilt, height, slope,
     ))
     .unwrap()

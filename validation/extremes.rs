@@ -1,7 +1,7 @@
-//! Section 10 of the validation report: the method at its extremes (`rbsm::extremes`).
+//! Section 10 of the validation report: the method at its extremes (`rbsm::analysis::extremes`).
 
 use super::Report;
-use rbsm::extremes::{self, Run};
+use rbsm::analysis::extremes::{self, Run};
 
 fn run_cell(r: &Run) -> String {
     if r.status == "ok" {
@@ -252,8 +252,8 @@ pub fn extremes(r: &mut Report) {
     r.line("### 10.7 Time step just above Δt_crit\n");
     r.line("The stack of 10.2 (aspect 1) stepped 20 000 times at fractions of `Δt_crit`:\n");
     r.line("| Δt / Δt_crit | run |\n|---|---|");
-    let p = rbsm::run::Prepared::new(
-        &rbsm::scene::Scene::from_json(&extremes::stack_scene(1.0, r#"{"kind": "rigid"}"#))
+    let p = rbsm::analysis::run::Prepared::new(
+        &rbsm::input::scene::Scene::from_json(&extremes::stack_scene(1.0, r#"{"kind": "rigid"}"#))
             .unwrap(),
         &Default::default(),
     )

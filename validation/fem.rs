@@ -132,7 +132,7 @@ pub fn cantilever_frequencies(
         .l();
     let li = l.try_inverse().expect("invertible factor");
     let a = &li * kf * li.transpose();
-    let (values, _) = rbsm::eigen::symmetric_eigen(0.5 * (&a + a.transpose()));
+    let (values, _) = rbsm::analysis::eigen::symmetric_eigen(0.5 * (&a + a.transpose()));
     values.iter().take(k).map(|v| v.max(0.0).sqrt()).collect()
 }
 

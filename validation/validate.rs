@@ -12,16 +12,16 @@ mod extremes;
 mod fem;
 mod trade;
 
-use rbsm::eigen::{self, Method};
-use rbsm::evaluator;
-use rbsm::integrator::Status;
-use rbsm::mass::Mass;
+use rbsm::analysis::eigen::{self, Method};
+use rbsm::force::evaluator;
+use rbsm::step::integrator::Status;
+use rbsm::model::mass::Mass;
 use rbsm::model::Model;
-use rbsm::run::{Prepared, RunOptions};
-use rbsm::scene::{EvaluatorKind, Scene};
-use rbsm::stability;
-use rbsm::statics;
-use rbsm::system::FreeSystem;
+use rbsm::analysis::run::{Prepared, RunOptions};
+use rbsm::input::scene::{EvaluatorKind, Scene};
+use rbsm::analysis::stability;
+use rbsm::analysis::statics;
+use rbsm::analysis::free::FreeSystem;
 use std::collections::BTreeMap;
 use std::f64::consts::PI;
 use std::fmt::Write;
@@ -111,7 +111,7 @@ fn plot(
     y_label: &str,
     series: &[(&str, Vec<(f64, f64)>)],
 ) {
-    rbsm::plot::log_log(path, title, x_label, y_label, series).expect("the plot is written");
+    rbsm::output::plot::log_log(path, title, x_label, y_label, series).expect("the plot is written");
 }
 
 /// 1. One-row column on a ground spring: axial frequencies against the discrete closed form and
@@ -359,7 +359,7 @@ fn cantilever(r: &mut Report) {
     ));
     std::fs::write(
         r.dir.join("cantilever_model.svg"),
-        rbsm::drawing::model_svg(&m),
+        rbsm::output::drawing::model_svg(&m),
     )
     .unwrap();
     let mass = Mass::new(&m);
@@ -371,7 +371,7 @@ fn cantilever(r: &mut Report) {
         Method::Sparse,
     )
     .unwrap();
-    rbsm::drawing::write_mode_shapes(&r.dir.join("cantilever_modes"), &m, &modes).unwrap();
+    rbsm::output::drawing::write_mode_shapes(&r.dir.join("cantilever_modes"), &m, &modes.omega, &modes.shapes).unwrap();
     r.line("The 40 × 4 model (springs from each centroid to its edges' midpoints, ground springs hatched) and its four lowest \
             modes, each captioned with its frequency (one of them is the first axial mode).\n");
     r.line("![cantilever model](cantilever_model.svg)\n");
@@ -431,7 +431,7 @@ fn patch(r: &mut Report) {
             for (ci, (loads, sup, stress)) in cases.iter().enumerate() {
                 let m = model(&body_scene(mesh, sup, loads, e, nu, 2000.0, 0.2));
                 let u = statics::solve(&m).unwrap().u;
-                let exact = |x: rbsm::geometry::Vec2| {
+                let exact = |x: rbsm::mesh::geometry::Vec2| {
                     if ci == 0 {
                         (sigma / e * x.x, -nu * sigma / e * x.y)
                     } else {
@@ -694,8 +694,8 @@ fn critical_time_step(r: &mut Report) {
     }
     // The same pictures `rbsm stability --out DIR` and `rbsm plot DIR` give.
     let histories = r.dir.join("stability_16x16");
-    rbsm::output::write_fraction_histories(&histories, &runs).unwrap();
-    rbsm::plot::histories(&histories).unwrap();
+    rbsm::analysis::stability::write_fraction_histories(&histories, &runs).unwrap();
+    rbsm::output::plot::histories(&histories).unwrap();
     r.line(
         "\n![stored energy of the runs at fractions of Δt_crit](stability_16x16/stability.svg)\n",
     );
@@ -863,7 +863,7 @@ fn hybrid(r: &mut Report) {
                     let m = model(&hybrid_scene(mesh, sup, &loads, p, e, nu, 2000.0, 0.2));
                     let u = statics::solve(&m).unwrap().u;
                     let gamma = tau * 2.0 * (1.0 + nu) / e;
-                    let exact = |x: rbsm::geometry::Vec2| {
+                    let exact = |x: rbsm::mesh::geometry::Vec2| {
                         if case == "tension" {
                             (sigma / e * x.x, -nu * sigma / e * x.y)
                         } else {

@@ -7,7 +7,7 @@
 
 use super::{Checks, Mesh};
 use crate::error::{Error, Result};
-use crate::geometry::{area_properties, Vec2};
+use crate::mesh::geometry::{area_properties, Vec2};
 use mshio::mshfile::ElementType;
 use std::collections::{BTreeMap, HashMap};
 use std::path::Path;
@@ -26,7 +26,7 @@ pub const MAX_MESH_BYTES: u64 = 2 << 30;
 
 /// Reads the mesh of body `body` from the MSH 4.1 file `path`.
 pub fn read(body: &str, path: &Path) -> Result<Mesh> {
-    let bytes = crate::scene::read_limited(path, MAX_MESH_BYTES, "a mesh file")?;
+    let bytes = crate::input::scene::read_limited(path, MAX_MESH_BYTES, "a mesh file")?;
     let field = format!("mesh `{body}` ({})", path.display());
     let fail = |message: String| Error::scene(field.clone(), message);
     let header = format_header(&bytes)

@@ -2,19 +2,8 @@
 
 use super::{Checks, Mesh};
 use crate::error::Result;
-use crate::geometry::Vec2;
-
-/// The cell shape of a structured grid (`mesh.cell` in the scene).
-#[derive(
-    Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize, schemars::JsonSchema,
-)]
-#[serde(rename_all = "lowercase")]
-pub enum Cell {
-    /// One rectangle per grid cell.
-    Rect,
-    /// Two triangles per grid cell (lower-right `2c`, upper-left `2c + 1`).
-    Tri,
-}
+use crate::input::scene::Cell;
+use crate::mesh::geometry::Vec2;
 
 /// A grid of `nx × ny` cells covering `origin .. origin + size`, numbered row by row from the
 /// lower-left (`c = i + nx·j`; with triangles, elements `2c` and `2c + 1`).

@@ -5,78 +5,19 @@
 //! cells clipped to a rectangle), [`Mesh::from_polygons`] (explicit cells from the scene) and
 //! [`gmsh`] (MSH 4.1 files).
 
+pub mod buckets;
+pub mod geometry;
 pub mod gmsh;
 pub mod grid;
 pub mod voronoi;
 
 pub use gmsh::EdgeGroup;
 
-use crate::buckets::{BucketLists, Buckets};
+use crate::mesh::buckets::{BucketLists, Buckets};
 use crate::error::{Error, Result};
-use crate::geometry::{area_properties, point_in_polygon, segment_distance, segments_cross, Vec2};
+use crate::input::scene::{EdgeSet, Side};
+use crate::mesh::geometry::{area_properties, point_in_polygon, segment_distance, segments_cross, Vec2};
 use std::collections::HashMap;
-
-/// A side of a body's bounding box, used to tag boundary edges (supports, loads).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Side {
-    /// `x` = smallest.
-    Left,
-    /// `x` = largest.
-    Right,
-    /// `y` = smallest.
-    Bottom,
-    /// `y` = largest.
-    Top,
-}
-
-/// Which boundary edges a support or load acts on: a side of the body's bounding box
-/// (`left`, `right`, `bottom`, `top`) or, any other name, a physical group of a gmsh mesh.
-#[derive(Debug, Clone, PartialEq, Eq, Hash)]
-pub enum EdgeSet {
-    /// A side of the bounding box.
-    Side(Side),
-    /// A physical group of a gmsh mesh, by name.
-    Group(String),
-}
-
-impl<'de> serde::Deserialize<'de> for EdgeSet {
-    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
-        let name = String::deserialize(d)?;
-        Ok(match name.as_str() {
-            "left" => EdgeSet::Side(Side::Left),
-            "right" => EdgeSet::Side(Side::Right),
-            "bottom" => EdgeSet::Side(Side::Bottom),
-            "top" => EdgeSet::Side(Side::Top),
-            _ => EdgeSet::Group(name),
-        })
-    }
-}
-
-/// A string: a side name or the name of a gmsh physical group (any string parses).
-impl schemars::JsonSchema for EdgeSet {
-    fn schema_name() -> std::borrow::Cow<'static, str> {
-        "EdgeSet".into()
-    }
-
-    fn json_schema(_: &mut schemars::SchemaGenerator) -> schemars::Schema {
-        schemars::json_schema!({
-            "type": "string",
-            "minLength": 1,
-            "description": "A side of the body's bounding box (`left`, `right`, `bottom`, `top`) or, any other name, a physical group of lines of the body's gmsh mesh.",
-            "examples": ["left", "right", "bottom", "top"]
-        })
-    }
-}
-
-impl std::fmt::Display for EdgeSet {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            EdgeSet::Side(s) => write!(f, "{}", format!("{s:?}").to_lowercase()),
-            EdgeSet::Group(g) => write!(f, "{g}"),
-        }
-    }
-}
 
 /// An edge shared by two cells: `a` runs `v1 → v2` counter-clockwise, `b` runs it backwards.
 #[derive(Debug, Clone, Copy, PartialEq)]

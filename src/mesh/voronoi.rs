@@ -4,7 +4,7 @@
 
 use super::{Checks, Mesh};
 use crate::error::{Error, Result};
-use crate::geometry::{area_properties, Vec2};
+use crate::mesh::geometry::{area_properties, Vec2};
 use rand::{Rng, SeedableRng};
 use std::collections::HashMap;
 use voronoice::{BoundingBox, Point, VoronoiBuilder};

@@ -2,7 +2,7 @@
 #![allow(dead_code)]
 
 use rbsm::model::Model;
-use rbsm::scene::Scene;
+use rbsm::input::scene::Scene;
 
 /// A one-body scene around `mesh` (a JSON object) with `supports` (a JSON array).
 pub fn scene_json(mesh: &str, supports: &str) -> String {
@@ -46,8 +46,8 @@ pub fn random_vector(n: usize, seed: u64) -> Vec<f64> {
 pub fn forces(model: &Model, u: &[f64]) -> (Vec<f64>, Vec<f64>) {
     let n = model.n_dofs();
     let (mut fa, mut fe) = (vec![0.0; n], vec![0.0; n]);
-    rbsm::evaluator::build(model, rbsm::scene::EvaluatorKind::Assembled).internal_force(u, &mut fa);
-    rbsm::evaluator::build(model, rbsm::scene::EvaluatorKind::ElementWise)
+    rbsm::force::evaluator::build(model, rbsm::input::scene::EvaluatorKind::Assembled).internal_force(u, &mut fa);
+    rbsm::force::evaluator::build(model, rbsm::input::scene::EvaluatorKind::ElementWise)
         .internal_force(u, &mut fe);
     (fa, fe)
 }

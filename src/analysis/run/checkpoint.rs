@@ -1,0 +1,104 @@
+//! Checkpoints (`output.checkpoint_every`): the whole state of a run at a recorded step, so that
+//! `rbsm run SCENE --resume DIR` goes on from there and ends with the outputs, byte for byte,
+//! of a run that was never stopped. One file, `DIR/checkpoint.bin`, written atomically.
+
+use crate::error::{Error, Result};
+use crate::step::integrator::{Energy, State};
+use crate::output;
+use crate::analysis::run::RunOptions;
+use crate::input::scene::Scene;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// The file's name in the output folder.
+pub const FILE: &str = "checkpoint.bin";
+
+/// Bumped when the layout changes: an older checkpoint is then refused, not misread.
+const FORMAT: u32 = 1;
+
+/// What a run needs to go on from a checkpoint.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Checkpoint {
+    format: u32,
+    /// [`fingerprint`] of the scene and options the run was started with.
+    fingerprint: u64,
+    /// The integrator's state, contact included.
+    pub state: State,
+    /// Bytes of `history.csv` up to the checkpoint's step.
+    pub history_bytes: u64,
+    /// The VTK frames written up to the checkpoint's step: time and name under the folder.
+    pub frames: Vec<(f64, String)>,
+    /// The energies at the first recorded step (for the summary).
+    pub first: Option<Energy>,
+    /// The largest rotation of a meshed body seen so far (rad).
+    pub rotation: f64,
+}
+
+/// A hash (FNV-1a, 64 bits) of everything that decides a run: the scene as parsed (its `Debug`
+/// form, which prints every number exactly) and the command-line overrides.
+pub fn fingerprint(scene: &Scene, opts: &RunOptions) -> u64 {
+    let text = format!(
+        "{scene:?}|{:?}|{:?}|{:?}|{:?}",
+        opts.evaluator,
+        opts.dt.map(f64::to_bits),
+        opts.dt_factor.map(f64::to_bits),
+        opts.steps
+    );
+    text.bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| {
+        (h ^ b as u64).wrapping_mul(0x0100_0000_01b3)
+    })
+}
+
+impl Checkpoint {
+    /// A checkpoint of a run of `scene` with `opts`.
+    pub fn new(
+        scene: &Scene,
+        opts: &RunOptions,
+        state: State,
+        history_bytes: u64,
+        frames: Vec<(f64, String)>,
+        first: Option<Energy>,
+        rotation: f64,
+    ) -> Self {
+        Checkpoint {
+            format: FORMAT,
+            fingerprint: fingerprint(scene, opts),
+            state,
+            history_bytes,
+            frames,
+            first,
+            rotation,
+        }
+    }
+
+    /// Writes `DIR/checkpoint.bin` atomically.
+    pub fn write(&self, dir: &Path) -> Result<()> {
+        let path = dir.join(FILE);
+        let bytes = postcard::to_stdvec(self)
+            .map_err(|e| Error::io(&path, std::io::Error::other(e.to_string())))?;
+        output::write_atomic(&path, &bytes)
+    }
+
+    /// Reads `DIR/checkpoint.bin` and checks that it belongs to a run of `scene` with `opts`.
+    pub fn read(dir: &Path, scene: &Scene, opts: &RunOptions) -> Result<Checkpoint> {
+        let path: PathBuf = dir.join(FILE);
+        let bytes = std::fs::read(&path).map_err(|e| match e.kind() {
+            std::io::ErrorKind::NotFound => Error::io(&path, std::io::Error::other(
+                "no checkpoint here: a run writes one only when its scene sets `output.checkpoint_every`, and removes it once it has finished")),
+            _ => Error::io(&path, e),
+        })?;
+        let bad = |why: String| Error::io(&path, std::io::Error::other(why));
+        let checkpoint: Checkpoint = postcard::from_bytes(&bytes)
+            .map_err(|e| bad(format!("not a checkpoint of this version of rbsm ({e})")))?;
+        if checkpoint.format != FORMAT {
+            return Err(bad(format!(
+                "checkpoint format {} (this rbsm reads {FORMAT})",
+                checkpoint.format
+            )));
+        }
+        if checkpoint.fingerprint != fingerprint(scene, opts) {
+            return Err(bad("written by a run of another scene or other options (--evaluator, --dt, --dt-factor, --steps): resume with the scene and options the run was started with".into()));
+        }
+        Ok(checkpoint)
+    }
+}

@@ -1,0 +1,317 @@
+//! The stability limit of central difference ([`crate::step::integrator`]; `rbsm stability`): `Δt_crit = 2 / ω_max`, the cheap
+//! bounds that codes use instead of `ω_max`, each with its ratio to the exact value, and the
+//! limit found empirically by running.
+
+use crate::force::evaluator::{interface_stiffness, Evaluator};
+use crate::model::formulation::{Formulation, Hybrid, Rigid};
+use crate::step::integrator::{CentralDifference, Status};
+use crate::model::loads::Loads;
+use crate::model::mass::Mass;
+use crate::model::{Model, GROUND};
+use crate::analysis::free::FreeSystem;
+use nalgebra::{DMatrix, SMatrix};
+use rand::{Rng, SeedableRng};
+use serde::Serialize;
+
+/// `Δt_crit = 2 / ω_max` (s).
+pub fn critical_time_step(omega_max: f64) -> f64 {
+    2.0 / omega_max
+}
+
+/// A cheap estimate of `Δt_crit` and how it compares with the exact value.
+#[derive(Debug, Clone, Serialize)]
+pub struct Bound {
+    /// `gershgorin`, `irons-treharne`, `per-body` or `single-body`.
+    pub name: &'static str,
+    /// The estimate (s).
+    pub dt: f64,
+    /// `dt / Δt_crit`.
+    pub ratio: f64,
+    /// Whether stepping at `dt` is stable (`ratio ≤ 1`). Proven bounds are safe by theory; the
+    /// naive estimate is not.
+    pub safe: bool,
+}
+
+/// The cheap estimates of `Δt_crit`, each as `2/ω` with `ω²` from (`gershgorin` and
+/// `single-body` only for a lumped mass, whose diagonal they read):
+/// - `gershgorin`: the largest absolute row sum of `M^{−½} K M^{−½}` (a proven upper bound on
+///   `ω_max²`, so a safe `Δt`);
+/// - `irons-treharne`: the largest `λ_max(K_s, M_s)` over interfaces `s`, each element's mass
+///   shared equally among its interfaces (`K = Σ K_s`, `M = Σ M_s`: a proven bound);
+/// - `per-body`: `2 max_e λ_max(K_ee, M_e)`, `K_ee` the diagonal block of element `e` (proven:
+///   `K ≤ 2 blockdiag(K)` because each interface's form stays positive when `U_b → −U_b`);
+/// - `single-body`: the naive DEM estimate `2 √(m/k)`, the smallest over elements and DOFs of
+///   `M_ii / K_ii` (not a bound: unsafe on a lattice, where neighbours move against each other).
+pub fn bounds(model: &Model, sys: &FreeSystem, mass: &Mass, dt_crit: f64) -> Vec<Bound> {
+    let mk = |name, omega2: f64, proven: bool| {
+        let dt = 2.0 / omega2.sqrt();
+        let ratio = dt / dt_crit;
+        Bound {
+            name,
+            dt,
+            ratio,
+            safe: if proven { true } else { ratio <= 1.0 },
+        }
+    };
+    let n = sys.n();
+    // Gershgorin on the scaled matrix, and the diagonal ratio of the naive estimate.
+    let mut rows = vec![0.0; n];
+    let mut diag_ratio = 0.0f64;
+    for j in 0..n {
+        for (&i, &v) in sys
+            .k
+            .symbolic()
+            .row_idx_of_col_raw(j)
+            .iter()
+            .zip(sys.k.val_of_col(j))
+        {
+            rows[i] += v.abs() / (sys.mass[i] * sys.mass[j]).sqrt();
+            if i == j {
+                diag_ratio = diag_ratio.max(v / sys.mass[i]);
+            }
+        }
+    }
+    let gershgorin = rows.iter().cloned().fold(0.0, f64::max);
+    let (it, per_body) = match model.formulation {
+        Formulation::Rigid => interface_and_body_bounds::<Rigid, 3>(model),
+        Formulation::Hybrid { .. } => interface_and_body_bounds::<Hybrid, 6>(model),
+    };
+    if mass.is_diagonal() {
+        vec![
+            mk("gershgorin", gershgorin, true),
+            mk("irons-treharne", it, true),
+            mk("per-body", per_body, true),
+            mk("single-body", diag_ratio, false),
+        ]
+    } else {
+        vec![
+            mk("irons-treharne", it, true),
+            mk("per-body", per_body, true),
+        ]
+    }
+}
+
+/// `max_s λ_max(K_s, M_s)` and `2 max_e λ_max(K_ee, M_e)` over the free DOFs.
+fn interface_and_body_bounds<K: crate::model::formulation::Kinematics<N>, const N: usize>(
+    model: &Model,
+) -> (f64, f64) {
+    let ne = model.elements.len();
+    let mut fixed = vec![false; model.n_dofs()];
+    for &d in &model.fixed {
+        fixed[d] = true;
+    }
+    let mass: Vec<SMatrix<f64, N, N>> = model
+        .elements
+        .iter()
+        .map(|e| K::mass(&e.props, e.rho * model.thickness))
+        .collect();
+    // Each element's mass is shared equally among its interfaces and, for hybrid, its interior
+    // term, so that the shares add up to M (Irons–Treharne).
+    let mut count = vec![usize::from(K::HAS_INTERIOR); ne];
+    for i in &model.interfaces {
+        count[i.a as usize] += 1;
+        if i.b != GROUND {
+            count[i.b as usize] += 1;
+        }
+    }
+    let mut k_diag = vec![SMatrix::<f64, N, N>::zeros(); ne];
+    let mut it = 0.0f64;
+    for i in &model.interfaces {
+        let xa = model.elements[i.a as usize].props.centroid;
+        let xb = if i.b == GROUND {
+            i.midpoint()
+        } else {
+            model.elements[i.b as usize].props.centroid
+        };
+        let [kaa, kab, kba, kbb] = interface_stiffness::<K, N>(i, xa, xb, model.thickness);
+        k_diag[i.a as usize] += kaa;
+        let mut elements = vec![i.a as usize];
+        if i.b != GROUND {
+            k_diag[i.b as usize] += kbb;
+            elements.push(i.b as usize);
+        }
+        let m = elements.len() * N;
+        let (mut ks, mut ms) = (DMatrix::<f64>::zeros(m, m), DMatrix::<f64>::zeros(m, m));
+        for (p, &e) in elements.iter().enumerate() {
+            ms.view_mut((p * N, p * N), (N, N))
+                .copy_from(&(mass[e] / count[e] as f64));
+        }
+        ks.view_mut((0, 0), (N, N)).copy_from(&kaa);
+        if i.b != GROUND {
+            ks.view_mut((0, N), (N, N)).copy_from(&kab);
+            ks.view_mut((N, 0), (N, N)).copy_from(&kba);
+            ks.view_mut((N, N), (N, N)).copy_from(&kbb);
+        }
+        let dofs: Vec<usize> = elements
+            .iter()
+            .flat_map(|&e| (0..N).map(move |d| e * N + d))
+            .collect();
+        it = it.max(generalized_max(
+            &ks,
+            &ms,
+            &dofs.iter().map(|&d| !fixed[d]).collect::<Vec<_>>(),
+        ));
+    }
+    let mut body = 0.0f64;
+    for e in 0..ne {
+        if K::HAS_INTERIOR {
+            let el = &model.elements[e];
+            let kint = K::interior_stiffness(&el.props, &el.d, model.thickness);
+            k_diag[e] += kint;
+            let (k, m) = (
+                DMatrix::from_fn(N, N, |i, j| kint[(i, j)]),
+                DMatrix::from_fn(N, N, |i, j| mass[e][(i, j)] / count[e] as f64),
+            );
+            let free: Vec<bool> = (0..N).map(|d| !fixed[e * N + d]).collect();
+            it = it.max(generalized_max(&k, &m, &free));
+        }
+        let free: Vec<bool> = (0..N).map(|d| !fixed[e * N + d]).collect();
+        let (k, m) = (
+            DMatrix::from_fn(N, N, |i, j| k_diag[e][(i, j)]),
+            DMatrix::from_fn(N, N, |i, j| mass[e][(i, j)]),
+        );
+        body = body.max(generalized_max(&k, &m, &free));
+    }
+    (it, 2.0 * body)
+}
+
+/// `λ_max` of `K x = λ M x` restricted to the DOFs marked free (`M` positive definite there).
+fn generalized_max(k: &DMatrix<f64>, m: &DMatrix<f64>, free: &[bool]) -> f64 {
+    let idx: Vec<usize> = (0..free.len()).filter(|&i| free[i]).collect();
+    if idx.is_empty() {
+        return 0.0;
+    }
+    let kf = DMatrix::from_fn(idx.len(), idx.len(), |i, j| k[(idx[i], idx[j])]);
+    let mf = DMatrix::from_fn(idx.len(), idx.len(), |i, j| m[(idx[i], idx[j])]);
+    let l = mf
+        .cholesky()
+        .expect("element mass blocks are positive definite")
+        .l();
+    let li = l.try_inverse().expect("a Cholesky factor is invertible");
+    let a = &li * kf * li.transpose();
+    let a = 0.5 * (&a + a.transpose());
+    a.symmetric_eigenvalues().max()
+}
+
+/// The outcome of an undamped run at `fraction · Δt_crit`.
+#[derive(Debug, Clone, Serialize)]
+pub struct FractionRun {
+    /// `dt / Δt_crit`.
+    pub fraction: f64,
+    /// Time step (s).
+    pub dt: f64,
+    /// Steps taken (fewer than asked when it diverged).
+    pub steps: u64,
+    /// `ok` or `diverged`.
+    pub status: String,
+    /// Largest `|total − initial|` over the largest energy seen.
+    pub max_relative_drift: f64,
+    /// `(t, total, kinetic + elastic)` energies (J) at the recorded steps: 200 or so per run
+    /// below `Δt_crit`, every step above.
+    /// The total stays conserved to round-off even in an unstable run (central difference
+    /// conserves a modified energy); the stored `kinetic + elastic` is what grows.
+    #[serde(skip)]
+    pub history: Vec<(f64, f64, f64)>,
+}
+
+/// Runs the model undamped and unloaded for `steps` steps at `fraction · Δt_crit` from a
+/// seeded random displacement (which excites every mode, the highest included).
+pub fn run_at_fraction(
+    model: &Model,
+    evaluator: &dyn Evaluator,
+    mass: &Mass,
+    dt_crit: f64,
+    fraction: f64,
+    steps: u64,
+) -> FractionRun {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+    let u0: Vec<f64> = (0..model.n_dofs())
+        .map(|_| 1e-6 * (rng.random::<f64>() - 0.5))
+        .collect();
+    let loads = Loads::none(model);
+    let dt = fraction * dt_crit;
+    let mut cd = CentralDifference::from_state(
+        model,
+        evaluator,
+        mass,
+        &loads,
+        dt,
+        u0,
+        vec![0.0; model.n_dofs()],
+    );
+    cd.set_stability_limit(dt_crit);
+    cd.damping = 0.0;
+    // Above the limit every step, so that the few steps before the guard stops it show.
+    let every = if fraction > 1.0 {
+        1
+    } else {
+        (steps / 200).max(1)
+    };
+    let mut history = Vec::new();
+    let status = cd
+        .run(
+            steps,
+            every,
+            |_, e| {
+                history.push((e.t, e.total, e.kinetic + e.elastic));
+                Ok(())
+            },
+            |_| {},
+        )
+        .expect("the observer cannot fail");
+    FractionRun {
+        fraction,
+        dt,
+        steps: cd.step,
+        status: if status == Status::Ok {
+            "ok".into()
+        } else {
+            "diverged".into()
+        },
+        max_relative_drift: cd.max_relative_drift(),
+        history,
+    }
+}
+
+/// The empirical limit: bisection on `fraction` between a stable and an unstable run of
+/// `steps` steps each, to a relative width of `tol`. Returns `(dt, dt / Δt_crit)`.
+pub fn empirical_limit(
+    model: &Model,
+    evaluator: &dyn Evaluator,
+    mass: &Mass,
+    dt_crit: f64,
+    steps: u64,
+    tol: f64,
+) -> (f64, f64) {
+    let stable = |f: f64| run_at_fraction(model, evaluator, mass, dt_crit, f, steps).status == "ok";
+    let (mut lo, mut hi) = (0.5, 2.0);
+    while !stable(lo) {
+        lo *= 0.5;
+    }
+    while stable(hi) {
+        hi *= 2.0;
+    }
+    while hi - lo > tol * lo {
+        let mid = 0.5 * (lo + hi);
+        if stable(mid) {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    (lo * dt_crit, lo)
+}
+
+/// Writes `fraction_F.csv` (`t,total,stored`: s, J, J) for each run of a stability analysis.
+pub fn write_fraction_histories(dir: &std::path::Path, runs: &[FractionRun]) -> crate::error::Result<()> {
+    std::fs::create_dir_all(dir).map_err(|e| crate::error::Error::io(dir, e))?;
+    for r in runs {
+        let path = dir.join(format!("fraction_{}.csv", r.fraction));
+        let mut text = String::from("t,total,stored\n");
+        for (t, e, stored) in &r.history {
+            text.push_str(&format!("{t:e},{e:e},{stored:e}\n"));
+        }
+        std::fs::write(&path, text).map_err(|e| crate::error::Error::io(&path, e))?;
+    }
+    Ok(())
+}

@@ -1,0 +1,744 @@
+//! Speed against accuracy: one scene run over a sweep of time steps, mesh resolutions,
+//! formulations, evaluators and contact models. Each point reports its error against a
+//! reference, its wall time, steps, peak memory and `Δt_crit`; the points that no other point
+//! beats in both error and time form the Pareto front.
+//!
+//! The reference is the scene's closed form or theory ([`ReferenceSpec`]) when it has one,
+//! otherwise the finest run of the sweep (highest refinement, then smallest time step), named in
+//! the report. Runs write no files; only the report does.
+
+use crate::error::{Error, Result};
+use crate::mesh::geometry::{area_properties, Vec2};
+use crate::analysis::hopping::{lowest_point, Tracker};
+use crate::step::integrator::Status;
+use crate::model::{dof_index, Model};
+use crate::analysis::run::{Prepared, RunOptions};
+use crate::input::scene::{ReferenceSpec, Scene};
+use serde::Serialize;
+use serde_json::Value;
+use std::path::Path;
+use std::time::Instant;
+
+/// What a sweep varies.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Key {
+    /// Absolute time step (s).
+    Dt,
+    /// Time step as a fraction of `Δt_crit`.
+    DtFactor,
+    /// Mesh refinement: grid cells × r in each direction of more than one cell, Voronoi
+    /// sites × r².
+    Refine,
+    /// `rigid` or `hybrid` (hybrid keeps the scene's penalty, or 10).
+    Formulation,
+    /// Hybrid penalty `p` (the formulation becomes hybrid).
+    Penalty,
+    /// `assembled` or `element-wise`.
+    Evaluator,
+    /// `edge-to-edge` or `point` (the scene must declare contact).
+    Contact,
+}
+
+const KEYS: [(&str, Key); 7] = [
+    ("dt", Key::Dt),
+    ("dt_factor", Key::DtFactor),
+    ("refine", Key::Refine),
+    ("formulation", Key::Formulation),
+    ("penalty", Key::Penalty),
+    ("evaluator", Key::Evaluator),
+    ("contact", Key::Contact),
+];
+
+impl Key {
+    /// The key as written on the command line.
+    pub fn name(self) -> &'static str {
+        KEYS.iter().find(|k| k.1 == self).map_or("?", |k| k.0)
+    }
+}
+
+/// One `--sweep KEY=V1,V2,...`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Sweep {
+    /// What is swept.
+    pub key: Key,
+    /// Its values, as given.
+    pub values: Vec<String>,
+}
+
+impl Sweep {
+    /// Parses `KEY=V1,V2,...`; the error names the key or value and what is allowed.
+    pub fn parse(text: &str) -> Result<Sweep> {
+        let field = "--sweep";
+        let (key, values) = text
+            .split_once('=')
+            .ok_or_else(|| Error::scene(field, format!("expected KEY=V1,V2,..., got `{text}`")))?;
+        let key = KEYS
+            .iter()
+            .find(|k| k.0 == key.trim())
+            .map(|k| k.1)
+            .ok_or_else(|| {
+                Error::scene(
+                    field,
+                    format!(
+                        "unknown key `{key}`; allowed: {}",
+                        KEYS.map(|k| k.0).join(", ")
+                    ),
+                )
+            })?;
+        let values: Vec<String> = values
+            .split(',')
+            .map(|v| v.trim().to_string())
+            .filter(|v| !v.is_empty())
+            .collect();
+        if values.is_empty() {
+            return Err(Error::scene(
+                field,
+                format!("`{}` has no values", key.name()),
+            ));
+        }
+        for v in &values {
+            let ok = match key {
+                Key::Dt | Key::DtFactor | Key::Penalty => {
+                    v.parse::<f64>().is_ok_and(|x| x > 0.0 && x.is_finite())
+                }
+                Key::Refine => v.parse::<u32>().is_ok_and(|r| (1..=64).contains(&r)),
+                Key::Formulation => v == "rigid" || v == "hybrid",
+                Key::Evaluator => v == "assembled" || v == "element-wise",
+                Key::Contact => v == "edge-to-edge" || v == "point",
+            };
+            if !ok {
+                let allowed = match key {
+                    Key::Dt | Key::DtFactor | Key::Penalty => "a finite number > 0",
+                    Key::Refine => "an integer in 1..=64",
+                    Key::Formulation => "rigid or hybrid",
+                    Key::Evaluator => "assembled or element-wise",
+                    Key::Contact => "edge-to-edge or point",
+                };
+                return Err(Error::scene(
+                    format!("--sweep {}", key.name()),
+                    format!("must be {allowed}, got `{v}`"),
+                ));
+            }
+        }
+        Ok(Sweep { key, values })
+    }
+}
+
+/// One point of the sweep and what it measured.
+#[derive(Debug, Clone, Serialize)]
+pub struct Point {
+    /// `(key, value)` of each sweep, in the order given.
+    pub settings: Vec<(Key, String)>,
+    /// Elements of the point's model.
+    pub elements: usize,
+    /// Its DOFs.
+    pub dofs: usize,
+    /// Time step (s).
+    pub dt: f64,
+    /// Critical time step (s).
+    pub dt_crit: f64,
+    /// Steps run.
+    pub steps: u64,
+    /// Model, evaluator and `Δt_crit` (s).
+    pub setup_s: f64,
+    /// The time loop (s).
+    pub stepping_s: f64,
+    /// `setup_s + stepping_s`: what the point cost.
+    pub wall_s: f64,
+    /// Peak resident memory of the process during the point (MiB), where the system tells it.
+    pub peak_mib: Option<f64>,
+    /// `ok`, or why the run stopped.
+    pub status: String,
+    /// Relative error against the reference; `None` when the run diverged.
+    pub error: Option<f64>,
+    /// Whether no other point has both a smaller error and a smaller wall time.
+    pub pareto: bool,
+}
+
+/// The whole sweep.
+#[derive(Debug, Clone, Serialize)]
+pub struct Report {
+    /// The scene's name.
+    pub scene: String,
+    /// What the errors are measured against.
+    pub reference: String,
+    /// How the error is defined.
+    pub error: String,
+    /// Every point of the sweep, in sweep order.
+    pub points: Vec<Point>,
+}
+
+/// The quantity a run is measured by.
+enum Measure {
+    /// Probe histories `(t, value)` at fixed material points, with the centroid of the element
+    /// that carried each.
+    Histories(Vec<Vec<(f64, f64)>>, Vec<Vec2>),
+    /// The first apex of the lowest point above the ground (m).
+    Apex(f64),
+}
+
+/// A probe fixed at a material point, so that refined meshes measure the same thing.
+#[derive(Debug, Clone)]
+struct Probe {
+    name: String,
+    point: Vec2,
+    dof: usize,
+}
+
+/// Runs `scene` (its JSON text `json`) at every combination of `sweeps`, calling `progress`
+/// with each finished point.
+pub fn sweep(json: &str, sweeps: &[Sweep], mut progress: impl FnMut(&Point)) -> Result<Report> {
+    let base: Value =
+        serde_json::from_str(json).map_err(|e| Error::scene("scene", e.to_string()))?;
+    let scene = Scene::from_json(json)?;
+    let base_model = Model::build(&scene)?;
+    let probes: Vec<Probe> = scene
+        .output
+        .probes
+        .iter()
+        .enumerate()
+        .map(|(k, p)| {
+            let dof = dof_index(
+                &p.dof,
+                base_model.formulation,
+                &format!("output.probes[{k}].dof"),
+            )?;
+            let point = match p.at {
+                Some([x, y]) => Vec2::new(x, y),
+                None => {
+                    base_model.elements[base_model.probe_element(k, p)?]
+                        .props
+                        .centroid
+                }
+            };
+            Ok(Probe {
+                name: p.column(),
+                point,
+                dof,
+            })
+        })
+        .collect::<Result<_>>()?;
+    if scene.reference.is_none() && probes.is_empty() {
+        return Err(Error::scene("output.probes", "the tradeoff needs at least one probe to compare runs (or a `reference` with a closed form)"));
+    }
+    let combos = combinations(sweeps);
+    let mut runs = Vec::with_capacity(combos.len());
+    for settings in combos {
+        let mut v = base.clone();
+        for (key, value) in &settings {
+            apply(&mut v, *key, value)?;
+        }
+        let scene = Scene::from_json(&v.to_string())?;
+        let (point, measure) = run_point(&scene, settings, &probes)?;
+        progress(&point);
+        runs.push((point, measure));
+    }
+    let (reference, error) = score(&scene, &base_model, &mut runs, &probes)?;
+    let mut points: Vec<Point> = runs.into_iter().map(|r| r.0).collect();
+    mark_pareto(&mut points);
+    Ok(Report {
+        scene: scene.name.clone(),
+        reference,
+        error,
+        points,
+    })
+}
+
+/// Every combination of the sweeps' values, the first sweep varying slowest.
+fn combinations(sweeps: &[Sweep]) -> Vec<Vec<(Key, String)>> {
+    let mut out = vec![Vec::new()];
+    for s in sweeps {
+        out = out
+            .into_iter()
+            .flat_map(|c: Vec<(Key, String)>| {
+                s.values
+                    .iter()
+                    .map(move |v| [c.clone(), vec![(s.key, v.clone())]].concat())
+            })
+            .collect();
+    }
+    out
+}
+
+/// Sets one sweep value in the scene's JSON.
+fn apply(scene: &mut Value, key: Key, value: &str) -> Result<()> {
+    let number = |v: &str| Value::from(v.parse::<f64>().expect("checked by Sweep::parse"));
+    match key {
+        Key::Dt | Key::DtFactor => {
+            let time = scene["time"]
+                .as_object_mut()
+                .ok_or_else(|| Error::scene("time", "missing"))?;
+            time.remove("dt");
+            time.remove("dt_factor");
+            time.insert(
+                if key == Key::Dt { "dt" } else { "dt_factor" }.into(),
+                number(value),
+            );
+        }
+        Key::Refine => {
+            let r: u64 = value.parse().expect("checked by Sweep::parse");
+            let bodies = scene["bodies"]
+                .as_array_mut()
+                .ok_or_else(|| Error::scene("bodies", "missing"))?;
+            for (k, body) in bodies.iter_mut().enumerate() {
+                let mesh = &mut body["mesh"];
+                match mesh["kind"].as_str() {
+                    Some("grid") => {
+                        // A direction of one cell stays one cell: a one-row column stays a column.
+                        for c in mesh["cells"].as_array_mut().into_iter().flatten() {
+                            let n = c.as_u64().unwrap_or(1);
+                            *c = Value::from(if n > 1 { n * r } else { n });
+                        }
+                    }
+                    Some("voronoi") => {
+                        mesh["sites"] = Value::from(mesh["sites"].as_u64().unwrap_or(1) * r * r)
+                    }
+                    _ => {
+                        return Err(Error::scene(
+                            format!("bodies[{k}].mesh"),
+                            "`refine` needs a grid or Voronoi mesh",
+                        ))
+                    }
+                }
+            }
+        }
+        Key::Formulation => {
+            let penalty = scene["formulation"]["penalty"].as_f64().unwrap_or(10.0);
+            scene["formulation"] = if value == "rigid" {
+                serde_json::json!({"kind": "rigid"})
+            } else {
+                serde_json::json!({"kind": "hybrid", "penalty": penalty})
+            };
+        }
+        Key::Penalty => {
+            scene["formulation"] = serde_json::json!({"kind": "hybrid", "penalty": number(value)})
+        }
+        Key::Evaluator => scene["evaluator"] = Value::from(value),
+        Key::Contact => {
+            if scene.get("contact").is_none_or(Value::is_null) {
+                return Err(Error::scene(
+                    "--sweep contact",
+                    "the scene declares no `contact`",
+                ));
+            }
+            scene["contact"]["model"] = Value::from(value);
+        }
+    }
+    Ok(())
+}
+
+/// Linux: the peak resident set is reset before a point and read after it.
+fn reset_peak_memory() {
+    let _ = std::fs::write("/proc/self/clear_refs", "5");
+}
+
+fn peak_memory_mib() -> Option<f64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    Some(line.split_whitespace().nth(1)?.parse::<f64>().ok()? / 1024.0)
+}
+
+/// Runs one point and measures it.
+fn run_point(
+    scene: &Scene,
+    settings: Vec<(Key, String)>,
+    probes: &[Probe],
+) -> Result<(Point, Measure)> {
+    reset_peak_memory();
+    let start = Instant::now();
+    let p = Prepared::new(scene, &RunOptions::default())?;
+    let setup_s = start.elapsed().as_secs_f64();
+    let model = &p.model;
+    let nd = model.formulation.ndof();
+    let mut cd = p.integrator(p.dt);
+    let clock = Instant::now();
+    let (status, measure) = if matches!(scene.reference, Some(ReferenceSpec::HoppingBlock)) {
+        // Every step, until the first apex: the contact lasts a few dozen steps.
+        let ground = ground_height(model);
+        let mut tracker = Tracker::default();
+        let mut status = Status::Ok;
+        // Until the body falls again after its first rebound: the apex is then behind it.
+        let mut falling = false;
+        while cd.step < p.steps
+            && !(falling && tracker.bounces.first().is_some_and(|b| b.apex.is_finite()))
+        {
+            let n = (p.steps - cd.step).min(1000);
+            status = cd.run(
+                n,
+                1,
+                |s, _| {
+                    let vy = crate::analysis::hopping::centre_velocity(model, s.v).y;
+                    tracker.push(s.t, lowest_point(model, s.u) - ground, vy);
+                    falling = vy < 0.0;
+                    Ok(())
+                },
+                |_| (),
+            )?;
+            if status != Status::Ok {
+                break;
+            }
+        }
+        (
+            status,
+            Measure::Apex(tracker.bounces.first().map_or(f64::NAN, |b| b.apex)),
+        )
+    } else {
+        let cells: Vec<usize> = probes
+            .iter()
+            .map(|pr| element_at(model, pr.point))
+            .collect();
+        let mut histories = vec![Vec::new(); probes.len()];
+        let every = (p.steps / 2000).max(1);
+        let status = cd.run(
+            p.steps,
+            every,
+            |s, _| {
+                for ((&e, pr), h) in cells.iter().zip(probes).zip(&mut histories) {
+                    let ue = &s.u[e * nd..(e + 1) * nd];
+                    let value = match pr.dof {
+                        // Displacements at the probe's material point, rotations and strains as they are.
+                        0 | 1 => model
+                            .formulation
+                            .displacement(ue, pr.point - model.elements[e].props.centroid)[pr.dof],
+                        d => ue[d],
+                    };
+                    h.push((s.t, value));
+                }
+                Ok(())
+            },
+            |_| (),
+        )?;
+        (
+            status,
+            Measure::Histories(
+                histories,
+                cells
+                    .iter()
+                    .map(|&e| model.elements[e].props.centroid)
+                    .collect(),
+            ),
+        )
+    };
+    let stepping_s = clock.elapsed().as_secs_f64();
+    let status = status.describe();
+    let point = Point {
+        settings,
+        elements: model.elements.len(),
+        dofs: model.n_dofs(),
+        dt: p.dt,
+        dt_crit: p.dt_crit,
+        steps: cd.step,
+        setup_s,
+        stepping_s,
+        wall_s: setup_s + stepping_s,
+        peak_mib: peak_memory_mib(),
+        status,
+        error: None,
+        pareto: false,
+    };
+    Ok((point, measure))
+}
+
+/// The height of the (horizontal) ground of a hopping-block scene: its first segment's.
+fn ground_height(model: &Model) -> f64 {
+    model.ground.first().map_or(0.0, |g| g[0].y)
+}
+
+/// The element whose polygon contains `x` (the nearest centroid when none does: a point on a
+/// shared edge belongs to either side).
+fn element_at(model: &Model, x: Vec2) -> usize {
+    let mut best = (f64::INFINITY, 0);
+    for body in &model.bodies {
+        for c in 0..body.mesh.n_cells() {
+            let pts = body.mesh.cell_points(c);
+            let inside = (0..pts.len())
+                .all(|i| (pts[(i + 1) % pts.len()] - pts[i]).perp(&(x - pts[i])) >= -1e-12);
+            let e = body.first_element + c;
+            if inside {
+                return e;
+            }
+            let d = (area_properties(&pts).centroid - x).norm();
+            if d < best.0 {
+                best = (d, e);
+            }
+        }
+    }
+    best.1
+}
+
+/// Fills in every point's error; returns the reference's name and the error's definition.
+fn score(
+    scene: &Scene,
+    model: &Model,
+    runs: &mut [(Point, Measure)],
+    probes: &[Probe],
+) -> Result<(String, String)> {
+    let ok = |p: &Point| p.status == "ok";
+    match &scene.reference {
+        Some(ReferenceSpec::HoppingBlock) => {
+            let ground = ground_height(model);
+            let height = lowest_point(model, &vec![0.0; model.n_dofs()]) - ground;
+            for (p, m) in runs.iter_mut() {
+                if let (true, Measure::Apex(a)) = (ok(p), m) {
+                    p.error = a.is_finite().then(|| (*a - height).abs() / height);
+                }
+            }
+            Ok((format!("theory of the hopping block: the first apex returns to the drop height H = {height} m"), "|apex − H| / H".into()))
+        }
+        Some(ReferenceSpec::BarStep { probe }) => {
+            let k = probes
+                .iter()
+                .position(|p| &p.name == probe)
+                .expect("validated: the probe exists");
+            let bar = Bar::of(scene, model)?;
+            for (p, m) in runs.iter_mut() {
+                if let (true, Measure::Histories(h, at)) = (ok(p), m) {
+                    // At the centroid of the element that carried the probe (the rigid elements'
+                    // displacement jumps at their edges, where a refined mesh may put the point).
+                    let x = at[k].x - bar.origin;
+                    let exact: Vec<(f64, f64)> = h[k]
+                        .iter()
+                        .map(|&(t, _)| (t, bar.displacement(x, t)))
+                        .collect();
+                    p.error = Some(rms_difference(&h[k], &exact));
+                }
+            }
+            Ok((
+                format!("closed form of the bar (L = {} m) under a step end load, modal series of 4000 modes, at the centroid of the probe's element", bar.length),
+                format!("RMS over time of (u − u_exact) / RMS of u_exact, probe `{probe}`"),
+            ))
+        }
+        None => {
+            let finest = runs
+                .iter()
+                .enumerate()
+                .filter(|(_, r)| ok(&r.0))
+                .max_by(|a, b| {
+                    a.1 .0
+                        .elements
+                        .cmp(&b.1 .0.elements)
+                        .then(b.1 .0.dt.total_cmp(&a.1 .0.dt))
+                        .then(b.0.cmp(&a.0))
+                })
+                .map(|(i, _)| i)
+                .ok_or_else(|| {
+                    Error::scene(
+                        "--sweep",
+                        "every run of the sweep diverged: there is no reference",
+                    )
+                })?;
+            let name = describe(&runs[finest].0.settings);
+            let Measure::Histories(reference, _) = &runs[finest].1 else {
+                unreachable!("no closed form: histories")
+            };
+            let reference = reference.clone();
+            for (i, (p, m)) in runs.iter_mut().enumerate() {
+                if let (true, Measure::Histories(h, _)) = (ok(p), m) {
+                    p.error = (i != finest).then(|| {
+                        h.iter()
+                            .zip(&reference)
+                            .map(|(h, r)| rms_difference(h, &resample(r, h)))
+                            .fold(0.0, f64::max)
+                    });
+                }
+            }
+            let names: Vec<&str> = probes.iter().map(|p| p.name.as_str()).collect();
+            Ok((
+                format!("finest run of the sweep ({name})"),
+                format!(
+                    "largest over the probes ({}) of RMS(u − u_ref) / RMS(u_ref)",
+                    names.join(", ")
+                ),
+            ))
+        }
+    }
+}
+
+/// `key=value, ...` of a point.
+pub fn describe(settings: &[(Key, String)]) -> String {
+    if settings.is_empty() {
+        return "the scene as given".into();
+    }
+    settings
+        .iter()
+        .map(|(k, v)| format!("{}={v}", k.name()))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// `RMS(a − b) / RMS(b)` over matching samples.
+fn rms_difference(a: &[(f64, f64)], b: &[(f64, f64)]) -> f64 {
+    let diff: f64 = a.iter().zip(b).map(|(x, y)| (x.1 - y.1).powi(2)).sum();
+    let norm: f64 = b.iter().map(|y| y.1 * y.1).sum();
+    (diff / norm).sqrt()
+}
+
+/// `reference` interpolated linearly at the times of `at`.
+fn resample(reference: &[(f64, f64)], at: &[(f64, f64)]) -> Vec<(f64, f64)> {
+    at.iter()
+        .map(|&(t, _)| {
+            let k = reference
+                .partition_point(|r| r.0 < t)
+                .clamp(1, reference.len().max(2) - 1);
+            let (a, b) = (reference[k - 1], reference[k.min(reference.len() - 1)]);
+            let w = if b.0 > a.0 {
+                ((t - a.0) / (b.0 - a.0)).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            (t, a.1 + w * (b.1 - a.1))
+        })
+        .collect()
+}
+
+/// A bar fixed at `x = 0`, free at `x = L`, loaded at `t = 0` by the end traction `q`:
+/// `u(x, t) = (q/E)[x − Σ_n 2(−1)ⁿ/(L k_n²) sin(k_n x) cos(c k_n t)]`, `k_n = (2n+1)π/(2L)`,
+/// `c = √(E/ρ)`, with `E` the normal spring modulus `E/(1 − ν²)` of eq. 12.
+struct Bar {
+    origin: f64,
+    length: f64,
+    strain: f64,
+    speed: f64,
+}
+
+impl Bar {
+    fn of(scene: &Scene, model: &Model) -> Result<Bar> {
+        let field = "reference";
+        let body = scene
+            .bodies
+            .first()
+            .ok_or_else(|| Error::scene(field, "bar-step needs a body"))?;
+        let crate::input::scene::MeshSpec::Grid(grid) = &body.mesh else {
+            return Err(Error::scene(
+                field,
+                "bar-step needs the first body on a grid mesh",
+            ));
+        };
+        let q = body
+            .loads
+            .iter()
+            .find_map(|l| match l {
+                crate::input::scene::LoadSpec::Traction(t)
+                    if t.edge == crate::input::scene::EdgeSet::Side(crate::input::scene::Side::Right) =>
+                {
+                    Some(t.value[0])
+                }
+                _ => None,
+            })
+            .ok_or_else(|| {
+                Error::scene(
+                    field,
+                    "bar-step needs a traction on the right edge of the first body",
+                )
+            })?;
+        let e = model.bodies[0].moduli[0];
+        let rho = scene.materials[&body.material].rho;
+        Ok(Bar {
+            origin: grid.origin[0],
+            length: grid.size[0],
+            strain: q / e,
+            speed: (e / rho).sqrt(),
+        })
+    }
+
+    /// `u(x, t)`, `x` from the held end.
+    fn displacement(&self, x: f64, t: f64) -> f64 {
+        let l = self.length;
+        let series: f64 = (0..4000)
+            .map(|n| {
+                let k = (2 * n + 1) as f64 * std::f64::consts::PI / (2.0 * l);
+                let sign = if n % 2 == 0 { 1.0 } else { -1.0 };
+                2.0 * sign / (l * k * k) * (k * x).sin() * (self.speed * k * t).cos()
+            })
+            .sum();
+        self.strain * (x - series)
+    }
+}
+
+/// Marks the points on the Pareto front of (wall time, error).
+fn mark_pareto(points: &mut [Point]) {
+    let snapshot: Vec<(f64, Option<f64>)> = points.iter().map(|p| (p.wall_s, p.error)).collect();
+    for (i, p) in points.iter_mut().enumerate() {
+        let Some(e) = p.error else { continue };
+        p.pareto = !snapshot.iter().enumerate().any(|(j, &(w, other))| {
+            j != i && other.is_some_and(|o| (o <= e && w < p.wall_s) || (o < e && w <= p.wall_s))
+        });
+    }
+}
+
+impl Report {
+    /// Writes `tradeoff.csv`, `tradeoff.md` and `tradeoff.svg` into `dir`.
+    pub fn write(&self, dir: &Path) -> Result<()> {
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        let keys: Vec<&str> = self
+            .points
+            .first()
+            .map(|p| p.settings.iter().map(|s| s.0.name()).collect())
+            .unwrap_or_default();
+        let mut csv = keys.iter().map(|k| format!("{k},")).collect::<String>();
+        csv.push_str("elements,dofs,dt,dt_crit,steps,setup_s,stepping_s,wall_s,peak_mib,error,pareto,status\n");
+        let mut md = format!(
+            "Scene `{}`. Reference: {}. Error: {}.\n\n",
+            self.scene, self.reference, self.error
+        );
+        md.push_str(&format!("| {} | elements | Δt (s) | Δt/Δt_crit | steps | wall (s) | peak (MiB) | error | Pareto |\n", keys.join(" | ")));
+        md.push_str(&format!(
+            "|{}---|---|---|---|---|---|---|---|\n",
+            "---|".repeat(keys.len())
+        ));
+        for p in &self.points {
+            let values: Vec<&str> = p.settings.iter().map(|s| s.1.as_str()).collect();
+            let err = p.error.map_or(String::new(), |e| format!("{e:.4e}"));
+            let peak = p.peak_mib.map_or(String::new(), |m| format!("{m:.1}"));
+            csv.push_str(&values.iter().map(|v| format!("{v},")).collect::<String>());
+            csv.push_str(&format!(
+                "{},{},{:e},{:e},{},{:.6},{:.6},{:.6},{peak},{err},{},\"{}\"\n",
+                p.elements,
+                p.dofs,
+                p.dt,
+                p.dt_crit,
+                p.steps,
+                p.setup_s,
+                p.stepping_s,
+                p.wall_s,
+                p.pareto,
+                p.status.replace('"', "'")
+            ));
+            let err_md = match (&p.error, p.status.as_str()) {
+                (Some(e), _) => format!("{e:.3e}"),
+                (None, "ok") => "reference".into(),
+                (None, s) => s.split(':').next().unwrap_or(s).to_string(),
+            };
+            md.push_str(&format!(
+                "| {} | {} | {:.3e} | {:.3} | {} | {:.3e} | {peak} | {err_md} | {} |\n",
+                values.join(" | "),
+                p.elements,
+                p.dt,
+                p.dt / p.dt_crit,
+                p.steps,
+                p.wall_s,
+                if p.pareto { "◆" } else { "" }
+            ));
+        }
+        let write = |name: &str, text: &str| {
+            std::fs::write(dir.join(name), text).map_err(|e| Error::io(dir.join(name), e))
+        };
+        write("tradeoff.csv", &csv)?;
+        write("tradeoff.md", &md)?;
+        let pts: Vec<(f64, f64, bool, String)> = self
+            .points
+            .iter()
+            .filter_map(|p| {
+                p.error
+                    .filter(|e| *e > 0.0)
+                    .map(|e| (p.wall_s, e, p.pareto, describe(&p.settings)))
+            })
+            .collect();
+        crate::output::plot::pareto(
+            &dir.join("tradeoff.svg"),
+            &format!("{}: error against wall time", self.scene),
+            &pts,
+        )
+    }
+}

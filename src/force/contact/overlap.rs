@@ -1,0 +1,744 @@
+//! Edge-to-edge contact (§3.2 of the paper) as a temporary interface over the overlap: every
+//! boundary edge of a body against every element of another body (and every ground strip) that
+//! it enters, with the normal traction `k_n δ_n` and a tangential traction per unit length.
+//!
+//! The normal part derives from one potential, so it conserves energy. Inside a target element
+//! a point's penetration is its distance to the element's surface, measured to the face that
+//! minimises `√k_n · δ_n` over the faces on the body's boundary (a weighted nearest-face
+//! partition of the element; faces shared with other elements of the same body only bound
+//! it). The energy density `½ k_n δ_n²` is then continuous: zero where a source edge leaves
+//! the target, equal on both sides of a partition line. Each piece of a source edge that
+//! lies in one face's part is linear in `δ_n`, so 2-point Gauss on the clipped piece is exact
+//! for force and moment, and the pieces' end terms cancel: the forces are the exact gradient.
+//! A ground segment is the strip below it, closed at a free end by a wall perpendicular to it
+//! (so a body sliding past the end is let go smoothly) and at a joint with the next segment by
+//! the bisector of the two, which hands a body over from one segment to the next.
+//!
+//! Measuring the depth to the face that a vertex path crossed (eqs. 18–19), as before, made
+//! every edge next to a contact vertex an interface with that face over its whole length: a
+//! brick whose corner entered a neighbour's face beside that neighbour's corner had its side
+//! edge pushed as if 10 mm deep (paper_notes C10).
+//!
+//! Between two bodies both take the role of the source, each with half the spring, so that two
+//! flat faces pressed together carry `k_n` of eq. 12 once, whichever body comes first.
+//!
+//! The tangential traction of a piece is `−k_s s δ_n(ξ)/δ̄_n`, `s` its slip (the relative
+//! tangential displacement at the piece's centre of pressure, summed over the steps since it
+//! formed) and `δ̄_n` its mean depth: it follows the penetration profile, and the Coulomb
+//! limit `k_s |s| ≤ μ k_n δ̄_n` (a return mapping on `s`) holds at every point of the piece.
+
+use super::{frame, Frames, Ledger, NONE};
+use crate::mesh::buckets::{boxes_meet, moved_beyond, BucketLists, Buckets};
+use crate::mesh::geometry::Vec2;
+use crate::model::{Model, GROUND};
+use rayon::prelude::*;
+use std::collections::HashSet;
+
+/// A region that boundary edges can enter: an element with an edge on its body's boundary (a
+/// convex polygon) or the strip below a ground segment.
+#[derive(Debug, Clone, Copy, serde::Serialize, serde::Deserialize)]
+struct Target {
+    /// The element, or [`GROUND`].
+    element: u32,
+    /// The body, or [`NONE`] for the ground.
+    body: u32,
+    /// Its corners are `corners[first..first + count]`, counter-clockwise; face `k` runs from
+    /// corner `k` to corner `k + 1`, and is `faces[first + k]`.
+    first: u32,
+    count: u32,
+}
+
+/// A face of a target.
+#[derive(Debug, Clone, Copy, serde::Serialize, serde::Deserialize)]
+struct Face {
+    /// Compliances `h / E_n`, `h / E_s` of its side (zero for the ground).
+    compliance: [f64; 2],
+    /// Whether it is a surface (on the body's boundary, a ground segment or a free end of one)
+    /// or only bounds the target (shared with another element, a joint between segments).
+    surface: bool,
+}
+
+/// A boundary edge of a body as the source of contact: its end points are two corners of its
+/// element's target.
+#[derive(Debug, Clone, Copy, serde::Serialize, serde::Deserialize)]
+struct Source {
+    element: u32,
+    body: u32,
+    ends: [u32; 2],
+    compliance: [f64; 2],
+}
+
+/// A piece of a source edge inside one face's part of a target, live this step.
+#[derive(Debug, Clone, Copy, serde::Serialize, serde::Deserialize)]
+struct Piece {
+    source: u32,
+    face: u32,
+    /// Tangential slip `s` (m).
+    slip: f64,
+}
+
+/// The state of edge-to-edge contact: targets, the neighbour list and the slips of the pieces.
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+pub(super) struct Overlap {
+    targets: Vec<Target>,
+    faces: Vec<Face>,
+    /// Reference offsets of the corners from their element's centroid; ground corners absolute.
+    offsets: Vec<Vec2>,
+    /// Current corners.
+    corners: Vec<Vec2>,
+    /// Current face lines: a point, the unit tangent and the outward normal.
+    lines: Vec<(Vec2, Vec2, Vec2)>,
+    /// Corners at the last rebuild of the neighbour list.
+    anchors: Vec<Vec2>,
+    /// Per target, its farthest corner from the centroid (m) and its element's `(u, v, θ)` at
+    /// the last rebuild (rigid formulation).
+    reach: Vec<(f64, [f64; 3])>,
+    /// Whether the formulation is rigid (the idle test bounds rigid motion only).
+    rigid: bool,
+    sources: Vec<Source>,
+    /// Pairs `(source, target)` whose boxes, widened by the skin, overlapped at the last
+    /// rebuild; sorted.
+    candidates: Vec<(u32, u32)>,
+    /// The neighbour list is rebuilt when a corner has moved more than half of this (m).
+    skin: f64,
+    /// Rebuilds of the neighbour list so far.
+    pub rebuilds: u64,
+    /// The force of the ground on the bodies at the last evaluation (N).
+    pub ground: Vec2,
+    buckets: BucketLists,
+    /// Live pieces, sorted by `(source, face)`, and those of this step being found.
+    pieces: Vec<Piece>,
+    next: Vec<Piece>,
+    /// The narrow phase's work, block by block (kept: no allocation in the step).
+    #[serde(skip)]
+    blocks: Vec<Block>,
+    thickness: f64,
+    factor: f64,
+    friction: Option<f64>,
+    /// No evaluation yet: no step to measure slips over, and the neighbour list to build.
+    fresh: bool,
+}
+
+/// Candidates per block of the narrow phase (a rayon task).
+const BLOCK: usize = 1024;
+
+/// What one step's narrow phase reads.
+struct Step<'a> {
+    frames: &'a Frames,
+    u: &'a [f64],
+    /// `v^{n−½}`: the step that led here moved the bodies by `Δt v^{n−½}`.
+    velocity: &'a [f64],
+    dt: f64,
+}
+
+/// What a block of candidates gives: generalised forces on elements, live pieces, the ground's
+/// force and the stored energy.
+#[derive(Debug, Clone, Default)]
+struct Block {
+    faces: Vec<FaceNow>,
+    /// Where the last step's pieces reach this block's keys.
+    cursor: usize,
+    forces: Vec<(u32, [f64; 6])>,
+    /// The force on the source element of the last pieces, still open to the next ones.
+    pending: Option<(u32, [f64; 6])>,
+    pieces: Vec<Piece>,
+    ground: Vec2,
+    energy: f64,
+}
+
+/// `a += b`.
+fn add(a: &mut [f64; 6], b: &[f64; 6]) {
+    for (a, b) in a.iter_mut().zip(b) {
+        *a += b;
+    }
+}
+
+impl Block {
+    /// Adds `q` to the force on source element `element`, kept open while the pieces of that
+    /// element follow one another (they do: the candidates run in source order).
+    fn add_source(&mut self, element: u32, q: &[f64; 6]) {
+        match &mut self.pending {
+            Some((e, open)) if *e == element => add(open, q),
+            pending => {
+                if let Some(done) = pending.replace((element, *q)) {
+                    self.forces.push(done);
+                }
+            }
+        }
+    }
+
+    /// Closes the open source force at the end of the block.
+    fn finish(&mut self) {
+        if let Some(done) = self.pending.take() {
+            self.forces.push(done);
+        }
+    }
+
+    /// Empties the block for `candidates` candidates, with room for two pieces each (a source
+    /// edge rarely lies in more than two faces' parts of one target) and their forces.
+    fn clear(&mut self, candidates: usize) {
+        self.forces.clear();
+        self.pieces.clear();
+        self.forces.reserve(8 * candidates);
+        self.pieces.reserve(2 * candidates);
+        self.ground = Vec2::zeros();
+        self.energy = 0.0;
+    }
+}
+
+/// A piece of a source edge in one face's part of a target: the face, its springs, the depth
+/// below it at both ends of the source edge and its axes `(s, n)`, the source edge's ends, the
+/// piece's range of the edge parameter `ξ` and the edge's length.
+#[derive(Debug, Clone, Copy)]
+struct Span {
+    face: usize,
+    k: [f64; 2],
+    depth: [f64; 2],
+    axes: (Vec2, Vec2),
+    ends: [Vec2; 2],
+    range: (f64, f64),
+    length: f64,
+}
+
+/// A face of the target at hand, in the current configuration.
+#[derive(Debug, Clone, Copy, Default)]
+struct FaceNow {
+    /// Depth below its line at both ends of the source edge (linear along it).
+    depth: [f64; 2],
+    /// Its unit tangent and outward normal.
+    axes: (Vec2, Vec2),
+    /// Normal spring against the source edge (Pa/m), and its square root (surface faces).
+    spring: f64,
+    root: f64,
+    surface: bool,
+}
+
+impl Overlap {
+    /// `skin` (m): the neighbour list is rebuilt when a corner has moved half of it.
+    pub fn new(model: &Model, friction: Option<f64>, skin: f64) -> Overlap {
+        let mut targets = Vec::new();
+        let mut faces = Vec::new();
+        let mut offsets = Vec::new();
+        let mut sources = Vec::new();
+        for (bi, body) in model.bodies.iter().enumerate() {
+            let mesh = &body.mesh;
+            let on_boundary: HashSet<(u32, u32)> =
+                mesh.boundary.iter().map(|e| (e.cell, e.v1)).collect();
+            let mut cells: Vec<u32> = mesh.boundary.iter().map(|e| e.cell).collect();
+            cells.sort_unstable();
+            cells.dedup();
+            for c in cells {
+                let element = body.first_element + c as usize;
+                let centroid = model.elements[element].props.centroid;
+                let cell = mesh.cell(c as usize);
+                let first = offsets.len() as u32;
+                for (k, &v) in cell.iter().enumerate() {
+                    let (p1, p2) = (
+                        mesh.vertices[v as usize],
+                        mesh.vertices[cell[(k + 1) % cell.len()] as usize],
+                    );
+                    let (_, n, _) = frame(p1, p2);
+                    let h = (p1 - centroid).dot(&n).abs();
+                    let compliance = [h / body.moduli[0], h / body.moduli[1]];
+                    let surface = on_boundary.contains(&(c, v));
+                    offsets.push(p1 - centroid);
+                    faces.push(Face {
+                        compliance,
+                        surface,
+                    });
+                    if surface {
+                        let ends = [first + k as u32, first + ((k + 1) % cell.len()) as u32];
+                        sources.push(Source {
+                            element: element as u32,
+                            body: bi as u32,
+                            ends,
+                            compliance,
+                        });
+                    }
+                }
+                targets.push(Target {
+                    element: element as u32,
+                    body: bi as u32,
+                    first,
+                    count: cell.len() as u32,
+                });
+            }
+        }
+        for (gi, g) in model.ground.iter().enumerate() {
+            // The strip below the segment, stored `to → from` as a body's boundary is (solid on
+            // the left), closed at each end by a wall: perpendicular at a free end, the bisector
+            // with the next segment at a joint.
+            let (from, to) = (g[0], g[1]);
+            let (_, n, length) = frame(to, from);
+            let depth = 1.0e3 * length;
+            let wall = |at: Vec2, other: Option<Vec2>| match other {
+                // The other segment's normal at the joint: the wall bisects the two.
+                Some(o) => {
+                    let (_, m, _) = if at == from {
+                        frame(from, o)
+                    } else {
+                        frame(o, to)
+                    };
+                    (-(n + m).normalize(), false)
+                }
+                None => (-n, true),
+            };
+            let joined = |at: Vec2, me_from: bool| {
+                model.ground.iter().enumerate().find_map(|(j, h)| {
+                    // A joint: this segment's `from` is another's `to`, or the reverse.
+                    let (end, other) = if me_from { (h[1], h[0]) } else { (h[0], h[1]) };
+                    (j != gi && end == at).then_some(other)
+                })
+            };
+            let (down_from, free_from) = wall(from, joined(from, true));
+            let (down_to, free_to) = wall(to, joined(to, false));
+            let first = offsets.len() as u32;
+            offsets.extend([to, from, from + depth * down_from, to + depth * down_to]);
+            faces.extend([
+                Face {
+                    compliance: [0.0; 2],
+                    surface: true,
+                },
+                Face {
+                    compliance: [0.0; 2],
+                    surface: free_from,
+                },
+                Face {
+                    compliance: [0.0; 2],
+                    surface: false,
+                },
+                Face {
+                    compliance: [0.0; 2],
+                    surface: free_to,
+                },
+            ]);
+            targets.push(Target {
+                element: GROUND,
+                body: NONE,
+                first,
+                count: 4,
+            });
+        }
+        let corners = offsets.clone();
+        let lines = vec![(Vec2::zeros(), Vec2::zeros(), Vec2::zeros()); corners.len()];
+        let reach = targets
+            .iter()
+            .map(|t| {
+                let r = offsets[t.first as usize..(t.first + t.count) as usize]
+                    .iter()
+                    .map(|d| d.norm())
+                    .fold(0.0, f64::max);
+                (r, [0.0; 3])
+            })
+            .collect();
+        let n_sources = sources.len();
+        let mut overlap = Overlap {
+            anchors: vec![Vec2::repeat(f64::INFINITY); corners.len()],
+            corners,
+            lines,
+            reach,
+            rigid: model.formulation == crate::model::formulation::Formulation::Rigid,
+            offsets,
+            faces,
+            buckets: BucketLists::with_capacity(targets.len()),
+            targets,
+            sources,
+            candidates: Vec::with_capacity(8 * n_sources),
+            skin,
+            rebuilds: 0,
+            ground: Vec2::zeros(),
+            blocks: Vec::new(),
+            pieces: Vec::with_capacity(4 * n_sources),
+            next: Vec::with_capacity(4 * n_sources),
+            thickness: model.thickness,
+            factor: model.formulation.spring_factor(),
+            friction,
+            fresh: true,
+        };
+        overlap.place_lines(true);
+        overlap
+    }
+
+    /// The contact forces of state `u` into `ledger`; `velocity` is `v^{n−½}`, so that the step
+    /// that led here moved the bodies by `Δt v^{n−½}` (not used at the first evaluation).
+    /// Returns the energy stored in the contact springs (J).
+    /// `tests` counts the narrow-phase tests (source edge against target).
+    pub fn forces(
+        &mut self,
+        frames: &Frames,
+        u: &[f64],
+        velocity: &[f64],
+        dt: f64,
+        ledger: &mut Ledger,
+        tests: &mut u64,
+    ) -> f64 {
+        self.place(frames, u);
+        if moved_beyond(&self.corners, &self.anchors, 0.5 * self.skin) {
+            self.rebuild(u);
+            self.rebuilds += 1;
+        }
+        if self.candidates.is_empty() {
+            self.pieces.clear();
+            self.ground = Vec2::zeros();
+            self.fresh = false;
+            return 0.0;
+        }
+        self.place_lines(false);
+        // The narrow phase in blocks of candidates, in parallel; the blocks' forces, pieces and
+        // energies then join in block order, so the sums do not depend on the thread count.
+        let n = self.candidates.len().div_ceil(BLOCK);
+        if self.blocks.len() < n {
+            self.blocks.resize_with(n, Block::default);
+        }
+        let mut blocks = std::mem::take(&mut self.blocks);
+        let at = Step {
+            frames,
+            u,
+            velocity,
+            dt,
+        };
+        let this = &*self;
+        let work = |(block, chunk): (&mut Block, &[(u32, u32)])| {
+            block.clear(chunk.len());
+            block.cursor = this.pieces.partition_point(|p| p.source < chunk[0].0);
+            for &(source, target) in chunk {
+                this.pair(&at, block, source, target);
+            }
+            block.finish();
+        };
+        if n > 1 {
+            blocks[..n]
+                .par_iter_mut()
+                .zip(self.candidates.par_chunks(BLOCK))
+                .for_each(work);
+        } else {
+            blocks[..n]
+                .iter_mut()
+                .zip(self.candidates.chunks(BLOCK))
+                .for_each(work);
+        }
+        self.next.clear();
+        self.ground = Vec2::zeros();
+        let mut energy = 0.0;
+        let nd = frames.formulation.ndof();
+        for block in &blocks[..n] {
+            for (e, q) in &block.forces {
+                ledger.add(*e as usize, &q[..nd]);
+            }
+            self.next.extend_from_slice(&block.pieces);
+            self.ground += block.ground;
+            energy += block.energy;
+        }
+        self.blocks = blocks;
+        *tests += self.candidates.len() as u64;
+        std::mem::swap(&mut self.pieces, &mut self.next);
+        self.fresh = false;
+        energy
+    }
+
+    /// The number of live pieces.
+    pub fn len(&self) -> usize {
+        self.pieces.len()
+    }
+
+    /// Whether this step has nothing to do: no candidates, and no rigid target can have moved
+    /// half the skin since the last rebuild (`|Δu| + r |Δθ|`, `r` its farthest corner), so
+    /// that not even the corners need placing (a body in flight).
+    pub fn idle(&self, u: &[f64]) -> bool {
+        if !self.candidates.is_empty() || self.fresh || !self.rigid {
+            return false;
+        }
+        let limit = 0.5 * self.skin;
+        self.targets.iter().zip(&self.reach).all(|(t, &(r, a))| {
+            let e = t.element as usize;
+            t.element == GROUND || {
+                let (du, dv, dth) = (u[3 * e] - a[0], u[3 * e + 1] - a[1], u[3 * e + 2] - a[2]);
+                (du * du + dv * dv).sqrt() + r * dth.abs() <= limit
+            }
+        })
+    }
+
+    /// Current corners of every body target (the ground's are fixed).
+    fn place(&mut self, frames: &Frames, u: &[f64]) {
+        for t in self.targets.iter().filter(|t| t.element != GROUND) {
+            let r = t.first as usize..(t.first + t.count) as usize;
+            frames.place_all(
+                u,
+                t.element as usize,
+                &self.offsets[r.clone()],
+                &mut self.corners[r],
+            );
+        }
+    }
+
+    /// Current face lines of the body targets, or with `ground`, of the ground's (fixed).
+    fn place_lines(&mut self, ground: bool) {
+        for t in self
+            .targets
+            .iter()
+            .filter(|t| (t.element == GROUND) == ground)
+        {
+            let r = t.first as usize..(t.first + t.count) as usize;
+            let (corners, m) = (&self.corners[r.clone()], t.count as usize);
+            for (k, line) in self.lines[r].iter_mut().enumerate() {
+                let (a, b) = (corners[k], corners[(k + 1) % m]);
+                let (s, n, _) = frame(a, b);
+                *line = (a, s, n);
+            }
+        }
+    }
+
+    /// The neighbour list: every source edge against every target of another body whose box,
+    /// widened by the skin, its own widened box overlaps.
+    fn rebuild(&mut self, u: &[f64]) {
+        self.anchors.copy_from_slice(&self.corners);
+        if self.rigid {
+            for (t, reach) in self
+                .targets
+                .iter()
+                .zip(&mut self.reach)
+                .filter(|(t, _)| t.element != GROUND)
+            {
+                let e = t.element as usize;
+                reach.1 = [u[3 * e], u[3 * e + 1], u[3 * e + 2]];
+            }
+        }
+        let widen = Vec2::repeat(self.skin);
+        let boxes = |t: &Target| {
+            let c = &self.corners[t.first as usize..(t.first + t.count) as usize];
+            let (lo, hi) = c
+                .iter()
+                .fold((c[0], c[0]), |(lo, hi), x| (lo.inf(x), hi.sup(x)));
+            (lo - widen, hi + widen)
+        };
+        // The grid spans the bodies; the ground strips, deep below their segments, are filed
+        // under the buckets they reach.
+        let (mut lo, mut hi) = (Vec2::repeat(f64::INFINITY), Vec2::repeat(f64::NEG_INFINITY));
+        for t in self.targets.iter().filter(|t| t.element != GROUND) {
+            let (a, b) = boxes(t);
+            lo = lo.inf(&a);
+            hi = hi.sup(&b);
+        }
+        let grid = Buckets::new(lo, hi, self.targets.len());
+        let targets = &self.targets;
+        self.buckets
+            .fill(&grid, targets.len(), |k| boxes(&targets[k]));
+        self.candidates.clear();
+        for (si, s) in self.sources.iter().enumerate() {
+            let [a, b] = s.ends.map(|i| self.corners[i as usize]);
+            let (slo, shi) = (a.inf(&b) - widen, a.sup(&b) + widen);
+            for k in grid.touching(slo, shi) {
+                for &t in self.buckets.bucket(k) {
+                    let target = &self.targets[t as usize];
+                    if target.body == s.body {
+                        continue;
+                    }
+                    if boxes_meet(boxes(target), (slo, shi)) {
+                        self.candidates.push((si as u32, t));
+                    }
+                }
+            }
+        }
+        // A target filed under several buckets is found once per bucket.
+        self.candidates.sort_unstable();
+        self.candidates.dedup();
+    }
+
+    /// The pieces of source edge `si` inside target `ti`: their forces, pieces and stored
+    /// energy into `block`.
+    fn pair(&self, at: &Step, block: &mut Block, si: u32, ti: u32) {
+        let src = self.sources[si as usize];
+        let tgt = self.targets[ti as usize];
+        let [q1, q2] = src.ends.map(|i| self.corners[i as usize]);
+        // Every field that `pieces_of` reads it writes first: the room is only grown.
+        let mut now = std::mem::take(&mut block.faces);
+        if now.len() < tgt.count as usize {
+            now.resize(tgt.count as usize, FaceNow::default());
+        }
+        self.pieces_of(
+            at,
+            block,
+            si,
+            &src,
+            &tgt,
+            [q1, q2],
+            &mut now[..tgt.count as usize],
+        );
+        block.faces = now;
+    }
+
+    /// [`Overlap::pair`] with room for the target's faces in `now`.
+    #[allow(clippy::too_many_arguments)]
+    fn pieces_of(
+        &self,
+        at: &Step,
+        block: &mut Block,
+        si: u32,
+        src: &Source,
+        tgt: &Target,
+        [q1, q2]: [Vec2; 2],
+        now: &mut [FaceNow],
+    ) {
+        let m = tgt.count as usize;
+        // Depth below each face line at both ends of the source edge (linear along it), and
+        // the face's frame.
+        for (f, &(a, s, n)) in now.iter_mut().zip(&self.lines[tgt.first as usize..]) {
+            f.depth = [q1, q2].map(|q| -(q - a).dot(&n));
+            f.axes = (s, n);
+        }
+        // Quick reject: the whole edge outside one face.
+        if now.iter().any(|f| f.depth[0] <= 0.0 && f.depth[1] <= 0.0) {
+            return;
+        }
+        // The normal spring of eq. 12 with both sides' compliances on each surface face (the
+        // tangential one only where a piece forms).
+        let half = if tgt.element == GROUND { 1.0 } else { 0.5 };
+        let spring =
+            |face: &Face, c: usize| half * self.factor / (src.compliance[c] + face.compliance[c]);
+        for (k, f) in now.iter_mut().enumerate() {
+            let face = &self.faces[tgt.first as usize + k];
+            f.surface = face.surface;
+            if face.surface {
+                f.spring = spring(face, 0);
+                f.root = f.spring.sqrt();
+            }
+        }
+        let length = (q2 - q1).norm();
+        for i in 0..m {
+            if !now[i].surface {
+                continue;
+            }
+            let ri = now[i].root;
+            let (mut a, mut b) = (0.0f64, 1.0f64);
+            // Keeps where `v0 + ξ (v1 − v0) ≥ 0`; false once nothing is left. A constraint
+            // that holds at both ends (or at neither) needs no division.
+            let mut keep = |v: [f64; 2]| {
+                if v[0] >= 0.0 && v[1] >= 0.0 {
+                    return true;
+                }
+                if v[0] < 0.0 && v[1] < 0.0 {
+                    return false;
+                }
+                let dv = v[1] - v[0];
+                if dv > 0.0 {
+                    a = a.max(-v[0] / dv);
+                } else {
+                    b = b.min(-v[0] / dv);
+                }
+                b > a
+            };
+            let depth_i = now[i].depth;
+            let inside = keep(depth_i)
+                && now.iter().enumerate().all(|(j, f)| {
+                    j == i
+                        || if f.surface {
+                            // √k_j δ_j − √k_i δ_i ≥ 0: nearer to face i in the weighted sense.
+                            keep([0, 1].map(|e| f.root * f.depth[e] - ri * depth_i[e]))
+                        } else {
+                            keep(f.depth)
+                        }
+                });
+            if !inside || b <= a {
+                continue;
+            }
+            let ki = [
+                now[i].spring,
+                spring(&self.faces[tgt.first as usize + i], 1),
+            ];
+            let piece = Span {
+                face: i,
+                k: ki,
+                depth: now[i].depth,
+                axes: now[i].axes,
+                ends: [q1, q2],
+                range: (a, b),
+                length,
+            };
+            self.piece(at, block, src, tgt, si, &piece);
+        }
+    }
+
+    /// One piece of source edge `si` in the part of one face of `tgt`.
+    fn piece(&self, at: &Step, block: &mut Block, src: &Source, tgt: &Target, si: u32, p: &Span) {
+        let Span {
+            face: i,
+            k,
+            depth,
+            axes: (s, n),
+            ends: [q1, q2],
+            range: (a, b),
+            length,
+        } = *p;
+        let face = tgt.first + i as u32;
+        let lerp = |v: [f64; 2], xi: f64| v[0] + xi * (v[1] - v[0]);
+        let half = 0.5 * (b - a);
+        let w = half * length * self.thickness;
+        let gauss = [-1.0, 1.0].map(|g| a + half * (1.0 + g / 3f64.sqrt()));
+        let d = gauss.map(|xi| lerp(depth, xi));
+        let mean = 0.5 * (d[0] + d[1]);
+        // The slip: carried over from the last step, plus the relative tangential motion of
+        // the step at the centre of pressure; Coulomb's limit by return mapping.
+        // A block's pieces come in `(source, face)` order, as the last step's do: a cursor
+        // finds the last step's piece.
+        let key = (si, face);
+        let last = &self.pieces[block.cursor..];
+        let ahead = last.iter().take_while(|p| (p.source, p.face) < key).count();
+        block.cursor += ahead;
+        let mut slip = match self.pieces.get(block.cursor) {
+            Some(p) if (p.source, p.face) == key => p.slip,
+            _ => 0.0,
+        };
+        if mean > 0.0 && !self.fresh {
+            let centre = (d[0] * gauss[0] + d[1] * gauss[1]) / (d[0] + d[1]);
+            let x = q1 + centre * (q2 - q1);
+            let mut step = at
+                .frames
+                .increment(at.u, at.velocity, at.dt, src.element as usize, x);
+            if tgt.element != GROUND {
+                step -= at
+                    .frames
+                    .increment(at.u, at.velocity, at.dt, tgt.element as usize, x);
+            }
+            slip += step.dot(&s);
+        }
+        if let Some(mu) = self.friction {
+            // A depth that round-off leaves a hair below zero (bodies stacked on one another)
+            // holds no friction.
+            let limit = if k[1] > 0.0 {
+                (mu * k[0] * mean / k[1]).max(0.0)
+            } else {
+                0.0
+            };
+            slip = slip.clamp(-limit, limit);
+        }
+        block.pieces.push(Piece {
+            source: si,
+            face,
+            slip,
+        });
+        let (mut on_source, mut on_target) = ([0.0; 6], [0.0; 6]);
+        for (xi, di) in gauss.into_iter().zip(d) {
+            let stretch = if mean > 0.0 { slip * di / mean } else { 0.0 };
+            let (tn, ts) = (k[0] * di, -k[1] * stretch);
+            let x = q1 + xi * (q2 - q1);
+            let force = w * (tn * n + ts * s);
+            add(
+                &mut on_source,
+                &at.frames.generalised(at.u, src.element, x, force),
+            );
+            if tgt.element != GROUND {
+                add(
+                    &mut on_target,
+                    &at.frames.generalised(at.u, tgt.element, x, -force),
+                );
+            } else {
+                block.ground += force;
+            }
+            block.energy += 0.5 * w * (k[0] * di * di + k[1] * stretch * stretch);
+        }
+        block.add_source(src.element, &on_source);
+        if tgt.element != GROUND {
+            block.forces.push((tgt.element, on_target));
+        }
+    }
+}

@@ -1,0 +1,74 @@
+//! Evaluators: `U ↦ f_int(U)`, the internal forces of the model (eqs. 7–16;
+//! the crate documentation's *Assembled form* and *Element-wise form*).
+//!
+//! Two implementations of one contract, which the integrator cannot tell apart:
+//! [`Assembled`] multiplies by the global stiffness `K` of eq. 7; [`ElementWise`] sums, per
+//! element, the tractions on its own boundary (eq. 15) with no global matrix.
+
+mod assembled;
+mod element_wise;
+
+pub use assembled::{interface_stiffness, Assembled, BlockCsr};
+pub use element_wise::ElementWise;
+
+use crate::model::formulation::{Formulation, Hybrid, Rigid};
+use crate::model::mass::Update;
+use crate::model::Model;
+use crate::input::scene::EvaluatorKind;
+
+/// Internal forces of a model in a given state.
+pub trait Evaluator: Send + Sync {
+    /// Which evaluator this is.
+    fn kind(&self) -> EvaluatorKind;
+    /// `f = f_int(u)`; both slices hold `ndof` entries per element, element after element.
+    /// Allocation-free; parallel over elements; the result does not depend on the thread count.
+    fn internal_force(&self, u: &[f64], f: &mut [f64]);
+    /// The bytes of data it holds, all of which one evaluation reads.
+    fn bytes(&self) -> usize;
+    /// Whether it implements [`Evaluator::advance`].
+    fn fuses(&self) -> bool {
+        false
+    }
+    /// One explicit step fused with the evaluation (central difference, [`crate::step::integrator`]): with `force` holding the
+    /// rest of the net force, `−P − f_c`, each element gets `f_int(U^n) + force` and is advanced
+    /// by `update` as soon as its force is complete; `force` is left zero. `loaded` lists, in
+    /// order, the only elements where `force` may be non-zero (`None`: any element), so that a
+    /// step need not read the rest. Only for an evaluator that [`fuses`](Evaluator::fuses); the
+    /// others are evaluated and advanced in two passes.
+    fn advance(
+        &self,
+        _u: &mut [f64],
+        _v: &mut [f64],
+        _force: &mut [f64],
+        _loaded: Option<&[u32]>,
+        _update: &Update,
+    ) {
+        unreachable!("advance is only called on an evaluator that fuses")
+    }
+}
+
+/// The global stiffness `K` of eq. 7 as scalar triplets `(row, col, value)` over all DOFs.
+pub fn stiffness_triplets(model: &Model) -> Vec<(usize, usize, f64)> {
+    match model.formulation {
+        Formulation::Rigid => Assembled::<Rigid, 3>::new(model).stiffness.triplets(),
+        Formulation::Hybrid { .. } => Assembled::<Hybrid, 6>::new(model).stiffness.triplets(),
+    }
+}
+
+/// The evaluator `kind` for the model's formulation.
+pub fn build(model: &Model, kind: EvaluatorKind) -> Box<dyn Evaluator> {
+    match (model.formulation, kind) {
+        (Formulation::Rigid, EvaluatorKind::Assembled) => {
+            Box::new(Assembled::<Rigid, 3>::new(model))
+        }
+        (Formulation::Rigid, EvaluatorKind::ElementWise) => {
+            Box::new(ElementWise::<Rigid, 3>::new(model))
+        }
+        (Formulation::Hybrid { .. }, EvaluatorKind::Assembled) => {
+            Box::new(Assembled::<Hybrid, 6>::new(model))
+        }
+        (Formulation::Hybrid { .. }, EvaluatorKind::ElementWise) => {
+            Box::new(ElementWise::<Hybrid, 6>::new(model))
+        }
+    }
+}

@@ -1,0 +1,5 @@
+//! Stage 4, the forces: the internal forces of the interfaces ([`evaluator`], assembled or
+//! element-wise) and the contact forces between bodies ([`contact`]).
+
+pub mod contact;
+pub mod evaluator;

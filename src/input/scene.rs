@@ -1,0 +1,1408 @@
+//! The scene file: one JSON document, key names fixed, unknown keys refused. Every key, with
+//! its type, unit, default and range, is in `docs/scene.md`; [`schema`] (`rbsm
+//! schema`) is the JSON Schema of the same types, generated from them and their doc comments.
+//!
+//! Parsing names the JSON path of an unknown or mistyped key (`bodies[0].mesh.cels`);
+//! [`Scene::validate`] then checks every value against its allowed range.
+
+use crate::error::{Error, Result};
+use schemars::{json_schema, JsonSchema, Schema, SchemaGenerator};
+use serde::{Deserialize, Serialize};
+use std::borrow::Cow;
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// A scene of `rbsm` (a 2D Rigid-Bodies-Spring Model run with explicit dynamics): one JSON
+/// object; units SI (m, kg, s, N, Pa). Every key is described in the repository's
+/// `docs/scene.md`; `rbsm schema` prints this schema.
+#[derive(Debug, Clone, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+#[schemars(title = "rbsm scene")]
+pub struct Scene {
+    /// The JSON Schema the file follows, for editors (`rbsm schema > scene.schema.json`);
+    /// ignored by `rbsm`.
+    #[serde(rename = "$schema", default)]
+    pub schema: Option<String>,
+    /// Name of the scene, used in outputs.
+    pub name: String,
+    #[serde(default)]
+    /// `stress` (default) or `strain`.
+    pub plane: Plane,
+    /// Out-of-plane thickness `t` (m), > 0.
+    #[schemars(extend("exclusiveMinimum" = 0))]
+    pub thickness: f64,
+    /// `rigid` or `hybrid` with its penalty.
+    pub formulation: FormulationSpec,
+    #[serde(default)]
+    /// `assembled` (default) or `element-wise`.
+    pub evaluator: EvaluatorKind,
+    /// Gravitational acceleration `[g_x, g_y]` (m/s²), global components; none when absent.
+    #[serde(default)]
+    pub gravity: Option<[f64; 2]>,
+    /// Mass-proportional damping coefficient `α` (1/s), ≥ 0: `C = α M`. Optional, default none.
+    #[serde(default)]
+    #[schemars(range(min = 0))]
+    pub damping: Option<f64>,
+    /// Materials by name (at least one).
+    #[schemars(extend("minProperties" = 1))]
+    pub materials: BTreeMap<String, MaterialSpec>,
+    /// The meshed bodies (at least one).
+    #[schemars(length(min = 1))]
+    pub bodies: Vec<BodySpec>,
+    #[serde(default)]
+    /// Rigid ground segments for contact.
+    pub ground: Vec<GroundSpec>,
+    #[serde(default)]
+    /// Contact between bodies and with the ground; none when absent.
+    pub contact: Option<ContactSpec>,
+    /// Time step and duration.
+    pub time: TimeSpec,
+    #[serde(default)]
+    /// What a run writes.
+    pub output: OutputSpec,
+    /// What `rbsm tradeoff` measures the error against, when the scene has a closed form or a
+    /// theory; without it the finest run of the sweep is the reference.
+    #[serde(default)]
+    pub reference: Option<ReferenceSpec>,
+}
+
+/// A closed form or theory for the error of `rbsm tradeoff` (`kind`: `hopping-block` or
+/// `bar-step`).
+#[derive(Debug, Clone, PartialEq, Serialize, JsonSchema)]
+#[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
+pub enum ReferenceSpec {
+    /// The first bounce of a body dropped on horizontal ground: its apex returns to the drop
+    /// height (the paper's hopping block, module `hopping`).
+    HoppingBlock,
+    /// An axial bar (the first body, a grid from `origin.x` to `origin.x + size.x`) held by a
+    /// ground spring on its left edge, loaded at `t = 0` by the traction of its right edge: the
+    /// displacement history of the named probe against the bar's modal series.
+    BarStep {
+        /// The probe (a `u` DOF) whose history is compared.
+        probe: String,
+    },
+}
+
+/// Plane stress or plane strain (eq. 12 and its plane-strain form).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum Plane {
+    #[default]
+    /// Plane stress (default).
+    Stress,
+    /// Plane strain.
+    Strain,
+}
+
+/// Which displacement field an element carries (`kind`: `rigid` or `hybrid`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, JsonSchema)]
+#[serde(tag = "kind", rename_all = "lowercase", deny_unknown_fields)]
+pub enum FormulationSpec {
+    /// Plain RBSM: `(u, v, θ)` per element (eq. 10).
+    Rigid,
+    /// Rigid plus constant strain (eqs. 5, 8), springs `penalty` times eq. 12.
+    Hybrid {
+        /// The penalty factor `p > 0` (dimensionless): larger is more accurate (error O(1/p))
+        /// and costs time step (`Δt_crit ∝ 1/√p`).
+        #[schemars(extend("exclusiveMinimum" = 0))]
+        penalty: f64,
+    },
+}
+
+/// The keys of a `kind` that has none: an object with only `kind` (serde's internally tagged
+/// unit variants would accept and drop any other key, so `{"kind": "rigid", "penalty": 100}`
+/// would pass silently).
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct NoKeys {}
+
+/// The keys of `{"kind": "hybrid", ...}`.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct HybridKeys {
+    penalty: f64,
+}
+
+/// The keys of `{"kind": "bar-step", ...}`.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct BarStepKeys {
+    probe: String,
+}
+
+impl<'de> Deserialize<'de> for FormulationSpec {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        let (kind, rest) = split_kind(d)?;
+        match kind.as_str() {
+            "rigid" => variant(rest).map(|NoKeys {}| FormulationSpec::Rigid),
+            "hybrid" => {
+                variant(rest).map(|HybridKeys { penalty }| FormulationSpec::Hybrid { penalty })
+            }
+            other => Err(unknown_kind(other, &["rigid", "hybrid"])),
+        }
+    }
+}
+
+impl<'de> Deserialize<'de> for ReferenceSpec {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        let (kind, rest) = split_kind(d)?;
+        match kind.as_str() {
+            "hopping-block" => variant(rest).map(|NoKeys {}| ReferenceSpec::HoppingBlock),
+            "bar-step" => {
+                variant(rest).map(|BarStepKeys { probe }| ReferenceSpec::BarStep { probe })
+            }
+            other => Err(unknown_kind(other, &["hopping-block", "bar-step"])),
+        }
+    }
+}
+
+/// Which evaluator computes the internal forces (module `evaluator`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "kebab-case")]
+pub enum EvaluatorKind {
+    /// Global sparse `K`, `f = K U` (eqs. 7–13).
+    #[default]
+    Assembled,
+    /// Per element, the resultant of the tractions on its boundary (eqs. 15–16).
+    ElementWise,
+}
+
+impl EvaluatorKind {
+    /// The name used in scenes and outputs.
+    pub fn name(self) -> &'static str {
+        match self {
+            EvaluatorKind::Assembled => "assembled",
+            EvaluatorKind::ElementWise => "element-wise",
+        }
+    }
+}
+
+/// An isotropic linear-elastic material.
+#[derive(Debug, Clone, Copy, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct MaterialSpec {
+    /// Young's modulus (Pa), > 0.
+    #[serde(rename = "E")]
+    #[schemars(extend("exclusiveMinimum" = 0))]
+    pub e: f64,
+    /// Poisson's ratio (dimensionless), in (−1, 0.5).
+    #[schemars(extend("exclusiveMinimum" = -1, "exclusiveMaximum" = 0.5))]
+    pub nu: f64,
+    /// Density (kg/m³), > 0.
+    #[schemars(extend("exclusiveMinimum" = 0))]
+    pub rho: f64,
+}
+
+/// One body: a meshed region of one material.
+#[derive(Debug, Clone, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct BodySpec {
+    /// Name of the body, used in messages.
+    pub name: String,
+    /// Name of its material in `materials`.
+    pub material: String,
+    /// How it is cut into elements.
+    pub mesh: MeshSpec,
+    #[serde(default)]
+    /// Ground springs and clamps.
+    pub supports: Vec<SupportSpec>,
+    #[serde(default)]
+    /// Tractions and point forces.
+    pub loads: Vec<LoadSpec>,
+    #[serde(default)]
+    /// Initial velocity, spin and rotation.
+    pub initial: InitialSpec,
+    /// Copies of the body on a regular pattern (a wall, a pack), each a body of its own.
+    #[serde(default)]
+    pub array: Option<ArraySpec>,
+}
+
+/// `count = [nx, ny]` copies of a body: copy `(i, j)` is shifted by
+/// `(i · pitch[0] + (j odd ? row_offset : 0), j · pitch[1])` and named `name[i,j]`. A running-bond
+/// wall of bricks is one brick with `row_offset` half a brick.
+#[derive(Debug, Clone, Copy, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct ArraySpec {
+    /// Copies along x and y, each ≥ 1, their product ≤ `MAX_BODIES` (1 000 000).
+    #[schemars(inner(range(min = 1, max = MAX_BODIES)))]
+    pub count: [usize; 2],
+    /// Shift between neighbouring copies along x and y (m).
+    pub pitch: [f64; 2],
+    /// Extra x shift of every odd row (m).
+    #[serde(default)]
+    pub row_offset: f64,
+}
+
+/// All DOF names, in the order of `U_e` (as scenes name them: `docs/scene.md`).
+pub const DOF_NAMES: [&str; 6] = ["u", "v", "theta", "ex", "ey", "gxy"];
+
+/// The columns of `history.csv` before the probes (a probe may take none of these names).
+pub const HISTORY_COLUMNS: [&str; 7] = [
+    "t",
+    "kinetic",
+    "elastic",
+    "contact",
+    "potential",
+    "external_work",
+    "total",
+];
+
+
+/// The largest scene file read (bytes): a scene names its meshes and repeats its bodies with
+/// `array`, so a larger file is not a scene (`/dev/zero`, a mesh given as the scene).
+pub const MAX_SCENE_BYTES: u64 = 256 << 20;
+
+/// The bytes of `path`, refused with an error past `limit` bytes (naming `what` the file was
+/// to be) instead of read to the end.
+pub(crate) fn read_limited(path: &Path, limit: u64, what: &str) -> Result<Vec<u8>> {
+    use std::io::Read;
+    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let mut bytes = Vec::new();
+    file.take(limit + 1)
+        .read_to_end(&mut bytes)
+        .map_err(|e| Error::io(path, e))?;
+    if bytes.len() as u64 > limit {
+        return Err(Error::io(
+            path,
+            std::io::Error::other(format!("larger than {} MiB: not {what}", limit >> 20)),
+        ));
+    }
+    Ok(bytes)
+}
+
+/// Refuses JSON in which an object repeats a key (JSON parsers keep one of the two silently),
+/// naming the key by its path. Malformed JSON passes through, for the parser to report.
+fn refuse_duplicate_keys(text: &str) -> Result<()> {
+    use serde::de::{DeserializeSeed, Error as _, MapAccess, SeqAccess, Visitor};
+    struct Keys(String);
+    impl<'de> DeserializeSeed<'de> for Keys {
+        type Value = ();
+        fn deserialize<D: serde::Deserializer<'de>>(
+            self,
+            d: D,
+        ) -> std::result::Result<(), D::Error> {
+            d.deserialize_any(self)
+        }
+    }
+    impl<'de> Visitor<'de> for Keys {
+        type Value = ();
+        fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+            f.write_str("any JSON value")
+        }
+        fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> std::result::Result<(), A::Error> {
+            let mut seen = std::collections::HashSet::new();
+            while let Some(key) = map.next_key::<String>()? {
+                let path = if self.0.is_empty() {
+                    key.clone()
+                } else {
+                    format!("{}.{key}", self.0)
+                };
+                if !seen.insert(key) {
+                    return Err(A::Error::custom(path));
+                }
+                map.next_value_seed(Keys(path))?;
+            }
+            Ok(())
+        }
+        fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> std::result::Result<(), A::Error> {
+            let mut i = 0;
+            while seq
+                .next_element_seed(Keys(format!("{}[{i}]", self.0)))?
+                .is_some()
+            {
+                i += 1;
+            }
+            Ok(())
+        }
+        fn visit_bool<E>(self, _: bool) -> std::result::Result<(), E> {
+            Ok(())
+        }
+        fn visit_i64<E>(self, _: i64) -> std::result::Result<(), E> {
+            Ok(())
+        }
+        fn visit_u64<E>(self, _: u64) -> std::result::Result<(), E> {
+            Ok(())
+        }
+        fn visit_f64<E>(self, _: f64) -> std::result::Result<(), E> {
+            Ok(())
+        }
+        fn visit_str<E>(self, _: &str) -> std::result::Result<(), E> {
+            Ok(())
+        }
+        fn visit_unit<E>(self) -> std::result::Result<(), E> {
+            Ok(())
+        }
+    }
+    let de = &mut serde_json::Deserializer::from_str(text);
+    match Keys(String::new()).deserialize(de) {
+        Err(e) if e.classify() == serde_json::error::Category::Data => {
+            // The message is the key's path; serde_json adds the line and column.
+            let message = e.to_string();
+            let path = message.split(" at line ").next().unwrap_or(&message);
+            Err(Error::scene(
+                path,
+                format!(
+                    "the key appears twice in one object (line {}); keep one",
+                    e.line()
+                ),
+            ))
+        }
+        _ => Ok(()),
+    }
+}
+
+/// Most bodies one scene may make with `array`.
+pub const MAX_BODIES: usize = 1_000_000;
+
+impl BodySpec {
+    /// The bodies this spec stands for: itself, or its `array` of shifted copies.
+    fn copies(self) -> Vec<BodySpec> {
+        let Some(a) = self.array else {
+            return vec![self];
+        };
+        let mut out = Vec::with_capacity(a.count[0] * a.count[1]);
+        for j in 0..a.count[1] {
+            for i in 0..a.count[0] {
+                let shift = [
+                    i as f64 * a.pitch[0] + if j % 2 == 1 { a.row_offset } else { 0.0 },
+                    j as f64 * a.pitch[1],
+                ];
+                let mut body = BodySpec {
+                    name: format!("{}[{i},{j}]", self.name),
+                    array: None,
+                    ..self.clone()
+                };
+                let moved = |p: &mut [f64; 2]| {
+                    p[0] += shift[0];
+                    p[1] += shift[1];
+                };
+                match &mut body.mesh {
+                    MeshSpec::Grid(g) => moved(&mut g.origin),
+                    MeshSpec::Voronoi(v) => moved(&mut v.origin),
+                    MeshSpec::Polygons(p) => p.vertices.iter_mut().for_each(moved),
+                    MeshSpec::Gmsh(_) => unreachable!("validated: an array has no gmsh mesh"),
+                }
+                out.push(body);
+            }
+        }
+        out
+    }
+}
+
+/// How a body is cut into elements (`kind`: `grid`, `voronoi` or `polygons`).
+#[derive(Debug, Clone)]
+pub enum MeshSpec {
+    /// `grid`: rectangles or triangles.
+    Grid(GridSpec),
+    /// `voronoi`: centroidal Voronoi cells.
+    Voronoi(VoronoiSpec),
+    /// `polygons`: explicit cells.
+    Polygons(PolygonsSpec),
+    /// `gmsh`: an MSH 4.1 file.
+    Gmsh(GmshSpec),
+}
+
+/// A gmsh MSH 4.1 file of triangles and quadrilaterals; a relative `path` is taken from the
+/// scene file's directory. Its physical groups of lines name edges for supports and loads.
+#[derive(Debug, Clone, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct GmshSpec {
+    /// The MSH file.
+    pub path: std::path::PathBuf,
+}
+
+/// `cells = [nx, ny]` rectangles (or twice as many triangles) over `origin .. origin + size`.
+#[derive(Debug, Clone, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct GridSpec {
+    /// Lower-left corner (m).
+    pub origin: [f64; 2],
+    /// Width and height (m), each > 0.
+    #[schemars(transform = items_positive)]
+    pub size: [f64; 2],
+    /// Cells along x and y, each ≥ 1, their product ≤ `MAX_CELLS` (20 000 000).
+    #[schemars(inner(range(min = 1, max = MAX_CELLS)))]
+    pub cells: [usize; 2],
+    #[serde(default = "default_cell")]
+    /// `rect` (default) or `tri`.
+    pub cell: Cell,
+}
+
+/// `sites` centroidal Voronoi cells clipped to the rectangle, after `lloyd` iterations.
+#[derive(Debug, Clone, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct VoronoiSpec {
+    /// Lower-left corner (m).
+    pub origin: [f64; 2],
+    /// Width and height (m), each > 0.
+    #[schemars(transform = items_positive)]
+    pub size: [f64; 2],
+    /// Number of cells, 2 to `MAX_CELLS` (20 000 000).
+    #[schemars(range(min = 2, max = MAX_CELLS))]
+    pub sites: usize,
+    #[serde(default)]
+    /// Random seed of the sites (default 0).
+    pub seed: u64,
+    #[serde(default)]
+    /// Lloyd iterations towards centroidal cells, 0 to 10 000 (default 0).
+    #[schemars(range(max = 10_000))]
+    pub lloyd: usize,
+}
+
+/// Explicit polygons, vertex lists counter-clockwise.
+#[derive(Debug, Clone, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct PolygonsSpec {
+    /// Vertex coordinates `[x, y]` (m), at least 3.
+    #[schemars(length(min = 3))]
+    pub vertices: Vec<[f64; 2]>,
+    /// Cells as lists of vertex indices (from 0), counter-clockwise; at least 1.
+    #[schemars(length(min = 1))]
+    pub cells: Vec<Vec<usize>>,
+}
+
+impl<'de> Deserialize<'de> for MeshSpec {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        let (kind, rest) = split_kind(d)?;
+        match kind.as_str() {
+            "grid" => variant(rest).map(MeshSpec::Grid),
+            "voronoi" => variant(rest).map(MeshSpec::Voronoi),
+            "polygons" => variant(rest).map(MeshSpec::Polygons),
+            "gmsh" => variant(rest).map(MeshSpec::Gmsh),
+            other => Err(unknown_kind(
+                other,
+                &["grid", "voronoi", "polygons", "gmsh"],
+            )),
+        }
+    }
+}
+
+/// One object per kind, as [`MeshSpec`]'s `Deserialize` reads them (keep the two in step).
+impl JsonSchema for MeshSpec {
+    fn schema_name() -> Cow<'static, str> {
+        "MeshSpec".into()
+    }
+
+    fn json_schema(generator: &mut SchemaGenerator) -> Schema {
+        let variants = [
+            kind_variant::<GridSpec>(generator, "grid"),
+            kind_variant::<VoronoiSpec>(generator, "voronoi"),
+            kind_variant::<PolygonsSpec>(generator, "polygons"),
+            kind_variant::<GmshSpec>(generator, "gmsh"),
+        ];
+        one_of_kinds(
+            "How a body is cut into elements (`kind`: `grid`, `voronoi`, `polygons` or `gmsh`).",
+            variants,
+        )
+    }
+}
+
+/// The most cells one mesh may have (about 10 GB of model at ~500 bytes per element).
+pub const MAX_CELLS: usize = 20_000_000;
+
+/// The cell shape of a structured grid (`mesh.cell` in the scene).
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize, schemars::JsonSchema,
+)]
+#[serde(rename_all = "lowercase")]
+pub enum Cell {
+    /// One rectangle per grid cell.
+    Rect,
+    /// Two triangles per grid cell (lower-right `2c`, upper-left `2c + 1`).
+    Tri,
+}
+
+/// A side of a body's bounding box, used to tag boundary edges (supports, loads).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Side {
+    /// `x` = smallest.
+    Left,
+    /// `x` = largest.
+    Right,
+    /// `y` = smallest.
+    Bottom,
+    /// `y` = largest.
+    Top,
+}
+
+/// Which boundary edges a support or load acts on: a side of the body's bounding box
+/// (`left`, `right`, `bottom`, `top`) or, any other name, a physical group of a gmsh mesh.
+#[derive(Debug, Clone, PartialEq, Eq, Hash)]
+pub enum EdgeSet {
+    /// A side of the bounding box.
+    Side(Side),
+    /// A physical group of a gmsh mesh, by name.
+    Group(String),
+}
+
+impl<'de> serde::Deserialize<'de> for EdgeSet {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        let name = String::deserialize(d)?;
+        Ok(match name.as_str() {
+            "left" => EdgeSet::Side(Side::Left),
+            "right" => EdgeSet::Side(Side::Right),
+            "bottom" => EdgeSet::Side(Side::Bottom),
+            "top" => EdgeSet::Side(Side::Top),
+            _ => EdgeSet::Group(name),
+        })
+    }
+}
+
+/// A string: a side name or the name of a gmsh physical group (any string parses).
+impl schemars::JsonSchema for EdgeSet {
+    fn schema_name() -> std::borrow::Cow<'static, str> {
+        "EdgeSet".into()
+    }
+
+    fn json_schema(_: &mut schemars::SchemaGenerator) -> schemars::Schema {
+        schemars::json_schema!({
+            "type": "string",
+            "minLength": 1,
+            "description": "A side of the body's bounding box (`left`, `right`, `bottom`, `top`) or, any other name, a physical group of lines of the body's gmsh mesh.",
+            "examples": ["left", "right", "bottom", "top"]
+        })
+    }
+}
+
+impl std::fmt::Display for EdgeSet {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            EdgeSet::Side(s) => write!(f, "{}", format!("{s:?}").to_lowercase()),
+            EdgeSet::Group(g) => write!(f, "{g}"),
+        }
+    }
+}
+
+fn default_cell() -> Cell {
+    Cell::Rect
+}
+
+/// A support on a side of the body's bounding box (`kind`: `ground-spring` or `clamp`).
+#[derive(Debug, Clone)]
+pub enum SupportSpec {
+    /// `ground-spring`.
+    GroundSpring(GroundSpringSpec),
+    /// `clamp`.
+    Clamp(ClampSpec),
+}
+
+/// The edges of a side tied to fixed ground by springs with `h_b = 0`.
+#[derive(Debug, Clone, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct GroundSpringSpec {
+    /// Where: a side or a gmsh group.
+    pub edge: EdgeSet,
+    /// `["n", "s"]` by default; `["n"]` is a roller. Not empty.
+    #[serde(default = "both_components")]
+    #[schemars(length(min = 1))]
+    pub components: Vec<Component>,
+}
+
+/// The listed DOFs (default all) of the elements with an edge on that side are fixed.
+#[derive(Debug, Clone, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct ClampSpec {
+    /// Where: a side or a gmsh group.
+    pub edge: EdgeSet,
+    #[serde(default)]
+    /// DOF names (`u`, `v`, `theta`; hybrid also `ex`, `ey`, `gxy`); all when absent.
+    #[schemars(transform = items_dof_names)]
+    pub dofs: Option<Vec<String>>,
+}
+
+impl<'de> Deserialize<'de> for SupportSpec {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        let (kind, rest) = split_kind(d)?;
+        match kind.as_str() {
+            "ground-spring" => variant(rest).map(SupportSpec::GroundSpring),
+            "clamp" => variant(rest).map(SupportSpec::Clamp),
+            other => Err(unknown_kind(other, &["ground-spring", "clamp"])),
+        }
+    }
+}
+
+/// One object per kind, as [`SupportSpec`]'s `Deserialize` reads them (keep the two in step).
+impl JsonSchema for SupportSpec {
+    fn schema_name() -> Cow<'static, str> {
+        "SupportSpec".into()
+    }
+
+    fn json_schema(generator: &mut SchemaGenerator) -> Schema {
+        let variants = [
+            kind_variant::<GroundSpringSpec>(generator, "ground-spring"),
+            kind_variant::<ClampSpec>(generator, "clamp"),
+        ];
+        one_of_kinds(
+            "A support on an edge set of the body (`kind`: `ground-spring` or `clamp`).",
+            variants,
+        )
+    }
+}
+
+fn both_components() -> Vec<Component> {
+    vec![Component::N, Component::S]
+}
+
+/// A spring component of a ground support: normal or shear.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum Component {
+    /// Normal.
+    N,
+    /// Shear.
+    S,
+}
+
+/// A load on a body (`kind`: `traction` or `force`).
+#[derive(Debug, Clone)]
+pub enum LoadSpec {
+    /// `traction`.
+    Traction(TractionSpec),
+    /// `force`.
+    Force(ForceSpec),
+}
+
+/// Uniform traction (N/m², global components) on the edges of one side.
+#[derive(Debug, Clone, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct TractionSpec {
+    /// Where: a side or a gmsh group.
+    pub edge: EdgeSet,
+    /// `[t_x, t_y]` (N/m², global).
+    pub value: [f64; 2],
+    /// Piecewise-linear factor in time, `[[t, factor], ...]` (s, dimensionless) with strictly
+    /// increasing `t`, held constant outside its range; constant 1 when absent.
+    #[serde(default)]
+    #[schemars(length(min = 1))]
+    pub amplitude: Option<Vec<[f64; 2]>>,
+}
+
+/// `[F_x, F_y, M]` (N, N, N·m) at the centroid of one element of the body (index within
+/// the body).
+#[derive(Debug, Clone, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct ForceSpec {
+    /// Element index within the body.
+    pub element: usize,
+    /// `[F_x, F_y, M]` (N, N, N·m).
+    pub value: [f64; 3],
+    #[serde(default)]
+    /// Piecewise-linear factor in time, `[[t, factor], ...]` (s, dimensionless) with strictly
+    /// increasing `t`, held constant outside its range; constant 1 when absent.
+    #[schemars(length(min = 1))]
+    pub amplitude: Option<Vec<[f64; 2]>>,
+}
+
+impl<'de> Deserialize<'de> for LoadSpec {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        let (kind, rest) = split_kind(d)?;
+        match kind.as_str() {
+            "traction" => variant(rest).map(LoadSpec::Traction),
+            "force" => variant(rest).map(LoadSpec::Force),
+            other => Err(unknown_kind(other, &["traction", "force"])),
+        }
+    }
+}
+
+/// One object per kind, as [`LoadSpec`]'s `Deserialize` reads them (keep the two in step).
+impl JsonSchema for LoadSpec {
+    fn schema_name() -> Cow<'static, str> {
+        "LoadSpec".into()
+    }
+
+    fn json_schema(generator: &mut SchemaGenerator) -> Schema {
+        let variants = [
+            kind_variant::<TractionSpec>(generator, "traction"),
+            kind_variant::<ForceSpec>(generator, "force"),
+        ];
+        one_of_kinds(
+            "A load on a body (`kind`: `traction` or `force`).",
+            variants,
+        )
+    }
+}
+
+/// The schema of one kind of a `kind`-keyed object (read by [`split_kind`] and [`variant`]):
+/// the variant's own object schema with the key `kind`, a constant, added and required.
+fn kind_variant<T: JsonSchema>(generator: &mut SchemaGenerator, kind: &str) -> Schema {
+    let mut schema = T::json_schema(generator);
+    let object = schema.ensure_object();
+    let properties = object
+        .entry("properties")
+        .or_insert_with(|| serde_json::json!({}));
+    if let Some(properties) = properties.as_object_mut() {
+        properties.insert(
+            "kind".into(),
+            serde_json::json!({"type": "string", "const": kind}),
+        );
+    }
+    let required = object
+        .entry("required")
+        .or_insert_with(|| serde_json::json!([]));
+    if let Some(required) = required.as_array_mut() {
+        required.insert(0, "kind".into());
+    }
+    schema
+}
+
+/// Exactly one of `variants`, each told by its `kind`.
+fn one_of_kinds<const N: usize>(description: &str, variants: [Schema; N]) -> Schema {
+    let variants: Vec<Schema> = variants.into();
+    json_schema!({
+        "description": description,
+        "type": "object",
+        "required": ["kind"],
+        "oneOf": variants,
+    })
+}
+
+/// Every item of an array schema > 0 (`[f64; 2]` sizes).
+fn items_positive(schema: &mut Schema) {
+    if let Some(items) = schema.get_mut("items").and_then(|i| i.as_object_mut()) {
+        items.insert("exclusiveMinimum".into(), 0.into());
+    }
+}
+
+/// Every item of an array schema (or of an array-or-null) one of the DOF names.
+fn items_dof_names(schema: &mut Schema) {
+    if let Some(items) = schema.get_mut("items").and_then(|i| i.as_object_mut()) {
+        items.insert(
+            "enum".into(),
+            DOF_NAMES.as_slice().into(),
+        );
+    }
+}
+
+/// Exactly one of the two keys `a` and `b` given with a value other than `null` (as
+/// [`Scene::validate`] asks of `time.dt`/`dt_factor`, `time.end`/`steps` and a probe's
+/// `element`/`at`).
+fn exactly_one_of(schema: &mut Schema, a: &str, b: &str) {
+    let given = |key: &str| serde_json::json!({"required": [key], "properties": {key: {"not": {"type": "null"}}}});
+    let rule = serde_json::json!({"oneOf": [given(a), given(b)]});
+    let object = schema.ensure_object();
+    match object.get_mut("allOf").and_then(|all| all.as_array_mut()) {
+        Some(all) => all.push(rule),
+        None => {
+            object.insert("allOf".into(), serde_json::json!([rule]));
+        }
+    }
+}
+
+fn time_exactly_one(schema: &mut Schema) {
+    exactly_one_of(schema, "dt", "dt_factor");
+    exactly_one_of(schema, "end", "steps");
+}
+
+fn probe_exactly_one(schema: &mut Schema) {
+    exactly_one_of(schema, "element", "at");
+}
+
+/// Splits an object with a `kind` key into the kind and the other keys. Dispatching by hand,
+/// rather than with serde's internally tagged enums, keeps the path of an error inside the
+/// variant (`bodies[0].mesh.cells`), which serde's buffering would lose.
+fn split_kind<'de, D: serde::Deserializer<'de>>(
+    d: D,
+) -> std::result::Result<(String, serde_json::Value), D::Error> {
+    use serde::de::Error as _;
+    let mut value = serde_json::Value::deserialize(d)?;
+    let map = value
+        .as_object_mut()
+        .ok_or_else(|| D::Error::custom("expected an object with a `kind` key"))?;
+    match map.remove("kind") {
+        Some(serde_json::Value::String(kind)) => Ok((kind, value)),
+        Some(other) => Err(D::Error::custom(format!(
+            "`kind` must be a string, got {other}"
+        ))),
+        None => Err(D::Error::missing_field("kind")),
+    }
+}
+
+/// Deserialises the keys of one variant; an error names the key path within the variant.
+fn variant<T: serde::de::DeserializeOwned, E: serde::de::Error>(
+    rest: serde_json::Value,
+) -> std::result::Result<T, E> {
+    serde_path_to_error::deserialize(rest).map_err(|e| {
+        let path = e.path().to_string();
+        E::custom(if path == "." {
+            e.into_inner().to_string()
+        } else {
+            format!("`{path}`: {}", e.into_inner())
+        })
+    })
+}
+
+fn unknown_kind<E: serde::de::Error>(kind: &str, allowed: &[&str]) -> E {
+    E::custom(format!(
+        "unknown kind `{kind}`, expected one of: {}",
+        allowed.join(", ")
+    ))
+}
+
+/// Initial placement and motion of a body.
+#[derive(Debug, Clone, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct InitialSpec {
+    /// Velocity of the body's centroid (m/s).
+    #[serde(default)]
+    pub velocity: [f64; 2],
+    /// Angular velocity about the body's centroid (rad/s).
+    #[serde(default)]
+    pub angular_velocity: f64,
+    /// Rotation of the body about its centroid, counter-clockwise (degrees).
+    #[serde(default)]
+    pub rotation_deg: f64,
+}
+
+/// A rigid ground segment (for contact).
+#[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct GroundSpec {
+    /// Start point (m).
+    pub from: [f64; 2],
+    /// End point (m), not `from`; the free side is on the left of `from → to`.
+    pub to: [f64; 2],
+}
+
+/// Contact between bodies and with the ground (paper eqs. 17–20).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct ContactSpec {
+    /// `edge-to-edge` (the paper's) or `point` (one spring per penetrating vertex, DEM).
+    pub model: ContactModel,
+    /// Coulomb friction coefficient `μ ≥ 0` (dimensionless); `null` or absent is no slip limit.
+    #[serde(default)]
+    #[schemars(range(min = 0))]
+    pub friction: Option<f64>,
+}
+
+/// The contact model (`contact.model`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "kebab-case")]
+pub enum ContactModel {
+    /// The paper's contact: the penetrating part of the boundary is a temporary interface.
+    EdgeToEdge,
+    /// Classic DEM: a spring at each penetrating vertex.
+    Point,
+}
+
+impl ContactModel {
+    /// The name used in scenes and outputs.
+    pub fn name(self) -> &'static str {
+        match self {
+            ContactModel::EdgeToEdge => "edge-to-edge",
+            ContactModel::Point => "point",
+        }
+    }
+}
+
+/// Time step and duration; exactly one of `dt`, `dt_factor` and one of `end`, `steps`.
+#[derive(Debug, Clone, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+#[schemars(transform = time_exactly_one)]
+pub struct TimeSpec {
+    #[serde(default)]
+    /// Time step (s), > 0.
+    #[schemars(extend("exclusiveMinimum" = 0))]
+    pub dt: Option<f64>,
+    #[serde(default)]
+    /// Time step as a fraction of the computed `Δt_crit` (dimensionless), > 0.
+    #[schemars(extend("exclusiveMinimum" = 0))]
+    pub dt_factor: Option<f64>,
+    #[serde(default)]
+    /// End time (s), > 0.
+    #[schemars(extend("exclusiveMinimum" = 0))]
+    pub end: Option<f64>,
+    #[serde(default)]
+    /// Number of steps, ≥ 1.
+    #[schemars(range(min = 1))]
+    pub steps: Option<u64>,
+}
+
+/// What a run writes.
+#[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct OutputSpec {
+    /// A history row (and a VTK frame) every this many steps, ≥ 1 (default 100).
+    #[serde(default = "default_every")]
+    #[schemars(range(min = 1))]
+    pub every: u64,
+    /// ParaView output: VTK XML frames (`.vtu`) and a `.pvd` series.
+    #[serde(default)]
+    pub vtk: bool,
+    /// Extra history columns: one DOF of one element (or at one point) each.
+    #[serde(default)]
+    pub probes: Vec<ProbeSpec>,
+    /// Steps between checkpoints (`checkpoint.bin`, for `rbsm run --resume`), ≥ 1; none when
+    /// absent.
+    #[serde(default)]
+    #[schemars(range(min = 1))]
+    pub checkpoint_every: Option<u64>,
+}
+
+impl Default for OutputSpec {
+    fn default() -> Self {
+        OutputSpec {
+            every: default_every(),
+            vtk: false,
+            probes: Vec::new(),
+            checkpoint_every: None,
+        }
+    }
+}
+
+fn default_every() -> u64 {
+    100
+}
+
+/// A history column: DOF `dof` (`u`, `v`, `theta`, ...) of element `element` (global index),
+/// or at the point `at`: of the element containing it, `u` and `v` there through `N_e`.
+#[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+#[schemars(transform = probe_exactly_one)]
+pub struct ProbeSpec {
+    #[serde(default)]
+    /// Column header: no commas, quotes or control characters, none of the history's own
+    /// columns, no two alike; `e<element>_<dof>` or `<dof>_at_<x>_<y>` when absent.
+    #[schemars(length(min = 1))]
+    pub name: Option<String>,
+    /// Element (global index); give this or `at`.
+    #[serde(default)]
+    pub element: Option<usize>,
+    /// A point of the reference configuration (m); give this or `element`.
+    #[serde(default)]
+    pub at: Option<[f64; 2]>,
+    /// DOF name: `u`, `v`, `theta`, and hybrid `ex`, `ey`, `gxy`.
+    #[schemars(extend("enum" = DOF_NAMES))]
+    pub dof: String,
+}
+
+impl ProbeSpec {
+    /// The history column's header: `name`, or `e<element>_<dof>`, or `<dof>_at_<x>_<y>`.
+    pub fn column(&self) -> String {
+        self.name
+            .clone()
+            .unwrap_or_else(|| match (self.element, self.at) {
+                (_, Some([x, y])) => format!("{}_at_{x}_{y}", self.dof),
+                (e, None) => format!("e{}_{}", e.unwrap_or(0), self.dof),
+            })
+    }
+}
+
+/// The JSON Schema (draft 2020-12) of a scene file, generated from the scene types and their
+/// doc comments (`rbsm schema` prints it). It names every key the parser accepts, each object
+/// closed (`additionalProperties: false`), with the simple ranges of [`Scene::validate`]; the
+/// checks that need the whole scene (material names, probe columns, mesh files, products of
+/// counts) are left to `validate`.
+pub fn schema() -> serde_json::Value {
+    serde_json::Value::from(schemars::schema_for!(Scene))
+}
+
+impl Scene {
+    /// Reads and validates a scene file.
+    pub fn from_file(path: impl AsRef<Path>) -> Result<Scene> {
+        let path = path.as_ref();
+        let bytes = read_limited(path, MAX_SCENE_BYTES, "a scene file")?;
+        let text = String::from_utf8(bytes).map_err(|e| {
+            Error::io(
+                path,
+                std::io::Error::new(std::io::ErrorKind::InvalidData, e),
+            )
+        })?;
+        Scene::parse(&text, path.parent()).map_err(|e| match e {
+            Error::Parse { message, .. } => Error::parse(path.display().to_string(), message),
+            other => other,
+        })
+    }
+
+    /// Parses and validates a scene from JSON text; mesh files are found from the working
+    /// directory.
+    pub fn from_json(text: &str) -> Result<Scene> {
+        Scene::parse(text, None)
+    }
+
+    /// Parses and validates a scene whose relative mesh paths start at `dir`.
+    pub fn from_json_in(text: &str, dir: &Path) -> Result<Scene> {
+        Scene::parse(text, Some(dir))
+    }
+
+    /// Parses a scene whose relative mesh paths start at `dir`, then validates it.
+    fn parse(text: &str, dir: Option<&Path>) -> Result<Scene> {
+        refuse_duplicate_keys(text)?;
+        let de = &mut serde_json::Deserializer::from_str(text);
+        let mut scene: Scene = serde_path_to_error::deserialize(de).map_err(|e| {
+            let mut path = e.path().to_string();
+            let mut inner = e.into_inner().to_string();
+            // A variant's own path (see `variant`) continues the outer one.
+            if let Some((sub, rest)) = inner.strip_prefix('`').and_then(|r| r.split_once("`: ")) {
+                path = if path == "." {
+                    sub.to_string()
+                } else {
+                    format!("{path}.{sub}")
+                };
+                inner = rest.to_string();
+            }
+            let message = if path == "." {
+                inner
+            } else {
+                format!("at `{path}`: {inner}")
+            };
+            Error::parse("<json>", message)
+        })?;
+        if let Some(dir) = dir {
+            for body in &mut scene.bodies {
+                if let MeshSpec::Gmsh(GmshSpec { path }) = &mut body.mesh {
+                    if path.is_relative() {
+                        *path = dir.join(&*path);
+                    }
+                }
+            }
+        }
+        scene.validate()?;
+        scene.bodies = std::mem::take(&mut scene.bodies)
+            .into_iter()
+            .flat_map(BodySpec::copies)
+            .collect();
+        Ok(scene)
+    }
+
+    /// Of the inputs `names` (`rho`, `E`, `thickness`, `penalty`) of body `body`, the field
+    /// whose value lies furthest, in orders of magnitude, from its usual size (2500 kg/m³,
+    /// 30 GPa, 0.1 m, 1): the one to blame when their product overflows or underflows.
+    pub fn most_extreme(&self, body: usize, names: &[&str]) -> String {
+        let material = self
+            .bodies
+            .get(body)
+            .map(|b| b.material.as_str())
+            .unwrap_or("");
+        let m = self.materials.get(material);
+        let penalty = match self.formulation {
+            FormulationSpec::Hybrid { penalty } => Some(penalty),
+            _ => None,
+        };
+        let candidates = [
+            (
+                "rho",
+                format!("materials.{material}.rho"),
+                m.map(|m| m.rho),
+                2500.0,
+            ),
+            ("E", format!("materials.{material}.E"), m.map(|m| m.e), 3e10),
+            (
+                "thickness",
+                "thickness".to_string(),
+                Some(self.thickness),
+                0.1,
+            ),
+            ("penalty", "formulation.penalty".to_string(), penalty, 1.0),
+        ];
+        candidates
+            .into_iter()
+            .filter(|(name, _, value, _)| names.contains(name) && value.is_some())
+            .map(|(_, field, value, usual)| (field, (value.unwrap_or(1.0) / usual).log10().abs()))
+            .fold((String::from("materials"), -1.0), |best, (field, d)| {
+                if d > best.1 {
+                    (field, d)
+                } else {
+                    best
+                }
+            })
+            .0
+    }
+
+    /// Checks every value against its allowed range; the error names the field.
+    pub fn validate(&self) -> Result<()> {
+        positive("thickness", self.thickness)?;
+        if let FormulationSpec::Hybrid { penalty } = self.formulation {
+            positive("formulation.penalty", penalty)?;
+        }
+        if let Some(g) = self.gravity {
+            finite_all("gravity", &g)?;
+        }
+        if let Some(alpha) = self.damping {
+            if !(alpha >= 0.0 && alpha.is_finite()) {
+                return Err(Error::scene(
+                    "damping",
+                    format!("must be a finite number ≥ 0 (1/s), got {alpha}"),
+                ));
+            }
+        }
+        if self.materials.is_empty() {
+            return Err(Error::scene("materials", "at least one material is needed"));
+        }
+        for (name, m) in &self.materials {
+            positive(&format!("materials.{name}.E"), m.e)?;
+            positive(&format!("materials.{name}.rho"), m.rho)?;
+            if !(m.nu > -1.0 && m.nu < 0.5) {
+                return Err(Error::scene(
+                    format!("materials.{name}.nu"),
+                    format!("must lie in (-1, 0.5), got {}", m.nu),
+                ));
+            }
+        }
+        if self.bodies.is_empty() {
+            return Err(Error::scene("bodies", "at least one body is needed"));
+        }
+        if let Some(ReferenceSpec::BarStep { probe }) = &self.reference {
+            if !self
+                .output
+                .probes
+                .iter()
+                .any(|p| p.name.as_deref() == Some(probe.as_str()))
+            {
+                return Err(Error::scene(
+                    "reference.probe",
+                    format!("must name one of `output.probes`, got `{probe}`"),
+                ));
+            }
+        }
+        let mut columns: Vec<String> = HISTORY_COLUMNS
+            .iter()
+            .map(|c| c.to_string())
+            .collect();
+        for (k, p) in self.output.probes.iter().enumerate() {
+            match (p.element, p.at) {
+                (Some(_), None) => {}
+                (None, Some(at)) => finite_all(&format!("output.probes[{k}].at"), &at)?,
+                _ => {
+                    return Err(Error::scene(
+                        format!("output.probes[{k}].element"),
+                        "give exactly one of `element` (global index) and `at` ([x, y], m)",
+                    ))
+                }
+            }
+            let (field, column) = (format!("output.probes[{k}].name"), p.column());
+            if column.is_empty()
+                || column
+                    .chars()
+                    .any(|c| c == ',' || c == '"' || c.is_control())
+            {
+                return Err(Error::scene(field, format!("must be a non-empty column name without commas, quotes or control characters, got {column:?}")));
+            }
+            if let Some(i) = columns.iter().position(|c| *c == column) {
+                let what = if i < HISTORY_COLUMNS.len() {
+                    "one of the history's own columns".to_string()
+                } else {
+                    format!(
+                        "the column of `output.probes[{}]`",
+                        i - HISTORY_COLUMNS.len()
+                    )
+                };
+                return Err(Error::scene(
+                    field,
+                    format!("`{column}` is {what}: every column needs its own name"),
+                ));
+            }
+            columns.push(column);
+        }
+        for (i, b) in self.bodies.iter().enumerate() {
+            self.validate_body(i, b)?;
+        }
+        for (i, g) in self.ground.iter().enumerate() {
+            finite_all(&format!("ground[{i}].from"), &g.from)?;
+            finite_all(&format!("ground[{i}].to"), &g.to)?;
+            if g.from == g.to {
+                return Err(Error::scene(
+                    format!("ground[{i}].to"),
+                    "must differ from `from` (a segment of positive length)",
+                ));
+            }
+        }
+        if !self.ground.is_empty() && self.contact.is_none() {
+            return Err(Error::scene("contact", "ground segments act only through contact: add `\"contact\": {\"model\": \"edge-to-edge\"}` (or `point`)"));
+        }
+        if let Some(c) = &self.contact {
+            if let Some(mu) = c.friction {
+                if !(mu >= 0.0 && mu.is_finite()) {
+                    return Err(Error::scene(
+                        "contact.friction",
+                        format!("must be null or a finite μ ≥ 0, got {mu}"),
+                    ));
+                }
+            }
+        }
+        match (self.time.dt, self.time.dt_factor) {
+            (Some(dt), None) => positive("time.dt", dt)?,
+            (None, Some(f)) => positive("time.dt_factor", f)?,
+            _ => {
+                return Err(Error::scene(
+                    "time.dt",
+                    "give exactly one of `dt` (s, > 0) and `dt_factor` (fraction of Δt_crit, > 0)",
+                ))
+            }
+        }
+        match (self.time.end, self.time.steps) {
+            (Some(end), None) => positive("time.end", end)?,
+            (None, Some(0)) => return Err(Error::scene("time.steps", "must be ≥ 1")),
+            (None, Some(_)) => {}
+            _ => {
+                return Err(Error::scene(
+                    "time.end",
+                    "give exactly one of `end` (s, > 0) and `steps` (≥ 1)",
+                ))
+            }
+        }
+        if self.output.every == 0 {
+            return Err(Error::scene(
+                "output.every",
+                "must be ≥ 1 (steps between history rows)",
+            ));
+        }
+        if self.output.checkpoint_every == Some(0) {
+            return Err(Error::scene(
+                "output.checkpoint_every",
+                "must be ≥ 1 (steps between checkpoints), or absent for none",
+            ));
+        }
+        Ok(())
+    }
+
+    fn validate_body(&self, i: usize, b: &BodySpec) -> Result<()> {
+        let at = |k: &str| format!("bodies[{i}].{k}");
+        if !self.materials.contains_key(&b.material) {
+            let known: Vec<_> = self.materials.keys().map(String::as_str).collect();
+            return Err(Error::scene(
+                at("material"),
+                format!(
+                    "unknown material `{}`; defined: {}",
+                    b.material,
+                    known.join(", ")
+                ),
+            ));
+        }
+        match &b.mesh {
+            MeshSpec::Grid(GridSpec {
+                origin,
+                size,
+                cells,
+                ..
+            }) => {
+                finite_all(&at("mesh.origin"), origin)?;
+                positive(&at("mesh.size[0]"), size[0])?;
+                positive(&at("mesh.size[1]"), size[1])?;
+                if cells[0] == 0 || cells[1] == 0 || cells[0].saturating_mul(cells[1]) > MAX_CELLS {
+                    return Err(Error::scene(at("mesh.cells"), format!("both counts must be ≥ 1 and their product ≤ {MAX_CELLS}, got {cells:?}")));
+                }
+            }
+            MeshSpec::Voronoi(VoronoiSpec {
+                origin,
+                size,
+                sites,
+                lloyd,
+                ..
+            }) => {
+                finite_all(&at("mesh.origin"), origin)?;
+                positive(&at("mesh.size[0]"), size[0])?;
+                positive(&at("mesh.size[1]"), size[1])?;
+                if *sites < 2 || *sites > MAX_CELLS {
+                    return Err(Error::scene(
+                        at("mesh.sites"),
+                        format!("must lie in 2..={MAX_CELLS}, got {sites}"),
+                    ));
+                }
+                if *lloyd > 10_000 {
+                    return Err(Error::scene(
+                        at("mesh.lloyd"),
+                        format!("must lie in 0..=10000, got {lloyd}"),
+                    ));
+                }
+            }
+            MeshSpec::Polygons(PolygonsSpec { vertices, cells }) => {
+                if vertices.len() < 3 || cells.is_empty() {
+                    return Err(Error::scene(
+                        at("mesh"),
+                        "needs at least 3 vertices and 1 cell",
+                    ));
+                }
+            }
+            MeshSpec::Gmsh(GmshSpec { path }) => {
+                if !path.is_file() {
+                    return Err(Error::scene(
+                        at("mesh.path"),
+                        format!(
+                            "no file `{}` (a relative path starts at the scene file's directory)",
+                            path.display()
+                        ),
+                    ));
+                }
+            }
+        }
+        for (k, s) in b.supports.iter().enumerate() {
+            if let SupportSpec::GroundSpring(GroundSpringSpec { components, .. }) = s {
+                if components.is_empty() {
+                    return Err(Error::scene(
+                        at(&format!("supports[{k}].components")),
+                        "must list `n`, `s` or both",
+                    ));
+                }
+            }
+        }
+        for (k, l) in b.loads.iter().enumerate() {
+            let (value, amplitude): (&[f64], _) = match l {
+                LoadSpec::Traction(TractionSpec {
+                    value, amplitude, ..
+                }) => (value, amplitude),
+                LoadSpec::Force(ForceSpec {
+                    value, amplitude, ..
+                }) => (value, amplitude),
+            };
+            finite_all(&at(&format!("loads[{k}].value")), value)?;
+            if let Some(a) = amplitude {
+                let field = at(&format!("loads[{k}].amplitude"));
+                if a.is_empty()
+                    || a.windows(2).any(|w| !(w[1][0] > w[0][0]))
+                    || a.iter().any(|p| !p[0].is_finite() || !p[1].is_finite())
+                {
+                    return Err(Error::scene(
+                        field,
+                        "must be a non-empty list of [t, factor] with strictly increasing t",
+                    ));
+                }
+            }
+        }
+        if let Some(a) = &b.array {
+            if a.count[0] == 0
+                || a.count[1] == 0
+                || a.count[0].saturating_mul(a.count[1]) > MAX_BODIES
+            {
+                return Err(Error::scene(
+                    at("array.count"),
+                    format!(
+                        "both counts must be ≥ 1 and their product ≤ {MAX_BODIES}, got {:?}",
+                        a.count
+                    ),
+                ));
+            }
+            finite_all(&at("array.pitch"), &a.pitch)?;
+            finite_all(&at("array.row_offset"), &[a.row_offset])?;
+            if matches!(b.mesh, MeshSpec::Gmsh(_)) {
+                return Err(Error::scene(at("array"), "copies need a `grid`, `voronoi` or `polygons` mesh (a gmsh mesh cannot be shifted)"));
+            }
+        }
+        finite_all(&at("initial.velocity"), &b.initial.velocity)?;
+        finite_all(
+            &at("initial.angular_velocity"),
+            &[b.initial.angular_velocity],
+        )?;
+        finite_all(&at("initial.rotation_deg"), &[b.initial.rotation_deg])?;
+        Ok(())
+    }
+}
+
+fn positive(field: &str, x: f64) -> Result<()> {
+    if x.is_normal() && x > 0.0 {
+        Ok(())
+    } else {
+        Err(Error::scene(field, format!("must be a finite number > 0 (at least {:e}, the smallest normal double), got {x:e}", f64::MIN_POSITIVE)))
+    }
+}
+
+fn finite_all(field: &str, xs: &[f64]) -> Result<()> {
+    match xs.iter().position(|x| !x.is_finite()) {
+        None => Ok(()),
+        Some(k) => Err(Error::scene(
+            format!("{field}[{k}]"),
+            "must be a finite number",
+        )),
+    }
+}

@@ -1,0 +1,548 @@
+//! The model: elements, interfaces (with the springs of eq. 12), supports, loads and initial
+//! motion. Built once from a scene, immutable afterwards; every analysis reads this one copy.
+
+pub mod checks;
+pub mod formulation;
+pub mod loads;
+pub mod mass;
+pub mod memory;
+
+use crate::error::{Error, Result};
+use crate::model::formulation::{elasticity, Formulation};
+use crate::mesh::geometry::{area_properties, AreaProperties, Vec2};
+use crate::input::scene::EdgeSet;
+use crate::mesh::{grid, voronoi, Mesh};
+use crate::input::scene::{
+    ClampSpec, Component, ContactSpec, ForceSpec, GmshSpec, GridSpec, GroundSpringSpec, LoadSpec,
+    MaterialSpec, MeshSpec, Plane, PolygonsSpec, Scene, SupportSpec, TractionSpec, VoronoiSpec,
+};
+
+/// Marks the `b` side of an interface tied to fixed ground (`U_b = 0`, `h_b = 0`).
+pub const GROUND: u32 = u32::MAX;
+
+/// A rigid polygonal element.
+#[derive(Debug, Clone)]
+pub struct Element {
+    /// Index of the body it belongs to.
+    pub body: u32,
+    /// Area, centroid (the reference point `x_e`) and central second moments.
+    pub props: AreaProperties,
+    /// Density (kg/m³).
+    pub rho: f64,
+    /// Elasticity matrix `D` (Pa) of its material, plane stress or strain (hybrid interior term).
+    pub d: nalgebra::Matrix3<f64>,
+}
+
+/// A shared edge carrying normal and shear penalty springs (eqs. 6, 11, 12).
+#[derive(Debug, Clone, Copy)]
+pub struct Interface {
+    /// The first element; the normal points away from it.
+    pub a: u32,
+    /// The other element, or [`GROUND`].
+    pub b: u32,
+    /// End points of the edge (m).
+    pub p1: Vec2,
+    /// Second end point (m); `p1 → p2` runs counter-clockwise around `a`.
+    pub p2: Vec2,
+    /// Unit normal from `a` to `b`.
+    pub normal: Vec2,
+    /// Unit tangent, `normal = ẑ × tangent`.
+    pub tangent: Vec2,
+    /// Edge length `L` (m).
+    pub length: f64,
+    /// Perpendicular distances from the centroids to the edge line (m).
+    pub h_a: f64,
+    /// Distance from `b`'s centroid (m); 0 for ground.
+    pub h_b: f64,
+    /// Spring constants per unit edge length and thickness (Pa/m): eq. 12, times the penalty
+    /// `p` for the hybrid formulation.
+    pub k_n: f64,
+    /// Shear spring `k_s` (Pa/m).
+    pub k_s: f64,
+}
+
+impl Interface {
+    /// The two Gauss points of the edge and their weight (`L/2` each): exact for the quadratic
+    /// integrand of the interface energy (the crate documentation's *Assembled form*).
+    pub fn gauss_points(&self) -> ([Vec2; 2], f64) {
+        let m = 0.5 * (self.p1 + self.p2);
+        let half = 0.5 * (self.p2 - self.p1) / 3f64.sqrt();
+        ([m - half, m + half], 0.5 * self.length)
+    }
+
+    /// The midpoint of the edge.
+    pub fn midpoint(&self) -> Vec2 {
+        0.5 * (self.p1 + self.p2)
+    }
+}
+
+/// A load in time: piecewise-linear amplitude `[t, factor]`, held constant outside its range.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Amplitude(pub Vec<[f64; 2]>);
+
+impl Amplitude {
+    /// The factor at time `t`.
+    pub fn at(&self, t: f64) -> f64 {
+        let p = &self.0;
+        if t <= p[0][0] {
+            return p[0][1];
+        }
+        match p.iter().position(|q| q[0] > t) {
+            None => p[p.len() - 1][1],
+            Some(k) => {
+                let (a, b) = (p[k - 1], p[k]);
+                a[1] + (b[1] - a[1]) * (t - a[0]) / (b[0] - a[0])
+            }
+        }
+    }
+}
+
+/// A point force and moment on an element.
+#[derive(Debug, Clone)]
+pub struct Load {
+    /// The element it acts on (global index).
+    pub element: u32,
+    /// Where the force acts (m).
+    pub point: Vec2,
+    /// Force (N) and moment (N·m).
+    pub force: Vec2,
+    /// Moment (N·m).
+    pub moment: f64,
+    /// Time variation; `None` is constant.
+    pub amplitude: Option<Amplitude>,
+}
+
+/// A meshed body.
+#[derive(Debug, Clone)]
+pub struct Body {
+    /// The body's name in the scene.
+    pub name: String,
+    /// The body's mesh, placed (origin and initial rotation applied).
+    pub mesh: Mesh,
+    /// Its elements are `first_element .. first_element + mesh.n_cells()`.
+    pub first_element: usize,
+    /// The numerators `E_n`, `E_s` (Pa) of its springs, `k = E / (h_a + h_b)` (eq. 12).
+    pub moduli: [f64; 2],
+}
+
+/// Everything the evaluators, the integrator and the analyses need.
+#[derive(Debug, Clone)]
+pub struct Model {
+    /// The scene's name.
+    pub name: String,
+    /// Plane stress or plane strain.
+    pub plane: Plane,
+    /// Thickness `t` (m).
+    pub thickness: f64,
+    /// Rigid or hybrid (eq. 5).
+    pub formulation: Formulation,
+    /// The meshed bodies, in scene order.
+    pub bodies: Vec<Body>,
+    /// Every element of every body, body after body.
+    pub elements: Vec<Element>,
+    /// Interfaces between elements, then ground springs.
+    pub interfaces: Vec<Interface>,
+    /// Fixed DOFs (global indices, sorted).
+    pub fixed: Vec<usize>,
+    /// Point loads: each traction becomes one force per boundary edge, at its midpoint.
+    pub loads: Vec<Load>,
+    /// Gravitational acceleration (m/s²), zero when the scene has none.
+    pub gravity: Vec2,
+    /// Mass-proportional damping `α` (1/s).
+    pub damping: f64,
+    /// Initial velocity of every DOF (`ndof` per element).
+    pub initial_velocity: Vec<f64>,
+    /// Contact between bodies and with the ground; `None` when the scene has none.
+    pub contact: Option<ContactSpec>,
+    /// Rigid ground segments `[from, to]` (m); the free side is on the left of `from → to`.
+    pub ground: Vec<[Vec2; 2]>,
+}
+
+/// The numerators of eq. 12, `k_n = E_n / (h_a + h_b)`, `k_s = E_s / (h_a + h_b)`:
+/// `E_n = E/(1 − ν²)`, `E_s = E/(1 + ν)`; plane strain uses `E' = E/(1 − ν²)` and
+/// `ν' = ν/(1 − ν)` in the same formulas.
+pub fn spring_moduli(m: &MaterialSpec, plane: Plane) -> [f64; 2] {
+    let (e, nu) = match plane {
+        Plane::Stress => (m.e, m.nu),
+        Plane::Strain => (m.e / (1.0 - m.nu * m.nu), m.nu / (1.0 - m.nu)),
+    };
+    [e / (1.0 - nu * nu), e / (1.0 + nu)]
+}
+
+impl Model {
+    /// Builds the model of a validated scene.
+    pub fn build(scene: &Scene) -> Result<Model> {
+        let formulation = Formulation::from_spec(scene.formulation)?;
+        let nd = formulation.ndof();
+        let t = scene.thickness;
+        let mut model = Model {
+            name: scene.name.clone(),
+            plane: scene.plane,
+            thickness: t,
+            formulation,
+            bodies: Vec::new(),
+            elements: Vec::new(),
+            interfaces: Vec::new(),
+            fixed: Vec::new(),
+            loads: Vec::new(),
+            gravity: scene
+                .gravity
+                .map(|g| Vec2::new(g[0], g[1]))
+                .unwrap_or_else(Vec2::zeros),
+            damping: scene.damping.unwrap_or(0.0),
+            initial_velocity: Vec::new(),
+            contact: scene.contact,
+            ground: scene
+                .ground
+                .iter()
+                .map(|g| [Vec2::new(g.from[0], g.from[1]), Vec2::new(g.to[0], g.to[1])])
+                .collect(),
+        };
+        // What the scene's meshes will make, known before meshing except for gmsh files,
+        // whose elements are counted once read.
+        let mut expected: u64 = scene
+            .bodies
+            .iter()
+            .filter_map(|b| memory::cells_of(&b.mesh))
+            .sum();
+        memory::ensure_fits(scene, expected)?;
+        for (bi, spec) in scene.bodies.iter().enumerate() {
+            let material = scene.materials[&spec.material];
+            let mut mesh = build_mesh(&spec.name, &spec.mesh)?;
+            if memory::cells_of(&spec.mesh).is_none() {
+                expected += mesh.n_cells() as u64;
+                memory::ensure_fits(scene, expected)?;
+            }
+            let first = model.elements.len();
+            let props: Vec<AreaProperties> = (0..mesh.n_cells())
+                .map(|c| area_properties(&mesh.cell_points(c)))
+                .collect();
+            let body_area: f64 = props.iter().map(|p| p.area).sum();
+            let body_centroid = props.iter().map(|p| p.area * p.centroid).sum::<Vec2>() / body_area;
+            let rot = nalgebra::Rotation2::new(spec.initial.rotation_deg.to_radians());
+            if spec.initial.rotation_deg != 0.0 {
+                for v in &mut mesh.vertices {
+                    *v = body_centroid + rot * (*v - body_centroid);
+                }
+            }
+            let omega = spec.initial.angular_velocity;
+            let v0 = Vec2::new(spec.initial.velocity[0], spec.initial.velocity[1]);
+            for c in 0..mesh.n_cells() {
+                let p = area_properties(&mesh.cell_points(c));
+                model.elements.push(Element {
+                    body: bi as u32,
+                    props: p,
+                    rho: material.rho,
+                    d: elasticity(material.e, material.nu, scene.plane),
+                });
+                let r = p.centroid - body_centroid;
+                let mut v = vec![0.0; nd];
+                v[0] = v0.x - omega * r.y;
+                v[1] = v0.y + omega * r.x;
+                v[2] = omega;
+                model.initial_velocity.extend(v);
+            }
+            let at = |k: &str| format!("bodies[{bi}].{k}");
+            for e in &mesh.shared {
+                let iface = model
+                    .interface(
+                        first + e.a as usize,
+                        Some(first + e.b as usize),
+                        &mesh,
+                        e.v1,
+                        e.v2,
+                        &material,
+                    )
+                    .map_err(|m| Error::mesh(&spec.name, e.a as usize, m))?;
+                model.interfaces.push(iface);
+            }
+            for (k, s) in spec.supports.iter().enumerate() {
+                let field = at(&format!("supports[{k}].edge"));
+                match s {
+                    SupportSpec::GroundSpring(GroundSpringSpec { edge, components }) => {
+                        for e in side_edges(&mesh, edge, &field)? {
+                            let mut iface = model
+                                .interface(
+                                    first + e.cell as usize,
+                                    None,
+                                    &mesh,
+                                    e.v1,
+                                    e.v2,
+                                    &material,
+                                )
+                                .map_err(|m| Error::mesh(&spec.name, e.cell as usize, m))?;
+                            if !components.contains(&Component::N) {
+                                iface.k_n = 0.0;
+                            }
+                            if !components.contains(&Component::S) {
+                                iface.k_s = 0.0;
+                            }
+                            model.interfaces.push(iface);
+                        }
+                    }
+                    SupportSpec::Clamp(ClampSpec { edge, dofs }) => {
+                        let which: Vec<usize> = match dofs {
+                            None => (0..nd).collect(),
+                            Some(names) => names
+                                .iter()
+                                .map(|n| {
+                                    dof_index(n, formulation, &at(&format!("supports[{k}].dofs")))
+                                })
+                                .collect::<Result<_>>()?,
+                        };
+                        for e in side_edges(&mesh, edge, &field)? {
+                            let el = first + e.cell as usize;
+                            model.fixed.extend(which.iter().map(|&d| el * nd + d));
+                        }
+                    }
+                }
+            }
+            for (k, l) in spec.loads.iter().enumerate() {
+                match l {
+                    LoadSpec::Traction(TractionSpec {
+                        edge,
+                        value,
+                        amplitude,
+                    }) => {
+                        let q = Vec2::new(value[0], value[1]);
+                        for e in side_edges(&mesh, edge, &at(&format!("loads[{k}].edge")))? {
+                            let (p, r) =
+                                (mesh.vertices[e.v1 as usize], mesh.vertices[e.v2 as usize]);
+                            // Uniform traction: the resultant acts at the midpoint, exactly.
+                            model.loads.push(Load {
+                                element: (first + e.cell as usize) as u32,
+                                point: 0.5 * (p + r),
+                                force: q * (r - p).norm() * t,
+                                moment: 0.0,
+                                amplitude: amplitude.clone().map(Amplitude),
+                            });
+                        }
+                    }
+                    LoadSpec::Force(ForceSpec {
+                        element,
+                        value,
+                        amplitude,
+                    }) => {
+                        if *element >= mesh.n_cells() {
+                            return Err(Error::scene(
+                                at(&format!("loads[{k}].element")),
+                                format!(
+                                    "must lie in 0..{} (elements of body `{}`), got {element}",
+                                    mesh.n_cells(),
+                                    spec.name
+                                ),
+                            ));
+                        }
+                        let el = first + element;
+                        model.loads.push(Load {
+                            element: el as u32,
+                            point: model.elements[el].props.centroid,
+                            force: Vec2::new(value[0], value[1]),
+                            moment: value[2],
+                            amplitude: amplitude.clone().map(Amplitude),
+                        });
+                    }
+                }
+            }
+            model.bodies.push(Body {
+                name: spec.name.clone(),
+                mesh,
+                first_element: first,
+                moduli: spring_moduli(&material, scene.plane),
+            });
+        }
+        model.check_finite(scene)?;
+        model.fixed.sort_unstable();
+        model.fixed.dedup();
+        for (k, p) in scene.output.probes.iter().enumerate() {
+            model.probe_element(k, p)?;
+            dof_index(&p.dof, formulation, &format!("output.probes[{k}].dof"))?;
+        }
+        Ok(model)
+    }
+
+    /// The interface on the edge `v1 → v2` of element `a` (counter-clockwise in `a`), to element
+    /// `b` or to ground; `Err` explains a degenerate geometry.
+    fn interface(
+        &self,
+        a: usize,
+        b: Option<usize>,
+        mesh: &Mesh,
+        v1: u32,
+        v2: u32,
+        m: &MaterialSpec,
+    ) -> std::result::Result<Interface, String> {
+        let (p1, p2) = (mesh.vertices[v1 as usize], mesh.vertices[v2 as usize]);
+        let length = (p2 - p1).norm();
+        if length == 0.0 {
+            return Err(format!("edge ({v1}, {v2}) has zero length"));
+        }
+        // Counter-clockwise in `a`: the outward normal is the edge direction turned clockwise.
+        let dir = (p2 - p1) / length;
+        let normal = Vec2::new(dir.y, -dir.x);
+        let tangent = Vec2::new(normal.y, -normal.x);
+        let h_a = (p1 - self.elements[a].props.centroid).dot(&normal).abs();
+        let h_b = b.map_or(0.0, |b| {
+            (self.elements[b].props.centroid - p1).dot(&normal).abs()
+        });
+        if !(h_a + h_b > 1e-12 * length) {
+            return Err(format!(
+                "edge ({v1}, {v2}): the centroids lie on the edge line (h_a + h_b = 0)"
+            ));
+        }
+        let [e_n, e_s] = spring_moduli(m, self.plane);
+        let (k_n, k_s) = [e_n, e_s]
+            .map(|e| e / (h_a + h_b) * self.formulation.spring_factor())
+            .into();
+        Ok(Interface {
+            a: a as u32,
+            b: b.map_or(GROUND, |b| b as u32),
+            p1,
+            p2,
+            normal,
+            tangent,
+            length,
+            h_a,
+            h_b,
+            k_n,
+            k_s,
+        })
+    }
+
+    /// Masses and spring constants must be finite numbers: extreme inputs (a thickness of
+    /// 1e300, say) overflow, and the solvers would then compute with infinities.
+    fn check_finite(&self, scene: &Scene) -> Result<()> {
+        let t = self.thickness;
+        for (e, el) in self.elements.iter().enumerate() {
+            let m = el.rho * t * el.props.area;
+            let nd = self.formulation.ndof();
+            let massive = m.is_normal() && m > 0.0 && (m * el.props.polar()).is_normal();
+            let block = nalgebra::DMatrix::from_row_slice(
+                nd,
+                nd,
+                &self.formulation.mass(&el.props, el.rho * t),
+            );
+            if !massive || (block.clone().cholesky().is_none() && nd == 3) {
+                return Err(Error::scene(scene.most_extreme(el.body as usize, &["rho", "thickness"]), format!(
+                    "the mass of element {e} ({m:e} kg, rotational inertia {:e} kg m²) is not a positive normal number; \
+                     check rho, thickness and the mesh size", m * el.props.polar())));
+            }
+            if block.cholesky().is_none() {
+                let body = &self.bodies[el.body as usize];
+                return Err(Error::mesh(
+                    &body.name,
+                    e - body.first_element,
+                    "its consistent mass is not positive definite in double precision: \
+                    the element is too elongated (extreme aspect ratio) for the hybrid formulation",
+                ));
+            }
+        }
+        for i in &self.interfaces {
+            if !((i.k_n + i.k_s) * t * i.length * (1.0 + i.length * i.length)).is_finite() {
+                return Err(Error::scene(scene.most_extreme(self.elements[i.a as usize].body as usize, &["E", "thickness", "penalty"]), format!(
+                    "the springs between elements {} and {} overflow (k_n = {:e} Pa/m); check E, thickness, the penalty and the mesh size", i.a, i.b, i.k_n)));
+            }
+        }
+        Ok(())
+    }
+
+    /// The element (global index) containing the reference point `x`: the first whose polygon
+    /// holds it, inside or on its boundary.
+    pub fn element_at(&self, x: Vec2) -> Option<usize> {
+        self.bodies.iter().find_map(|b| {
+            (0..b.mesh.n_cells()).find_map(|c| {
+                let pts = b.mesh.cell_points(c);
+                let n = pts.len();
+                let on_edge = (0..n).any(|i| {
+                    crate::mesh::geometry::point_segment_distance(x, pts[i], pts[(i + 1) % n])
+                        <= 1e-12 * (pts[i] - pts[(i + 1) % n]).norm()
+                });
+                (on_edge || crate::mesh::geometry::point_in_polygon(x, &pts))
+                    .then_some(b.first_element + c)
+            })
+        })
+    }
+
+    /// The element of probe `k`: its `element`, checked, or the one containing its `at`.
+    pub fn probe_element(&self, k: usize, p: &crate::input::scene::ProbeSpec) -> Result<usize> {
+        match (p.element, p.at) {
+            (_, Some([x, y])) => self.element_at(Vec2::new(x, y)).ok_or_else(|| {
+                Error::scene(
+                    format!("output.probes[{k}].at"),
+                    format!(
+                        "[{x}, {y}] lies in no element (a point of the reference configuration, m)"
+                    ),
+                )
+            }),
+            (Some(e), None) if e < self.elements.len() => Ok(e),
+            (e, None) => Err(Error::scene(
+                format!("output.probes[{k}].element"),
+                format!(
+                    "must lie in 0..{} (global element index), got {}",
+                    self.elements.len(),
+                    e.map_or("nothing".into(), |e| e.to_string())
+                ),
+            )),
+        }
+    }
+
+    /// Number of DOFs, free and fixed.
+    pub fn n_dofs(&self) -> usize {
+        self.elements.len() * self.formulation.ndof()
+    }
+
+    /// Number of free DOFs.
+    pub fn n_free_dofs(&self) -> usize {
+        self.n_dofs() - self.fixed.len()
+    }
+}
+
+/// The global index of DOF `name` within an element, checked against the formulation.
+pub fn dof_index(name: &str, formulation: Formulation, field: &str) -> Result<usize> {
+    formulation
+        .dof_names()
+        .iter()
+        .position(|n| *n == name)
+        .ok_or_else(|| {
+            Error::scene(
+                field,
+                format!(
+                    "unknown DOF `{name}`; the {} formulation has {}",
+                    formulation.name(),
+                    formulation.dof_names().join(", ")
+                ),
+            )
+        })
+}
+
+fn build_mesh(body: &str, spec: &MeshSpec) -> Result<Mesh> {
+    let v = |p: &[f64; 2]| Vec2::new(p[0], p[1]);
+    match spec {
+        MeshSpec::Grid(GridSpec {
+            origin,
+            size,
+            cells,
+            cell,
+        }) => grid::grid(body, v(origin), v(size), cells[0], cells[1], *cell),
+        MeshSpec::Voronoi(VoronoiSpec {
+            origin,
+            size,
+            sites,
+            seed,
+            lloyd,
+        }) => voronoi::voronoi(body, v(origin), v(size), *sites, *seed, *lloyd),
+        MeshSpec::Polygons(PolygonsSpec { vertices, cells }) => {
+            Mesh::from_polygons(body, vertices.iter().map(v).collect(), cells)
+        }
+        MeshSpec::Gmsh(GmshSpec { path }) => crate::mesh::gmsh::read(body, path),
+    }
+}
+
+/// The boundary edges of a side or group; an error naming `field` when there are none.
+fn side_edges<'m>(
+    mesh: &'m Mesh,
+    set: &EdgeSet,
+    field: &str,
+) -> Result<Vec<&'m crate::mesh::BoundaryEdge>> {
+    mesh.edges_in(set).map_err(|m| Error::scene(field, m))
+}

@@ -1,0 +1,339 @@
+//! Dependency-free SVG pictures of a model, written as plain text: the elements with their
+//! interfaces, supports and loads ([`model_svg`]), or the elements displaced by a DOF vector
+//! such as a mode shape ([`displaced_svg`]). Made for the README and for teaching, so every
+//! mark is one of the model's objects: an interface is drawn as its two springs, centroid to
+//! edge midpoint (the lengths `h_a`, `h_b` of eq. 12).
+
+use crate::error::{Error, Result};
+use crate::mesh::geometry::Vec2;
+use crate::model::{Model, GROUND};
+use std::fmt::Write;
+
+/// Fill colours of the bodies, in body order (repeated when there are more bodies).
+const BODY_FILLS: [&str; 6] = [
+    "#dbe7f3", "#f6e3c8", "#dcefd9", "#f2d9e6", "#e6e0f3", "#f3f0c8",
+];
+
+/// Maps model coordinates (m, y up) to pixels (y down) and collects the SVG elements.
+struct Canvas {
+    lo: Vec2,
+    scale: f64,
+    margin: f64,
+    height: f64,
+    width: f64,
+    body: String,
+}
+
+impl Canvas {
+    /// A canvas that shows every point of `points` at most `max_px` pixels wide or high, with
+    /// room for a caption above.
+    fn fit(points: impl Iterator<Item = Vec2>, max_px: f64) -> Canvas {
+        let (mut lo, mut hi) = (Vec2::repeat(f64::MAX), Vec2::repeat(f64::MIN));
+        for p in points {
+            lo = lo.inf(&p);
+            hi = hi.sup(&p);
+        }
+        let size = (hi - lo).map(|s| s.max(1e-12));
+        let scale = (max_px / size.x).min(max_px / size.y);
+        let margin = 48.0;
+        Canvas {
+            lo,
+            scale,
+            margin,
+            width: size.x * scale + 2.0 * margin,
+            height: size.y * scale + 2.0 * margin + 20.0,
+            body: String::new(),
+        }
+    }
+
+    fn px(&self, p: Vec2) -> (f64, f64) {
+        let x = self.margin + (p.x - self.lo.x) * self.scale;
+        let y = self.height - self.margin - (p.y - self.lo.y) * self.scale;
+        (x, y)
+    }
+
+    fn polygon(&mut self, points: &[Vec2], style: &str) {
+        let mut coords = String::new();
+        for &p in points {
+            let (x, y) = self.px(p);
+            let _ = write!(coords, "{x:.2},{y:.2} ");
+        }
+        let _ = writeln!(
+            self.body,
+            r#"<polygon points="{}" {style}/>"#,
+            coords.trim_end()
+        );
+    }
+
+    fn line(&mut self, a: Vec2, b: Vec2, style: &str) {
+        let ((x1, y1), (x2, y2)) = (self.px(a), self.px(b));
+        let _ = writeln!(
+            self.body,
+            r#"<line x1="{x1:.2}" y1="{y1:.2}" x2="{x2:.2}" y2="{y2:.2}" {style}/>"#
+        );
+    }
+
+    /// A line from `from` of `len_px` pixels along `dir` (model axes), with an arrow head.
+    fn arrow(&mut self, from: Vec2, dir: Vec2, len_px: f64, colour: &str) {
+        let (x, y) = self.px(from);
+        self.arrow_px(x, y, dir, len_px, colour);
+    }
+
+    /// [`Canvas::arrow`] from the pixel `(x1, y1)`.
+    fn arrow_px(&mut self, x1: f64, y1: f64, dir: Vec2, len_px: f64, colour: &str) {
+        let d = (dir.x, -dir.y);
+        let (x2, y2) = (x1 + d.0 * len_px, y1 + d.1 * len_px);
+        let (hx, hy) = (x2 - d.0 * 7.0, y2 - d.1 * 7.0);
+        let _ = writeln!(
+            self.body,
+            r#"<line x1="{x1:.2}" y1="{y1:.2}" x2="{x2:.2}" y2="{y2:.2}" stroke="{colour}" stroke-width="1.6"/><polygon points="{x2:.2},{y2:.2} {:.2},{:.2} {:.2},{:.2}" fill="{colour}"/>"#,
+            hx - d.1 * 3.5,
+            hy + d.0 * 3.5,
+            hx + d.1 * 3.5,
+            hy - d.0 * 3.5
+        );
+    }
+
+    /// A grounded segment: the segment, and short hatch marks on the side of `outward`.
+    fn ground(&mut self, p1: Vec2, p2: Vec2, outward: Vec2, colour: &str) {
+        self.line(p1, p2, &format!(r#"stroke="{colour}" stroke-width="2.5""#));
+        let len_px = (p2 - p1).norm() * self.scale;
+        let marks = (len_px / 8.0).floor().max(1.0) as usize;
+        let t = (p2 - p1).normalize();
+        let hatch = (outward + t).normalize() * (6.0 / self.scale);
+        for i in 0..marks {
+            let p = p1 + (p2 - p1) * ((i as f64 + 0.5) / marks as f64);
+            self.line(
+                p,
+                p + hatch,
+                &format!(r#"stroke="{colour}" stroke-width="1""#),
+            );
+        }
+    }
+
+    fn text(&mut self, x: f64, y: f64, size: f64, text: &str) {
+        let text = text
+            .replace('&', "&amp;")
+            .replace('<', "&lt;")
+            .replace('>', "&gt;");
+        let _ = writeln!(
+            self.body,
+            r#"<text x="{x:.1}" y="{y:.1}" font-family="sans-serif" font-size="{size}">{text}</text>"#
+        );
+    }
+
+    fn finish(self) -> String {
+        format!(
+            "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{w:.0}\" height=\"{h:.0}\" viewBox=\"0 0 {w:.0} {h:.0}\">\n<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n{}</svg>\n",
+            self.body,
+            w = self.width,
+            h = self.height
+        )
+    }
+}
+
+/// Every element as `(body, its vertices, each vertex's displacement N_e(x) U_e)`, the
+/// displacements zero without `u`.
+fn element_polygons(model: &Model, u: Option<&[f64]>) -> Vec<(usize, Vec<Vec2>, Vec<Vec2>)> {
+    let nd = model.formulation.ndof();
+    let mut polygons = Vec::with_capacity(model.elements.len());
+    for (b, body) in model.bodies.iter().enumerate() {
+        for c in 0..body.mesh.n_cells() {
+            let e = body.first_element + c;
+            let xe = model.elements[e].props.centroid;
+            let vertices: Vec<Vec2> = body
+                .mesh
+                .cell(c)
+                .iter()
+                .map(|&k| body.mesh.vertices[k as usize])
+                .collect();
+            let moved = vertices
+                .iter()
+                .map(|&x| {
+                    u.map_or(Vec2::zeros(), |u| {
+                        model
+                            .formulation
+                            .displacement(&u[e * nd..(e + 1) * nd], x - xe)
+                    })
+                })
+                .collect();
+            polygons.push((b, vertices, moved));
+        }
+    }
+    polygons
+}
+
+fn all_vertices(model: &Model) -> impl Iterator<Item = Vec2> + '_ {
+    let ground = model.ground.iter().flat_map(|g| g.iter().copied());
+    model
+        .bodies
+        .iter()
+        .flat_map(|b| b.mesh.vertices.iter().copied())
+        .chain(ground)
+}
+
+/// The model as built from its scene: elements (one fill per body), each interface as its two
+/// springs from the centroids to the edge midpoint (blue), ground springs as hatched edges
+/// (green), elements with fixed DOFs marked by a black triangle at the centroid, point loads as
+/// red arrows (length by magnitude), gravity as an arrow in the corner and contact ground as
+/// hatched black segments. About 800 pixels on its longer side.
+pub fn model_svg(model: &Model) -> String {
+    let mut cv = Canvas::fit(all_vertices(model), 800.0);
+    for (b, vertices, _) in element_polygons(model, None) {
+        let fill = BODY_FILLS[b % BODY_FILLS.len()];
+        cv.polygon(
+            &vertices,
+            &format!(r##"fill="{fill}" stroke="#555" stroke-width="0.6""##),
+        );
+    }
+    let thin = model.interfaces.len() > 5000;
+    let spring = format!(
+        r##"stroke="#2a5db0" stroke-width="{}""##,
+        if thin { 0.3 } else { 0.8 }
+    );
+    for i in &model.interfaces {
+        let (m, xa) = (i.midpoint(), model.elements[i.a as usize].props.centroid);
+        if i.b == GROUND {
+            cv.ground(i.p1, i.p2, i.normal, "#1b8a3a");
+        } else {
+            cv.line(xa, m, &spring);
+            cv.line(m, model.elements[i.b as usize].props.centroid, &spring);
+        }
+    }
+    for g in &model.ground {
+        let t = (g[1] - g[0]).normalize();
+        cv.ground(g[0], g[1], Vec2::new(t.y, -t.x), "#000");
+    }
+    let nd = model.formulation.ndof();
+    let mut marked = usize::MAX;
+    for &dof in &model.fixed {
+        let e = dof / nd;
+        if e != marked {
+            marked = e;
+            let (x, y) = cv.px(model.elements[e].props.centroid);
+            let _ = writeln!(
+                cv.body,
+                r#"<polygon points="{x:.2},{y:.2} {:.2},{:.2} {:.2},{:.2}" fill="black"/>"#,
+                x - 4.0,
+                y + 7.0,
+                x + 4.0,
+                y + 7.0
+            );
+        }
+    }
+    let f_max = model
+        .loads
+        .iter()
+        .map(|l| l.force.norm())
+        .fold(0.0, f64::max);
+    for l in model.loads.iter().filter(|l| l.force.norm() > 0.0) {
+        cv.arrow(
+            l.point,
+            l.force.normalize(),
+            12.0 + 24.0 * l.force.norm() / f_max,
+            "#c0392b",
+        );
+    }
+    if model.gravity.norm() > 0.0 {
+        let x = cv.width - cv.margin + 16.0;
+        cv.arrow_px(x, cv.margin + 4.0, model.gravity.normalize(), 24.0, "#444");
+        cv.text(x + 5.0, cv.margin + 16.0, 11.0, "g");
+    }
+    // The key names only the marks the picture holds.
+    let pairs = model.interfaces.iter().filter(|i| i.b != GROUND).count();
+    let key = [
+        (pairs > 0, "blue: springs centroid–edge"),
+        (model.interfaces.len() > pairs, "green: ground springs"),
+        (!model.fixed.is_empty(), "black: clamped elements"),
+        (f_max > 0.0, "red: loads"),
+        (!model.ground.is_empty(), "hatched black: contact ground"),
+    ];
+    let key: Vec<&str> = key.iter().filter(|k| k.0).map(|k| k.1).collect();
+    let caption = format!(
+        "{}: {} elements, {pairs} interfaces; {}",
+        model.name,
+        model.elements.len(),
+        key.join(", ")
+    );
+    cv.text(cv.margin, 20.0, 13.0, &caption);
+    cv.finish()
+}
+
+/// The elements displaced by `u` (`ndof` per element, e.g. a mode shape), scaled so that the
+/// largest vertex displacement is a tenth of the model's larger side, filled over the reference
+/// outline (grey). `caption` is printed above with the scale factor.
+pub fn displaced_svg(model: &Model, u: &[f64], caption: &str) -> String {
+    let elements = element_polygons(model, Some(u));
+    let largest = elements
+        .iter()
+        .flat_map(|p| p.2.iter())
+        .map(|d| d.norm())
+        .fold(0.0, f64::max);
+    let (lo, hi) = all_vertices(model).fold(
+        (Vec2::repeat(f64::MAX), Vec2::repeat(f64::MIN)),
+        |(lo, hi), p| (lo.inf(&p), hi.sup(&p)),
+    );
+    let scale = if largest > 0.0 {
+        0.1 * (hi - lo).max() / largest
+    } else {
+        0.0
+    };
+    let polygons: Vec<(usize, Vec<Vec2>, Vec<Vec2>)> = elements
+        .into_iter()
+        .map(|(b, x, d)| {
+            (
+                b,
+                x.clone(),
+                x.iter().zip(&d).map(|(x, d)| x + d * scale).collect(),
+            )
+        })
+        .collect();
+    let points = polygons
+        .iter()
+        .flat_map(|p| p.1.iter().chain(&p.2).copied())
+        .collect::<Vec<_>>();
+    let mut cv = Canvas::fit(points.into_iter(), 800.0);
+    for (_, reference, _) in &polygons {
+        cv.polygon(
+            reference,
+            r##"fill="none" stroke="#bbb" stroke-width="0.6""##,
+        );
+    }
+    for (b, _, displaced) in &polygons {
+        let fill = BODY_FILLS[b % BODY_FILLS.len()];
+        cv.polygon(
+            displaced,
+            &format!(r##"fill="{fill}" fill-opacity="0.85" stroke="#333" stroke-width="0.6""##),
+        );
+    }
+    cv.text(
+        cv.margin,
+        20.0,
+        13.0,
+        &format!("{caption} (displacements × {scale:.3e}; grey: reference)"),
+    );
+    cv.finish()
+}
+
+/// Writes `mode_001.svg`, ... into `dir`: each mode shape drawn by [`displaced_svg`], captioned
+/// with its frequency (Hz); `omega` are the circular frequencies (rad/s) of the `shapes`.
+pub fn write_mode_shapes(
+    dir: &std::path::Path,
+    model: &Model,
+    omega: &[f64],
+    shapes: &[Vec<f64>],
+) -> Result<()> {
+    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    for (k, (shape, omega)) in shapes.iter().zip(omega).enumerate() {
+        let caption = format!(
+            "{} mode {}: f = {:.6e} Hz",
+            model.name,
+            k + 1,
+            omega / (2.0 * std::f64::consts::PI)
+        );
+        let path = dir.join(format!("mode_{:03}.svg", k + 1));
+        std::fs::write(&path, displaced_svg(model, shape, &caption))
+            .map_err(|e| Error::io(&path, e))?;
+    }
+    Ok(())
+}

@@ -1,0 +1,309 @@
+//! What a run writes (the README's *Outputs* section): `summary.json`, `history.csv` and
+//! `final_state.json`.
+//! The history is written row by row, each row whole; the other files are written to a
+//! temporary name and renamed, so that a run that stops early leaves valid files.
+
+pub mod drawing;
+pub mod plot;
+pub mod vtk;
+
+use crate::error::{Error, Result};
+use crate::step::integrator::{Energy, Snapshot};
+use crate::model::Model;
+use serde::Serialize;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// `summary.json`.
+#[derive(Debug, Clone, Serialize)]
+pub struct Summary {
+    /// The scene's name.
+    pub scene: String,
+    /// `rigid` or `hybrid`.
+    pub formulation: String,
+    /// `assembled` or `element-wise`.
+    pub evaluator: String,
+    /// Number of elements.
+    pub elements: usize,
+    /// Number of interfaces (ground springs included).
+    pub interfaces: usize,
+    /// Free DOFs (fixed ones excluded).
+    pub dofs: usize,
+    /// Time step (s).
+    pub dt: f64,
+    /// Critical time step `2/ω_max` (s).
+    pub dt_crit: f64,
+    /// Steps completed.
+    pub steps: u64,
+    /// Time reached (s).
+    pub t_end: f64,
+    /// `ok` or `diverged`.
+    pub status: String,
+    /// Why a run diverged, with the step and the time; `null` for `ok`.
+    pub reason: Option<String>,
+    /// Whole run, setup included (s).
+    pub wall_time_s: f64,
+    /// The time-stepping loop alone.
+    pub step_time_s: f64,
+    /// Worker threads.
+    pub threads: usize,
+    /// What the checks of `checks::warnings` found (extreme inputs, dt above Δt_crit).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<String>,
+    /// Energies at the start and the end, and the drift.
+    pub energy: EnergySummary,
+    /// Contact figures; only for scenes with contact.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub contact: Option<ContactSummary>,
+    /// The probe columns of `history.csv` with their units (`rbsm plot` labels its axes so).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub probes: Vec<ProbeColumn>,
+}
+
+/// A probe column of `history.csv` and its unit.
+#[derive(Debug, Clone, Serialize)]
+pub struct ProbeColumn {
+    /// The column's header.
+    pub name: String,
+    /// `m` (`u`, `v`), `rad` (`theta`) or `1` (strains).
+    pub unit: String,
+}
+
+/// The contact figures of `summary.json`.
+#[derive(Debug, Clone, Serialize)]
+pub struct ContactSummary {
+    /// `edge-to-edge` or `point`.
+    pub model: String,
+    /// Coulomb `μ`; `null` is no slip limit.
+    pub friction: Option<f64>,
+    /// Live contacts per step, mean: vertex–edge contacts (point), pieces of boundary edges
+    /// inside another body or below the ground (edge-to-edge).
+    pub mean_pairs: f64,
+    /// Largest number of live contacts in one step.
+    pub max_pairs: usize,
+    /// Narrow-phase tests per step: vertex path against a nearby edge (point), boundary edge
+    /// against a nearby element or ground strip (edge-to-edge).
+    pub tests_per_step: f64,
+    /// Builds of the neighbour lists: when a corner moved half their skin.
+    pub rebuilds: u64,
+    /// Wall time spent in contact (s).
+    pub time_s: f64,
+}
+
+/// The energy figures of `summary.json` (J).
+#[derive(Debug, Clone, Serialize)]
+pub struct EnergySummary {
+    /// Total energy at the start (J).
+    pub initial: f64,
+    #[serde(rename = "final")]
+    /// Total energy at the end (J).
+    pub final_: f64,
+    /// Largest `|total − initial|` divided by the largest energy seen in the run.
+    pub max_relative_drift: f64,
+}
+
+/// One history column beyond the energies: DOF `dof` of element `element`, and for `u`, `v`
+/// at the reference offset `offset` from its centroid the displacement there, `N_e(x) U_e`.
+#[derive(Debug, Clone)]
+pub struct Probe {
+    /// Column header.
+    pub name: String,
+    /// The element (global index).
+    pub element: usize,
+    /// The DOF within the element.
+    pub dof: usize,
+    /// DOFs per element.
+    pub nd: usize,
+    /// Where in the element, for a probe placed by point.
+    pub offset: Option<crate::mesh::geometry::Vec2>,
+    /// The formulation, whose `N_e` carries the element's DOFs to the point.
+    pub formulation: crate::model::formulation::Formulation,
+}
+
+impl Probe {
+    /// The unit of the probe's values: `m`, `rad` or `1` (a strain).
+    pub fn unit(&self) -> &'static str {
+        match self.dof {
+            0 | 1 => "m",
+            2 => "rad",
+            _ => "1",
+        }
+    }
+
+    /// The probe's value in the displacements `u` of all elements.
+    pub fn value(&self, u: &[f64]) -> f64 {
+        let ue = &u[self.element * self.nd..(self.element + 1) * self.nd];
+        match self.offset {
+            Some(d) if self.dof < 2 => self.formulation.displacement(ue, d)[self.dof],
+            _ => ue[self.dof],
+        }
+    }
+}
+
+/// `history.csv`, written as the run goes: each row in one write, so that the file holds whole
+/// rows only, even after the process is killed; a row that fails to be written (disk full, file
+/// size limit) is cut off again before the error is returned.
+pub struct History {
+    file: std::fs::File,
+    path: PathBuf,
+    probes: Vec<Probe>,
+    /// Bytes of whole rows written so far.
+    len: u64,
+}
+
+impl History {
+    /// Creates the file and writes the header.
+    pub fn create(dir: &Path, probes: Vec<Probe>) -> Result<History> {
+        let path = dir.join("history.csv");
+        let file = std::fs::File::create(&path).map_err(|e| Error::io(&path, e))?;
+        let mut h = History {
+            file,
+            path,
+            probes,
+            len: 0,
+        };
+        let mut header = crate::input::scene::HISTORY_COLUMNS.join(",");
+        for p in &h.probes {
+            header.push(',');
+            header.push_str(&p.name);
+        }
+        h.append(header)?;
+        Ok(h)
+    }
+
+    /// Opens the history of an earlier run to go on after its first `len` bytes (the rows up to
+    /// a checkpoint); the rest is cut off.
+    pub fn resume(dir: &Path, probes: Vec<Probe>, len: u64) -> Result<History> {
+        let path = dir.join("history.csv");
+        let file = std::fs::OpenOptions::new()
+            .write(true)
+            .open(&path)
+            .map_err(|e| Error::io(&path, e))?;
+        let have = file.metadata().map_err(|e| Error::io(&path, e))?.len();
+        if have < len {
+            return Err(Error::io(
+                &path,
+                std::io::Error::other(format!(
+                    "holds {have} bytes, shorter than the {len} the checkpoint counts"
+                )),
+            ));
+        }
+        file.set_len(len).map_err(|e| Error::io(&path, e))?;
+        let mut h = History {
+            file,
+            path,
+            probes,
+            len,
+        };
+        use std::io::Seek;
+        h.file
+            .seek(std::io::SeekFrom::Start(len))
+            .map_err(|e| Error::io(&h.path, e))?;
+        Ok(h)
+    }
+
+    /// Bytes of whole rows written so far.
+    pub fn len(&self) -> u64 {
+        self.len
+    }
+
+    /// Appends the row of one recorded step.
+    pub fn write(&mut self, s: &Snapshot, e: &Energy) -> Result<()> {
+        let mut row = format!(
+            "{:e},{:e},{:e},{:e},{:e},{:e},{:e}",
+            e.t, e.kinetic, e.elastic, e.contact, e.potential, e.external_work, e.total
+        );
+        for p in &self.probes {
+            row.push_str(&format!(",{:e}", p.value(s.u)));
+        }
+        self.append(row)
+    }
+
+    /// Writes `line` and a newline in one call; on failure cuts the file back to whole rows.
+    fn append(&mut self, mut line: String) -> Result<()> {
+        line.push('\n');
+        match self.file.write_all(line.as_bytes()) {
+            Ok(()) => {
+                self.len += line.len() as u64;
+                Ok(())
+            }
+            Err(e) => {
+                use std::io::Seek;
+                let _ = self
+                    .file
+                    .set_len(self.len)
+                    .and_then(|_| self.file.seek(std::io::SeekFrom::Start(self.len)));
+                Err(Error::io(&self.path, e))
+            }
+        }
+    }
+}
+
+/// One element of `final_state.json`.
+#[derive(Serialize)]
+struct ElementState<'a> {
+    centroid: [f64; 2],
+    #[serde(rename = "U")]
+    u: &'a [f64],
+    #[serde(rename = "V")]
+    v: &'a [f64],
+    /// `(σ_x, σ_y, τ_xy) = D ε` (Pa), hybrid only.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    stress: Option<[f64; 3]>,
+}
+
+/// `(σ_x, σ_y, τ_xy) = D ε` of a hybrid element's DOFs `u`; `None` for a rigid one.
+pub fn element_stress(model: &Model, e: usize, u: &[f64]) -> Option<[f64; 3]> {
+    (u.len() == 6).then(|| {
+        let s = model.elements[e].d * nalgebra::Vector3::new(u[3], u[4], u[5]);
+        [s[0], s[1], s[2]]
+    })
+}
+
+/// Writes `final_state.json`: per element its reference centroid, `U` and `V`.
+pub fn write_final_state(dir: &Path, model: &Model, t: f64, u: &[f64], v: &[f64]) -> Result<()> {
+    let nd = model.formulation.ndof();
+    let elements: Vec<ElementState> = model
+        .elements
+        .iter()
+        .enumerate()
+        .map(|(e, el)| ElementState {
+            centroid: [el.props.centroid.x, el.props.centroid.y],
+            u: &u[e * nd..(e + 1) * nd],
+            v: &v[e * nd..(e + 1) * nd],
+            stress: element_stress(model, e, &u[e * nd..(e + 1) * nd]),
+        })
+        .collect();
+    write_json(
+        &dir.join("final_state.json"),
+        &serde_json::json!({ "t": t, "elements": elements }),
+    )
+}
+
+/// Writes any serialisable value as pretty JSON, atomically ([`write_atomic`]).
+pub fn write_json(path: &Path, value: &impl Serialize) -> Result<()> {
+    let mut text = serde_json::to_vec_pretty(value).map_err(|e| Error::io(path, e.into()))?;
+    text.push(b'\n');
+    write_atomic(path, &text)
+}
+
+/// The temporary name beside `path` that [`write_atomic`] writes first: hidden, with the same
+/// extension (readers such as vtkio pick the format by it).
+pub fn temporary(path: &Path) -> PathBuf {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    path.with_file_name(format!(".part-{name}"))
+}
+
+/// Writes `bytes` to a temporary name beside `path`, then renames it over `path`: readers, and
+/// a process killed half way, see the old file whole or the new one whole.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    let tmp = temporary(path);
+    std::fs::write(&tmp, bytes).map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        Error::io(path, e)
+    })?;
+    std::fs::rename(&tmp, path).map_err(|e| Error::io(path, e))
+}
