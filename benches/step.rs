@@ -10,11 +10,11 @@
 //! which the summary is left as it was.
 
 use criterion::{Criterion, SamplingMode};
-use rbsm::step::integrator::CentralDifference;
+use rbsm::input::scene::{EvaluatorKind, Scene};
 use rbsm::model::loads::Loads;
 use rbsm::model::mass::Mass;
 use rbsm::model::Model;
-use rbsm::input::scene::{EvaluatorKind, Scene};
+use rbsm::step::integrator::CentralDifference;
 use rbsm::{analysis::eigen, force::evaluator};
 use std::cell::RefCell;
 use std::fmt::Write as _;
@@ -178,7 +178,7 @@ fn main() {
                     let bytes =
                         ev.bytes() as f64 / ne as f64 + (8 * nd * vectors + inv_bytes) as f64;
                     let mut integrator =
-                        CentralDifference::new(&model, ev.as_ref(), &mass, &loads, 1e-9);
+                        CentralDifference::new(&model, ev.as_ref(), &mass, &loads, None, 1e-9);
                     let (sample_size, time) = sampling(ne);
                     let mut group = c.benchmark_group("step");
                     group.sample_size(sample_size).measurement_time(time);
@@ -270,7 +270,7 @@ fn memory() -> (f64, f64) {
         .expect("the bench model builds");
     let (mass, loads) = (Mass::new(&model), Loads::new(&model));
     let ev = evaluator::build(&model, EvaluatorKind::ElementWise);
-    let integrator = CentralDifference::new(&model, ev.as_ref(), &mass, &loads, 1e-9);
+    let integrator = CentralDifference::new(&model, ev.as_ref(), &mass, &loads, None, 1e-9);
     let ne = model.elements.len() as f64;
     let rss_per_element = (rss_bytes() - before) / ne;
     drop(integrator);
@@ -302,7 +302,7 @@ fn extras(rss_per_element: f64, working_set: f64) -> Extras {
         let model = Model::build(&Scene::from_json(&json).expect("valid")).expect("builds");
         let (mass, loads) = (Mass::new(&model), Loads::new(&model));
         let ev = evaluator::build(&model, EvaluatorKind::ElementWise);
-        let mut integrator = CentralDifference::new(&model, ev.as_ref(), &mass, &loads, 1e-9);
+        let mut integrator = CentralDifference::new(&model, ev.as_ref(), &mass, &loads, None, 1e-9);
         let mut times: Vec<f64> = (0..7)
             .map(|_| {
                 let t0 = Instant::now();

@@ -8,7 +8,7 @@
 //! needs `pip install pymunk`; without it the peer's column says so. `RBSM_WALL=30` runs a
 //! 30 × 30 wall instead, for a quick look (the summary is then left as it was).
 
-use rbsm::analysis::run::{Prepared, RunOptions};
+use rbsm::analysis::setup::{Overrides, Setup};
 use rbsm::input::scene::Scene;
 use std::fmt::Write as _;
 use std::process::Command;
@@ -55,7 +55,7 @@ fn pool(threads: usize) -> rayon::ThreadPool {
 }
 
 /// Median µs per body-step over the rounds, after the warm-up.
-fn ours(p: &Prepared, threads: usize) -> Ours {
+fn ours(p: &Setup, threads: usize) -> Ours {
     let bodies = p.model.bodies.len() as f64;
     pool(threads).install(|| {
         let mut cd = p.integrator(p.dt);
@@ -123,9 +123,9 @@ fn hopping_share() -> f64 {
     map.remove("ground");
     map.remove("contact");
     let time = |json: &str| {
-        let p = Prepared::new(
+        let p = Setup::new(
             &Scene::from_json(json).unwrap(),
-            &RunOptions {
+            &Overrides {
                 dt: Some(1e-6),
                 ..Default::default()
             },
@@ -154,7 +154,7 @@ fn main() {
     let n = quick.unwrap_or(100);
     let mut table = String::new();
     for model in ["edge-to-edge", "point"] {
-        let p = Prepared::new(&wall(n, model), &RunOptions::default()).expect("wall model");
+        let p = Setup::new(&wall(n, model), &Overrides::default()).expect("wall model");
         for threads in [1, 2] {
             let o = ours(&p, threads);
             let q = peer(n, threads, p.dt);

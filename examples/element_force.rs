@@ -23,9 +23,9 @@
 //! agrees to round-off too.
 
 use rbsm::force::evaluator;
+use rbsm::input::scene::{EvaluatorKind, Scene};
 use rbsm::mesh::geometry::Vec2;
 use rbsm::model::{Model, GROUND};
-use rbsm::input::scene::{EvaluatorKind, Scene};
 
 /// The element whose force is traced: the middle of the bottom row, with three neighbours and
 /// one edge on ground springs.

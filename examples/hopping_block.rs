@@ -22,7 +22,7 @@
 //! runs ten bounces, and validation §8.1 shows how the flat landing turns into rocking.
 
 use rbsm::analysis::hopping::{brick, centre_velocity, lowest_point, Bounce, Tracker};
-use rbsm::analysis::run::{Prepared, RunOptions};
+use rbsm::analysis::setup::{Overrides, Setup};
 use rbsm::input::scene::Scene;
 
 /// Drop height (m) and time step (s): 1 µs resolves the contact, about 80 µs, in 80 steps.
@@ -46,9 +46,9 @@ fn compute() -> Outcome {
         0.0,
     ))
     .expect("the brick scene");
-    let p = Prepared::new(
+    let p = Setup::new(
         &scene,
-        &RunOptions {
+        &Overrides {
             dt: Some(DT),
             ..Default::default()
         },

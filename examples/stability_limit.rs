@@ -22,9 +22,9 @@
 //! **Key number.** At 1.01 `Δt_crit` the elastic energy grows by `z² = 1.760` per step, as the
 //! closed form predicts. The runs at 0.9 and 0.99 stay bounded.
 
-use rbsm::analysis::run::{Prepared, RunOptions};
-use rbsm::input::scene::Scene;
+use rbsm::analysis::setup::{Overrides, Setup};
 use rbsm::analysis::stability::run_at_fraction;
+use rbsm::input::scene::Scene;
 
 /// What the example prints and the test checks.
 struct Outcome {
@@ -51,7 +51,7 @@ fn energy_growth_per_step(w: f64) -> f64 {
 
 /// Central difference from rest at `u0`, `steps` steps of `dt`: the elastic energy
 /// `½ Uᵀ f_int(U)` at every step.
-fn elastic_history(p: &Prepared, u0: &[f64], dt: f64, steps: usize) -> Vec<f64> {
+fn elastic_history(p: &Setup, u0: &[f64], dt: f64, steps: usize) -> Vec<f64> {
     let (mut u, mut v, mut f) = (u0.to_vec(), vec![0.0; u0.len()], vec![0.0; u0.len()]);
     let mut energy = Vec::with_capacity(steps + 1);
     for _ in 0..=steps {
@@ -68,9 +68,9 @@ fn compute() -> Outcome {
         "{}/examples/scenes/cantilever.json",
         env!("CARGO_MANIFEST_DIR")
     );
-    let p = Prepared::new(
+    let p = Setup::new(
         &Scene::from_file(path).expect("the bundled scene"),
-        &RunOptions::default(),
+        &Overrides::default(),
     )
     .expect("it builds");
     assert!(
@@ -96,14 +96,7 @@ fn compute() -> Outcome {
     }
     let n = unstable.len() - 1;
     let measured_growth = (unstable[n] / unstable[n - 20]).powf(1.0 / 20.0);
-    let guarded = run_at_fraction(
-        &p.model,
-        p.evaluator.as_ref(),
-        &p.mass,
-        p.dt_crit,
-        1.01,
-        2000,
-    );
+    let guarded = run_at_fraction(&p, 1.01, 2000);
     Outcome {
         omega_max: p.omega_max,
         dt_crit: p.dt_crit,

@@ -21,8 +21,8 @@
 //! three rigid-body motions of the pair strain no spring (`K U = 0`).
 
 use nalgebra::{SMatrix, SVector};
-use rbsm::model::Model;
 use rbsm::input::scene::Scene;
+use rbsm::model::Model;
 
 /// Young's modulus (Pa), Poisson's ratio, thickness (m).
 const E: f64 = 3.0e10;

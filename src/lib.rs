@@ -78,9 +78,11 @@
 //! ## A first use
 //!
 //! ```no_run
-//! use rbsm::{analysis::run, input::scene::Scene};
+//! use rbsm::analysis::{run, setup::Setup};
+//! use rbsm::input::scene::Scene;
 //! let scene = Scene::from_file("examples/scenes/cantilever.json")?;
-//! let summary = run::run(&scene, &run::RunOptions::default(), "out/cantilever".as_ref(), &mut run::Silent)?;
+//! let setup = Setup::new(&scene, &Default::default())?;
+//! let summary = run::run(&setup, &Default::default(), "out/cantilever".as_ref(), &mut run::Silent)?;
 //! println!("{} steps, energy drift {:e}", summary.steps, summary.energy.max_relative_drift);
 //! # Ok::<(), rbsm::error::Error>(())
 //! ```

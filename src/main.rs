@@ -2,10 +2,12 @@
 
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use rbsm::analysis::run::{self, Monitor, RunOptions};
+use rbsm::analysis::run::{self, Monitor};
+use rbsm::analysis::setup::{Overrides, Setup};
+use rbsm::analysis::{check, eigen, stability, statics, tradeoff, Report};
 use rbsm::input::scene::{EvaluatorKind, Scene};
 use std::io::IsTerminal;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
@@ -308,32 +310,35 @@ fn error_json(e: &rbsm::error::Error) -> serde_json::Value {
     serde_json::json!({"error": {"kind": kind, "key": key, "message": message}})
 }
 
-/// `1 body`, `2 bodies`.
-fn count(n: usize, one: &str, many: &str) -> String {
-    format!("{n} {}", if n == 1 { one } else { many })
-}
-
-/// `1.2 MB`, `35.0 kB`, `512 B`.
-fn human_bytes(b: usize) -> String {
-    match b {
-        0..1000 => format!("{b} B"),
-        1000..1_000_000 => format!("{:.1} kB", b as f64 / 1e3),
-        1_000_000..1_000_000_000 => format!("{:.1} MB", b as f64 / 1e6),
-        _ => format!("{:.2} GB", b as f64 / 1e9),
-    }
-}
-
-/// Prints a report as JSON, or as the text `text` gives.
-fn print(
-    json: bool,
-    value: &impl serde::Serialize,
-    text: impl FnOnce() -> String,
-) -> rbsm::error::Result<()> {
+/// Prints a report as JSON, or as its text.
+fn print(json: bool, report: &impl Report) -> rbsm::error::Result<()> {
     if json {
-        say(&serde_json::to_string_pretty(value).expect("reports serialise"))
+        say(&serde_json::to_string_pretty(report).expect("reports serialise"))
     } else {
-        say(&text())
+        say(&report.text())
     }
+}
+
+/// The list of files a command wrote, as `--json` and text print it.
+#[derive(serde::Serialize)]
+struct Written {
+    written: Vec<PathBuf>,
+}
+
+impl Report for Written {
+    fn text(&self) -> String {
+        let lines: Vec<String> = self
+            .written
+            .iter()
+            .map(|p| format!("written: {}", p.display()))
+            .collect();
+        lines.join("\n")
+    }
+}
+
+/// The setup of the scene file `path` with `overrides`.
+fn setup(path: &Path, overrides: Overrides) -> rbsm::error::Result<Setup> {
+    Setup::new(&Scene::from_file(path)?, &overrides)
 }
 
 fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
@@ -341,99 +346,41 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
         Command::Schema => {
             say(&serde_json::to_string_pretty(&rbsm::input::scene::schema())
                 .expect("the schema serialises"))?;
-            Ok(ExitCode::SUCCESS)
         }
         Command::Check {
             scene,
             evaluator,
             dt,
         } => {
-            let r = rbsm::analysis::report::check_report(
-                &Scene::from_file(scene)?,
-                &RunOptions {
-                    evaluator: evaluator.map(Into::into),
-                    dt: *dt,
-                    ..Default::default()
-                },
-            )?;
-            print(cli.json, &r, || {
-                let mut t = format!("{}: valid\n", r.scene);
-                t += &format!(
-                    "  {}, {} ({} formulation, {} evaluator)\n",
-                    count(r.bodies, "body", "bodies"),
-                    count(r.elements, "element", "elements"),
-                    r.formulation,
-                    r.evaluator
-                );
-                t += &format!(
-                    "  {} between elements, {}; {} DOFs, {} fixed\n",
-                    count(r.interfaces, "interface", "interfaces"),
-                    count(r.ground_springs, "ground spring", "ground springs"),
-                    r.dofs,
-                    r.fixed_dofs
-                );
-                t += &format!(
-                    "  {} point loads; gravity ({}, {}) m/s²\n",
-                    r.loads, r.gravity[0], r.gravity[1]
-                );
-                t += &match &r.contact {
-                    None => "  contact: none declared (no contact search)\n".to_string(),
-                    Some(c) => format!(
-                        "  contact: {}, {} vertices against {} edges; at the start {} pairs tested, {} in contact\n",
-                        c.model, c.vertices, c.edges, c.pairs_tested_at_start, c.pairs_in_contact_at_start
-                    ),
-                };
-                t += &format!(
-                    "  ω_max = {:.6e} rad/s, Δt_crit = {:.6e} s\n",
-                    r.omega_max, r.dt_crit
-                );
-                t += &format!(
-                    "  dt = {:.6e} s = {:.4} Δt_crit, {} steps\n",
-                    r.dt, r.dt_ratio, r.steps
-                );
-                t += &format!("  memory for stepping: {}", human_bytes(r.memory_bytes));
-                for w in &r.warnings {
-                    t += &format!("\n  warning: {w}");
-                }
-                t
-            })?;
-            Ok(ExitCode::SUCCESS)
+            let overrides = Overrides {
+                evaluator: evaluator.map(Into::into),
+                dt: *dt,
+                ..Default::default()
+            };
+            print(cli.json, &check::check(&setup(scene, overrides)?)?)?;
         }
         Command::Draw { scene, out } => {
             let model = rbsm::model::Model::build(&Scene::from_file(scene)?)?;
             let svg = rbsm::output::drawing::model_svg(&model);
             std::fs::write(out, svg).map_err(|e| rbsm::error::Error::io(out, e))?;
-            print(cli.json, &serde_json::json!({"written": [out]}), || {
-                format!("written: {}", out.display())
-            })?;
-            Ok(ExitCode::SUCCESS)
+            print(
+                cli.json,
+                &Written {
+                    written: vec![out.clone()],
+                },
+            )?;
         }
         Command::Plot { dir } => {
             let written = rbsm::output::plot::histories(dir)?;
-            let lines: Vec<String> = written
-                .iter()
-                .map(|p| format!("written: {}", p.display()))
-                .collect();
-            print(cli.json, &serde_json::json!({ "written": written }), || {
-                lines.join("\n")
-            })?;
-            Ok(ExitCode::SUCCESS)
+            print(cli.json, &Written { written })?;
         }
         Command::Static { scene, out } => {
-            let scene = Scene::from_file(scene)?;
-            let (r, model, u) = rbsm::analysis::report::static_report(&scene)?;
+            let setup = setup(scene, Overrides::default())?;
+            let r = statics::analyse(&setup)?;
             if let Some(dir) = out {
-                rbsm::analysis::report::write_static(dir, &scene, &r, &model, &u)?;
+                statics::write(dir, &setup, &r)?;
             }
-            print(cli.json, &r, || {
-                let max = r
-                    .elements
-                    .iter()
-                    .map(|e| e.u[0].hypot(e.u[1]))
-                    .fold(0.0, f64::max);
-                format!("{} elements, {} interfaces; strain energy {:.6e} J; largest displacement {:.6e} m", r.elements.len(), r.interfaces.len(), r.energy, max)
-            })?;
-            Ok(ExitCode::SUCCESS)
+            print(cli.json, &r)?;
         }
         Command::Eigen {
             scene,
@@ -443,28 +390,27 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
             svg,
             out,
         } => {
-            let scene = Scene::from_file(scene)?;
-            let (r, model, shapes) = rbsm::analysis::report::eigen_report(&scene, *modes, (*method).into())?;
+            let setup = setup(scene, Overrides::default())?;
+            let params = eigen::EigenParams {
+                modes: *modes,
+                method: (*method).into(),
+            };
+            let r = eigen::analyse(&setup, &params)?;
             if let Some(dir) = out {
-                rbsm::analysis::report::write_eigen(dir, &scene, &r, &model, &shapes)?;
+                eigen::write(dir, &setup, &r)?;
             }
             if let Some(dir) = vtk {
-                rbsm::output::vtk::write_mode_shapes(dir, &model, &shapes.shapes)?;
+                rbsm::output::vtk::write_mode_shapes(dir, &setup.model, &r.modes.shapes)?;
             }
             if let Some(dir) = svg {
-                rbsm::output::drawing::write_mode_shapes(dir, &model, &shapes.omega, &shapes.shapes)?;
+                rbsm::output::drawing::write_mode_shapes(
+                    dir,
+                    &setup.model,
+                    &r.modes.omega,
+                    &r.modes.shapes,
+                )?;
             }
-            print(cli.json, &r, || {
-                let mut t = format!(
-                    "{} free DOFs ({} solver); ω_max = {:.6e} rad/s, Δt_crit = {:.6e} s\n",
-                    r.dofs, r.method, r.omega_max, r.dt_crit
-                );
-                for (i, f) in r.frequencies_hz.iter().enumerate() {
-                    t.push_str(&format!("  mode {:>3}: {:.6e} Hz\n", i + 1, f));
-                }
-                t.trim_end().to_string()
-            })?;
-            Ok(ExitCode::SUCCESS)
+            print(cli.json, &r)?;
         }
         Command::Stability {
             scene,
@@ -472,48 +418,20 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
             steps,
             out,
         } => {
-            if let Some(f) = fractions.iter().find(|f| !(**f > 0.0 && f.is_finite())) {
-                return Err(rbsm::error::Error::scene(
-                    "--fractions",
-                    format!("each fraction must be > 0, got {f}"),
-                ));
-            }
-            let r = rbsm::analysis::report::stability_report(&Scene::from_file(scene)?, fractions, *steps)?;
+            let params = stability::StabilityParams {
+                fractions: fractions.clone(),
+                steps: *steps,
+            };
+            let r = stability::analyse(&setup(scene, Overrides::default())?, &params)?;
             if let Some(dir) = out {
-                rbsm::analysis::stability::write_fraction_histories(dir, &r.fractions)?;
+                stability::write_fraction_histories(dir, &r.fractions)?;
             }
-            print(cli.json, &r, || {
-                let mut t = format!(
-                    "ω_max = {:.6e} rad/s, Δt_crit = {:.6e} s\n",
-                    r.omega_max, r.dt_crit
-                );
-                for b in &r.bounds {
-                    t.push_str(&format!(
-                        "  {:<15} Δt = {:.6e} s  ratio {:.4}  {}\n",
-                        b.name,
-                        b.dt,
-                        b.ratio,
-                        if b.safe { "safe" } else { "UNSAFE" }
-                    ));
-                }
-                t.push_str(&format!(
-                    "  empirical       Δt = {:.6e} s  ratio {:.4}\n",
-                    r.empirical.dt, r.empirical.ratio
-                ));
-                for f in &r.fractions {
-                    t.push_str(&format!(
-                        "  run at {:.3} Δt_crit: {} after {} steps, energy drift {:.3e}\n",
-                        f.fraction, f.status, f.steps, f.max_relative_drift
-                    ));
-                }
-                t.trim_end().to_string()
-            })?;
-            Ok(ExitCode::SUCCESS)
+            print(cli.json, &r)?;
         }
         Command::Tradeoff { scene, sweeps, out } => {
             let sweeps = sweeps
                 .iter()
-                .map(|s| rbsm::analysis::tradeoff::Sweep::parse(s))
+                .map(|s| tradeoff::Sweep::parse(s))
                 .collect::<rbsm::error::Result<Vec<_>>>()?;
             let text =
                 std::fs::read_to_string(scene).map_err(|e| rbsm::error::Error::io(scene, e))?;
@@ -523,12 +441,12 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
                 .unwrap_or_else(|| PathBuf::from(format!("out/tradeoff-{}", parsed.name)));
             let total: usize = sweeps.iter().map(|s| s.values.len()).product();
             let mut done = 0;
-            let report = rbsm::analysis::tradeoff::sweep(&text, &sweeps, |p| {
+            let report = tradeoff::sweep(&text, &sweeps, |p| {
                 done += 1;
                 if !cli.quiet {
                     tell(&format!(
                         "[{done}/{total}] {}: {} steps in {:.3} s, {}",
-                        rbsm::analysis::tradeoff::describe(&p.settings),
+                        tradeoff::describe(&p.settings),
                         p.steps,
                         p.wall_s,
                         p.status
@@ -536,15 +454,13 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
                 }
             })?;
             report.write(&dir)?;
-            print(cli.json, &report, || {
-                let md = std::fs::read_to_string(dir.join("tradeoff.md")).unwrap_or_default();
-                format!(
-                    "{md}
-written: {}/tradeoff.{{csv,md,svg}}",
+            print(cli.json, &report)?;
+            if !cli.json {
+                say(&format!(
+                    "written: {}/tradeoff.{{csv,md,svg}}",
                     dir.display()
-                )
-            })?;
-            Ok(ExitCode::SUCCESS)
+                ))?;
+            }
         }
         Command::Run {
             scene,
@@ -555,12 +471,14 @@ written: {}/tradeoff.{{csv,md,svg}}",
             dt_factor,
             steps,
         } => {
-            let scene = Scene::from_file(scene)?;
-            let opts = RunOptions {
+            let overrides = Overrides {
                 evaluator: evaluator.map(Into::into),
                 dt: *dt,
                 dt_factor: *dt_factor,
                 steps: *steps,
+            };
+            let params = run::RunParams {
+                resume: resume.is_some(),
                 interrupt: Some(interrupt_flag()?),
             };
             let mut monitor = Terminal {
@@ -568,35 +486,22 @@ written: {}/tradeoff.{{csv,md,svg}}",
                 bar: None,
                 start: Instant::now(),
             };
-            let (summary, out) = match (resume, out) {
-                (Some(dir), _) => (run::resume(&scene, &opts, dir, &mut monitor)?, dir),
-                (None, Some(dir)) => (run::run(&scene, &opts, dir, &mut monitor)?, dir),
-                (None, None) => unreachable!("clap requires --out or --resume"),
-            };
+            let out = resume
+                .as_ref()
+                .or(out.as_ref())
+                .expect("clap requires --out or --resume");
+            let summary = run::run(&setup(scene, overrides)?, &params, out, &mut monitor)?;
             if let Some(bar) = monitor.bar.take() {
                 bar.finish_and_clear();
             }
-            print(cli.json, &summary, || {
-                match &summary.reason {
-                Some(reason) => {
-                    let state = if summary.status == "diverged" { "the last state that passed the guard" } else { "the step reached" };
-                    format!(
-                        "{}: {} at {reason}\n  the outputs in {} hold the run up to {state}: step {} (t = {:.6e} s)",
-                        summary.scene, summary.status, out.display(), summary.steps, summary.t_end
-                    )
-                }
-                None => format!(
-                    "{}: ok, {} steps (t = {:.6e} s) in {:.3} s; energy drift {:.3e} of the largest energy; outputs in {}",
-                    summary.scene, summary.steps, summary.t_end, summary.wall_time_s, summary.energy.max_relative_drift, out.display()
-                ),
-            }
-            })?;
+            print(cli.json, &summary)?;
             // A diverged or interrupted run kept its outputs; the exit code tells scripts which.
-            Ok(match summary.status.as_str() {
+            return Ok(match summary.status.as_str() {
                 "ok" => ExitCode::SUCCESS,
                 "interrupted" => ExitCode::from(130),
                 _ => ExitCode::from(3),
-            })
+            });
         }
     }
+    Ok(ExitCode::SUCCESS)
 }

@@ -2,7 +2,7 @@
 //! warm, for both evaluators and formulations, on a model large enough to run in parallel, and
 //! on the contact scene.
 
-use rbsm::analysis::run::{Prepared, RunOptions};
+use rbsm::analysis::setup::{Overrides, Setup};
 use rbsm::input::scene::{EvaluatorKind, Scene};
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -30,7 +30,7 @@ static GLOBAL: Counting = Counting;
 
 /// Allocations made by `steps` steps of the time loop (energies, guard and observer included)
 /// after `warm` steps to let lazily grown buffers reach their size.
-fn allocations(p: &Prepared, warm: u64, steps: u64) -> usize {
+fn allocations(p: &Setup, warm: u64, steps: u64) -> usize {
     let mut cd = p.integrator(p.dt);
     cd.run(warm, 10, |_, _| Ok(()), |_| ()).unwrap();
     let before = ALLOCATIONS.load(Ordering::Relaxed);
@@ -67,9 +67,9 @@ fn plain_steps() {
                 "time": {{"dt_factor": 0.5, "steps": 10}}}}"#
         );
         let scene = Scene::from_json(&json).unwrap_or_else(|e| panic!("{e}"));
-        let p = Prepared::new(
+        let p = Setup::new(
             &scene,
-            &RunOptions {
+            &Overrides {
                 evaluator: Some(evaluator),
                 ..Default::default()
             },
@@ -90,7 +90,7 @@ fn contact_steps() {
         "/examples/scenes/toppling_stack.json"
     )))
     .unwrap();
-    let p = Prepared::new(&scene, &RunOptions::default()).unwrap();
+    let p = Setup::new(&scene, &Overrides::default()).unwrap();
     // The stack is in contact from the start; after the warm-up its buffers have their size.
     assert_eq!(allocations(&p, 2000, 2000), 0);
 }

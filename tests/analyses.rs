@@ -2,12 +2,12 @@
 
 mod common;
 use rbsm::analysis::eigen::{self, Method};
+use rbsm::analysis::free::FreeSystem;
+use rbsm::analysis::statics;
 use rbsm::force::evaluator;
+use rbsm::input::scene::{EvaluatorKind, Scene};
 use rbsm::model::mass::Mass;
 use rbsm::model::Model;
-use rbsm::input::scene::{EvaluatorKind, Scene};
-use rbsm::analysis::statics;
-use rbsm::analysis::free::FreeSystem;
 use std::f64::consts::PI;
 
 /// One row of `n` square blocks of side `h` with `supports` (JSON), `E`, `ν = 0.2`, `ρ`.
@@ -254,7 +254,6 @@ fn bounds_and_empirical_limit_on_a_square_grid() {
     );
     let mass = Mass::new(&model);
     let sys = FreeSystem::new(&model, &mass);
-    let ev = evaluator::build(&model, EvaluatorKind::ElementWise);
     let omega_max = eigen::dense_modes(&sys, &mass, 0).unwrap().omega_max;
     let dt_crit = 2.0 / omega_max;
     let bounds = rbsm::analysis::stability::bounds(&model, &sys, &mass, dt_crit);
@@ -274,8 +273,21 @@ fn bounds_and_empirical_limit_on_a_square_grid() {
             b.ratio
         );
     }
-    let (_, ratio) =
-        rbsm::analysis::stability::empirical_limit(&model, ev.as_ref(), &mass, dt_crit, 2000, 1e-3);
+    // The empirical limit against the setup's `Δt_crit` (Lanczos), which every command uses.
+    let setup = rbsm::analysis::setup::Setup::new(
+        &rbsm::input::scene::Scene::from_json(&common::scene_json(
+            r#"{"kind": "grid", "origin": [0, 0], "size": [1, 1], "cells": [12, 12]}"#,
+            r#"[{"edge": "bottom", "kind": "ground-spring"}]"#,
+        ))
+        .unwrap(),
+        &rbsm::analysis::setup::Overrides {
+            evaluator: Some(EvaluatorKind::ElementWise),
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    assert!((setup.dt_crit / dt_crit - 1.0).abs() < 1e-10);
+    let (_, ratio) = rbsm::analysis::stability::empirical_limit(&setup, 2000, 1e-3);
     assert!(
         (ratio - 1.0).abs() <= 0.01,
         "empirical limit at {ratio} × Δt_crit"

@@ -1,11 +1,11 @@
 //! Contact (eqs. 17–20): the hopping block against its theory, tilted landings, friction on an
 //! incline, a block at rest, a falling stack, and no contact work without contact.
 
-use rbsm::force::contact::Contact;
 use rbsm::analysis::hopping::{centre_velocity, lowest_point, Tracker};
-use rbsm::step::integrator::Status;
-use rbsm::analysis::run::{Prepared, RunOptions};
+use rbsm::analysis::setup::{Overrides, Setup};
+use rbsm::force::contact::Contact;
 use rbsm::input::scene::Scene;
+use rbsm::step::integrator::Status;
 
 use rbsm::analysis::hopping::brick::{self, G};
 
@@ -24,9 +24,9 @@ struct Outcome {
 /// Runs `scene` for `steps` steps of `dt`, sampling every step.
 fn run(scene: &str, dt: f64, steps: u64) -> Outcome {
     let scene = Scene::from_json(scene).expect("valid scene");
-    let p = Prepared::new(
+    let p = Setup::new(
         &scene,
-        &RunOptions {
+        &Overrides {
             dt: Some(dt),
             steps: Some(steps),
             ..Default::default()
@@ -238,7 +238,7 @@ fn incline_with_friction_slides_at_the_coulomb_rate() {
 fn a_toppling_stack_of_bricks() {
     let scene = include_str!("../examples/scenes/toppling_stack.json");
     let parsed = Scene::from_json(scene).unwrap();
-    let p = Prepared::new(&parsed, &RunOptions::default()).unwrap();
+    let p = Setup::new(&parsed, &Overrides::default()).unwrap();
     let o = run(scene, p.dt, 150_000);
     assert_eq!(o.status, Status::Ok);
     let model = &p.model;
@@ -278,7 +278,7 @@ fn no_contact_without_contact() {
         .unwrap(),
     )
     .unwrap();
-    let p = Prepared::new(&scene, &RunOptions::default()).unwrap();
+    let p = Setup::new(&scene, &Overrides::default()).unwrap();
     assert!(Contact::new(&p.model).is_none());
     let cd = p.integrator(p.dt);
     assert!(cd.contact.is_none());

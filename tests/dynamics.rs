@@ -2,9 +2,10 @@
 //! an unstable run, and the outputs follow the README's *Outputs*.
 
 mod common;
-use rbsm::step::integrator::Status;
-use rbsm::analysis::run::{self, Prepared, RunOptions, Silent};
+use rbsm::analysis::run::{self, Silent};
+use rbsm::analysis::setup::{Overrides, Setup};
 use rbsm::input::scene::{EvaluatorKind, Scene};
+use rbsm::step::integrator::Status;
 
 fn scene(name: &str) -> Scene {
     Scene::from_file(format!(
@@ -16,9 +17,9 @@ fn scene(name: &str) -> Scene {
 
 /// `U` after `steps` steps of `scene` with the given evaluator, and `max |U|`.
 fn trajectory(scene: &Scene, kind: EvaluatorKind, steps: u64) -> Vec<f64> {
-    let p = Prepared::new(
+    let p = Setup::new(
         scene,
-        &RunOptions {
+        &Overrides {
             evaluator: Some(kind),
             ..Default::default()
         },
@@ -67,11 +68,15 @@ fn drift(scene: &Scene, factor: f64, steps: u64) -> f64 {
     s.time.dt_factor = Some(factor);
     let dir = tempfile::tempdir().unwrap();
     let summary = run::run(
-        &s,
-        &RunOptions {
-            steps: Some(steps),
-            ..Default::default()
-        },
+        &Setup::new(
+            &s,
+            &Overrides {
+                steps: Some(steps),
+                ..Default::default()
+            },
+        )
+        .unwrap(),
+        &Default::default(),
         dir.path(),
         &mut Silent,
     )
@@ -104,7 +109,13 @@ fn unstable_run_stops_with_reason_and_keeps_its_outputs() {
     s.time.dt_factor = Some(1.05);
     s.output.every = 50;
     let dir = tempfile::tempdir().unwrap();
-    let summary = run::run(&s, &RunOptions::default(), dir.path(), &mut Silent).unwrap();
+    let summary = run::run(
+        &Setup::new(&s, &Overrides::default()).unwrap(),
+        &Default::default(),
+        dir.path(),
+        &mut Silent,
+    )
+    .unwrap();
     assert_eq!(summary.status, "diverged");
     let reason = summary.reason.unwrap();
     assert!(
@@ -151,11 +162,15 @@ fn a_run_clears_an_earlier_runs_outputs() {
     let dir = tempfile::tempdir().unwrap();
     let frames = |dir: &std::path::Path| std::fs::read_dir(dir.join("vtk")).unwrap().count();
     run::run(
-        &s,
-        &RunOptions {
-            steps: Some(1000),
-            ..Default::default()
-        },
+        &Setup::new(
+            &s,
+            &Overrides {
+                steps: Some(1000),
+                ..Default::default()
+            },
+        )
+        .unwrap(),
+        &Default::default(),
         dir.path(),
         &mut Silent,
     )
@@ -164,11 +179,15 @@ fn a_run_clears_an_earlier_runs_outputs() {
     std::fs::write(dir.path().join("notes.txt"), "mine").unwrap();
     std::fs::write(dir.path().join("vtk").join("mine.vtk"), "mine").unwrap();
     let summary = run::run(
-        &s,
-        &RunOptions {
-            steps: Some(300),
-            ..Default::default()
-        },
+        &Setup::new(
+            &s,
+            &Overrides {
+                steps: Some(300),
+                ..Default::default()
+            },
+        )
+        .unwrap(),
+        &Default::default(),
         dir.path(),
         &mut Silent,
     )
@@ -188,7 +207,13 @@ fn outputs_follow_the_contract() {
     let mut s = scene("voronoi_panel");
     s.time.end = None;
     s.time.steps = Some(200);
-    let summary = run::run(&s, &RunOptions::default(), dir.path(), &mut Silent).unwrap();
+    let summary = run::run(
+        &Setup::new(&s, &Overrides::default()).unwrap(),
+        &Default::default(),
+        dir.path(),
+        &mut Silent,
+    )
+    .unwrap();
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.path().join("summary.json")).unwrap())
             .unwrap();
@@ -249,7 +274,13 @@ fn no_vtk_unless_asked() {
     let mut s = scene("bar_pulse");
     s.time.end = None;
     s.time.steps = Some(20);
-    run::run(&s, &RunOptions::default(), dir.path(), &mut Silent).unwrap();
+    run::run(
+        &Setup::new(&s, &Overrides::default()).unwrap(),
+        &Default::default(),
+        dir.path(),
+        &mut Silent,
+    )
+    .unwrap();
     assert!(!dir.path().join("vtk").exists() && !dir.path().join("series.pvd").exists());
     let history = std::fs::read_to_string(dir.path().join("history.csv")).unwrap();
     assert!(history.lines().next().unwrap().ends_with(",u_tip,u_mid"));
@@ -277,11 +308,15 @@ fn probes_by_point_read_the_displacement_there() {
     let dir = tempfile::tempdir().unwrap();
     let s = Scene::from_json(&v.to_string()).unwrap();
     run::run(
-        &s,
-        &RunOptions {
-            steps: Some(2000),
-            ..Default::default()
-        },
+        &Setup::new(
+            &s,
+            &Overrides {
+                steps: Some(2000),
+                ..Default::default()
+            },
+        )
+        .unwrap(),
+        &Default::default(),
         dir.path(),
         &mut Silent,
     )

@@ -132,7 +132,7 @@ fn large_rotations_in_contact_keep_the_balance_and_meshed_bodies_are_warned_abou
 #[test]
 fn just_above_the_critical_step_the_guard_stops_the_run() {
     let scene = rbsm::input::scene::Scene::from_json(&extremes::stack_scene(1.0, RIGID)).unwrap();
-    let p = rbsm::analysis::run::Prepared::new(&scene, &Default::default()).unwrap();
+    let p = rbsm::analysis::setup::Setup::new(&scene, &Default::default()).unwrap();
     assert_eq!(extremes::run_at(&p, 0.999, 20_000).unwrap().status, "ok");
     for f in [1.001, 1.01] {
         let x = extremes::run_at(&p, f, 20_000).unwrap();

@@ -2,7 +2,8 @@
 //! unstructured grids (`.vtu`), read back here with vtkio's XML parser; cells carry their own
 //! VTK type; rigid elements are drawn with their finite rotation.
 
-use rbsm::analysis::run::{self, RunOptions, Silent};
+use rbsm::analysis::run::{self, Silent};
+use rbsm::analysis::setup::{Overrides, Setup};
 use rbsm::input::scene::Scene;
 use serde_json::Value;
 use std::path::Path;
@@ -94,11 +95,15 @@ fn the_series_lists_xml_frames_with_every_cell_typed_and_every_array() {
         let model = rbsm::model::Model::build(&s).unwrap();
         let dir = tempfile::tempdir().unwrap();
         run::run(
-            &s,
-            &RunOptions {
-                steps: Some(200),
-                ..Default::default()
-            },
+            &Setup::new(
+                &s,
+                &Overrides {
+                    steps: Some(200),
+                    ..Default::default()
+                },
+            )
+            .unwrap(),
+            &Default::default(),
             dir.path(),
             &mut Silent,
         )
@@ -141,7 +146,13 @@ fn a_block_spun_by_two_radians_keeps_its_shape_in_the_frames() {
     });
     let s = Scene::from_json(&scene.to_string()).unwrap();
     let dir = tempfile::tempdir().unwrap();
-    run::run(&s, &RunOptions::default(), dir.path(), &mut Silent).unwrap();
+    run::run(
+        &Setup::new(&s, &Overrides::default()).unwrap(),
+        &Default::default(),
+        dir.path(),
+        &mut Silent,
+    )
+    .unwrap();
     let (points, cells, _, _) = read(&dir.path().join("vtk/step_000001000.vtu"));
     let p = |k: u64| (points[3 * k as usize], points[3 * k as usize + 1]);
     let cell = &cells[0];
@@ -174,9 +185,14 @@ fn a_block_spun_by_two_radians_keeps_its_shape_in_the_frames() {
 #[test]
 fn mode_shapes_open_as_a_series() {
     let s = Scene::from_json(&bundled("cantilever").to_string()).unwrap();
-    let (_, model, modes) = rbsm::analysis::report::eigen_report(&s, 3, rbsm::analysis::eigen::Method::Auto).unwrap();
+    let setup = Setup::new(&s, &Overrides::default()).unwrap();
+    let params = rbsm::analysis::eigen::EigenParams {
+        modes: 3,
+        method: rbsm::analysis::eigen::Method::Auto,
+    };
+    let r = rbsm::analysis::eigen::analyse(&setup, &params).unwrap();
     let dir = tempfile::tempdir().unwrap();
-    rbsm::output::vtk::write_mode_shapes(dir.path(), &model, &modes.shapes).unwrap();
+    rbsm::output::vtk::write_mode_shapes(dir.path(), &setup.model, &r.modes.shapes).unwrap();
     let pvd = std::fs::read_to_string(dir.path().join("modes.pvd")).unwrap();
     let files: Vec<&str> = pvd
         .split("file=\"")
@@ -187,7 +203,7 @@ fn mode_shapes_open_as_a_series() {
     assert!(pvd.contains(r#"timestep="1e0""#) && pvd.contains(r#"timestep="3e0""#));
     for f in files {
         let (_, cells, types, _) = read(&dir.path().join(f));
-        assert_eq!(cells.len(), model.elements.len());
+        assert_eq!(cells.len(), setup.model.elements.len());
         assert!(types.iter().all(|t| *t == CellType::Quad));
     }
 }

@@ -6,10 +6,10 @@
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
+use rbsm::analysis::setup::{Overrides, Setup};
 use rbsm::error::Error;
-use rbsm::step::integrator::Status;
-use rbsm::analysis::run::{Prepared, RunOptions};
 use rbsm::input::scene::Scene;
+use rbsm::step::integrator::Status;
 use serde_json::Value;
 use std::path::Path;
 
@@ -18,7 +18,7 @@ const CASES: usize = 20_000;
 /// The exit code `rbsm run` would give for the scene text, after at most 20 steps.
 fn outcome(text: &str, dir: &Path) -> Result<i32, Error> {
     let scene = Scene::from_json_in(text, dir)?;
-    let p = Prepared::new(&scene, &RunOptions::default())?;
+    let p = Setup::new(&scene, &Overrides::default())?;
     let mut cd = p.integrator(p.dt);
     let status = cd.run(p.steps.min(20), 5, |_, _| Ok(()), |_| {})?;
     Ok(if status == Status::Ok { 0 } else { 3 })

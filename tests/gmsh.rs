@@ -1,9 +1,9 @@
 //! Meshes from gmsh (issue 7): the shipped MSH 4.1 file gives the model of the equivalent
 //! built-in grid, and unsupported files are refused with a clear message.
 
+use rbsm::input::scene::Scene;
 use rbsm::mesh::geometry::Vec2;
 use rbsm::model::{Model, GROUND};
-use rbsm::input::scene::Scene;
 use std::collections::HashMap;
 
 fn scene(name: &str) -> Scene {

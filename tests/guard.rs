@@ -2,9 +2,9 @@
 //! starts from (zero energy, loads ramped from zero, damping, gravity on touching bodies), and
 //! it still stops runs above `Δt_crit` within the steps it took before.
 
-use rbsm::step::integrator::Status;
-use rbsm::analysis::run::{Prepared, RunOptions};
+use rbsm::analysis::setup::{Overrides, Setup};
 use rbsm::input::scene::Scene;
+use rbsm::step::integrator::Status;
 use serde_json::Value;
 
 fn bundled(name: &str) -> Value {
@@ -15,7 +15,7 @@ fn bundled(name: &str) -> Value {
 /// Runs `steps` steps of `scene` with a history row every `every` steps; the status.
 fn status(scene: &Value, dt_factor: Option<f64>, steps: u64, every: u64) -> Status {
     let scene = Scene::from_json(&scene.to_string()).unwrap();
-    let p = Prepared::new(&scene, &RunOptions::default()).unwrap();
+    let p = Setup::new(&scene, &Overrides::default()).unwrap();
     let dt = dt_factor.map_or(p.dt, |f| f * p.dt_crit);
     let mut cd = p.integrator(dt);
     cd.run(steps, every, |_, _| Ok(()), |_| {}).unwrap()

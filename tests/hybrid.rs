@@ -3,13 +3,13 @@
 
 mod common;
 use common::*;
-use rbsm::force::evaluator;
-use rbsm::mesh::geometry::Vec2;
-use rbsm::step::integrator::Status;
-use rbsm::model::Model;
-use rbsm::analysis::run::{Prepared, RunOptions};
-use rbsm::input::scene::{EvaluatorKind, Scene};
+use rbsm::analysis::setup::{Overrides, Setup};
 use rbsm::analysis::statics;
+use rbsm::force::evaluator;
+use rbsm::input::scene::{EvaluatorKind, Scene};
+use rbsm::mesh::geometry::Vec2;
+use rbsm::model::Model;
+use rbsm::step::integrator::Status;
 
 fn hybrid_json(mesh: &str, supports: &str, loads: &str, penalty: f64, nu: f64) -> String {
     format!(
@@ -101,9 +101,9 @@ fn hybrid_rigid_motion_and_uniform_strain() {
 #[test]
 fn hybrid_free_assembly_has_three_zero_modes() {
     for mesh in [RECT, TRI, VORONOI] {
-        let k = rbsm::force::evaluator::Assembled::<rbsm::model::formulation::Hybrid, 6>::new(&hybrid(
-            mesh, "[]", 100.0,
-        ))
+        let k = rbsm::force::evaluator::Assembled::<rbsm::model::formulation::Hybrid, 6>::new(
+            &hybrid(mesh, "[]", 100.0),
+        )
         .stiffness
         .to_dense();
         let eig = k.self_adjoint_eigenvalues(faer::Side::Lower).unwrap();
@@ -133,9 +133,9 @@ fn hybrid_trajectories_agree_and_keep_energy() {
         );
         let scene = Scene::from_json(&json).unwrap();
         let run = |kind| {
-            let p = Prepared::new(
+            let p = Setup::new(
                 &scene,
-                &RunOptions {
+                &Overrides {
                     evaluator: Some(kind),
                     ..Default::default()
                 },

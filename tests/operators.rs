@@ -4,10 +4,10 @@
 mod common;
 use common::*;
 use rbsm::force::evaluator::{self, interface_stiffness, Assembled};
-use rbsm::model::formulation::Rigid;
-use rbsm::mesh::geometry::Vec2;
-use rbsm::model::{Interface, Model, GROUND};
 use rbsm::input::scene::EvaluatorKind;
+use rbsm::mesh::geometry::Vec2;
+use rbsm::model::formulation::Rigid;
+use rbsm::model::{Interface, Model, GROUND};
 
 /// `K U` and the element-wise resultant of eq. 15 agree to round-off on every mesh kind: both
 /// integrate the same tractions at the same Gauss points and differ only in summation order.
@@ -225,9 +225,9 @@ fn forces_do_not_depend_on_the_thread_count() {
 #[test]
 fn the_fused_step_matches_evaluation_then_update() {
     use rbsm::force::evaluator::Evaluator;
-    use rbsm::step::integrator::CentralDifference;
     use rbsm::model::loads::Loads;
     use rbsm::model::mass::Mass;
+    use rbsm::step::integrator::CentralDifference;
     /// The same evaluator, seen through its two-pass interface only.
     struct TwoPass(Box<dyn evaluator::Evaluator>);
     impl evaluator::Evaluator for TwoPass {
@@ -266,7 +266,7 @@ fn the_fused_step_matches_evaluation_then_update() {
                 .num_threads(threads)
                 .build()
                 .unwrap();
-            let mut cd = CentralDifference::new(&model, ev, &mass, &loads, 1e-7);
+            let mut cd = CentralDifference::new(&model, ev, &mass, &loads, None, 1e-7);
             pool.install(|| cd.step_only(300));
             (cd.u, cd.v)
         };

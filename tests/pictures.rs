@@ -1,9 +1,9 @@
 //! Pictures (issue 7): the dependency-free SVG of a model and of a mode shape, the SVG histories
 //! of `rbsm plot`, and the commands that write them.
 
-use rbsm::output::drawing::{displaced_svg, model_svg};
-use rbsm::model::{Model, GROUND};
 use rbsm::input::scene::Scene;
+use rbsm::model::{Model, GROUND};
+use rbsm::output::drawing::{displaced_svg, model_svg};
 use std::process::Command;
 
 fn model(name: &str) -> Model {
@@ -185,11 +185,17 @@ fn plot_draws_energies_and_probes_of_a_run_and_refuses_an_empty_directory() {
         env!("CARGO_MANIFEST_DIR")
     ))
     .unwrap();
-    let opts = rbsm::analysis::run::RunOptions {
+    let opts = rbsm::analysis::setup::Overrides {
         steps: Some(400),
         ..Default::default()
     };
-    rbsm::analysis::run::run(&scene, &opts, dir.path(), &mut rbsm::analysis::run::Silent).unwrap();
+    rbsm::analysis::run::run(
+        &rbsm::analysis::setup::Setup::new(&scene, &opts).unwrap(),
+        &Default::default(),
+        dir.path(),
+        &mut rbsm::analysis::run::Silent,
+    )
+    .unwrap();
     let written = rbsm::output::plot::histories(dir.path()).unwrap();
     assert_eq!(
         written,
@@ -211,13 +217,17 @@ fn plot_draws_energies_and_probes_of_a_run_and_refuses_an_empty_directory() {
         .any(|t| t == "probe tip_v"));
     // Nothing to draw, and a broken history.
     let empty = tempfile::tempdir().unwrap();
-    let e = rbsm::output::plot::histories(empty.path()).unwrap_err().to_string();
+    let e = rbsm::output::plot::histories(empty.path())
+        .unwrap_err()
+        .to_string();
     assert!(
         e.contains("history.csv") && e.contains("fraction_F.csv"),
         "{e}"
     );
     std::fs::write(empty.path().join("history.csv"), "t,kinetic\n0,1\n1e-3,x\n").unwrap();
-    let e = rbsm::output::plot::histories(empty.path()).unwrap_err().to_string();
+    let e = rbsm::output::plot::histories(empty.path())
+        .unwrap_err()
+        .to_string();
     assert!(
         e.contains("line 3") && e.contains("`x`") && e.contains("kinetic"),
         "{e}"

@@ -3,9 +3,9 @@
 
 mod common;
 use common::scene_json;
-use rbsm::model::Model;
-use rbsm::analysis::run::{Prepared, RunOptions};
+use rbsm::analysis::setup::{Overrides, Setup};
 use rbsm::input::scene::Scene;
+use rbsm::model::Model;
 use serde_json::Value;
 
 fn base() -> Value {
@@ -15,7 +15,7 @@ fn base() -> Value {
 /// The error of the whole pipeline (parse, validate, model, time step) for a scene.
 fn error_of(v: &Value) -> String {
     let result = Scene::from_json(&v.to_string())
-        .and_then(|s| Prepared::new(&s, &RunOptions::default()).map(|_| ()));
+        .and_then(|s| Setup::new(&s, &Overrides::default()).map(|_| ()));
     match result {
         Ok(()) => panic!("scene was accepted: {v}"),
         Err(e) => e.to_string(),
@@ -273,7 +273,7 @@ fn no_panic_on_mutated_scenes() {
             let outcome = std::panic::catch_unwind(|| {
                 let scene = Scene::from_json(&text)?;
                 Model::build(&scene)?;
-                let p = Prepared::new(&scene, &RunOptions::default())?;
+                let p = Setup::new(&scene, &Overrides::default())?;
                 assert!(
                     p.dt.is_finite() && p.dt > 0.0,
                     "time step {} for {text}",
@@ -426,9 +426,9 @@ fn probe_names_must_make_a_valid_header() {
 #[test]
 fn zero_steps_are_refused_from_the_command_line_too() {
     let scene = Scene::from_json(&base().to_string()).unwrap();
-    let e = Prepared::new(
+    let e = Setup::new(
         &scene,
-        &RunOptions {
+        &Overrides {
             steps: Some(0),
             ..Default::default()
         },

@@ -3,9 +3,9 @@
 //! its energy up to the time step's error, and a column carries the weight of the bricks above
 //! it at every joint.
 
-use rbsm::step::integrator::Status;
-use rbsm::analysis::run::{Prepared, RunOptions};
+use rbsm::analysis::setup::{Overrides, Setup};
 use rbsm::input::scene::Scene;
+use rbsm::step::integrator::Status;
 
 const W: f64 = 0.2;
 const H: f64 = 0.1;
@@ -60,7 +60,7 @@ struct Settled {
 
 /// Runs the scene to its end, checking the energy every `every` steps.
 fn settle(scene: &Scene, every: u64) -> Settled {
-    let p = Prepared::new(scene, &RunOptions::default()).expect("model");
+    let p = Setup::new(scene, &Overrides::default()).expect("model");
     let mut cd = p.integrator(p.dt);
     let (mut first, mut worst, mut scale) = (None, 0.0f64, 0.0f64);
     let status = cd
@@ -226,7 +226,7 @@ fn a_column_carries_the_weight_above_every_joint() {
 #[test]
 fn the_wall_steps_to_the_same_bits_on_any_thread_count() {
     let scene = wall(20, 20, 0.5 * W, "edge-to-edge", Some(0.5), 0.0, 0.2);
-    let p = Prepared::new(&scene, &RunOptions::default()).expect("model");
+    let p = Setup::new(&scene, &Overrides::default()).expect("model");
     let state = |threads: usize| {
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)

@@ -3,9 +3,9 @@
 use super::{plot, Report};
 use plotters::prelude::*;
 use rbsm::analysis::hopping::{centre_velocity, lowest_point, Theory, Tracker};
-use rbsm::step::integrator::Status;
-use rbsm::analysis::run::{Prepared, RunOptions};
+use rbsm::analysis::setup::{Overrides, Setup};
 use rbsm::input::scene::Scene;
+use rbsm::step::integrator::Status;
 use std::path::Path;
 
 use rbsm::analysis::hopping::brick::{self, DEPTH as D, E, G, NU, RHO};
@@ -41,9 +41,9 @@ struct Run {
 }
 
 fn run(scene: &Scene, dt: Option<f64>, end: f64, sample: f64) -> Run {
-    let probe = Prepared::new(
+    let probe = Setup::new(
         scene,
-        &RunOptions {
+        &Overrides {
             dt,
             ..Default::default()
         },
@@ -507,7 +507,7 @@ pub fn contact(r: &mut Report) {
             .replace("\"edge-to-edge\"", &format!("\"{model}\""));
         let sc = Scene::from_json(&json).unwrap();
         let o = run(&sc, None, 1.5, 2e-3);
-        let p = Prepared::new(&scene, &RunOptions::default()).unwrap();
+        let p = Setup::new(&scene, &Overrides::default()).unwrap();
         let edges: usize = p.model.bodies.iter().map(|b| b.mesh.boundary.len()).sum();
         let all = edges * (edges - edges / p.model.bodies.len() + p.model.ground.len());
         r.line(&format!(
@@ -554,7 +554,7 @@ struct WallRun {
 
 fn wall_run(json: &str, every: u64) -> WallRun {
     let scene = Scene::from_json(json).unwrap();
-    let p = Prepared::new(&scene, &RunOptions::default()).unwrap();
+    let p = Setup::new(&scene, &Overrides::default()).unwrap();
     let weight: f64 = p
         .model
         .elements

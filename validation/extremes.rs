@@ -252,7 +252,7 @@ pub fn extremes(r: &mut Report) {
     r.line("### 10.7 Time step just above Δt_crit\n");
     r.line("The stack of 10.2 (aspect 1) stepped 20 000 times at fractions of `Δt_crit`:\n");
     r.line("| Δt / Δt_crit | run |\n|---|---|");
-    let p = rbsm::analysis::run::Prepared::new(
+    let p = rbsm::analysis::setup::Setup::new(
         &rbsm::input::scene::Scene::from_json(&extremes::stack_scene(1.0, r#"{"kind": "rigid"}"#))
             .unwrap(),
         &Default::default(),

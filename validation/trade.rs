@@ -2,7 +2,7 @@
 //! the cantilever and the hopping block.
 
 use super::Report;
-use rbsm::analysis::tradeoff::{sweep, Report as Trade, Sweep};
+use rbsm::analysis::tradeoff::{sweep, Sweep, TradeoffReport as Trade};
 
 fn trade(r: &mut Report, file: &str, args: &[&str]) -> Trade {
     let json = std::fs::read_to_string(r.dir.join("../examples/scenes").join(file)).unwrap();

@@ -13,15 +13,15 @@ mod fem;
 mod trade;
 
 use rbsm::analysis::eigen::{self, Method};
-use rbsm::force::evaluator;
-use rbsm::step::integrator::Status;
-use rbsm::model::mass::Mass;
-use rbsm::model::Model;
-use rbsm::analysis::run::{Prepared, RunOptions};
-use rbsm::input::scene::{EvaluatorKind, Scene};
+use rbsm::analysis::free::FreeSystem;
+use rbsm::analysis::setup::{Overrides, Setup};
 use rbsm::analysis::stability;
 use rbsm::analysis::statics;
-use rbsm::analysis::free::FreeSystem;
+use rbsm::force::evaluator;
+use rbsm::input::scene::{EvaluatorKind, Scene};
+use rbsm::model::mass::Mass;
+use rbsm::model::Model;
+use rbsm::step::integrator::Status;
 use std::collections::BTreeMap;
 use std::f64::consts::PI;
 use std::fmt::Write;
@@ -111,7 +111,8 @@ fn plot(
     y_label: &str,
     series: &[(&str, Vec<(f64, f64)>)],
 ) {
-    rbsm::output::plot::log_log(path, title, x_label, y_label, series).expect("the plot is written");
+    rbsm::output::plot::log_log(path, title, x_label, y_label, series)
+        .expect("the plot is written");
 }
 
 /// 1. One-row column on a ground spring: axial frequencies against the discrete closed form and
@@ -371,7 +372,13 @@ fn cantilever(r: &mut Report) {
         Method::Sparse,
     )
     .unwrap();
-    rbsm::output::drawing::write_mode_shapes(&r.dir.join("cantilever_modes"), &m, &modes.omega, &modes.shapes).unwrap();
+    rbsm::output::drawing::write_mode_shapes(
+        &r.dir.join("cantilever_modes"),
+        &m,
+        &modes.omega,
+        &modes.shapes,
+    )
+    .unwrap();
     r.line("The 40 × 4 model (springs from each centroid to its edges' midpoints, ground springs hatched) and its four lowest \
             modes, each captioned with its frequency (one of them is the first axial mode).\n");
     r.line("![cantilever model](cantilever_model.svg)\n");
@@ -654,19 +661,23 @@ fn critical_time_step(r: &mut Report) {
     r.line("\n![dt_crit](dt_crit.svg)\n");
     // Empirical limit and runs around it on the 16 × 16 grid with its base on ground springs.
     let mesh = r#"{"kind": "grid", "origin": [0, 0], "size": [1, 1], "cells": [16, 16]}"#;
-    let m = model(&body_scene(
-        mesh,
-        r#"[{"edge": "bottom", "kind": "ground-spring"}]"#,
-        "[]",
-        e,
-        nu,
-        rho,
-        1.0,
-    ));
-    let mass = Mass::new(&m);
-    let ev = evaluator::build(&m, EvaluatorKind::ElementWise);
-    let dt = stability::critical_time_step(eigen::omega_max(&m, ev.as_ref(), &mass));
-    let (_, ratio) = stability::empirical_limit(&m, ev.as_ref(), &mass, dt, 2000, 1e-4);
+    let grid16 = Setup::new(
+        &body_scene(
+            mesh,
+            r#"[{"edge": "bottom", "kind": "ground-spring"}]"#,
+            "[]",
+            e,
+            nu,
+            rho,
+            1.0,
+        ),
+        &Overrides {
+            evaluator: Some(EvaluatorKind::ElementWise),
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let (_, ratio) = stability::empirical_limit(&grid16, 2000, 1e-4);
     r.line(&format!(
         "Empirical limit (16 × 16, base on ground springs; bisection on undamped runs of 2000 steps from a random \
          displacement, energy-growth detector, to 1e-4): **{ratio:.5} × Δt_crit**. Check: within 1 % of 1.\n"
@@ -676,7 +687,7 @@ fn critical_time_step(r: &mut Report) {
     r.line("|---|---|---|");
     let mut runs = Vec::new();
     for f in [0.9, 0.99, 1.01] {
-        let run = stability::run_at_fraction(&m, ev.as_ref(), &mass, dt, f, 2000);
+        let run = stability::run_at_fraction(&grid16, f, 2000);
         r.line(&format!(
             "| {f} | {} (step {}) | {:.3e} |",
             run.status, run.steps, run.max_relative_drift
@@ -754,9 +765,9 @@ fn parity(r: &mut Report) {
         ))
         .unwrap();
         let run = |k| {
-            let p = Prepared::new(
+            let p = Setup::new(
                 &s,
-                &RunOptions {
+                &Overrides {
                     evaluator: Some(k),
                     ..Default::default()
                 },

@@ -6,11 +6,13 @@
 //!   lowest modes by faer's matrix-free `partial_self_adjoint_eigen` (Krylov–Schur) on the
 //!   shift-inverted `M^{½} (K − σ M)^{−1} M^{½}` with a sparse Cholesky.
 
+use crate::analysis::free::FreeSystem;
+use crate::analysis::setup::Setup;
+use crate::analysis::Report;
 use crate::error::{Error, Result};
 use crate::force::evaluator::Evaluator;
 use crate::model::mass::Mass;
 use crate::model::{Model, GROUND};
-use crate::analysis::free::FreeSystem;
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::solvers::Solve;
 use faer::matrix_free::eigen::{
@@ -20,6 +22,8 @@ use faer::matrix_free::LinOp;
 use faer::{Col, Mat, MatMut, MatRef, Par};
 use nalgebra::DMatrix;
 use rand::{Rng, SeedableRng};
+use serde::Serialize;
+use std::path::Path;
 
 /// Free DOFs up to which `Method::Auto` solves densely. The dense solver's absolute error,
 /// about `n ε ω_max²`, is felt by the lowest modes of stiff models (relative error
@@ -846,6 +850,96 @@ pub fn lowest_modes(
         .collect();
     pairs.sort_by(|a, b| a.0.total_cmp(&b.0));
     Ok(pairs.into_iter().unzip())
+}
+
+/// `rbsm eigen --json`.
+#[derive(Serialize)]
+pub struct EigenReport {
+    /// Free DOFs.
+    pub dofs: usize,
+    /// Frequencies of the lowest modes (Hz).
+    pub frequencies_hz: Vec<f64>,
+    /// Their circular frequencies `ω` (rad/s).
+    pub omega: Vec<f64>,
+    /// Largest circular frequency (rad/s).
+    pub omega_max: f64,
+    /// `2/ω_max` (s).
+    pub dt_crit: f64,
+    /// `dense` or `sparse`.
+    pub method: &'static str,
+    /// The mode shapes, for the files of [`write`].
+    #[serde(skip)]
+    pub modes: Modes,
+}
+
+/// `eigen` parameters: how many of the lowest modes, and by which method.
+#[derive(Debug, Clone, Copy)]
+pub struct EigenParams {
+    /// Number of lowest modes.
+    pub modes: usize,
+    /// Dense, sparse, or dense up to [`DENSE_LIMIT`] free DOFs.
+    pub method: Method,
+}
+
+/// The lowest modes of a setup's `K φ = ω² M φ` (without contact), with `ω_max` and
+/// `Δt_crit` of the setup (contact included when the scene has contact: the run's limit).
+pub fn analyse(setup: &Setup, params: &EigenParams) -> Result<EigenReport> {
+    let sys = FreeSystem::new(&setup.model, &setup.mass);
+    let modes = modes(
+        &sys,
+        setup.evaluator.as_ref(),
+        &setup.mass,
+        params.modes,
+        params.method,
+    )?;
+    Ok(EigenReport {
+        dofs: sys.n(),
+        frequencies_hz: modes
+            .omega
+            .iter()
+            .map(|w| w / (2.0 * std::f64::consts::PI))
+            .collect(),
+        omega: modes.omega.clone(),
+        omega_max: setup.omega_max,
+        dt_crit: setup.dt_crit,
+        method: modes.method,
+        modes,
+    })
+}
+
+impl Report for EigenReport {
+    fn text(&self) -> String {
+        let mut t = format!(
+            "{} free DOFs ({} solver); ω_max = {:.6e} rad/s, Δt_crit = {:.6e} s\n",
+            self.dofs, self.method, self.omega_max, self.dt_crit
+        );
+        for (i, f) in self.frequencies_hz.iter().enumerate() {
+            t.push_str(&format!("  mode {:>3}: {:.6e} Hz\n", i + 1, f));
+        }
+        t.trim_end().to_string()
+    }
+}
+
+/// Writes what `rbsm eigen --out DIR` gives: `summary.json` (the report), the shapes as
+/// `mode_NNN.vtu` with `modes.pvd`, and `probes.csv` (per mode its number, frequency and each
+/// probe of the `M`-normalised shape).
+pub fn write(dir: &Path, setup: &Setup, report: &EigenReport) -> Result<()> {
+    let modes = &report.modes;
+    crate::output::vtk::write_mode_shapes(dir, &setup.model, &modes.shapes)?;
+    crate::output::write_json(&dir.join("summary.json"), report)?;
+    let rows: Vec<(Vec<String>, &[f64])> = modes
+        .shapes
+        .iter()
+        .zip(&report.frequencies_hz)
+        .enumerate()
+        .map(|(k, (shape, f))| {
+            (
+                vec![(k + 1).to_string(), format!("{f:e}")],
+                shape.as_slice(),
+            )
+        })
+        .collect();
+    crate::output::write_probe_rows(dir, &setup.probes()?, &["mode", "frequency_hz"], &rows)
 }
 
 #[cfg(test)]

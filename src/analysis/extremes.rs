@@ -2,15 +2,15 @@
 //! the figure it is about and reports what the code did (ran stably, warned, stopped or
 //! refused). The validation report prints the figures; `tests/extremes.rs` asserts them.
 
-use crate::model::checks;
 use crate::analysis::eigen;
-use crate::error::Result;
-use crate::step::integrator::Status;
-use crate::model::Model;
-use crate::analysis::run::{Prepared, RunOptions};
-use crate::input::scene::Scene;
-use crate::analysis::statics;
 use crate::analysis::free::FreeSystem;
+use crate::analysis::setup::{Overrides, Setup};
+use crate::analysis::statics;
+use crate::error::Result;
+use crate::input::scene::Scene;
+use crate::model::checks;
+use crate::model::Model;
+use crate::step::integrator::Status;
 
 /// A scene of one body; `formulation` and `mesh` are JSON objects, `supports`, `loads` arrays,
 /// `extra` more top-level keys (with a leading comma) or nothing.
@@ -53,7 +53,7 @@ pub struct Run {
 }
 
 /// Steps `p` at `fraction × Δt_crit`.
-pub fn run_at(p: &Prepared, fraction: f64, steps: u64) -> Result<Run> {
+pub fn run_at(p: &Setup, fraction: f64, steps: u64) -> Result<Run> {
     let mut cd = p.integrator(fraction * p.dt_crit);
     let status = cd.run(steps, steps, |_, _| Ok(()), |_| ())?;
     let status = status.describe();
@@ -69,7 +69,7 @@ pub fn run_at(p: &Prepared, fraction: f64, steps: u64) -> Result<Run> {
 
 /// Largest `ω_max` by Lanczos (what the runs use) against the dense eigenvalues of the same
 /// model: their relative difference.
-pub fn lanczos_against_dense(p: &Prepared) -> Result<f64> {
+pub fn lanczos_against_dense(p: &Setup) -> Result<f64> {
     let sys = FreeSystem::new(&p.model, &p.mass);
     let dense = eigen::dense_modes(&sys, &p.mass, 1)?;
     let top = dense.omega_max;
@@ -121,10 +121,10 @@ pub fn penalty(p: f64) -> Result<Penalty> {
         })
         .fold(0.0, f64::max)
         / scale;
-    let hyb = Prepared::new(&s, &RunOptions::default())?;
-    let rigid = Prepared::new(
+    let hyb = Setup::new(&s, &Overrides::default())?;
+    let rigid = Setup::new(
         &scene(RIGID, "stress", 0.2, PATCH, ROLLERS, TENSION, "{}", time)?,
-        &RunOptions::default(),
+        &Overrides::default(),
     )?;
     let dt_ratio = hyb.dt_crit / rigid.dt_crit;
     let run = run_at(&hyb, 0.9, 4000)?;
@@ -159,7 +159,7 @@ pub struct Limits {
     pub warnings: Vec<String>,
 }
 
-fn limits(p: &Prepared, steps: u64) -> Result<Limits> {
+fn limits(p: &Setup, steps: u64) -> Result<Limits> {
     let sizes = p.model.elements.iter().map(|e| e.props.area.sqrt());
     let (lo, hi) = sizes.fold((f64::INFINITY, 0.0f64), |a, s| (a.0.min(s), a.1.max(s)));
     Ok(Limits {
@@ -191,9 +191,9 @@ pub fn stack_scene(ratio: f64, formulation: &str) -> String {
 /// 10.2: [`stack_scene`] prepared, with its limits.
 pub fn aspect(ratio: f64, formulation: &str) -> Result<Limits> {
     limits(
-        &Prepared::new(
+        &Setup::new(
             &Scene::from_json(&stack_scene(ratio, formulation))?,
-            &RunOptions::default(),
+            &Overrides::default(),
         )?,
         20_000,
     )
@@ -243,7 +243,7 @@ pub fn size_ratio(ratio: f64) -> Result<Limits> {
         r#"{"velocity": [0.1, 0.2]}"#,
         r#"{"dt_factor": 0.9, "steps": 1}"#,
     )?;
-    limits(&Prepared::new(&s, &RunOptions::default())?, 20_000)
+    limits(&Setup::new(&s, &Overrides::default())?, 20_000)
 }
 
 /// 10.4: the Poisson ratio. The tension patch, static: the effective `ν` fitted to the element
@@ -301,7 +301,7 @@ pub fn poisson(nu: f64, hybrid: bool, plane: &str) -> Result<Poisson> {
     } else {
         2e10
     };
-    let p = Prepared::new(&s, &RunOptions::default())?;
+    let p = Setup::new(&s, &Overrides::default())?;
     Ok(Poisson {
         nu,
         formulation: if hybrid { "hybrid" } else { "rigid" },
@@ -328,7 +328,7 @@ pub fn long_run(checkpoints: &[u64]) -> Result<Vec<(u64, f64)>> {
         r#"{"velocity": [1.0, 0.5]}"#,
         r#"{"dt_factor": 0.9, "steps": 1}"#,
     )?;
-    let p = Prepared::new(&s, &RunOptions::default())?;
+    let p = Setup::new(&s, &Overrides::default())?;
     let mut cd = p.integrator(p.dt);
     let mut out = Vec::new();
     for &n in checkpoints {
@@ -371,7 +371,7 @@ pub fn tumble(cells: usize, spin: f64, time: f64) -> Result<Tumble> {
             "time": {{"dt_factor": 0.5, "end": {time}}}}}"#
     );
     let s = Scene::from_json(&json)?;
-    let p = Prepared::new(&s, &RunOptions::default())?;
+    let p = Setup::new(&s, &Overrides::default())?;
     let mut cd = p.integrator(p.dt);
     let (mut max_rotation, mut meshed_rotation, mut max_elastic, mut kinetic0) =
         (0.0f64, 0.0f64, 0.0f64, None);

@@ -2,13 +2,21 @@
 //! report: a dynamic [`run`], [`statics`], [`eigen`] modes, [`stability`] limits and the
 //! speed–accuracy [`tradeoff`].
 
+pub mod check;
 pub mod eigen;
 pub mod extremes;
 pub mod free;
 pub mod hopping;
-pub mod report;
 pub mod rigid_modes;
 pub mod run;
+pub mod setup;
 pub mod stability;
 pub mod statics;
 pub mod tradeoff;
+
+/// What every analysis returns: a typed report that serialises to the JSON of `--json` and
+/// reads as the text the command line prints.
+pub trait Report: serde::Serialize {
+    /// The report as lines of text.
+    fn text(&self) -> String;
+}

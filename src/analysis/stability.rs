@@ -2,13 +2,17 @@
 //! bounds that codes use instead of `ω_max`, each with its ratio to the exact value, and the
 //! limit found empirically by running.
 
-use crate::force::evaluator::{interface_stiffness, Evaluator};
+use crate::analysis::free::FreeSystem;
+use crate::analysis::setup::Setup;
+use crate::analysis::Report;
+use crate::error::{Error, Result};
+use crate::force::contact::Contact;
+use crate::force::evaluator::interface_stiffness;
 use crate::model::formulation::{Formulation, Hybrid, Rigid};
-use crate::step::integrator::{CentralDifference, Status};
 use crate::model::loads::Loads;
 use crate::model::mass::Mass;
 use crate::model::{Model, GROUND};
-use crate::analysis::free::FreeSystem;
+use crate::step::integrator::{CentralDifference, Status};
 use nalgebra::{DMatrix, SMatrix};
 use rand::{Rng, SeedableRng};
 use serde::Serialize;
@@ -214,16 +218,10 @@ pub struct FractionRun {
     pub history: Vec<(f64, f64, f64)>,
 }
 
-/// Runs the model undamped and unloaded for `steps` steps at `fraction · Δt_crit` from a
-/// seeded random displacement (which excites every mode, the highest included).
-pub fn run_at_fraction(
-    model: &Model,
-    evaluator: &dyn Evaluator,
-    mass: &Mass,
-    dt_crit: f64,
-    fraction: f64,
-    steps: u64,
-) -> FractionRun {
+/// Runs the setup's model undamped and unloaded for `steps` steps at `fraction · Δt_crit`
+/// from a seeded random displacement (which excites every mode, the highest included).
+pub fn run_at_fraction(setup: &Setup, fraction: f64, steps: u64) -> FractionRun {
+    let (model, dt_crit) = (&setup.model, setup.dt_crit);
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
     let u0: Vec<f64> = (0..model.n_dofs())
         .map(|_| 1e-6 * (rng.random::<f64>() - 0.5))
@@ -232,9 +230,10 @@ pub fn run_at_fraction(
     let dt = fraction * dt_crit;
     let mut cd = CentralDifference::from_state(
         model,
-        evaluator,
-        mass,
+        setup.evaluator.as_ref(),
+        &setup.mass,
         &loads,
+        setup.contact.as_ref().map(Contact::copy),
         dt,
         u0,
         vec![0.0; model.n_dofs()],
@@ -275,15 +274,8 @@ pub fn run_at_fraction(
 
 /// The empirical limit: bisection on `fraction` between a stable and an unstable run of
 /// `steps` steps each, to a relative width of `tol`. Returns `(dt, dt / Δt_crit)`.
-pub fn empirical_limit(
-    model: &Model,
-    evaluator: &dyn Evaluator,
-    mass: &Mass,
-    dt_crit: f64,
-    steps: u64,
-    tol: f64,
-) -> (f64, f64) {
-    let stable = |f: f64| run_at_fraction(model, evaluator, mass, dt_crit, f, steps).status == "ok";
+pub fn empirical_limit(setup: &Setup, steps: u64, tol: f64) -> (f64, f64) {
+    let stable = |f: f64| run_at_fraction(setup, f, steps).status == "ok";
     let (mut lo, mut hi) = (0.5, 2.0);
     while !stable(lo) {
         lo *= 0.5;
@@ -299,11 +291,14 @@ pub fn empirical_limit(
             hi = mid;
         }
     }
-    (lo * dt_crit, lo)
+    (lo * setup.dt_crit, lo)
 }
 
 /// Writes `fraction_F.csv` (`t,total,stored`: s, J, J) for each run of a stability analysis.
-pub fn write_fraction_histories(dir: &std::path::Path, runs: &[FractionRun]) -> crate::error::Result<()> {
+pub fn write_fraction_histories(
+    dir: &std::path::Path,
+    runs: &[FractionRun],
+) -> crate::error::Result<()> {
     std::fs::create_dir_all(dir).map_err(|e| crate::error::Error::io(dir, e))?;
     for r in runs {
         let path = dir.join(format!("fraction_{}.csv", r.fraction));
@@ -314,4 +309,96 @@ pub fn write_fraction_histories(dir: &std::path::Path, runs: &[FractionRun]) -> 
         std::fs::write(&path, text).map_err(|e| crate::error::Error::io(&path, e))?;
     }
     Ok(())
+}
+
+#[derive(Serialize)]
+/// The empirical stability limit found by bisection.
+pub struct Empirical {
+    /// Largest stable time step found (s).
+    pub dt: f64,
+    /// Its ratio to `Δt_crit`.
+    pub ratio: f64,
+}
+
+/// `rbsm stability --json`.
+#[derive(Serialize)]
+pub struct StabilityReport {
+    /// Largest circular frequency (rad/s).
+    pub omega_max: f64,
+    /// `2/ω_max` (s).
+    pub dt_crit: f64,
+    /// The cheap estimates and how they compare.
+    pub bounds: Vec<Bound>,
+    /// The limit found by running.
+    pub empirical: Empirical,
+    /// The runs at the asked fractions of `Δt_crit`.
+    pub fractions: Vec<FractionRun>,
+}
+
+/// `stability` parameters: the fractions of `Δt_crit` to run at, and the steps of each run.
+#[derive(Debug, Clone)]
+pub struct StabilityParams {
+    /// Fractions of `Δt_crit`, each > 0.
+    pub fractions: Vec<f64>,
+    /// Steps of each run (bisection and fractions).
+    pub steps: u64,
+}
+
+/// The setup's `Δt_crit` (the one every command uses), the cheap bounds, the empirical limit
+/// (bisection to `1e-4`) and undamped runs at the given fractions of `Δt_crit`.
+pub fn analyse(setup: &Setup, params: &StabilityParams) -> Result<StabilityReport> {
+    if let Some(f) = params
+        .fractions
+        .iter()
+        .find(|f| !(**f > 0.0 && f.is_finite()))
+    {
+        return Err(Error::scene(
+            "--fractions",
+            format!("each fraction must be > 0, got {f}"),
+        ));
+    }
+    let sys = FreeSystem::new(&setup.model, &setup.mass);
+    let bounds = bounds(&setup.model, &sys, &setup.mass, setup.dt_crit);
+    let (dt, ratio) = empirical_limit(setup, params.steps, 1e-4);
+    let fractions = params
+        .fractions
+        .iter()
+        .map(|&f| run_at_fraction(setup, f, params.steps))
+        .collect();
+    Ok(StabilityReport {
+        omega_max: setup.omega_max,
+        dt_crit: setup.dt_crit,
+        bounds,
+        empirical: Empirical { dt, ratio },
+        fractions,
+    })
+}
+
+impl Report for StabilityReport {
+    fn text(&self) -> String {
+        let mut t = format!(
+            "ω_max = {:.6e} rad/s, Δt_crit = {:.6e} s\n",
+            self.omega_max, self.dt_crit
+        );
+        for b in &self.bounds {
+            t.push_str(&format!(
+                "  {:<15} Δt = {:.6e} s  ratio {:.4}  {}\n",
+                b.name,
+                b.dt,
+                b.ratio,
+                if b.safe { "safe" } else { "UNSAFE" }
+            ));
+        }
+        t.push_str(&format!(
+            "  empirical       Δt = {:.6e} s  ratio {:.4}\n",
+            self.empirical.dt, self.empirical.ratio
+        ));
+        for f in &self.fractions {
+            t.push_str(&format!(
+                "  run at {:.3} Δt_crit: {} after {} steps, energy drift {:.3e}\n",
+                f.fraction, f.status, f.steps, f.max_relative_drift
+            ));
+        }
+        t.trim_end().to_string()
+    }
 }

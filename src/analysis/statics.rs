@@ -1,16 +1,20 @@
 //! Static analysis (`rbsm static`, the README's *Commands*): `K_ff U_f = P_f − K_fp U_p` by sparse Cholesky (faer), with
 //! `U_p = 0` (supports fix DOFs at zero). A mechanism is refused with its free modes named.
 
+use crate::analysis::free::FreeSystem;
+use crate::analysis::rigid_modes::free_modes;
+use crate::analysis::setup::Setup;
+use crate::analysis::Report;
 use crate::error::{Error, Result};
 use crate::force::evaluator;
+use crate::input::scene::EvaluatorKind;
 use crate::mesh::geometry::Vec2;
 use crate::model::loads::Loads;
 use crate::model::mass::Mass;
 use crate::model::{Model, GROUND};
-use crate::analysis::rigid_modes::free_modes;
-use crate::input::scene::EvaluatorKind;
-use crate::analysis::free::FreeSystem;
 use faer::linalg::solvers::Solve;
+use serde::Serialize;
+use std::path::Path;
 
 /// The static solution: `U` over all DOFs and the strain energy `½ Uᵀ K U` (J).
 pub struct StaticSolution {
@@ -68,4 +72,125 @@ pub fn midpoint_traction(model: &Model, i: &crate::model::Interface, u: &[f64]) 
     };
     let delta = disp(i.b) - disp(i.a);
     [i.k_n * i.normal.dot(&delta), i.k_s * i.tangent.dot(&delta)]
+}
+
+#[derive(Serialize)]
+/// One element of `rbsm static --json`.
+pub struct StaticElement {
+    /// Reference centroid (m).
+    pub centroid: [f64; 2],
+    #[serde(rename = "U")]
+    /// Its DOFs `U_e` (m, rad, strains).
+    pub u: Vec<f64>,
+    /// `(σ_x, σ_y, τ_xy) = D ε` (Pa), hybrid only.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stress: Option<[f64; 3]>,
+}
+
+#[derive(Serialize)]
+/// One interface of `rbsm static --json`.
+pub struct StaticInterface {
+    /// The first element.
+    pub a: u32,
+    /// The other element, or `null` for a ground spring.
+    pub b: Option<u32>,
+    /// Midpoint of the edge (m).
+    pub midpoint: [f64; 2],
+    /// Unit normal from `a` to `b`.
+    pub normal: [f64; 2],
+    /// `[t_n, t_s]` (Pa) at the midpoint.
+    pub traction: [f64; 2],
+}
+
+/// `rbsm static --json`.
+#[derive(Serialize)]
+pub struct StaticReport {
+    /// Every element.
+    pub elements: Vec<StaticElement>,
+    /// Every interface, ground springs included.
+    pub interfaces: Vec<StaticInterface>,
+    /// Strain energy `½ Uᵀ K U` (J).
+    pub energy: f64,
+    /// `U` over all DOFs (m, rad, strains), for the files of [`write`].
+    #[serde(skip)]
+    pub u: Vec<f64>,
+}
+
+/// The static analysis of a setup: `U`, per element and interface, and the strain energy.
+pub fn analyse(setup: &Setup) -> Result<StaticReport> {
+    let model = &setup.model;
+    let sol = solve(model)?;
+    let nd = model.formulation.ndof();
+    let elements = model
+        .elements
+        .iter()
+        .enumerate()
+        .map(|(e, el)| {
+            let u = &sol.u[e * nd..(e + 1) * nd];
+            StaticElement {
+                centroid: [el.props.centroid.x, el.props.centroid.y],
+                u: u.to_vec(),
+                stress: crate::output::element_stress(model, e, u),
+            }
+        })
+        .collect();
+    let interfaces = model
+        .interfaces
+        .iter()
+        .map(|i| StaticInterface {
+            a: i.a,
+            b: (i.b != GROUND).then_some(i.b),
+            midpoint: [i.midpoint().x, i.midpoint().y],
+            normal: [i.normal.x, i.normal.y],
+            traction: midpoint_traction(model, i, &sol.u),
+        })
+        .collect();
+    Ok(StaticReport {
+        elements,
+        interfaces,
+        energy: sol.energy,
+        u: sol.u,
+    })
+}
+
+impl Report for StaticReport {
+    fn text(&self) -> String {
+        let max = self
+            .elements
+            .iter()
+            .map(|e| e.u[0].hypot(e.u[1]))
+            .fold(0.0, f64::max);
+        format!(
+            "{} elements, {} interfaces; strain energy {:.6e} J; largest displacement {:.6e} m",
+            self.elements.len(),
+            self.interfaces.len(),
+            self.energy,
+            max
+        )
+    }
+}
+
+/// Writes what `rbsm static --out DIR` gives: `summary.json` (the report), `final_state.json`
+/// (`U`, zero `V`), `probes.csv` (`probe,value,unit` for the scene's probes) and the frame
+/// `static.vtu` with its collection `series.pvd`.
+pub fn write(dir: &Path, setup: &Setup, report: &StaticReport) -> Result<()> {
+    let (model, u) = (&setup.model, report.u.as_slice());
+    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    crate::output::write_json(&dir.join("summary.json"), report)?;
+    let v = vec![0.0; u.len()];
+    crate::output::write_final_state(dir, model, 0.0, u, &v)?;
+    crate::output::write_probe_rows(
+        dir,
+        &setup.probes()?,
+        &["case"],
+        &[(vec!["static".to_string()], u)],
+    )?;
+    crate::output::vtk::write_frame(
+        &dir.join("static.vtu"),
+        model,
+        u,
+        &v,
+        crate::output::vtk::Placement::Linear,
+    )?;
+    crate::output::vtk::write_collection(&dir.join("series.pvd"), &[(0.0, "static.vtu".into())])
 }

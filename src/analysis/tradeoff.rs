@@ -7,13 +7,13 @@
 //! otherwise the finest run of the sweep (highest refinement, then smallest time step), named in
 //! the report. Runs write no files; only the report does.
 
-use crate::error::{Error, Result};
-use crate::mesh::geometry::{area_properties, Vec2};
 use crate::analysis::hopping::{lowest_point, Tracker};
-use crate::step::integrator::Status;
-use crate::model::{dof_index, Model};
-use crate::analysis::run::{Prepared, RunOptions};
+use crate::analysis::setup::{Overrides, Setup};
+use crate::error::{Error, Result};
 use crate::input::scene::{ReferenceSpec, Scene};
+use crate::mesh::geometry::{area_properties, Vec2};
+use crate::model::{dof_index, Model};
+use crate::step::integrator::Status;
 use serde::Serialize;
 use serde_json::Value;
 use std::path::Path;
@@ -158,7 +158,7 @@ pub struct Point {
 
 /// The whole sweep.
 #[derive(Debug, Clone, Serialize)]
-pub struct Report {
+pub struct TradeoffReport {
     /// The scene's name.
     pub scene: String,
     /// What the errors are measured against.
@@ -188,7 +188,11 @@ struct Probe {
 
 /// Runs `scene` (its JSON text `json`) at every combination of `sweeps`, calling `progress`
 /// with each finished point.
-pub fn sweep(json: &str, sweeps: &[Sweep], mut progress: impl FnMut(&Point)) -> Result<Report> {
+pub fn sweep(
+    json: &str,
+    sweeps: &[Sweep],
+    mut progress: impl FnMut(&Point),
+) -> Result<TradeoffReport> {
     let base: Value =
         serde_json::from_str(json).map_err(|e| Error::scene("scene", e.to_string()))?;
     let scene = Scene::from_json(json)?;
@@ -237,7 +241,7 @@ pub fn sweep(json: &str, sweeps: &[Sweep], mut progress: impl FnMut(&Point)) -> 
     let (reference, error) = score(&scene, &base_model, &mut runs, &probes)?;
     let mut points: Vec<Point> = runs.into_iter().map(|r| r.0).collect();
     mark_pareto(&mut points);
-    Ok(Report {
+    Ok(TradeoffReport {
         scene: scene.name.clone(),
         reference,
         error,
@@ -347,7 +351,7 @@ fn run_point(
 ) -> Result<(Point, Measure)> {
     reset_peak_memory();
     let start = Instant::now();
-    let p = Prepared::new(scene, &RunOptions::default())?;
+    let p = Setup::new(scene, &Overrides::default())?;
     let setup_s = start.elapsed().as_secs_f64();
     let model = &p.model;
     let nd = model.formulation.ndof();
@@ -620,7 +624,8 @@ impl Bar {
             .iter()
             .find_map(|l| match l {
                 crate::input::scene::LoadSpec::Traction(t)
-                    if t.edge == crate::input::scene::EdgeSet::Side(crate::input::scene::Side::Right) =>
+                    if t.edge
+                        == crate::input::scene::EdgeSet::Side(crate::input::scene::Side::Right) =>
                 {
                     Some(t.value[0])
                 }
@@ -667,10 +672,41 @@ fn mark_pareto(points: &mut [Point]) {
     }
 }
 
-impl Report {
+impl crate::analysis::Report for TradeoffReport {
+    /// The table of `tradeoff.md`.
+    fn text(&self) -> String {
+        self.tables().1
+    }
+}
+
+impl TradeoffReport {
     /// Writes `tradeoff.csv`, `tradeoff.md` and `tradeoff.svg` into `dir`.
     pub fn write(&self, dir: &Path) -> Result<()> {
         std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        let (csv, md) = self.tables();
+        let write = |name: &str, text: &str| {
+            std::fs::write(dir.join(name), text).map_err(|e| Error::io(dir.join(name), e))
+        };
+        write("tradeoff.csv", &csv)?;
+        write("tradeoff.md", &md)?;
+        let pts: Vec<(f64, f64, bool, String)> = self
+            .points
+            .iter()
+            .filter_map(|p| {
+                p.error
+                    .filter(|e| *e > 0.0)
+                    .map(|e| (p.wall_s, e, p.pareto, describe(&p.settings)))
+            })
+            .collect();
+        crate::output::plot::pareto(
+            &dir.join("tradeoff.svg"),
+            &format!("{}: error against wall time", self.scene),
+            &pts,
+        )
+    }
+
+    /// The contents of `tradeoff.csv` and `tradeoff.md`.
+    fn tables(&self) -> (String, String) {
         let keys: Vec<&str> = self
             .points
             .first()
@@ -721,24 +757,6 @@ impl Report {
                 if p.pareto { "◆" } else { "" }
             ));
         }
-        let write = |name: &str, text: &str| {
-            std::fs::write(dir.join(name), text).map_err(|e| Error::io(dir.join(name), e))
-        };
-        write("tradeoff.csv", &csv)?;
-        write("tradeoff.md", &md)?;
-        let pts: Vec<(f64, f64, bool, String)> = self
-            .points
-            .iter()
-            .filter_map(|p| {
-                p.error
-                    .filter(|e| *e > 0.0)
-                    .map(|e| (p.wall_s, e, p.pareto, describe(&p.settings)))
-            })
-            .collect();
-        crate::output::plot::pareto(
-            &dir.join("tradeoff.svg"),
-            &format!("{}: error against wall time", self.scene),
-            &pts,
-        )
+        (csv, md)
     }
 }

@@ -247,7 +247,6 @@ pub const HISTORY_COLUMNS: [&str; 7] = [
     "total",
 ];
 
-
 /// The largest scene file read (bytes): a scene names its meshes and repeats its bodies with
 /// `array`, so a larger file is not a scene (`/dev/zero`, a mesh given as the scene).
 pub const MAX_SCENE_BYTES: u64 = 256 << 20;
@@ -767,10 +766,7 @@ fn items_positive(schema: &mut Schema) {
 /// Every item of an array schema (or of an array-or-null) one of the DOF names.
 fn items_dof_names(schema: &mut Schema) {
     if let Some(items) = schema.get_mut("items").and_then(|i| i.as_object_mut()) {
-        items.insert(
-            "enum".into(),
-            DOF_NAMES.as_slice().into(),
-        );
+        items.insert("enum".into(), DOF_NAMES.as_slice().into());
     }
 }
 
@@ -1156,10 +1152,7 @@ impl Scene {
                 ));
             }
         }
-        let mut columns: Vec<String> = HISTORY_COLUMNS
-            .iter()
-            .map(|c| c.to_string())
-            .collect();
+        let mut columns: Vec<String> = HISTORY_COLUMNS.iter().map(|c| c.to_string()).collect();
         for (k, p) in self.output.probes.iter().enumerate() {
             match (p.element, p.at) {
                 (Some(_), None) => {}

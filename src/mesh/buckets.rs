@@ -83,13 +83,11 @@ pub struct BucketLists {
 impl BucketLists {
     /// Room for the lists of a [`Buckets`] grid made for `items` items, each filed under a few
     /// buckets: `fill` then does not allocate unless the items spread over many more.
-    pub fn with_capacity(items: usize) -> BucketLists {
+    pub fn reserve(&mut self, items: usize) {
         let buckets = items + 4 * (items as f64).sqrt().ceil() as usize + 4;
-        BucketLists {
-            start: Vec::with_capacity(buckets + 1),
-            items: Vec::with_capacity(4 * items),
-            cursor: Vec::with_capacity(buckets),
-        }
+        self.start.reserve_exact(buckets + 1);
+        self.items.reserve_exact(4 * items);
+        self.cursor.reserve_exact(buckets);
     }
 
     /// Files item `i` under every bucket that its box `boxes(i)` touches (query with

@@ -13,10 +13,14 @@ pub mod voronoi;
 
 pub use gmsh::EdgeGroup;
 
-use crate::mesh::buckets::{BucketLists, Buckets};
 use crate::error::{Error, Result};
-use crate::input::scene::{EdgeSet, Side};
-use crate::mesh::geometry::{area_properties, point_in_polygon, segment_distance, segments_cross, Vec2};
+use crate::input::scene::{
+    Cell, EdgeSet, GmshSpec, GridSpec, MeshSpec, PolygonsSpec, Side, VoronoiSpec,
+};
+use crate::mesh::buckets::{BucketLists, Buckets};
+use crate::mesh::geometry::{
+    area_properties, point_in_polygon, segment_distance, segments_cross, Vec2,
+};
 use std::collections::HashMap;
 
 /// An edge shared by two cells: `a` runs `v1 → v2` counter-clockwise, `b` runs it backwards.
@@ -71,7 +75,44 @@ pub(crate) enum Checks {
     UserInput,
 }
 
+/// Elements of a body's mesh as its scene entry gives them, before meshing; `None` for a gmsh
+/// file, known only once read.
+pub fn cells_of(mesh: &MeshSpec) -> Option<u64> {
+    match mesh {
+        MeshSpec::Grid(g) => {
+            Some(g.cells[0] as u64 * g.cells[1] as u64 * if g.cell == Cell::Tri { 2 } else { 1 })
+        }
+        MeshSpec::Voronoi(v) => Some(v.sites as u64),
+        MeshSpec::Polygons(p) => Some(p.cells.len() as u64),
+        MeshSpec::Gmsh(_) => None,
+    }
+}
+
 impl Mesh {
+    /// The mesh a body's scene entry asks for (the one place that reads `mesh.kind`).
+    pub fn from_spec(body: &str, spec: &MeshSpec) -> Result<Mesh> {
+        let v = |p: &[f64; 2]| Vec2::new(p[0], p[1]);
+        match spec {
+            MeshSpec::Grid(GridSpec {
+                origin,
+                size,
+                cells,
+                cell,
+            }) => grid::grid(body, v(origin), v(size), cells[0], cells[1], *cell),
+            MeshSpec::Voronoi(VoronoiSpec {
+                origin,
+                size,
+                sites,
+                seed,
+                lloyd,
+            }) => voronoi::voronoi(body, v(origin), v(size), *sites, *seed, *lloyd),
+            MeshSpec::Polygons(PolygonsSpec { vertices, cells }) => {
+                Mesh::from_polygons(body, vertices.iter().map(v).collect(), cells)
+            }
+            MeshSpec::Gmsh(GmshSpec { path }) => crate::mesh::gmsh::read(body, path),
+        }
+    }
+
     /// Number of cells.
     pub fn n_cells(&self) -> usize {
         self.cell_start.len() - 1

@@ -6,8 +6,8 @@
 //! a point force. The evaluators are generic over it, so a new formulation touches neither the
 //! integrator nor the evaluators' callers.
 
-use crate::mesh::geometry::{AreaProperties, Vec2};
 use crate::input::scene::FormulationSpec;
+use crate::mesh::geometry::{AreaProperties, Vec2};
 use nalgebra::{Matrix3, SMatrix};
 
 /// The displacement field of one element, `u(x) = N_e(x) U_e`, with `N` DOFs.

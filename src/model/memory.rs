@@ -3,7 +3,7 @@
 //! of aborting when an allocation fails.
 
 use crate::error::{Error, Result};
-use crate::input::scene::{FormulationSpec, MeshSpec, Scene};
+use crate::input::scene::{FormulationSpec, Scene};
 
 /// Bytes per element a run holds at its peak, measured with `/usr/bin/time -f %M` on square
 /// grids of 4·10⁴ and 3.6·10⁵ elements (`rbsm run --steps 2`: model, evaluator, Lanczos for
@@ -16,25 +16,6 @@ const CONTACT_FACTOR: f64 = 1.5;
 const PER_BODY: u64 = 1_500;
 /// What the process holds before the model: code, thread stacks, allocator arenas.
 const BASELINE: u64 = 256 << 20;
-
-/// Elements of a body's mesh as its scene entry gives them, before meshing; `None` for a gmsh
-/// file, known only once read.
-pub fn cells_of(mesh: &MeshSpec) -> Option<u64> {
-    match mesh {
-        MeshSpec::Grid(g) => Some(
-            g.cells[0] as u64
-                * g.cells[1] as u64
-                * if g.cell == crate::input::scene::Cell::Tri {
-                    2
-                } else {
-                    1
-                },
-        ),
-        MeshSpec::Voronoi(v) => Some(v.sites as u64),
-        MeshSpec::Polygons(p) => Some(p.cells.len() as u64),
-        MeshSpec::Gmsh(_) => None,
-    }
-}
 
 /// The estimated peak bytes of a run of `scene` with `elements` elements in all.
 pub fn estimate(scene: &Scene, elements: u64) -> u64 {

@@ -8,14 +8,14 @@ pub mod mass;
 pub mod memory;
 
 use crate::error::{Error, Result};
-use crate::model::formulation::{elasticity, Formulation};
-use crate::mesh::geometry::{area_properties, AreaProperties, Vec2};
 use crate::input::scene::EdgeSet;
-use crate::mesh::{grid, voronoi, Mesh};
 use crate::input::scene::{
-    ClampSpec, Component, ContactSpec, ForceSpec, GmshSpec, GridSpec, GroundSpringSpec, LoadSpec,
-    MaterialSpec, MeshSpec, Plane, PolygonsSpec, Scene, SupportSpec, TractionSpec, VoronoiSpec,
+    ClampSpec, Component, ContactSpec, ForceSpec, GroundSpringSpec, LoadSpec, MaterialSpec, Plane,
+    Scene, SupportSpec, TractionSpec,
 };
+use crate::mesh::geometry::{area_properties, AreaProperties, Vec2};
+use crate::mesh::Mesh;
+use crate::model::formulation::{elasticity, Formulation};
 
 /// Marks the `b` side of an interface tied to fixed ground (`U_b = 0`, `h_b = 0`).
 pub const GROUND: u32 = u32::MAX;
@@ -203,13 +203,13 @@ impl Model {
         let mut expected: u64 = scene
             .bodies
             .iter()
-            .filter_map(|b| memory::cells_of(&b.mesh))
+            .filter_map(|b| crate::mesh::cells_of(&b.mesh))
             .sum();
         memory::ensure_fits(scene, expected)?;
         for (bi, spec) in scene.bodies.iter().enumerate() {
             let material = scene.materials[&spec.material];
-            let mut mesh = build_mesh(&spec.name, &spec.mesh)?;
-            if memory::cells_of(&spec.mesh).is_none() {
+            let mut mesh = Mesh::from_spec(&spec.name, &spec.mesh)?;
+            if crate::mesh::cells_of(&spec.mesh).is_none() {
                 expected += mesh.n_cells() as u64;
                 memory::ensure_fits(scene, expected)?;
             }
@@ -513,29 +513,6 @@ pub fn dof_index(name: &str, formulation: Formulation, field: &str) -> Result<us
                 ),
             )
         })
-}
-
-fn build_mesh(body: &str, spec: &MeshSpec) -> Result<Mesh> {
-    let v = |p: &[f64; 2]| Vec2::new(p[0], p[1]);
-    match spec {
-        MeshSpec::Grid(GridSpec {
-            origin,
-            size,
-            cells,
-            cell,
-        }) => grid::grid(body, v(origin), v(size), cells[0], cells[1], *cell),
-        MeshSpec::Voronoi(VoronoiSpec {
-            origin,
-            size,
-            sites,
-            seed,
-            lloyd,
-        }) => voronoi::voronoi(body, v(origin), v(size), *sites, *seed, *lloyd),
-        MeshSpec::Polygons(PolygonsSpec { vertices, cells }) => {
-            Mesh::from_polygons(body, vertices.iter().map(v).collect(), cells)
-        }
-        MeshSpec::Gmsh(GmshSpec { path }) => crate::mesh::gmsh::read(body, path),
-    }
 }
 
 /// The boundary edges of a side or group; an error naming `field` when there are none.

@@ -8,8 +8,8 @@ pub mod plot;
 pub mod vtk;
 
 use crate::error::{Error, Result};
-use crate::step::integrator::{Energy, Snapshot};
 use crate::model::Model;
+use crate::step::integrator::{Energy, Snapshot};
 use serde::Serialize;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -58,6 +58,9 @@ pub struct Summary {
     /// The probe columns of `history.csv` with their units (`rbsm plot` labels its axes so).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub probes: Vec<ProbeColumn>,
+    /// The folder the run wrote into (not in `summary.json`).
+    #[serde(skip)]
+    pub dir: PathBuf,
 }
 
 /// A probe column of `history.csv` and its unit.
@@ -306,4 +309,45 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
         Error::io(path, e)
     })?;
     std::fs::rename(&tmp, path).map_err(|e| Error::io(path, e))
+}
+
+/// `probes.csv`: the columns `keys`, then one column per probe (its unit in the
+/// header, `name (m)`), a row per `(key values, displacements)`.
+pub fn write_probe_rows(
+    dir: &Path,
+    probes: &[Probe],
+    keys: &[&str],
+    rows: &[(Vec<String>, &[f64])],
+) -> Result<()> {
+    if probes.is_empty() {
+        return Ok(());
+    }
+    let mut text = keys.join(",");
+    for p in probes {
+        text.push_str(&format!(",{} ({})", p.name, p.unit()));
+    }
+    text.push('\n');
+    for (key, u) in rows {
+        text.push_str(&key.join(","));
+        for p in probes {
+            text.push_str(&format!(",{:e}", p.value(u)));
+        }
+        text.push('\n');
+    }
+    crate::output::write_atomic(&dir.join("probes.csv"), text.as_bytes())
+}
+
+/// `1 body`, `2 bodies`.
+pub fn count(n: usize, one: &str, many: &str) -> String {
+    format!("{n} {}", if n == 1 { one } else { many })
+}
+
+/// `1.2 MB`, `35.0 kB`, `512 B`.
+pub fn human_bytes(b: usize) -> String {
+    match b {
+        0..1000 => format!("{b} B"),
+        1000..1_000_000 => format!("{:.1} kB", b as f64 / 1e3),
+        1_000_000..1_000_000_000 => format!("{:.1} MB", b as f64 / 1e6),
+        _ => format!("{:.2} GB", b as f64 / 1e9),
+    }
 }

@@ -6,8 +6,8 @@
 //! triangles, quadrilaterals or polygons.
 
 use crate::error::{Error, Result};
-use crate::step::integrator::Snapshot;
 use crate::model::Model;
+use crate::step::integrator::Snapshot;
 use std::path::{Path, PathBuf};
 use vtkio::model::{
     Attribute, Attributes, ByteOrder, CellType, Cells, DataSet, IOBuffer, UnstructuredGridPiece,

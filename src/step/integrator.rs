@@ -6,8 +6,8 @@
 //! update is `v^{n+½} = ((1 − αΔt/2) v^{n−½} + Δt a^n) / (1 + αΔt/2)`. The contact forces
 //! `f_c^n` come from the [`Contact`] of the model, built only when its scene declares contact.
 
-use crate::force::contact::Contact;
 use crate::error::Result;
+use crate::force::contact::Contact;
 use crate::force::evaluator::Evaluator;
 use crate::model::loads::Loads;
 use crate::model::mass::{Mass, Update};
@@ -180,12 +180,15 @@ impl State {
 }
 
 impl<'a> CentralDifference<'a> {
-    /// Starts at `t = 0` in the reference configuration with the model's initial velocities.
+    /// Starts at `t = 0` in the reference configuration with the model's initial velocities;
+    /// `contact` is the model's contact in its initial state (`Contact::new`), `None` for a
+    /// scene without contact.
     pub fn new(
         model: &Model,
         evaluator: &'a dyn Evaluator,
         mass: &'a Mass,
         loads: &'a Loads,
+        contact: Option<Contact>,
         dt: f64,
     ) -> Self {
         Self::from_state(
@@ -193,6 +196,7 @@ impl<'a> CentralDifference<'a> {
             evaluator,
             mass,
             loads,
+            contact,
             dt,
             vec![0.0; model.n_dofs()],
             model.initial_velocity.clone(),
@@ -201,11 +205,13 @@ impl<'a> CentralDifference<'a> {
 
     /// Starts at `t = 0` from displacements `u0` and velocities `v0` (fixed DOFs are zeroed):
     /// `v^{−½} = v^0 − ½ Δt a^0`.
+    #[allow(clippy::too_many_arguments)]
     pub fn from_state(
         model: &Model,
         evaluator: &'a dyn Evaluator,
         mass: &'a Mass,
         loads: &'a Loads,
+        contact: Option<Contact>,
         dt: f64,
         mut u0: Vec<f64>,
         mut v0: Vec<f64>,
@@ -228,7 +234,7 @@ impl<'a> CentralDifference<'a> {
             force: vec![0.0; n],
             force_clear: false,
             scratch: vec![0.0; n],
-            contact: Contact::new(model),
+            contact,
             loaded: None,
             ledger: EnergyLedger::default(),
             good: (0, 0.0, vec![0.0; n], vec![0.0; n]),

@@ -1,8 +1,8 @@
 //! Scenes built in code for the tests.
 #![allow(dead_code)]
 
-use rbsm::model::Model;
 use rbsm::input::scene::Scene;
+use rbsm::model::Model;
 
 /// A one-body scene around `mesh` (a JSON object) with `supports` (a JSON array).
 pub fn scene_json(mesh: &str, supports: &str) -> String {
@@ -46,7 +46,8 @@ pub fn random_vector(n: usize, seed: u64) -> Vec<f64> {
 pub fn forces(model: &Model, u: &[f64]) -> (Vec<f64>, Vec<f64>) {
     let n = model.n_dofs();
     let (mut fa, mut fe) = (vec![0.0; n], vec![0.0; n]);
-    rbsm::force::evaluator::build(model, rbsm::input::scene::EvaluatorKind::Assembled).internal_force(u, &mut fa);
+    rbsm::force::evaluator::build(model, rbsm::input::scene::EvaluatorKind::Assembled)
+        .internal_force(u, &mut fa);
     rbsm::force::evaluator::build(model, rbsm::input::scene::EvaluatorKind::ElementWise)
         .internal_force(u, &mut fe);
     (fa, fe)

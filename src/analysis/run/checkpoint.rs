@@ -2,11 +2,11 @@
 //! `rbsm run SCENE --resume DIR` goes on from there and ends with the outputs, byte for byte,
 //! of a run that was never stopped. One file, `DIR/checkpoint.bin`, written atomically.
 
+use crate::analysis::setup::Overrides;
 use crate::error::{Error, Result};
-use crate::step::integrator::{Energy, State};
-use crate::output;
-use crate::analysis::run::RunOptions;
 use crate::input::scene::Scene;
+use crate::output;
+use crate::step::integrator::{Energy, State};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -36,7 +36,7 @@ pub struct Checkpoint {
 
 /// A hash (FNV-1a, 64 bits) of everything that decides a run: the scene as parsed (its `Debug`
 /// form, which prints every number exactly) and the command-line overrides.
-pub fn fingerprint(scene: &Scene, opts: &RunOptions) -> u64 {
+pub fn fingerprint(scene: &Scene, opts: &Overrides) -> u64 {
     let text = format!(
         "{scene:?}|{:?}|{:?}|{:?}|{:?}",
         opts.evaluator,
@@ -53,7 +53,7 @@ impl Checkpoint {
     /// A checkpoint of a run of `scene` with `opts`.
     pub fn new(
         scene: &Scene,
-        opts: &RunOptions,
+        opts: &Overrides,
         state: State,
         history_bytes: u64,
         frames: Vec<(f64, String)>,
@@ -80,7 +80,7 @@ impl Checkpoint {
     }
 
     /// Reads `DIR/checkpoint.bin` and checks that it belongs to a run of `scene` with `opts`.
-    pub fn read(dir: &Path, scene: &Scene, opts: &RunOptions) -> Result<Checkpoint> {
+    pub fn read(dir: &Path, scene: &Scene, opts: &Overrides) -> Result<Checkpoint> {
         let path: PathBuf = dir.join(FILE);
         let bytes = std::fs::read(&path).map_err(|e| match e.kind() {
             std::io::ErrorKind::NotFound => Error::io(&path, std::io::Error::other(

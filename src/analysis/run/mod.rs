@@ -1,20 +1,14 @@
-//! A whole explicit run, from a scene to its outputs: model, evaluator, `Δt_crit`, the time
-//! loop and the files of [`crate::output`]. The command line and the tests call this one function.
+//! A whole explicit run of a [`Setup`], to its outputs: the time loop and the files of
+//! [`crate::output`]. The command line and the tests call this one function.
 
 pub mod checkpoint;
 
 use crate::analysis::run::checkpoint::Checkpoint;
-use crate::force::contact::{self, Contact, WithBlocks};
+use crate::analysis::setup::Setup;
 use crate::error::{Error, Result};
-use crate::force::evaluator::{self, Evaluator};
-use crate::step::integrator::{CentralDifference, Status};
-use crate::model::loads::Loads;
-use crate::model::mass::Mass;
-use crate::model::{dof_index, Model};
-use crate::output::{self, ContactSummary, EnergySummary, History, Probe, ProbeColumn, Summary};
-use crate::input::scene::{EvaluatorKind, Scene};
 use crate::output::vtk::VtkSeries;
-use crate::analysis::{eigen, stability};
+use crate::output::{self, ContactSummary, EnergySummary, History, ProbeColumn, Summary};
+use crate::step::integrator::Status;
 use std::path::Path;
 use std::time::Instant;
 
@@ -56,144 +50,16 @@ fn remove(path: &Path) -> Result<()> {
     }
 }
 
-/// Command-line overrides of the scene.
+/// What a run does besides stepping: where it writes, whether it goes on from a checkpoint,
+/// and the flag that stops it.
 #[derive(Debug, Clone, Default)]
-pub struct RunOptions {
-    /// Evaluator, replacing the scene's.
-    pub evaluator: Option<EvaluatorKind>,
-    /// Time step (s), replacing the scene's `dt` or `dt_factor`.
-    pub dt: Option<f64>,
-    /// Time step as a fraction of `Δt_crit`, replacing the scene's `dt` or `dt_factor`.
-    pub dt_factor: Option<f64>,
-    /// Number of steps, replacing the scene's `end` or `steps`.
-    pub steps: Option<u64>,
+pub struct RunParams {
+    /// Go on from the last checkpoint (`output.checkpoint_every`) of the run that stopped in the
+    /// output folder; the outputs end as those of a run that never stopped.
+    pub resume: bool,
     /// Raised from outside (a signal handler) to stop the run at the next step with a complete
     /// set of outputs (status `interrupted`).
     pub interrupt: Option<std::sync::Arc<std::sync::atomic::AtomicBool>>,
-}
-
-/// A model ready to step: evaluator, mass, loads and the time step.
-pub struct Prepared {
-    /// The model of the scene.
-    pub model: Model,
-    /// The evaluator of `f_int`.
-    pub evaluator: Box<dyn Evaluator>,
-    /// `M` and its inverse.
-    pub mass: Mass,
-    /// Point loads and gravity.
-    pub loads: Loads,
-    /// Largest circular frequency (rad/s), by Lanczos (`eigen::omega_max`); with contact, of
-    /// `K` plus every contact closed against rigid ground (`contact::stiffness_estimate`).
-    pub omega_max: f64,
-    /// Critical time step `2/ω_max` (s).
-    pub dt_crit: f64,
-    /// The time step of the run (s).
-    pub dt: f64,
-    /// Steps to run.
-    pub steps: u64,
-}
-
-impl Prepared {
-    /// Builds everything a run of `scene` needs.
-    pub fn new(scene: &Scene, opts: &RunOptions) -> Result<Prepared> {
-        let model = Model::build(scene)?;
-        let evaluator = evaluator::build(&model, opts.evaluator.unwrap_or(scene.evaluator));
-        let mass = Mass::new(&model);
-        let loads = Loads::new(&model);
-        let omega_max = match Contact::new(&model) {
-            None => eigen::omega_max(&model, evaluator.as_ref(), &mass),
-            Some(c) => {
-                let blocks = contact::stiffness_estimate(&model, &c);
-                eigen::omega_max(
-                    &model,
-                    &WithBlocks {
-                        inner: evaluator.as_ref(),
-                        nd: model.formulation.ndof(),
-                        blocks,
-                    },
-                    &mass,
-                )
-            }
-        };
-        if !omega_max.is_finite() {
-            return Err(Error::scene(scene.most_extreme(0, &["E", "rho", "thickness", "penalty"]), format!(
-                "the stiffness or mass of the model overflows (ω_max = {omega_max}); check E, rho, thickness, the penalty and the mesh size")));
-        }
-        let dt_crit = stability::critical_time_step(omega_max);
-        let dt = match (opts.dt, scene.time.dt, scene.time.dt_factor) {
-            (Some(_), ..) if opts.dt_factor.is_some() => {
-                return Err(Error::scene(
-                    "--dt-factor",
-                    "give --dt or --dt-factor, not both",
-                ))
-            }
-            (Some(dt), _, _) if dt > 0.0 && dt.is_finite() => dt,
-            (Some(dt), _, _) => {
-                return Err(Error::scene(
-                    "--dt",
-                    format!("must be a finite number > 0, got {dt}"),
-                ))
-            }
-            (None, ..) if opts.dt_factor.is_some() => match opts.dt_factor {
-                Some(f) if !(f > 0.0 && f.is_finite()) => {
-                    return Err(Error::scene(
-                        "--dt-factor",
-                        format!("must be a finite number > 0, got {f}"),
-                    ))
-                }
-                Some(f) if dt_crit.is_finite() => f * dt_crit,
-                _ => {
-                    return Err(Error::scene(
-                        "--dt-factor",
-                        "Δt_crit is infinite (no spring is loaded): give --dt instead",
-                    ))
-                }
-            },
-            (None, Some(dt), _) => dt,
-            (None, None, Some(f)) if dt_crit.is_finite() => f * dt_crit,
-            (None, None, _) => {
-                return Err(Error::scene(
-                    "time.dt_factor",
-                    "Δt_crit is infinite (no spring is loaded): give `time.dt` instead",
-                ))
-            }
-        };
-        let steps = match (opts.steps, scene.time.steps, scene.time.end) {
-            (Some(0), _, _) => {
-                return Err(Error::scene("--steps", "must be ≥ 1, like `time.steps`"))
-            }
-            (Some(n), _, _) => n,
-            (None, Some(n), _) => n,
-            (None, None, Some(end)) => (end / dt - 1e-9).ceil().max(1.0) as u64,
-            (None, None, None) => unreachable!("validated: the scene has `end` or `steps`"),
-        };
-        Ok(Prepared {
-            model,
-            evaluator,
-            mass,
-            loads,
-            omega_max,
-            dt_crit,
-            dt,
-            steps,
-        })
-    }
-}
-
-impl Prepared {
-    /// A central-difference integrator of the model at time step `dt`, with the guard told
-    /// `Δt_crit`.
-    pub fn integrator(&self, dt: f64) -> CentralDifference<'_> {
-        let mut cd = CentralDifference::new(
-            &self.model,
-            self.evaluator.as_ref(),
-            &self.mass,
-            &self.loads,
-            dt,
-        );
-        cd.set_stability_limit(self.dt_crit);
-        cd
-    }
 }
 
 /// What the caller sees of a run while it goes: a line of text, and the step reached.
@@ -212,68 +78,17 @@ impl Monitor for Silent {
     fn progress(&mut self, _: u64, _: u64) {}
 }
 
-/// The history columns the scene asks for, each checked against the model's DOFs.
-pub fn probes(scene: &Scene, model: &Model) -> Result<Vec<Probe>> {
-    let nd = model.formulation.ndof();
-    scene
-        .output
-        .probes
-        .iter()
-        .enumerate()
-        .map(|(k, pr)| {
-            let d = dof_index(
-                &pr.dof,
-                model.formulation,
-                &format!("output.probes[{k}].dof"),
-            )?;
-            let element = model.probe_element(k, pr)?;
-            let offset = pr.at.map(|[x, y]| {
-                crate::mesh::geometry::Vec2::new(x, y) - model.elements[element].props.centroid
-            });
-            Ok(Probe {
-                name: pr.column(),
-                element,
-                dof: d,
-                nd,
-                offset,
-                formulation: model.formulation,
-            })
-        })
-        .collect()
-}
-
-/// Runs `scene` and writes its outputs into `out`; returns the summary (also written).
+/// Runs the setup's scene and writes its outputs into `out`; returns the summary (also written).
 pub fn run(
-    scene: &Scene,
-    opts: &RunOptions,
+    setup: &Setup,
+    params: &RunParams,
     out: &Path,
     monitor: &mut dyn Monitor,
-) -> Result<Summary> {
-    execute(scene, opts, out, monitor, false)
-}
-
-/// Goes on with the run of `scene` that stopped in `out`, from its last checkpoint
-/// (`output.checkpoint_every`); the outputs end as those of a run that never stopped.
-pub fn resume(
-    scene: &Scene,
-    opts: &RunOptions,
-    out: &Path,
-    monitor: &mut dyn Monitor,
-) -> Result<Summary> {
-    execute(scene, opts, out, monitor, true)
-}
-
-fn execute(
-    scene: &Scene,
-    opts: &RunOptions,
-    out: &Path,
-    monitor: &mut dyn Monitor,
-    resuming: bool,
 ) -> Result<Summary> {
     let wall = Instant::now();
-    let p = Prepared::new(scene, opts)?;
+    let (p, scene, opts) = (setup, &setup.scene, &setup.overrides);
     let model = &p.model;
-    let checkpoint = if resuming {
+    let checkpoint = if params.resume {
         let c = Checkpoint::read(out, scene, opts)?;
         // The summary and final state of the stopped run end at another step; files it was
         // writing when killed are half written.
@@ -314,7 +129,7 @@ fn execute(
     for w in &warnings {
         monitor.info(&format!("warning: {w}"));
     }
-    let probes = probes(scene, model)?;
+    let probes = p.probes()?;
     let probe_columns: Vec<ProbeColumn> = probes
         .iter()
         .map(|p| ProbeColumn {
@@ -358,12 +173,13 @@ fn execute(
             )
         }
     };
-    if let Some(flag) = &opts.interrupt {
+    if let Some(flag) = &params.interrupt {
         cd.stop_on(flag.clone());
     }
     let (end, every) = (p.steps, scene.output.every);
     let interrupted = || {
-        opts.interrupt
+        params
+            .interrupt
             .as_ref()
             .is_some_and(|f| f.load(std::sync::atomic::Ordering::Relaxed))
     };
@@ -468,6 +284,7 @@ fn execute(
             time_s: c.stats.time_s,
         }),
         probes: probe_columns,
+        dir: out.to_path_buf(),
     };
     output::write_json(&out.join("summary.json"), &summary)?;
     if status == Status::Ok {
@@ -475,4 +292,26 @@ fn execute(
         remove(&out.join(crate::analysis::run::checkpoint::FILE))?;
     }
     Ok(summary)
+}
+
+impl crate::analysis::Report for Summary {
+    fn text(&self) -> String {
+        match &self.reason {
+            Some(reason) => {
+                let state = if self.status == "diverged" {
+                    "the last state that passed the guard"
+                } else {
+                    "the step reached"
+                };
+                format!(
+                    "{}: {} at {reason}\n  the outputs in {} hold the run up to {state}: step {} (t = {:.6e} s)",
+                    self.scene, self.status, self.dir.display(), self.steps, self.t_end
+                )
+            }
+            None => format!(
+                "{}: ok, {} steps (t = {:.6e} s) in {:.3} s; energy drift {:.3e} of the largest energy; outputs in {}",
+                self.scene, self.steps, self.t_end, self.wall_time_s, self.energy.max_relative_drift, self.dir.display()
+            ),
+        }
+    }
 }

@@ -30,12 +30,12 @@ mod work;
 
 pub use detect::{entry, frame, gap, Gap};
 
-use crate::mesh::buckets::{boxes_meet, moved_beyond, BucketLists, Buckets};
 use crate::force::evaluator::Evaluator;
-use crate::model::formulation::{rotation, Formulation};
-use crate::mesh::geometry::Vec2;
-use crate::model::{Model, GROUND};
 use crate::input::scene::{ContactModel, ContactSpec, EvaluatorKind};
+use crate::mesh::buckets::{boxes_meet, moved_beyond, BucketLists, Buckets};
+use crate::mesh::geometry::Vec2;
+use crate::model::formulation::{rotation, Formulation};
+use crate::model::{Model, GROUND};
 use overlap::Overlap;
 use std::time::Instant;
 use work::Ledger;
@@ -217,7 +217,7 @@ impl Contact {
                 length: (g[1] - g[0]).norm(),
             });
         }
-        let (nv, ne) = (vertices.len(), edges.len());
+        let nv = vertices.len();
         // Both neighbour lists keep a skin of a tenth of the mean boundary edge; point contact's
         // also holds the depth within which a vertex placed inside an edge touches it.
         let body_edges = edges.iter().filter(|e| e.element != GROUND);
@@ -226,7 +226,7 @@ impl Contact {
             .fold((0.0, 0.0f64), |(t, l), e| (t + e.length, l.max(e.length)));
         let tenth = 0.1 * total / body_edges.count().max(1) as f64;
         let skin = tenth.max(0.05 * longest);
-        Some(Contact {
+        let mut contact = Contact {
             settings,
             frames: Frames {
                 formulation: model.formulation,
@@ -239,12 +239,11 @@ impl Contact {
             vertices,
             edges,
             points,
-            // Room for two contacts per vertex, so that the steps do not allocate.
-            records: Vec::with_capacity(2 * nv),
-            fresh: Vec::with_capacity(2 * nv),
-            buckets: BucketLists::with_capacity(ne),
-            near_start: Vec::with_capacity(nv + 1),
-            near: Vec::with_capacity(4 * nv),
+            records: Vec::new(),
+            fresh: Vec::new(),
+            buckets: BucketLists::default(),
+            near_start: Vec::new(),
+            near: Vec::new(),
             anchors: vec![Vec2::repeat(f64::INFINITY); nv],
             skin,
             overlap: (settings.model == ContactModel::EdgeToEdge)
@@ -254,7 +253,32 @@ impl Contact {
             ground: Vec2::zeros(),
             step: None,
             stats: ContactStats::default(),
-        })
+        };
+        contact.reserve();
+        Some(contact)
+    }
+
+    /// A copy of this contact for a new run: the state and the room of its buffers (a plain
+    /// `clone` keeps only their contents, and the steps would then allocate).
+    pub fn copy(&self) -> Contact {
+        let mut c = self.clone();
+        c.reserve();
+        c
+    }
+
+    /// Room for two contacts per vertex and for the neighbour lists, so that the steps do not
+    /// allocate.
+    fn reserve(&mut self) {
+        let (nv, ne) = (self.vertices.len(), self.edges.len());
+        self.records.reserve_exact(2 * nv);
+        self.fresh.reserve_exact(2 * nv);
+        self.buckets.reserve(ne);
+        self.near_start.reserve_exact(nv + 1);
+        self.near.reserve_exact(4 * nv);
+        self.ledger.reserve();
+        if let Some(o) = self.overlap.as_mut() {
+            o.reserve();
+        }
     }
 
     /// The live vertex contacts of point contact after the last step.

@@ -331,7 +331,6 @@ impl Overlap {
                 (r, [0.0; 3])
             })
             .collect();
-        let n_sources = sources.len();
         let mut overlap = Overlap {
             anchors: vec![Vec2::repeat(f64::INFINITY); corners.len()],
             corners,
@@ -340,23 +339,34 @@ impl Overlap {
             rigid: model.formulation == crate::model::formulation::Formulation::Rigid,
             offsets,
             faces,
-            buckets: BucketLists::with_capacity(targets.len()),
+            buckets: BucketLists::default(),
             targets,
             sources,
-            candidates: Vec::with_capacity(8 * n_sources),
+            candidates: Vec::new(),
             skin,
             rebuilds: 0,
             ground: Vec2::zeros(),
             blocks: Vec::new(),
-            pieces: Vec::with_capacity(4 * n_sources),
-            next: Vec::with_capacity(4 * n_sources),
+            pieces: Vec::new(),
+            next: Vec::new(),
             thickness: model.thickness,
             factor: model.formulation.spring_factor(),
             friction,
             fresh: true,
         };
+        overlap.reserve();
         overlap.place_lines(true);
         overlap
+    }
+
+    /// Room for the candidates and pieces of every source edge, so that the steps do not
+    /// allocate.
+    pub(super) fn reserve(&mut self) {
+        let n = self.sources.len();
+        self.buckets.reserve(self.targets.len());
+        self.candidates.reserve_exact(8 * n);
+        self.pieces.reserve_exact(4 * n);
+        self.next.reserve_exact(4 * n);
     }
 
     /// The contact forces of state `u` into `ledger`; `velocity` is `v^{n−½}`, so that the step

@@ -19,15 +19,24 @@ pub struct Ledger {
 
 impl Ledger {
     pub fn new(n_elements: usize, nd: usize) -> Ledger {
-        Ledger {
+        let mut ledger = Ledger {
             nd,
             now: vec![0.0; n_elements * nd],
             before: vec![0.0; n_elements * nd],
-            touched_now: Vec::with_capacity(n_elements),
-            touched_before: Vec::with_capacity(n_elements),
+            touched_now: Vec::new(),
+            touched_before: Vec::new(),
             mark: vec![0; n_elements],
             work: 0.0,
-        }
+        };
+        ledger.reserve();
+        ledger
+    }
+
+    /// Room to list every element as touched, so that the steps do not allocate.
+    pub fn reserve(&mut self) {
+        let n = self.mark.len();
+        self.touched_now.reserve_exact(n);
+        self.touched_before.reserve_exact(n);
     }
 
     /// Starts the forces of a new state; those of the last one become `f_c^{n−1}`.

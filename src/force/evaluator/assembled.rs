@@ -2,10 +2,10 @@
 //! block-sparse matrix with one `N × N` block per element pair, and `f_int = K U`.
 
 use super::Evaluator;
+use crate::input::scene::EvaluatorKind;
 use crate::model::formulation::Kinematics;
 use crate::model::{Interface, Model, GROUND};
 use crate::parallel::for_each_chunk;
-use crate::input::scene::EvaluatorKind;
 use nalgebra::{Matrix2, SMatrix};
 use std::marker::PhantomData;
 

@@ -31,11 +31,11 @@
 //! so the result does not depend on the thread count.
 
 use super::Evaluator;
-use crate::model::formulation::{Kinematics, Springs};
+use crate::input::scene::EvaluatorKind;
 use crate::mesh::geometry::Vec2;
+use crate::model::formulation::{Kinematics, Springs};
 use crate::model::mass::{ElementUpdate, Update, WithUpdate};
 use crate::model::{Model, GROUND};
-use crate::input::scene::EvaluatorKind;
 use rayon::prelude::*;
 use std::marker::PhantomData;
 use std::ops::Range;
@@ -561,8 +561,8 @@ impl<K: Kinematics<N>, const N: usize> Evaluator for ElementWise<K, N> {
 mod tests {
     use super::*;
     use crate::force::evaluator::Assembled;
-    use crate::model::formulation::{Hybrid, Rigid};
     use crate::input::scene::Scene;
+    use crate::model::formulation::{Hybrid, Rigid};
 
     /// `f_int` swept by the plain build, block after block.
     fn plain_forces<K: Kinematics<N>, const N: usize>(

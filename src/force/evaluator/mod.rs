@@ -11,10 +11,10 @@ mod element_wise;
 pub use assembled::{interface_stiffness, Assembled, BlockCsr};
 pub use element_wise::ElementWise;
 
+use crate::input::scene::EvaluatorKind;
 use crate::model::formulation::{Formulation, Hybrid, Rigid};
 use crate::model::mass::Update;
 use crate::model::Model;
-use crate::input::scene::EvaluatorKind;
 
 /// Internal forces of a model in a given state.
 pub trait Evaluator: Send + Sync {

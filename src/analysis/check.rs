@@ -1,0 +1,166 @@
+//! `rbsm check`: what a run of a scene would model (elements, interfaces, DOFs, contact,
+//! `Δt_crit`, the time step, the memory), without running it.
+
+use crate::analysis::setup::Setup;
+use crate::analysis::Report;
+use crate::error::Result;
+use serde::Serialize;
+
+/// `rbsm check --json`: what a run of the scene would model, without running it.
+#[derive(Serialize)]
+pub struct CheckReport {
+    /// The scene's name.
+    pub scene: String,
+    /// `rigid` or `hybrid`.
+    pub formulation: &'static str,
+    /// `assembled` or `element-wise`.
+    pub evaluator: &'static str,
+    /// Number of bodies.
+    pub bodies: usize,
+    /// Number of elements.
+    pub elements: usize,
+    /// Interfaces between two elements, and ground springs (supports).
+    pub interfaces: usize,
+    /// Boundary edges tied to ground by springs.
+    pub ground_springs: usize,
+    /// Free DOFs.
+    pub dofs: usize,
+    /// DOFs fixed by clamps.
+    pub fixed_dofs: usize,
+    /// Point loads that the tractions and forces become.
+    pub loads: usize,
+    /// Gravitational acceleration (m/s²).
+    pub gravity: [f64; 2],
+    /// `None` without a `contact` section: then no contact work is done.
+    pub contact: Option<ContactCheck>,
+    /// Largest circular frequency (rad/s) and `Δt_crit = 2/ω_max` (s).
+    pub omega_max: f64,
+    /// `2/ω_max` (s).
+    pub dt_crit: f64,
+    /// The time step a run would take (s), its ratio to `Δt_crit`, and the steps.
+    pub dt: f64,
+    /// `dt / Δt_crit`.
+    pub dt_ratio: f64,
+    /// Steps a run would take.
+    pub steps: u64,
+    /// Bytes a run holds for stepping: the evaluator's data, `M` and `M⁻¹`, and the
+    /// integrator's vectors (`U`, `v`, force, averaged velocity, and the guard's `U`, `v`).
+    pub memory_bytes: usize,
+    /// What the checks warn about the scene.
+    pub warnings: Vec<String>,
+}
+
+/// The contact a run would model.
+#[derive(Serialize)]
+pub struct ContactCheck {
+    /// `edge-to-edge` or `point`.
+    pub model: &'static str,
+    /// Vertices that can touch and edges they can touch (ground segments included).
+    pub vertices: usize,
+    /// Edges that can be touched, ground segments included.
+    pub edges: usize,
+    /// Vertex–edge pairs near enough to be tested at the start, and those in contact there.
+    pub pairs_tested_at_start: u64,
+    /// Vertex–edge pairs in contact at the start.
+    pub pairs_in_contact_at_start: usize,
+}
+
+/// Checks everything a run of the setup would build (mesh, model, probes, `Δt_crit`, the time
+/// step; the setup has built the rest) without stepping.
+pub fn check(p: &Setup) -> Result<CheckReport> {
+    p.probes()?;
+    let m = &p.model;
+    let contact = p.contact.clone().map(|mut c| {
+        let n = m.n_dofs();
+        c.apply(
+            0,
+            &vec![0.0; n],
+            &m.initial_velocity,
+            p.dt,
+            &mut vec![0.0; n],
+        );
+        let (vertices, edges) = c.extent();
+        ContactCheck {
+            model: c.settings.model.name(),
+            vertices,
+            edges,
+            pairs_tested_at_start: c.stats.tests,
+            pairs_in_contact_at_start: c.live(),
+        }
+    });
+    let ground_springs = m
+        .interfaces
+        .iter()
+        .filter(|i| i.b == crate::model::GROUND)
+        .count();
+    let mass_bytes = 8 * p.mass.triplets().len() * if p.mass.is_diagonal() { 2 } else { 4 };
+    Ok(CheckReport {
+        scene: m.name.clone(),
+        formulation: m.formulation.name(),
+        evaluator: p.evaluator.kind().name(),
+        bodies: m.bodies.len(),
+        elements: m.elements.len(),
+        interfaces: m.interfaces.len() - ground_springs,
+        ground_springs,
+        dofs: m.n_dofs(),
+        fixed_dofs: m.fixed.len(),
+        loads: m.loads.len(),
+        gravity: [m.gravity.x, m.gravity.y],
+        contact,
+        omega_max: p.omega_max,
+        dt_crit: p.dt_crit,
+        dt: p.dt,
+        dt_ratio: p.dt / p.dt_crit,
+        steps: p.steps,
+        memory_bytes: p.evaluator.bytes() + mass_bytes + 6 * 8 * m.n_dofs(),
+        warnings: crate::model::checks::warnings(m, p.dt, p.dt_crit),
+    })
+}
+
+impl Report for CheckReport {
+    fn text(&self) -> String {
+        let r = self;
+        let mut t = format!("{}: valid\n", r.scene);
+        t += &format!(
+            "  {}, {} ({} formulation, {} evaluator)\n",
+            crate::output::count(r.bodies, "body", "bodies"),
+            crate::output::count(r.elements, "element", "elements"),
+            r.formulation,
+            r.evaluator
+        );
+        t += &format!(
+            "  {} between elements, {}; {} DOFs, {} fixed\n",
+            crate::output::count(r.interfaces, "interface", "interfaces"),
+            crate::output::count(r.ground_springs, "ground spring", "ground springs"),
+            r.dofs,
+            r.fixed_dofs
+        );
+        t += &format!(
+            "  {} point loads; gravity ({}, {}) m/s²\n",
+            r.loads, r.gravity[0], r.gravity[1]
+        );
+        t += &match &r.contact {
+            None => "  contact: none declared (no contact search)\n".to_string(),
+            Some(c) => format!(
+                "  contact: {}, {} vertices against {} edges; at the start {} pairs tested, {} in contact\n",
+                c.model, c.vertices, c.edges, c.pairs_tested_at_start, c.pairs_in_contact_at_start
+            ),
+        };
+        t += &format!(
+            "  ω_max = {:.6e} rad/s, Δt_crit = {:.6e} s\n",
+            r.omega_max, r.dt_crit
+        );
+        t += &format!(
+            "  dt = {:.6e} s = {:.4} Δt_crit, {} steps\n",
+            r.dt, r.dt_ratio, r.steps
+        );
+        t += &format!(
+            "  memory for stepping: {}",
+            crate::output::human_bytes(r.memory_bytes)
+        );
+        for w in &r.warnings {
+            t += &format!("\n  warning: {w}");
+        }
+        t
+    }
+}
