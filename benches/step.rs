@@ -174,7 +174,7 @@ fn main() {
                     // Fused into one sweep, U and v are each read and written once; the pending
                     // forces stay in the sweep's rings, and this scene (no gravity, no contact)
                     // reads −P only at its loaded elements.
-                    let vectors = if ev.fuses() { 4 } else { 7 };
+                    let vectors = if ev.fused().is_some() { 4 } else { 7 };
                     let bytes =
                         ev.bytes() as f64 / ne as f64 + (8 * nd * vectors + inv_bytes) as f64;
                     let mut integrator =
@@ -395,7 +395,7 @@ fn render(
         .iter()
         .filter(|b| b.0 == "voronoi" && b.1 == "rigid")
         .map(|b| (b.2, b.3))
-        .last()
+        .next_back()
         .unwrap_or((0, f64::NAN));
     let _ = writeln!(
         s,

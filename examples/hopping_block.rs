@@ -21,7 +21,9 @@
 //! speed and the apex match the theory to the same order. `examples/scenes/hopping_block.json`
 //! runs ten bounces, and validation §8.1 shows how the flat landing turns into rocking.
 
-use rbsm::analysis::hopping::{brick, centre_velocity, lowest_point, Bounce, Tracker};
+#[path = "../validation/fixtures/brick.rs"]
+mod brick;
+use rbsm::analysis::hopping::{centre_velocity, lowest_point, Bounce, Tracker};
 use rbsm::analysis::setup::{Overrides, Setup};
 use rbsm::input::scene::Scene;
 

@@ -1,4 +1,5 @@
 #![warn(missing_docs)]
+#![forbid(unsafe_code)]
 //! # rbsm: the Rigid-Bodies-Spring Model in 2D with explicit dynamics
 //!
 //! A structure is cut into rigid polygonal **elements**. Neighbouring elements are joined on

@@ -7,7 +7,9 @@ use rbsm::force::contact::Contact;
 use rbsm::input::scene::Scene;
 use rbsm::step::integrator::Status;
 
-use rbsm::analysis::hopping::brick::{self, G};
+#[path = "../validation/fixtures/brick.rs"]
+mod brick;
+use brick::G;
 
 struct Outcome {
     tracker: Tracker,

@@ -1,7 +1,8 @@
 //! The extremes of validation §10, on shorter runs: each test asserts the behaviour that the
 //! report states (stable, warned, stopped or refused).
 
-use rbsm::analysis::extremes;
+#[path = "../validation/fixtures/extremes.rs"]
+mod extremes;
 
 const RIGID: &str = r#"{"kind": "rigid"}"#;
 

@@ -191,7 +191,9 @@ fn twenty_thousand_mutated_scenes_and_meshes_exit_cleanly_and_errors_name_their_
     let msh = std::fs::read(root.join("examples/meshes/cantilever.msh")).unwrap();
     let tmp = tempfile::tempdir().unwrap();
     let t0 = std::time::Instant::now();
-    let results: Vec<(usize, std::result::Result<Result<i32, Error>, String>)> = (0..CASES)
+    // Per case: the exit code or the error, or the panic message.
+    type Outcome = std::result::Result<Result<i32, Error>, String>;
+    let results: Vec<(usize, Outcome)> = (0..CASES)
         .into_par_iter()
         .map(|case| {
             let mut rng = ChaCha8Rng::seed_from_u64(case as u64);

@@ -171,10 +171,10 @@ fn unsupported_files_and_names_are_refused_clearly() {
     );
     let e = error_for(std::path::Path::new(&msh), "clmap");
     assert!(e.contains("clmap") && e.contains("clamp, tip"), "{e}");
-    let missing = Scene::from_json(&format!(
-        r#"{{"name": "g", "thickness": 1.0, "formulation": {{"kind": "rigid"}}, "materials": {{"m": {{"E": 1e9, "nu": 0.2, "rho": 1000}}}},
-            "bodies": [{{"name": "b", "material": "m", "mesh": {{"kind": "gmsh", "path": "nowhere.msh"}}}}], "time": {{"dt": 1e-6, "steps": 1}}}}"#
-    ))
+    let missing = Scene::from_json(
+        r#"{"name": "g", "thickness": 1.0, "formulation": {"kind": "rigid"}, "materials": {"m": {"E": 1e9, "nu": 0.2, "rho": 1000}},
+            "bodies": [{"name": "b", "material": "m", "mesh": {"kind": "gmsh", "path": "nowhere.msh"}}], "time": {"dt": 1e-6, "steps": 1}}"#,
+    )
     .unwrap_err()
     .to_string();
     assert!(

@@ -260,7 +260,7 @@ fn the_fused_step_matches_evaluation_then_update() {
         let (mass, loads) = (Mass::new(&model), Loads::new(&model));
         let fused = evaluator::build(&model, EvaluatorKind::ElementWise);
         let two_pass = TwoPass(evaluator::build(&model, EvaluatorKind::ElementWise));
-        assert!(fused.fuses() && !two_pass.fuses());
+        assert!(fused.fused().is_some() && two_pass.fused().is_none());
         let run = |ev: &dyn evaluator::Evaluator, threads: usize| {
             let pool = rayon::ThreadPoolBuilder::new()
                 .num_threads(threads)

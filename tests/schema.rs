@@ -185,7 +185,8 @@ fn scenes_with_every_optional_key_parse_and_validate_against_the_schema() {
 fn the_schema_refuses_what_the_parser_refuses_by_shape_or_simple_range() {
     let v = validator(&rbsm::input::scene::schema());
     let base = load("cantilever.json");
-    let cases: Vec<(&str, Box<dyn Fn(&mut Value)>)> = vec![
+    type Edit = Box<dyn Fn(&mut Value)>;
+    let cases: Vec<(&str, Edit)> = vec![
         (
             "unknown top-level key",
             Box::new(|s| s["colour"] = json!("red")),

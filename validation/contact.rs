@@ -8,7 +8,7 @@ use rbsm::input::scene::Scene;
 use rbsm::step::integrator::Status;
 use std::path::Path;
 
-use rbsm::analysis::hopping::brick::{self, DEPTH as D, E, G, NU, RHO};
+use crate::fixtures::brick::{self, DEPTH as D, E, G, NU, RHO};
 
 fn brick_scene(
     cells: [usize; 2],
@@ -18,10 +18,7 @@ fn brick_scene(
     height: f64,
     slope: f64,
 ) -> Scene {
-    Scene::from_json(&rbsm::analysis::hopping::brick::scene(
-        cells, model, friction, tilt, height, slope,
-    ))
-    .unwrap()
+    Scene::from_json(&brick::scene(cells, model, friction, tilt, height, slope)).unwrap()
 }
 
 /// What one run gives.

@@ -1,7 +1,7 @@
-//! Section 10 of the validation report: the method at its extremes (`rbsm::analysis::extremes`).
+//! Section 10 of the validation report: the method at its extremes (`fixtures/extremes.rs`).
 
 use super::Report;
-use rbsm::analysis::extremes::{self, Run};
+use crate::fixtures::extremes::{self, Run};
 
 fn run_cell(r: &Run) -> String {
     if r.status == "ok" {

@@ -10,6 +10,7 @@ mod contact;
 mod extremes;
 #[path = "fem.rs"]
 mod fem;
+mod fixtures;
 mod trade;
 
 use rbsm::analysis::eigen::{self, Method};
@@ -797,6 +798,7 @@ fn parity(r: &mut Report) {
     r.line("");
 }
 
+#[allow(clippy::too_many_arguments)] // the keys of a JSON template
 fn hybrid_scene(
     mesh: &str,
     supports: &str,

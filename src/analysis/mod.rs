@@ -4,7 +4,6 @@
 
 pub mod check;
 pub mod eigen;
-pub mod extremes;
 pub mod free;
 pub mod hopping;
 pub mod rigid_modes;

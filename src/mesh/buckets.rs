@@ -31,7 +31,7 @@ impl Buckets {
     }
 
     /// Number of buckets.
-    pub fn len(&self) -> usize {
+    pub fn count(&self) -> usize {
         self.nx * self.ny
     }
 
@@ -94,20 +94,20 @@ impl BucketLists {
     /// [`Buckets::covering`]).
     pub fn fill(&mut self, grid: &Buckets, n_items: usize, boxes: impl Fn(usize) -> (Vec2, Vec2)) {
         self.start.clear();
-        self.start.resize(grid.len() + 1, 0);
+        self.start.resize(grid.count() + 1, 0);
         for i in 0..n_items {
             let (a, b) = boxes(i);
             for k in grid.touching(a, b) {
                 self.start[k + 1] += 1;
             }
         }
-        for k in 0..grid.len() {
+        for k in 0..grid.count() {
             self.start[k + 1] += self.start[k];
         }
         self.cursor.clear();
-        self.cursor.extend_from_slice(&self.start[..grid.len()]);
+        self.cursor.extend_from_slice(&self.start[..grid.count()]);
         self.items.clear();
-        self.items.resize(self.start[grid.len()] as usize, 0);
+        self.items.resize(self.start[grid.count()] as usize, 0);
         for i in 0..n_items {
             let (a, b) = boxes(i);
             for k in grid.touching(a, b) {

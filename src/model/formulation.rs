@@ -366,6 +366,12 @@ impl Formulation {
     }
 }
 
+/// The rotation matrix of angle `theta`.
+pub fn rotation(theta: f64) -> nalgebra::Matrix2<f64> {
+    let (s, c) = theta.sin_cos();
+    nalgebra::Matrix2::new(c, -s, s, c)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -458,10 +464,4 @@ mod tests {
         Rigid::add_linear(&mut g, d, force);
         assert_eq!(g, [0.0, 0.0, via_nt[2]]);
     }
-}
-
-/// The rotation matrix of angle `theta`.
-pub fn rotation(theta: f64) -> nalgebra::Matrix2<f64> {
-    let (s, c) = theta.sin_cos();
-    nalgebra::Matrix2::new(c, -s, s, c)
 }

@@ -206,7 +206,7 @@ impl History {
     }
 
     /// Bytes of whole rows written so far.
-    pub fn len(&self) -> u64 {
+    pub fn bytes(&self) -> u64 {
         self.len
     }
 

@@ -388,8 +388,8 @@ impl<'a> CentralDifference<'a> {
         loop {
             let last = self.step == end;
             let interrupted = self.interrupted();
-            let record = last || interrupted || self.step % every == 0;
-            let check = record || self.step % check_every == 0;
+            let record = last || interrupted || self.step.is_multiple_of(every);
+            let check = record || self.step.is_multiple_of(check_every);
             if !check {
                 self.step_unchecked(dt, damping);
                 continue;
@@ -467,11 +467,7 @@ impl<'a> CentralDifference<'a> {
     /// `v^{n+½}` and `U^{n+1}`, fused with the evaluation when the evaluator can do that, else
     /// in one element-local pass after it.
     fn step_unchecked(&mut self, dt: f64, damping: (f64, f64)) {
-        if !self.evaluator.fuses() {
-            self.net_force(false);
-            self.mass
-                .advance(&self.force, &mut self.v, &mut self.u, dt, damping);
-        } else {
+        if let Some(fused) = self.evaluator.fused() {
             if !self.force_clear {
                 self.force.fill(0.0);
             }
@@ -481,7 +477,7 @@ impl<'a> CentralDifference<'a> {
                 dt,
                 damping,
             };
-            self.evaluator.advance(
+            fused.advance(
                 &mut self.u,
                 &mut self.v,
                 &mut self.force,
@@ -489,6 +485,10 @@ impl<'a> CentralDifference<'a> {
                 &update,
             );
             self.force_clear = true;
+        } else {
+            self.net_force(false);
+            self.mass
+                .advance(&self.force, &mut self.v, &mut self.u, dt, damping);
         }
         self.ledger.external_work += self.loads.work_increment(self.t, dt, &self.v);
         self.step += 1;

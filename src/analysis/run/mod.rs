@@ -219,7 +219,7 @@ pub fn run(
             scene,
             opts,
             cd.state(),
-            history.len(),
+            history.bytes(),
             frames,
             first,
             rotation,

@@ -30,7 +30,7 @@
 //! blocks. Every element sums its edges in interface order whatever the blocks and the threads,
 //! so the result does not depend on the thread count.
 
-use super::Evaluator;
+use super::{Evaluator, FusedStep};
 use crate::input::scene::EvaluatorKind;
 use crate::mesh::geometry::Vec2;
 use crate::model::formulation::{Kinematics, Springs};
@@ -497,10 +497,12 @@ impl<K: Kinematics<N>, const N: usize> Evaluator for ElementWise<K, N> {
         }
     }
 
-    fn fuses(&self) -> bool {
-        true
+    fn fused(&self) -> Option<&dyn FusedStep> {
+        Some(self)
     }
+}
 
+impl<K: Kinematics<N>, const N: usize> FusedStep for ElementWise<K, N> {
     fn advance(
         &self,
         u: &mut [f64],

@@ -25,26 +25,28 @@ pub trait Evaluator: Send + Sync {
     fn internal_force(&self, u: &[f64], f: &mut [f64]);
     /// The bytes of data it holds, all of which one evaluation reads.
     fn bytes(&self) -> usize;
-    /// Whether it implements [`Evaluator::advance`].
-    fn fuses(&self) -> bool {
-        false
+    /// The evaluator's fused step, when it has one; the integrator then steps through it
+    /// instead of evaluating and updating in two passes.
+    fn fused(&self) -> Option<&dyn FusedStep> {
+        None
     }
-    /// One explicit step fused with the evaluation (central difference, [`crate::step::integrator`]): with `force` holding the
-    /// rest of the net force, `−P − f_c`, each element gets `f_int(U^n) + force` and is advanced
-    /// by `update` as soon as its force is complete; `force` is left zero. `loaded` lists, in
-    /// order, the only elements where `force` may be non-zero (`None`: any element), so that a
-    /// step need not read the rest. Only for an evaluator that [`fuses`](Evaluator::fuses); the
-    /// others are evaluated and advanced in two passes.
+}
+
+/// An evaluator that fuses the evaluation with the explicit update (central difference,
+/// [`crate::step::integrator`]): each element is advanced as soon as its force is complete.
+pub trait FusedStep {
+    /// One explicit step: with `force` holding the rest of the net force, `−P − f_c`, each
+    /// element gets `f_int(U^n) + force` and is advanced by `update`; `force` is left zero.
+    /// `loaded` lists, in order, the only elements where `force` may be non-zero (`None`: any
+    /// element), so that a step need not read the rest.
     fn advance(
         &self,
-        _u: &mut [f64],
-        _v: &mut [f64],
-        _force: &mut [f64],
-        _loaded: Option<&[u32]>,
-        _update: &Update,
-    ) {
-        unreachable!("advance is only called on an evaluator that fuses")
-    }
+        u: &mut [f64],
+        v: &mut [f64],
+        force: &mut [f64],
+        loaded: Option<&[u32]>,
+        update: &Update,
+    );
 }
 
 /// The global stiffness `K` of eq. 7 as scalar triplets `(row, col, value)` over all DOFs.
