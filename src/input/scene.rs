@@ -436,8 +436,8 @@ pub struct VoronoiSpec {
     /// Width and height (m), each > 0.
     #[schemars(transform = items_positive)]
     pub size: [f64; 2],
-    /// Number of cells, 2 to `MAX_CELLS` (20 000 000).
-    #[schemars(range(min = 2, max = MAX_CELLS))]
+    /// Number of cells, 3 to `MAX_CELLS` (20 000 000).
+    #[schemars(range(min = 3, max = MAX_CELLS))]
     pub sites: usize,
     #[serde(default)]
     /// Random seed of the sites (default 0).
@@ -1287,10 +1287,10 @@ impl Scene {
                 finite_all(&at("mesh.origin"), origin)?;
                 positive(&at("mesh.size[0]"), size[0])?;
                 positive(&at("mesh.size[1]"), size[1])?;
-                if *sites < 2 || *sites > MAX_CELLS {
+                if *sites < 3 || *sites > MAX_CELLS {
                     return Err(Error::scene(
                         at("mesh.sites"),
-                        format!("must lie in 2..={MAX_CELLS}, got {sites}"),
+                        format!("must lie in 3..={MAX_CELLS} (the Delaunay triangulation under the cells needs three sites), got {sites}"),
                     ));
                 }
                 if *lloyd > 10_000 {
