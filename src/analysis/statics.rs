@@ -51,8 +51,9 @@ pub fn solve(model: &Model) -> Result<StaticSolution> {
     Ok(StaticSolution { u, energy })
 }
 
-/// The traction `[t_n, t_s]` (Pa) at the midpoint of an interface, `λ = diag(k_n, k_s) δ`
-/// (eq. 11), with `δ = u_b − u_a` on the interface's `(n, s)` axes.
+/// The traction `[t_n, t_s]` (Pa) at the midpoint of an interface by the model's law (eq. 11;
+/// `λ = diag(k_n, k_s) δ` for [`crate::model::law::Elastic`]), with `δ = u_b − u_a` on the
+/// interface's `(n, s)` axes.
 pub fn midpoint_traction(model: &Model, i: &crate::model::Interface, u: &[f64]) -> [f64; 2] {
     let nd = model.formulation.ndof();
     let m = i.midpoint();
@@ -67,5 +68,8 @@ pub fn midpoint_traction(model: &Model, i: &crate::model::Interface, u: &[f64]) 
         )
     };
     let delta = disp(i.b) - disp(i.a);
-    [i.k_n * i.normal.dot(&delta), i.k_s * i.tangent.dot(&delta)]
+    model.law.traction(
+        [i.k_n, i.k_s],
+        [i.normal.dot(&delta), i.tangent.dot(&delta)],
+    )
 }
