@@ -30,7 +30,9 @@
 //! $\lambda = k_n \delta_n n + k_s \delta_s s$ with
 //! $$k_n = \frac{E}{(1-\nu^2)(h_a+h_b)}, \qquad k_s = \frac{E}{(1+\nu)(h_a+h_b)},$$
 //! where $h_a$, $h_b$ are the distances from the centroids to the edge (plane stress). Hybrid
-//! springs are $p$ times these. See [`model::Interface`] and [`model::spring_moduli`].
+//! springs are $p$ times these. See [`model::Interface`] and [`model::spring_moduli`]; the
+//! traction is the model's [`model::law::InterfaceLaw`], this linear one ([`model::law::Elastic`])
+//! by default.
 //!
 //! **Assembled form** (eqs. 7–13). The principle of hybrid-type virtual work gives
 //! $$M \ddot U + K U = P, \qquad K = \sum_{\rm interfaces} t \int_0^L B^T {\rm diag}(k_n, k_s) B \, d\ell + \sum_e K_e^{\rm interior},$$

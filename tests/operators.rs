@@ -7,6 +7,7 @@ use rbsm::force::evaluator::{self, interface_stiffness, Assembled};
 use rbsm::input::scene::EvaluatorKind;
 use rbsm::mesh::geometry::Vec2;
 use rbsm::model::formulation::Rigid;
+use rbsm::model::law::Elastic;
 use rbsm::model::{Interface, Model, GROUND};
 
 /// `K U` and the element-wise resultant of eq. 15 agree to round-off on every mesh kind: both
@@ -142,7 +143,7 @@ fn interface_stiffness_matches_the_closed_form() {
         k_n,
         k_s,
     };
-    let [kaa, kab, kba, kbb] = interface_stiffness::<Rigid, 3>(&iface, xa, xb, t);
+    let [kaa, kab, kba, kbb] = interface_stiffness::<Rigid, 3>(&iface, &Elastic, xa, xb, t);
     // Closed form: B at the midpoint, 2 × 6, rows (n, s).
     let m = iface.midpoint();
     let row = |d: Vec2| {
@@ -188,7 +189,7 @@ fn interface_stiffness_matches_the_closed_form() {
     // The rotational term is the whole coupling of θ_a and θ_b beyond the midpoint rule.
     assert!(kab[(2, 2)].abs() > 0.0);
     let ground = Interface { b: GROUND, ..iface };
-    let [gaa, gab, ..] = interface_stiffness::<Rigid, 3>(&ground, xa, xb, t);
+    let [gaa, gab, ..] = interface_stiffness::<Rigid, 3>(&ground, &Elastic, xa, xb, t);
     assert_eq!(gaa, kaa);
     assert_eq!(gab, nalgebra::SMatrix::<f64, 3, 3>::zeros());
 }

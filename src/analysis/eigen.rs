@@ -867,7 +867,7 @@ pub struct EigenReport {
     pub dt_crit: f64,
     /// `dense` or `sparse`.
     pub method: &'static str,
-    /// The mode shapes, for the files of [`write`].
+    /// The mode shapes, for the files of [`write()`].
     #[serde(skip)]
     pub modes: Modes,
 }

@@ -127,7 +127,8 @@ fn interface_and_body_bounds<K: crate::model::formulation::Kinematics<N>, const 
         } else {
             model.elements[i.b as usize].props.centroid
         };
-        let [kaa, kab, kba, kbb] = interface_stiffness::<K, N>(i, xa, xb, model.thickness);
+        let [kaa, kab, kba, kbb] =
+            interface_stiffness::<K, N>(i, &*model.law, xa, xb, model.thickness);
         k_diag[i.a as usize] += kaa;
         let mut elements = vec![i.a as usize];
         if i.b != GROUND {

@@ -55,8 +55,9 @@ pub fn solve(model: &Model) -> Result<StaticSolution> {
     Ok(StaticSolution { u, energy })
 }
 
-/// The traction `[t_n, t_s]` (Pa) at the midpoint of an interface, `λ = diag(k_n, k_s) δ`
-/// (eq. 11), with `δ = u_b − u_a` on the interface's `(n, s)` axes.
+/// The traction `[t_n, t_s]` (Pa) at the midpoint of an interface by the model's law (eq. 11;
+/// `λ = diag(k_n, k_s) δ` for [`crate::model::law::Elastic`]), with `δ = u_b − u_a` on the
+/// interface's `(n, s)` axes.
 pub fn midpoint_traction(model: &Model, i: &crate::model::Interface, u: &[f64]) -> [f64; 2] {
     let nd = model.formulation.ndof();
     let m = i.midpoint();
@@ -71,7 +72,10 @@ pub fn midpoint_traction(model: &Model, i: &crate::model::Interface, u: &[f64]) 
         )
     };
     let delta = disp(i.b) - disp(i.a);
-    [i.k_n * i.normal.dot(&delta), i.k_s * i.tangent.dot(&delta)]
+    model.law.traction(
+        [i.k_n, i.k_s],
+        [i.normal.dot(&delta), i.tangent.dot(&delta)],
+    )
 }
 
 #[derive(Serialize)]
@@ -111,7 +115,7 @@ pub struct StaticReport {
     pub interfaces: Vec<StaticInterface>,
     /// Strain energy `½ Uᵀ K U` (J).
     pub energy: f64,
-    /// `U` over all DOFs (m, rad, strains), for the files of [`write`].
+    /// `U` over all DOFs (m, rad, strains), for the files of [`write()`].
     #[serde(skip)]
     pub u: Vec<f64>,
 }

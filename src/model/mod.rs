@@ -3,6 +3,7 @@
 
 pub mod checks;
 pub mod formulation;
+pub mod law;
 pub mod loads;
 pub mod mass;
 pub mod memory;
@@ -16,6 +17,8 @@ use crate::input::scene::{
 use crate::mesh::geometry::{area_properties, AreaProperties, Vec2};
 use crate::mesh::Mesh;
 use crate::model::formulation::{elasticity, Formulation};
+use crate::model::law::{Elastic, InterfaceLaw};
+use std::sync::Arc;
 
 /// Marks the `b` side of an interface tied to fixed ground (`U_b = 0`, `h_b = 0`).
 pub const GROUND: u32 = u32::MAX;
@@ -156,6 +159,8 @@ pub struct Model {
     pub contact: Option<ContactSpec>,
     /// Rigid ground segments `[from, to]` (m); the free side is on the left of `from → to`.
     pub ground: Vec<[Vec2; 2]>,
+    /// The law of the interfaces and contact springs (eq. 11): [`Elastic`] unless replaced.
+    pub law: Arc<dyn InterfaceLaw>,
 }
 
 /// The numerators of eq. 12, `k_n = E_n / (h_a + h_b)`, `k_s = E_s / (h_a + h_b)`:
@@ -197,6 +202,7 @@ impl Model {
                 .iter()
                 .map(|g| [Vec2::new(g.from[0], g.from[1]), Vec2::new(g.to[0], g.to[1])])
                 .collect(),
+            law: Arc::new(Elastic),
         };
         // What the scene's meshes will make, known before meshing except for gmsh files,
         // whose elements are counted once read.

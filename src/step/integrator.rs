@@ -333,8 +333,10 @@ impl<'a> CentralDifference<'a> {
         self.step = state.step;
         self.t = state.step as f64 * self.dt;
         self.good = (state.step, self.t, state.u.clone(), state.velocity.clone());
-        (self.u, self.v, self.scratch, self.contact) =
-            (state.u, state.v, state.velocity, state.contact);
+        (self.u, self.v, self.scratch) = (state.u, state.v, state.velocity);
+        if let (Some(c), Some(saved)) = (self.contact.as_mut(), state.contact) {
+            c.resume(saved);
+        }
         self.ledger = state.ledger;
         self.force_clear = false;
         self.pending = true;

@@ -35,8 +35,10 @@ use crate::input::scene::{ContactModel, ContactSpec, EvaluatorKind};
 use crate::mesh::buckets::{boxes_meet, moved_beyond, BucketLists, Buckets};
 use crate::mesh::geometry::Vec2;
 use crate::model::formulation::{rotation, Formulation};
+use crate::model::law::{Elastic, InterfaceLaw};
 use crate::model::{Model, GROUND};
 use overlap::Overlap;
+use std::sync::Arc;
 use std::time::Instant;
 use work::Ledger;
 
@@ -81,7 +83,8 @@ pub struct Record {
     pub lambda: f64,
     /// The vertex's tributary length (m): half of each of its edges that faces the target.
     pub ell: f64,
-    /// Normal and tangential springs per unit length (Pa/m) at the vertex.
+    /// Normal and tangential springs per unit length (Pa/m) at the vertex: those of the
+    /// interface law (eq. 11) on the moduli of eq. 12.
     pub k: [f64; 2],
     /// The gap `[δ_n, δ_s]` of this step (m).
     pub gap: [f64; 2],
@@ -115,6 +118,10 @@ pub struct Contact {
     frames: Frames,
     thickness: f64,
     factor: f64,
+    /// The model's interface law, which gives the springs of eq. 12 their traction (eq. 11);
+    /// not part of a checkpoint ([`Contact::resume`]).
+    #[serde(skip, default = "elastic")]
+    law: Arc<dyn InterfaceLaw>,
     vertices: Vec<Vertex>,
     edges: Vec<Edge>,
     /// Current points: the vertices' positions, then the ground points (fixed).
@@ -234,6 +241,7 @@ impl Contact {
             },
             thickness: model.thickness,
             factor: model.formulation.spring_factor(),
+            law: model.law.clone(),
             previous: points[..vertices.len()].to_vec(),
             stamp: vec![NONE; edges.len()],
             vertices,
@@ -281,6 +289,15 @@ impl Contact {
         }
     }
 
+    /// Goes on from `saved`, the contact state of a checkpoint of a run of the same model,
+    /// keeping this contact's interface law (a checkpoint holds none).
+    pub fn resume(&mut self, saved: Contact) {
+        *self = Contact {
+            law: self.law.clone(),
+            ..saved
+        };
+    }
+
     /// The live vertex contacts of point contact after the last step.
     pub fn records(&self) -> &[Record] {
         &self.records
@@ -311,6 +328,7 @@ impl Contact {
                 Some(_) if idle => 0.0,
                 Some(o) => o.forces(
                     &self.frames,
+                    &*self.law,
                     u,
                     velocity,
                     dt,
@@ -505,7 +523,9 @@ impl Contact {
                 compliance[c] += 0.5 * ed.length * ed.compliance[c];
             }
         }
-        let k = [0, 1].map(|c| self.factor / (compliance[c] / ell + target.compliance[c]));
+        let k = self
+            .law
+            .springs([0, 1].map(|c| self.factor / (compliance[c] / ell + target.compliance[c])));
         Record {
             vertex: v,
             edge: e,
@@ -680,6 +700,12 @@ fn start_inside(m: Vec2, b1: Vec2, b2: Vec2, tol: f64) -> Option<(f64, f64)> {
     (depth > 0.0 && depth <= 0.05 * tol && (0.0..=1.0).contains(&along)).then_some((depth, along))
 }
 
+/// The default of a contact read from a checkpoint, until [`Contact::resume`] gives it its
+/// model's law.
+fn elastic() -> Arc<dyn InterfaceLaw> {
+    Arc::new(Elastic)
+}
+
 /// The stiffness of every contact closed at once against rigid ground, per element (row-major
 /// `ndof × ndof` blocks): each boundary edge pressed with `k_n` in every direction
 /// (edge-to-edge), or each boundary vertex with `k_n ℓ_trib` (point). Contacts between bodies
@@ -702,7 +728,9 @@ pub fn stiffness_estimate(model: &Model, contact: &Contact) -> Vec<f64> {
     };
     for edge in contact.edges.iter().filter(|e| e.element != GROUND) {
         let e = edge.element as usize;
-        let k = contact.factor / edge.compliance[0];
+        let [k, _] = contact
+            .law
+            .springs(edge.compliance.map(|c| contact.factor / c));
         match contact.settings.model {
             ContactModel::EdgeToEdge => {
                 let [a, b] = edge.ends.map(|v| contact.vertices[v as usize].offset);

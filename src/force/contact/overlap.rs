@@ -30,6 +30,7 @@
 use super::{frame, Frames, Ledger, NONE};
 use crate::mesh::buckets::{boxes_meet, moved_beyond, BucketLists, Buckets};
 use crate::mesh::geometry::Vec2;
+use crate::model::law::InterfaceLaw;
 use crate::model::{Model, GROUND};
 use rayon::prelude::*;
 use std::collections::HashSet;
@@ -125,6 +126,8 @@ const BLOCK: usize = 1024;
 /// What one step's narrow phase reads.
 struct Step<'a> {
     frames: &'a Frames,
+    /// The model's interface law (eq. 11).
+    law: &'a dyn InterfaceLaw,
     u: &'a [f64],
     /// `v^{n−½}`: the step that led here moved the bodies by `Δt v^{n−½}`.
     velocity: &'a [f64],
@@ -207,8 +210,9 @@ struct FaceNow {
     depth: [f64; 2],
     /// Its unit tangent and outward normal.
     axes: (Vec2, Vec2),
-    /// Normal spring against the source edge (Pa/m), and its square root (surface faces).
-    spring: f64,
+    /// Normal and tangential springs against the source edge (Pa/m), and the square root of
+    /// the normal one (surface faces).
+    spring: [f64; 2],
     root: f64,
     surface: bool,
 }
@@ -373,9 +377,11 @@ impl Overlap {
     /// that led here moved the bodies by `Δt v^{n−½}` (not used at the first evaluation).
     /// Returns the energy stored in the contact springs (J).
     /// `tests` counts the narrow-phase tests (source edge against target).
+    #[allow(clippy::too_many_arguments)]
     pub fn forces(
         &mut self,
         frames: &Frames,
+        law: &dyn InterfaceLaw,
         u: &[f64],
         velocity: &[f64],
         dt: f64,
@@ -403,6 +409,7 @@ impl Overlap {
         let mut blocks = std::mem::take(&mut self.blocks);
         let at = Step {
             frames,
+            law,
             u,
             velocity,
             dt,
@@ -600,17 +607,16 @@ impl Overlap {
         if now.iter().any(|f| f.depth[0] <= 0.0 && f.depth[1] <= 0.0) {
             return;
         }
-        // The normal spring of eq. 12 with both sides' compliances on each surface face (the
-        // tangential one only where a piece forms).
+        // The springs of the interface law on the moduli of eq. 12 with both sides'
+        // compliances, on each surface face.
         let half = if tgt.element == GROUND { 1.0 } else { 0.5 };
-        let spring =
-            |face: &Face, c: usize| half * self.factor / (src.compliance[c] + face.compliance[c]);
         for (k, f) in now.iter_mut().enumerate() {
             let face = &self.faces[tgt.first as usize + k];
             f.surface = face.surface;
             if face.surface {
-                f.spring = spring(face, 0);
-                f.root = f.spring.sqrt();
+                let moduli = [0, 1].map(|c| self.factor / (src.compliance[c] + face.compliance[c]));
+                f.spring = at.law.springs(moduli).map(|k| half * k);
+                f.root = f.spring[0].sqrt();
             }
         }
         let length = (q2 - q1).norm();
@@ -651,13 +657,9 @@ impl Overlap {
             if !inside || b <= a {
                 continue;
             }
-            let ki = [
-                now[i].spring,
-                spring(&self.faces[tgt.first as usize + i], 1),
-            ];
             let piece = Span {
                 face: i,
-                k: ki,
+                k: now[i].spring,
                 depth: now[i].depth,
                 axes: now[i].axes,
                 ends: [q1, q2],

@@ -4,23 +4,27 @@
 use super::Evaluator;
 use crate::input::scene::EvaluatorKind;
 use crate::model::formulation::Kinematics;
+use crate::model::law::InterfaceLaw;
 use crate::model::{Interface, Model, GROUND};
 use crate::parallel::for_each_chunk;
 use nalgebra::{Matrix2, SMatrix};
 use std::marker::PhantomData;
 
-/// The stiffness of one interface, `K_ab = t ∫ Bᵀ diag(k_n, k_s) B dℓ` with
-/// `B = [n s]ᵀ [−N_a(x), N_b(x)]`, integrated exactly by 2-point Gauss
-/// ([`Interface::gauss_points`]).
+/// The stiffness of one interface, `K_ab = t ∫ Bᵀ diag(k_n', k_s') B dℓ` with
+/// `B = [n s]ᵀ [−N_a(x), N_b(x)]` and `(k_n', k_s')` the springs of the linear `law` on the
+/// interface's moduli (eq. 11; `(k_n, k_s)` for [`crate::model::law::Elastic`]), integrated
+/// exactly by 2-point Gauss ([`Interface::gauss_points`]).
 /// Returns the blocks `(aa, ab, ba, bb)`; for a ground interface only `aa` is non-zero.
 pub fn interface_stiffness<K: Kinematics<N>, const N: usize>(
     i: &Interface,
+    law: &dyn InterfaceLaw,
     xa: crate::mesh::geometry::Vec2,
     xb: crate::mesh::geometry::Vec2,
     t: f64,
 ) -> [SMatrix<f64, N, N>; 4] {
     let r = Matrix2::new(i.normal.x, i.normal.y, i.tangent.x, i.tangent.y);
-    let k = Matrix2::new(i.k_n, 0.0, 0.0, i.k_s);
+    let [k_n, k_s] = law.springs([i.k_n, i.k_s]);
+    let k = Matrix2::new(k_n, 0.0, 0.0, k_s);
     let (g, w) = i.gauss_points();
     let mut out = [SMatrix::<f64, N, N>::zeros(); 4];
     for x in g {
@@ -142,7 +146,8 @@ pub struct Assembled<K: Kinematics<N>, const N: usize> {
 }
 
 impl<K: Kinematics<N>, const N: usize> Assembled<K, N> {
-    /// Assembles `K` from the interface blocks (eq. 7; eq. 13 shows its pattern).
+    /// Assembles `K` from the interface blocks (eq. 7; eq. 13 shows its pattern) with the
+    /// model's law, which must be linear.
     pub fn new(model: &Model) -> Self {
         let mut triplets = Vec::with_capacity(4 * model.interfaces.len());
         let centroid = |e: u32| model.elements[e as usize].props.centroid;
@@ -153,7 +158,7 @@ impl<K: Kinematics<N>, const N: usize> Assembled<K, N> {
                 centroid(i.b)
             };
             let [kaa, kab, kba, kbb] =
-                interface_stiffness::<K, N>(i, centroid(i.a), xb, model.thickness);
+                interface_stiffness::<K, N>(i, &*model.law, centroid(i.a), xb, model.thickness);
             triplets.push((i.a, i.a, kaa));
             if i.b != GROUND {
                 triplets.push((i.a, i.b, kab));

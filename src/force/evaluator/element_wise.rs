@@ -1,11 +1,14 @@
 //! The element-wise evaluator (eqs. 15–16): each element's force is the resultant of the
-//! tractions `λ = diag(k_n, k_s) δ` on its own edges, integrated by the edge's 2-point Gauss rule.
-//! No global matrix.
+//! tractions `λ = diag(k_n', k_s') δ` on its own edges, integrated by the edge's 2-point Gauss
+//! rule, with `(k_n', k_s')` the springs of the model's linear interface law (eq. 11,
+//! [`crate::model::law`]). No global matrix.
 //!
 //! The two Gauss points of an edge sit at `m ± g` about its midpoint `m`, with
 //! `g = L/(2√3) s` along the edge. The displacement jump is affine along the edge,
-//! `δ(m ± g) = δ₀ ± δ₁`, so the rule's sum `Σ± N_e(m ± g)ᵀ λ(m ± g) t L/2` splits exactly into
+//! `δ(m ± g) = δ₀ ± δ₁`, and the traction linear in it, so the rule's sum
+//! `Σ± N_e(m ± g)ᵀ λ(m ± g) t L/2` splits exactly into
 //! `t L [N_e(m)ᵀ λ(δ₀) + (N_e(g) − N_e(0))ᵀ λ(δ₁)]`: the same quadrature in half the work.
+//! The split holds for a linear law only.
 //!
 //! The traction on a shared edge is one physical quantity, `+λ` on one side and `−λ` on the
 //! other, so each interface computes it once and hands it to both its elements. The interfaces
@@ -103,7 +106,8 @@ pub struct ElementWise<K: Kinematics<N>, const N: usize> {
 }
 
 impl<K: Kinematics<N>, const N: usize> ElementWise<K, N> {
-    /// Face records, blocks and crossing interfaces from the model's interfaces.
+    /// Face records, blocks and crossing interfaces from the model's interfaces, with the
+    /// springs of its law, which must be linear.
     pub fn new(model: &Model) -> Self {
         let t = model.thickness;
         let mut faces: Vec<Face<K, N>> = model
@@ -121,7 +125,8 @@ impl<K: Kinematics<N>, const N: usize> ElementWise<K, N> {
                 };
                 // `S` is even in the normal and `λ` odd in `δ = u_b − u_a`: the sides may swap.
                 let (a, b) = if i.b < i.a { (i.b, i.a) } else { (i.a, i.b) };
-                let springs = Springs::new(i.normal, i.k_n * tl, i.k_s * tl);
+                let [k_n, k_s] = model.law.springs([i.k_n, i.k_s]);
+                let springs = Springs::new(i.normal, k_n * tl, k_s * tl);
                 Face {
                     a,
                     b,
