@@ -1,13 +1,15 @@
 //! `rbsm tradeoff`: sweeps, references, the Pareto front and the files it writes.
 
 use rbsm::analysis::tradeoff::{sweep, Key, Sweep};
+use rbsm::input::scene::Scene;
 
-fn column() -> String {
-    std::fs::read_to_string(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/examples/scenes/column_step.json"
-    ))
-    .unwrap()
+const COLUMN: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/examples/scenes/column_step.json"
+);
+
+fn column() -> Scene {
+    Scene::from_file(COLUMN).unwrap()
 }
 
 fn sweeps(args: &[&str]) -> Vec<Sweep> {
@@ -39,8 +41,10 @@ fn bad_sweeps_are_refused_with_the_allowed_values() {
         .to_string();
     assert!(e.contains("declares no `contact`"), "{e}");
     // The closed form's probe must exist.
-    let e = rbsm::input::scene::Scene::from_json(
-        &column().replace(r#""probe": "tip_u"}"#, r#""probe": "tip"}"#),
+    let e = Scene::from_json(
+        &std::fs::read_to_string(COLUMN)
+            .unwrap()
+            .replace(r#""probe": "tip_u"}"#, r#""probe": "tip"}"#),
     )
     .unwrap_err()
     .to_string();
@@ -118,11 +122,10 @@ fn the_column_converges_to_the_bar_and_the_front_is_marked() {
 #[test]
 fn without_a_closed_form_the_finest_run_is_the_reference_and_diverged_runs_are_kept_out() {
     // The column without its reference: the finest run (refine 2, smallest Δt) is the reference.
-    let mut scene: serde_json::Value = serde_json::from_str(&column()).unwrap();
-    scene.as_object_mut().unwrap().remove("reference");
-    let json = scene.to_string();
+    let mut scene = column();
+    scene.reference = None;
     let report = sweep(
-        &json,
+        &scene,
         &sweeps(&["refine=1,2", "dt_factor=0.5,0.25,1.05"]),
         |_| (),
     )
@@ -154,12 +157,12 @@ fn without_a_closed_form_the_finest_run_is_the_reference_and_diverged_runs_are_k
 
 #[test]
 fn the_hopping_block_is_measured_against_its_theory() {
-    let json = std::fs::read_to_string(concat!(
+    let scene = Scene::from_file(concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/examples/scenes/hopping_block.json"
     ))
     .unwrap();
-    let report = sweep(&json, &sweeps(&["dt=8e-6,2e-6"]), |_| ()).unwrap();
+    let report = sweep(&scene, &sweeps(&["dt=8e-6,2e-6"]), |_| ()).unwrap();
     assert!(
         report.reference.contains("hopping block") && report.reference.contains("H = 1"),
         "{}",
