@@ -211,3 +211,66 @@ fn the_command_line_writes_the_trade_and_refuses_bad_sweeps() {
         "{err}"
     );
 }
+
+#[test]
+fn a_gmsh_scene_finds_its_mesh_from_its_own_folder_whatever_the_working_directory() {
+    // The gmsh cantilever with a tip probe, in a folder of its own beside its mesh's
+    // (`../meshes/cantilever.msh`, relative to the scene's folder), traded from a third folder.
+    let root = tempfile::tempdir().unwrap();
+    // (From `elsewhere/deeper`, `../meshes` is no folder: the mesh is found from the scene's.)
+    let [scenes, meshes, elsewhere] = ["scenes", "meshes", "elsewhere/deeper"].map(|d| {
+        let d = root.path().join(d);
+        std::fs::create_dir_all(&d).unwrap();
+        d
+    });
+    let examples = concat!(env!("CARGO_MANIFEST_DIR"), "/examples");
+    std::fs::copy(
+        format!("{examples}/meshes/cantilever.msh"),
+        meshes.join("cantilever.msh"),
+    )
+    .unwrap();
+    let mut scene: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(format!("{examples}/scenes/cantilever_gmsh.json")).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(
+        scene["bodies"][0]["mesh"]["path"],
+        "../meshes/cantilever.msh"
+    );
+    scene["time"]["end"] = 2e-3.into();
+    scene["output"]["probes"] =
+        serde_json::json!([{"name": "tip_v", "at": [1.99, 0.11], "dof": "v"}]);
+    let file = scenes.join("cantilever_gmsh.json");
+    std::fs::write(&file, scene.to_string()).unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_rbsm"))
+        .current_dir(&elsewhere)
+        .arg("tradeoff")
+        .arg(&file)
+        .args(["--sweep", "dt_factor=0.9,0.5", "--out"])
+        .arg(root.path().join("out"))
+        .args(["--json", "--quiet"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let points = report["points"].as_array().unwrap();
+    assert_eq!(points.len(), 2);
+    assert!(points
+        .iter()
+        .all(|p| p["status"] == "ok" && p["elements"] == 640));
+    assert!(
+        report["reference"]
+            .as_str()
+            .unwrap()
+            .contains("dt_factor=0.5")
+            && report["error"].as_str().unwrap().contains("tip_v"),
+        "{report}"
+    );
+    assert!(points[0]["error"]
+        .as_f64()
+        .is_some_and(|e| e > 0.0 && e < 0.1));
+}
