@@ -433,15 +433,13 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
                 .iter()
                 .map(|s| tradeoff::Sweep::parse(s))
                 .collect::<rbsm::error::Result<Vec<_>>>()?;
-            let text =
-                std::fs::read_to_string(scene).map_err(|e| rbsm::error::Error::io(scene, e))?;
-            let parsed = Scene::from_file(scene)?;
+            let scene = Scene::from_file(scene)?;
             let dir = out
                 .clone()
-                .unwrap_or_else(|| PathBuf::from(format!("out/tradeoff-{}", parsed.name)));
+                .unwrap_or_else(|| PathBuf::from(format!("out/tradeoff-{}", scene.name)));
             let total: usize = sweeps.iter().map(|s| s.values.len()).product();
             let mut done = 0;
-            let report = tradeoff::sweep(&text, &sweeps, |p| {
+            let report = tradeoff::sweep(&scene, &sweeps, |p| {
                 done += 1;
                 if !cli.quiet {
                     tell(&format!(

@@ -1,13 +1,15 @@
 //! `rbsm tradeoff`: sweeps, references, the Pareto front and the files it writes.
 
 use rbsm::analysis::tradeoff::{sweep, Key, Sweep};
+use rbsm::input::scene::Scene;
 
-fn column() -> String {
-    std::fs::read_to_string(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/examples/scenes/column_step.json"
-    ))
-    .unwrap()
+const COLUMN: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/examples/scenes/column_step.json"
+);
+
+fn column() -> Scene {
+    Scene::from_file(COLUMN).unwrap()
 }
 
 fn sweeps(args: &[&str]) -> Vec<Sweep> {
@@ -39,8 +41,10 @@ fn bad_sweeps_are_refused_with_the_allowed_values() {
         .to_string();
     assert!(e.contains("declares no `contact`"), "{e}");
     // The closed form's probe must exist.
-    let e = rbsm::input::scene::Scene::from_json(
-        &column().replace(r#""probe": "tip_u"}"#, r#""probe": "tip"}"#),
+    let e = Scene::from_json(
+        &std::fs::read_to_string(COLUMN)
+            .unwrap()
+            .replace(r#""probe": "tip_u"}"#, r#""probe": "tip"}"#),
     )
     .unwrap_err()
     .to_string();
@@ -118,11 +122,10 @@ fn the_column_converges_to_the_bar_and_the_front_is_marked() {
 #[test]
 fn without_a_closed_form_the_finest_run_is_the_reference_and_diverged_runs_are_kept_out() {
     // The column without its reference: the finest run (refine 2, smallest Δt) is the reference.
-    let mut scene: serde_json::Value = serde_json::from_str(&column()).unwrap();
-    scene.as_object_mut().unwrap().remove("reference");
-    let json = scene.to_string();
+    let mut scene = column();
+    scene.reference = None;
     let report = sweep(
-        &json,
+        &scene,
         &sweeps(&["refine=1,2", "dt_factor=0.5,0.25,1.05"]),
         |_| (),
     )
@@ -154,12 +157,12 @@ fn without_a_closed_form_the_finest_run_is_the_reference_and_diverged_runs_are_k
 
 #[test]
 fn the_hopping_block_is_measured_against_its_theory() {
-    let json = std::fs::read_to_string(concat!(
+    let scene = Scene::from_file(concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/examples/scenes/hopping_block.json"
     ))
     .unwrap();
-    let report = sweep(&json, &sweeps(&["dt=8e-6,2e-6"]), |_| ()).unwrap();
+    let report = sweep(&scene, &sweeps(&["dt=8e-6,2e-6"]), |_| ()).unwrap();
     assert!(
         report.reference.contains("hopping block") && report.reference.contains("H = 1"),
         "{}",
@@ -207,4 +210,67 @@ fn the_command_line_writes_the_trade_and_refuses_bad_sweeps() {
         err.contains("--sweep refine") && err.contains("1..=64"),
         "{err}"
     );
+}
+
+#[test]
+fn a_gmsh_scene_finds_its_mesh_from_its_own_folder_whatever_the_working_directory() {
+    // The gmsh cantilever with a tip probe, in a folder of its own beside its mesh's
+    // (`../meshes/cantilever.msh`, relative to the scene's folder), traded from a third folder.
+    let root = tempfile::tempdir().unwrap();
+    // (From `elsewhere/deeper`, `../meshes` is no folder: the mesh is found from the scene's.)
+    let [scenes, meshes, elsewhere] = ["scenes", "meshes", "elsewhere/deeper"].map(|d| {
+        let d = root.path().join(d);
+        std::fs::create_dir_all(&d).unwrap();
+        d
+    });
+    let examples = concat!(env!("CARGO_MANIFEST_DIR"), "/examples");
+    std::fs::copy(
+        format!("{examples}/meshes/cantilever.msh"),
+        meshes.join("cantilever.msh"),
+    )
+    .unwrap();
+    let mut scene: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(format!("{examples}/scenes/cantilever_gmsh.json")).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(
+        scene["bodies"][0]["mesh"]["path"],
+        "../meshes/cantilever.msh"
+    );
+    scene["time"]["end"] = 2e-3.into();
+    scene["output"]["probes"] =
+        serde_json::json!([{"name": "tip_v", "at": [1.99, 0.11], "dof": "v"}]);
+    let file = scenes.join("cantilever_gmsh.json");
+    std::fs::write(&file, scene.to_string()).unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_rbsm"))
+        .current_dir(&elsewhere)
+        .arg("tradeoff")
+        .arg(&file)
+        .args(["--sweep", "dt_factor=0.9,0.5", "--out"])
+        .arg(root.path().join("out"))
+        .args(["--json", "--quiet"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let points = report["points"].as_array().unwrap();
+    assert_eq!(points.len(), 2);
+    assert!(points
+        .iter()
+        .all(|p| p["status"] == "ok" && p["elements"] == 640));
+    assert!(
+        report["reference"]
+            .as_str()
+            .unwrap()
+            .contains("dt_factor=0.5")
+            && report["error"].as_str().unwrap().contains("tip_v"),
+        "{report}"
+    );
+    assert!(points[0]["error"]
+        .as_f64()
+        .is_some_and(|e| e > 0.0 && e < 0.1));
 }

@@ -3,11 +3,12 @@
 
 use super::Report;
 use rbsm::analysis::tradeoff::{sweep, Sweep, TradeoffReport as Trade};
+use rbsm::input::scene::Scene;
 
 fn trade(r: &mut Report, file: &str, args: &[&str]) -> Trade {
-    let json = std::fs::read_to_string(r.dir.join("../examples/scenes").join(file)).unwrap();
+    let scene = Scene::from_file(r.dir.join("../examples/scenes").join(file)).unwrap();
     let sweeps: Vec<Sweep> = args.iter().map(|a| Sweep::parse(a).unwrap()).collect();
-    let report = sweep(&json, &sweeps, |_| ()).unwrap();
+    let report = sweep(&scene, &sweeps, |_| ()).unwrap();
     let name = file.trim_end_matches(".json");
     // The full tables, with wall times and the Pareto front, go with the timings (not tracked).
     report

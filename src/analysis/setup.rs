@@ -130,34 +130,39 @@ impl Setup {
 
     /// The history columns the scene asks for, each checked against the model's DOFs.
     pub fn probes(&self) -> Result<Vec<Probe>> {
-        let model = &self.model;
-        let nd = model.formulation.ndof();
-        self.scene
-            .output
-            .probes
-            .iter()
-            .enumerate()
-            .map(|(k, pr)| {
-                let d = dof_index(
-                    &pr.dof,
-                    model.formulation,
-                    &format!("output.probes[{k}].dof"),
-                )?;
-                let element = model.probe_element(k, pr)?;
-                let offset = pr.at.map(|[x, y]| {
-                    crate::mesh::geometry::Vec2::new(x, y) - model.elements[element].props.centroid
-                });
-                Ok(Probe {
-                    name: pr.column(),
-                    element,
-                    dof: d,
-                    nd,
-                    offset,
-                    formulation: model.formulation,
-                })
-            })
-            .collect()
+        probes(&self.scene, &self.model)
     }
+}
+
+/// The history columns `scene` asks for in `model` (the scene's), each checked against the
+/// model's DOFs: what [`Setup::probes`] gives, without the rest of the setup.
+pub fn probes(scene: &Scene, model: &Model) -> Result<Vec<Probe>> {
+    let nd = model.formulation.ndof();
+    scene
+        .output
+        .probes
+        .iter()
+        .enumerate()
+        .map(|(k, pr)| {
+            let d = dof_index(
+                &pr.dof,
+                model.formulation,
+                &format!("output.probes[{k}].dof"),
+            )?;
+            let element = model.probe_element(k, pr)?;
+            let offset = pr.at.map(|[x, y]| {
+                crate::mesh::geometry::Vec2::new(x, y) - model.elements[element].props.centroid
+            });
+            Ok(Probe {
+                name: pr.column(),
+                element,
+                dof: d,
+                nd,
+                offset,
+                formulation: model.formulation,
+            })
+        })
+        .collect()
 }
 
 /// The time step of a run: the override, else the scene's `dt`, else its `dt_factor` of

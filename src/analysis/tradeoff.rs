@@ -8,14 +8,15 @@
 //! the report. Runs write no files; only the report does.
 
 use crate::analysis::hopping::{lowest_point, Tracker};
-use crate::analysis::setup::{Overrides, Setup};
+use crate::analysis::setup::{self, Overrides, Setup};
 use crate::error::{Error, Result};
-use crate::input::scene::{ReferenceSpec, Scene};
-use crate::mesh::geometry::{area_properties, Vec2};
-use crate::model::{dof_index, Model};
+use crate::input::scene::{
+    ContactModel, EvaluatorKind, FormulationSpec, MeshSpec, ReferenceSpec, Scene,
+};
+use crate::mesh::geometry::Vec2;
+use crate::model::Model;
 use crate::step::integrator::Status;
 use serde::Serialize;
-use serde_json::Value;
 use std::path::Path;
 use std::time::Instant;
 
@@ -171,74 +172,39 @@ pub struct TradeoffReport {
 
 /// The quantity a run is measured by.
 enum Measure {
-    /// Probe histories `(t, value)` at fixed material points, with the centroid of the element
-    /// that carried each.
+    /// The histories `(t, value)` of the scene's probes, with the centroid of the element that
+    /// carried each.
     Histories(Vec<Vec<(f64, f64)>>, Vec<Vec2>),
     /// The first apex of the lowest point above the ground (m).
     Apex(f64),
 }
 
-/// A probe fixed at a material point, so that refined meshes measure the same thing.
-#[derive(Debug, Clone)]
-struct Probe {
-    name: String,
-    point: Vec2,
-    dof: usize,
-}
-
-/// Runs `scene` (its JSON text `json`) at every combination of `sweeps`, calling `progress`
-/// with each finished point.
+/// Runs `scene` (read and validated, as [`Scene::from_file`] gives it) at every combination
+/// of `sweeps`, calling `progress` with each finished point. The errors compare the histories
+/// of the scene's probes, the columns `rbsm run` writes.
 pub fn sweep(
-    json: &str,
+    scene: &Scene,
     sweeps: &[Sweep],
     mut progress: impl FnMut(&Point),
 ) -> Result<TradeoffReport> {
-    let base: Value =
-        serde_json::from_str(json).map_err(|e| Error::scene("scene", e.to_string()))?;
-    let scene = Scene::from_json(json)?;
-    let base_model = Model::build(&scene)?;
-    let probes: Vec<Probe> = scene
-        .output
-        .probes
-        .iter()
-        .enumerate()
-        .map(|(k, p)| {
-            let dof = dof_index(
-                &p.dof,
-                base_model.formulation,
-                &format!("output.probes[{k}].dof"),
-            )?;
-            let point = match p.at {
-                Some([x, y]) => Vec2::new(x, y),
-                None => {
-                    base_model.elements[base_model.probe_element(k, p)?]
-                        .props
-                        .centroid
-                }
-            };
-            Ok(Probe {
-                name: p.column(),
-                point,
-                dof,
-            })
-        })
-        .collect::<Result<_>>()?;
-    if scene.reference.is_none() && probes.is_empty() {
+    let base_model = Model::build(scene)?;
+    let scene = &probes_by_point(scene, &base_model)?;
+    if scene.reference.is_none() && scene.output.probes.is_empty() {
         return Err(Error::scene("output.probes", "the tradeoff needs at least one probe to compare runs (or a `reference` with a closed form)"));
     }
     let combos = combinations(sweeps);
     let mut runs = Vec::with_capacity(combos.len());
     for settings in combos {
-        let mut v = base.clone();
+        let mut point_scene = scene.clone();
         for (key, value) in &settings {
-            apply(&mut v, *key, value)?;
+            apply(&mut point_scene, *key, value)?;
         }
-        let scene = Scene::from_json(&v.to_string())?;
-        let (point, measure) = run_point(&scene, settings, &probes)?;
+        point_scene.validate()?;
+        let (point, measure) = run_point(&point_scene, settings)?;
         progress(&point);
         runs.push((point, measure));
     }
-    let (reference, error) = score(&scene, &base_model, &mut runs, &probes)?;
+    let (reference, error) = score(scene, &base_model, &mut runs)?;
     let mut points: Vec<Point> = runs.into_iter().map(|r| r.0).collect();
     mark_pareto(&mut points);
     Ok(TradeoffReport {
@@ -265,40 +231,50 @@ fn combinations(sweeps: &[Sweep]) -> Vec<Vec<(Key, String)>> {
     out
 }
 
-/// Sets one sweep value in the scene's JSON.
-fn apply(scene: &mut Value, key: Key, value: &str) -> Result<()> {
-    let number = |v: &str| Value::from(v.parse::<f64>().expect("checked by Sweep::parse"));
+/// `scene` with each probe given by `element` placed instead by point, at the element's
+/// reference centroid in `model` (the base scene's), under the same column name: a refined mesh
+/// then measures the same material point. Every probe is first checked against `model`, as
+/// `rbsm run` checks it.
+fn probes_by_point(scene: &Scene, model: &Model) -> Result<Scene> {
+    let placed = setup::probes(scene, model)?;
+    let mut scene = scene.clone();
+    for (spec, probe) in scene.output.probes.iter_mut().zip(&placed) {
+        if spec.at.is_none() {
+            let c = model.elements[probe.element].props.centroid;
+            spec.name = Some(spec.column());
+            spec.element = None;
+            spec.at = Some([c.x, c.y]);
+        }
+    }
+    Ok(scene)
+}
+
+/// Sets one sweep value in the scene; the caller validates the result.
+fn apply(scene: &mut Scene, key: Key, value: &str) -> Result<()> {
+    let number = || value.parse::<f64>().expect("checked by Sweep::parse");
     match key {
-        Key::Dt | Key::DtFactor => {
-            let time = scene["time"]
-                .as_object_mut()
-                .ok_or_else(|| Error::scene("time", "missing"))?;
-            time.remove("dt");
-            time.remove("dt_factor");
-            time.insert(
-                if key == Key::Dt { "dt" } else { "dt_factor" }.into(),
-                number(value),
-            );
+        Key::Dt => {
+            scene.time.dt = Some(number());
+            scene.time.dt_factor = None;
+        }
+        Key::DtFactor => {
+            scene.time.dt = None;
+            scene.time.dt_factor = Some(number());
         }
         Key::Refine => {
-            let r: u64 = value.parse().expect("checked by Sweep::parse");
-            let bodies = scene["bodies"]
-                .as_array_mut()
-                .ok_or_else(|| Error::scene("bodies", "missing"))?;
-            for (k, body) in bodies.iter_mut().enumerate() {
-                let mesh = &mut body["mesh"];
-                match mesh["kind"].as_str() {
-                    Some("grid") => {
+            let r: usize = value.parse().expect("checked by Sweep::parse");
+            for (k, body) in scene.bodies.iter_mut().enumerate() {
+                match &mut body.mesh {
+                    MeshSpec::Grid(grid) => {
                         // A direction of one cell stays one cell: a one-row column stays a column.
-                        for c in mesh["cells"].as_array_mut().into_iter().flatten() {
-                            let n = c.as_u64().unwrap_or(1);
-                            *c = Value::from(if n > 1 { n * r } else { n });
+                        for n in &mut grid.cells {
+                            if *n > 1 {
+                                *n *= r;
+                            }
                         }
                     }
-                    Some("voronoi") => {
-                        mesh["sites"] = Value::from(mesh["sites"].as_u64().unwrap_or(1) * r * r)
-                    }
-                    _ => {
+                    MeshSpec::Voronoi(voronoi) => voronoi.sites *= r * r,
+                    MeshSpec::Polygons(_) | MeshSpec::Gmsh(_) => {
                         return Err(Error::scene(
                             format!("bodies[{k}].mesh"),
                             "`refine` needs a grid or Voronoi mesh",
@@ -308,25 +284,27 @@ fn apply(scene: &mut Value, key: Key, value: &str) -> Result<()> {
             }
         }
         Key::Formulation => {
-            let penalty = scene["formulation"]["penalty"].as_f64().unwrap_or(10.0);
-            scene["formulation"] = if value == "rigid" {
-                serde_json::json!({"kind": "rigid"})
-            } else {
-                serde_json::json!({"kind": "hybrid", "penalty": penalty})
-            };
-        }
-        Key::Penalty => {
-            scene["formulation"] = serde_json::json!({"kind": "hybrid", "penalty": number(value)})
-        }
-        Key::Evaluator => scene["evaluator"] = Value::from(value),
-        Key::Contact => {
-            if scene.get("contact").is_none_or(Value::is_null) {
-                return Err(Error::scene(
-                    "--sweep contact",
-                    "the scene declares no `contact`",
-                ));
+            scene.formulation = match (value, scene.formulation) {
+                ("rigid", _) => FormulationSpec::Rigid,
+                (_, FormulationSpec::Hybrid { penalty }) => FormulationSpec::Hybrid { penalty },
+                (_, FormulationSpec::Rigid) => FormulationSpec::Hybrid { penalty: 10.0 },
             }
-            scene["contact"]["model"] = Value::from(value);
+        }
+        Key::Penalty => scene.formulation = FormulationSpec::Hybrid { penalty: number() },
+        Key::Evaluator => {
+            scene.evaluator = [EvaluatorKind::Assembled, EvaluatorKind::ElementWise]
+                .into_iter()
+                .find(|e| e.name() == value)
+                .expect("checked by Sweep::parse")
+        }
+        Key::Contact => {
+            let contact = scene.contact.as_mut().ok_or_else(|| {
+                Error::scene("--sweep contact", "the scene declares no `contact`")
+            })?;
+            contact.model = [ContactModel::EdgeToEdge, ContactModel::Point]
+                .into_iter()
+                .find(|m| m.name() == value)
+                .expect("checked by Sweep::parse");
         }
     }
     Ok(())
@@ -344,17 +322,12 @@ fn peak_memory_mib() -> Option<f64> {
 }
 
 /// Runs one point and measures it.
-fn run_point(
-    scene: &Scene,
-    settings: Vec<(Key, String)>,
-    probes: &[Probe],
-) -> Result<(Point, Measure)> {
+fn run_point(scene: &Scene, settings: Vec<(Key, String)>) -> Result<(Point, Measure)> {
     reset_peak_memory();
     let start = Instant::now();
     let p = Setup::new(scene, &Overrides::default())?;
     let setup_s = start.elapsed().as_secs_f64();
     let model = &p.model;
-    let nd = model.formulation.ndof();
     let mut cd = p.integrator(p.dt);
     let clock = Instant::now();
     let (status, measure) = if matches!(scene.reference, Some(ReferenceSpec::HoppingBlock)) {
@@ -388,26 +361,15 @@ fn run_point(
             Measure::Apex(tracker.bounces.first().map_or(f64::NAN, |b| b.apex)),
         )
     } else {
-        let cells: Vec<usize> = probes
-            .iter()
-            .map(|pr| element_at(model, pr.point))
-            .collect();
+        let probes = p.probes()?;
         let mut histories = vec![Vec::new(); probes.len()];
         let every = (p.steps / 2000).max(1);
         let status = cd.run(
             p.steps,
             every,
             |s, _| {
-                for ((&e, pr), h) in cells.iter().zip(probes).zip(&mut histories) {
-                    let ue = &s.u[e * nd..(e + 1) * nd];
-                    let value = match pr.dof {
-                        // Displacements at the probe's material point, rotations and strains as they are.
-                        0 | 1 => model
-                            .formulation
-                            .displacement(ue, pr.point - model.elements[e].props.centroid)[pr.dof],
-                        d => ue[d],
-                    };
-                    h.push((s.t, value));
+                for (pr, h) in probes.iter().zip(&mut histories) {
+                    h.push((s.t, pr.value(s.u)));
                 }
                 Ok(())
             },
@@ -417,9 +379,9 @@ fn run_point(
             status,
             Measure::Histories(
                 histories,
-                cells
+                probes
                     .iter()
-                    .map(|&e| model.elements[e].props.centroid)
+                    .map(|pr| model.elements[pr.element].props.centroid)
                     .collect(),
             ),
         )
@@ -449,35 +411,9 @@ fn ground_height(model: &Model) -> f64 {
     model.ground.first().map_or(0.0, |g| g[0].y)
 }
 
-/// The element whose polygon contains `x` (the nearest centroid when none does: a point on a
-/// shared edge belongs to either side).
-fn element_at(model: &Model, x: Vec2) -> usize {
-    let mut best = (f64::INFINITY, 0);
-    for body in &model.bodies {
-        for c in 0..body.mesh.n_cells() {
-            let pts = body.mesh.cell_points(c);
-            let inside = (0..pts.len())
-                .all(|i| (pts[(i + 1) % pts.len()] - pts[i]).perp(&(x - pts[i])) >= -1e-12);
-            let e = body.first_element + c;
-            if inside {
-                return e;
-            }
-            let d = (area_properties(&pts).centroid - x).norm();
-            if d < best.0 {
-                best = (d, e);
-            }
-        }
-    }
-    best.1
-}
-
 /// Fills in every point's error; returns the reference's name and the error's definition.
-fn score(
-    scene: &Scene,
-    model: &Model,
-    runs: &mut [(Point, Measure)],
-    probes: &[Probe],
-) -> Result<(String, String)> {
+fn score(scene: &Scene, model: &Model, runs: &mut [(Point, Measure)]) -> Result<(String, String)> {
+    let names: Vec<String> = scene.output.probes.iter().map(|p| p.column()).collect();
     let ok = |p: &Point| p.status == "ok";
     match &scene.reference {
         Some(ReferenceSpec::HoppingBlock) => {
@@ -491,9 +427,9 @@ fn score(
             Ok((format!("theory of the hopping block: the first apex returns to the drop height H = {height} m"), "|apex − H| / H".into()))
         }
         Some(ReferenceSpec::BarStep { probe }) => {
-            let k = probes
+            let k = names
                 .iter()
-                .position(|p| &p.name == probe)
+                .position(|name| name == probe)
                 .expect("validated: the probe exists");
             let bar = Bar::of(scene, model)?;
             for (p, m) in runs.iter_mut() {
@@ -547,7 +483,6 @@ fn score(
                     });
                 }
             }
-            let names: Vec<&str> = probes.iter().map(|p| p.name.as_str()).collect();
             Ok((
                 format!("finest run of the sweep ({name})"),
                 format!(
