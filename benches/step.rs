@@ -183,7 +183,8 @@ fn main() {
                     let mut group = c.benchmark_group("step");
                     group.sample_size(sample_size).measurement_time(time);
                     if ne >= LARGE {
-                        // The same steps in every sample: 30 need not take the 465 of a linear ramp.
+                        // The same steps in every sample: 30 need not take the 465 of a linear
+                        // ramp.
                         group.sampling_mode(SamplingMode::Flat);
                     }
                     for (ti, &threads) in THREADS.iter().enumerate() {

@@ -138,7 +138,8 @@ mod tests {
     fn the_limit_is_where_the_closed_form_puts_it() {
         let o = super::compute();
         // Stable runs from rest keep their elastic energy below the bound of a mode stepped at
-        // f Δt_crit, 1/(1 − f²) times its energy; the unstable one has grown by orders of magnitude.
+        // f Δt_crit, 1/(1 − f²) times its energy; the unstable one has grown by orders of
+        // magnitude.
         assert!(
             o.runs[0].2 < 1.0 / (1.0 - 0.81) && o.runs[1].2 < 1.0 / (1.0 - 0.98),
             "{:?}",

@@ -46,10 +46,12 @@
 //! $$M_e \ddot U_e = t \oint_{\partial \Omega_e} N_e^T \tau_e \, d\ell + P_e.$$
 //! See [`force::evaluator::ElementWise`]; `examples/element_force.rs` traces it for one element.
 //!
-//! **Central difference** (velocity form; `paper_notes.md` item 9), with $f = f_{\rm int}(U^n) - P^n - f_c^n$:
+//! **Central difference** (velocity form; `paper_notes.md` item 9), with $f = f_{\rm int}(U^n) -
+//! P^n - f_c^n$:
 //! $$v^{n+1/2} = v^{n-1/2} - \Delta t M^{-1} f, \qquad U^{n+1} = U^n + \Delta t v^{n+1/2}.$$
 //! It is stable for $\Delta t \le \Delta t_{\rm crit} = 2/\omega_{\max}$, where $\omega_{\max}^2$
-//! is the largest eigenvalue of $K \phi = \omega^2 M \phi$. See [`step::integrator`], [`analysis::eigen`] and
+//! is the largest eigenvalue of $K \phi = \omega^2 M \phi$. See [`step::integrator`],
+//! [`analysis::eigen`] and
 //! [`analysis::stability`].
 //!
 //! **Contact** (eqs. 17–20). Edge-to-edge contact (the paper's) holds the part of a boundary
@@ -85,7 +87,8 @@
 //! use rbsm::input::scene::Scene;
 //! let scene = Scene::from_file("examples/scenes/cantilever.json")?;
 //! let setup = Setup::new(&scene, &Default::default())?;
-//! let summary = run::run(&setup, &Default::default(), "out/cantilever".as_ref(), &mut run::Silent)?;
+//! let summary = run::run(&setup, &Default::default(), "out/cantilever".as_ref(), &mut
+//! run::Silent)?;
 //! println!("{} steps, energy drift {:e}", summary.steps, summary.energy.max_relative_drift);
 //! # Ok::<(), rbsm::error::Error>(())
 //! ```

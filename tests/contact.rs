@@ -100,7 +100,8 @@ fn hopping_block_matches_the_theory_of_a_flat_landing() {
             "impact speed {}",
             b.impact_speed
         );
-        // Contact time against (π + 2 arcsin(δ_s/A))/ω: ~25 steps per contact, 1 % (measured 0.4 %).
+        // Contact time against (π + 2 arcsin(δ_s/A))/ω: ~25 steps per contact, 1 % (measured 0.4
+        // %).
         assert!(
             rel(b.release - b.impact, th.contact_time()) < 0.01,
             "contact time {} s",

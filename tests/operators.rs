@@ -218,7 +218,8 @@ fn forces_do_not_depend_on_the_thread_count() {
 }
 
 /// The element-wise evaluator advances each element inside its sweep (eq. 15 fused with the
-/// update of `rbsm::step::integrator`). On a mesh of several blocks, with loads, gravity and damping, that
+/// update of `rbsm::step::integrator`). On a mesh of several blocks, with loads, gravity and
+/// damping, that
 /// gives the same steps as evaluating first and updating after, and as the assembled `K U`,
 /// up to round-off; and the same on 1 and 2 threads, bit for bit. Without gravity the fused
 /// step reads the external force only at the loaded elements, and without damping it leaves

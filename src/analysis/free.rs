@@ -1,5 +1,6 @@
 //! The linear system of the free DOFs: `K_ff` as a faer sparse matrix and the diagonal of
-//! `M_ff`, for the static, eigen and stability analyses (the README's *Commands*). Built from the same
+//! `M_ff`, for the static, eigen and stability analyses (the README's *Commands*). Built from the
+//! same
 //! assembled `K` as the assembled evaluator: one copy of the physics.
 
 use crate::force::evaluator::stiffness_triplets;

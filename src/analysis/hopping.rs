@@ -1,4 +1,5 @@
-//! The hopping block of the paper (§4; `validation/report.md` §8): a block dropped flat on rigid ground,
+//! The hopping block of the paper (§4; `validation/report.md` §8): a block dropped flat on rigid
+//! ground,
 //! the theory of its bounces, and a tracker that measures them from a run.
 
 use crate::mesh::geometry::Vec2;

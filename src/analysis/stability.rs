@@ -1,4 +1,5 @@
-//! The stability limit of central difference ([`crate::step::integrator`]; `rbsm stability`): `Δt_crit = 2 / ω_max`, the cheap
+//! The stability limit of central difference ([`crate::step::integrator`]; `rbsm stability`):
+//! `Δt_crit = 2 / ω_max`, the cheap
 //! bounds that codes use instead of `ω_max`, each with its ratio to the exact value, and the
 //! limit found empirically by running.
 

@@ -1,4 +1,5 @@
-//! Static analysis (`rbsm static`, the README's *Commands*): `K_ff U_f = P_f − K_fp U_p` by sparse Cholesky (faer), with
+//! Static analysis (`rbsm static`, the README's *Commands*): `K_ff U_f = P_f − K_fp U_p` by sparse
+//! Cholesky (faer), with
 //! `U_p = 0` (supports fix DOFs at zero). A mechanism is refused with its free modes named.
 
 use crate::analysis::free::FreeSystem;

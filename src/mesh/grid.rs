@@ -1,4 +1,5 @@
-//! Structured grids of rectangles, or of triangles cut along the lower-left to upper-right diagonal.
+//! Structured grids of rectangles, or of triangles cut along the lower-left to upper-right
+//! diagonal.
 
 use super::{Checks, Mesh};
 use crate::error::Result;

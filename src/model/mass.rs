@@ -7,8 +7,10 @@ use crate::model::Model;
 use crate::parallel::{for_each_chunk_pair, CHUNK};
 use std::ops::Range;
 
-/// The explicit update of a step ([`crate::step::integrator`]): `M`, `Δt` and the damping factors, for
-/// evaluators that fuse it with the evaluation ([`crate::force::evaluator::FusedStep::advance`]) and
+/// The explicit update of a step ([`crate::step::integrator`]): `M`, `Δt` and the damping factors,
+/// for
+/// evaluators that fuse it with the evaluation ([`crate::force::evaluator::FusedStep::advance`])
+/// and
 /// apply it element by element ([`Update::resolve`]).
 #[derive(Debug, Clone, Copy)]
 pub struct Update<'a> {

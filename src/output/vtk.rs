@@ -2,7 +2,8 @@
 //! recorded step, written with `vtkio`, and a `.pvd` collection that ParaView opens as a time
 //! series (its reader takes XML files only). Elements are drawn separately (their vertices are
 //! not shared) in their current place, rigid elements with their finite rotation
-//! ([`Formulation::current_position`](crate::model::formulation::Formulation::current_position)), as
+//! ([`Formulation::current_position`](crate::model::formulation::Formulation::current_position)),
+//! as
 //! triangles, quadrilaterals or polygons.
 
 use crate::error::{Error, Result};

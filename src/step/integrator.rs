@@ -1,4 +1,5 @@
-//! Explicit central difference in velocity form (paper_notes.md item 9), with energy bookkeeping and a
+//! Explicit central difference in velocity form (paper_notes.md item 9), with energy bookkeeping
+//! and a
 //! divergence guard:
 //!
 //! `v^{n+½} = v^{n−½} + Δt M⁻¹ (P(t_n) − f_int(U^n) + f_c^n)`, `U^{n+1} = U^n + Δt v^{n+½}`,
@@ -26,7 +27,8 @@ pub struct Energy {
     pub kinetic: f64,
     /// Elastic energy `½ Uᵀ K U` of the springs and, hybrid, of the elements' interiors (J).
     pub elastic: f64,
-    /// Minus the work of the contact forces: stored in the contact springs plus what friction took from the motion (J).
+    /// Minus the work of the contact forces: stored in the contact springs plus what friction took
+    /// from the motion (J).
     pub contact: f64,
     /// Gravitational potential energy relative to the initial configuration.
     pub potential: f64,
@@ -586,7 +588,8 @@ impl<'a> CentralDifference<'a> {
 
     /// Raises the largest energy put in so far (the guard's measure) to what has been put in by
     /// the end of the step under way, once `v` holds `v^{n+½}`: the initial kinetic, elastic and
-    /// contact energy and the work of the loads and of gravity up to `t_{n+1}` (not what contact gives to
+    /// contact energy and the work of the loads and of gravity up to `t_{n+1}` (not what contact
+    /// gives to
     /// the motion: contact stepped beyond its limit is what pumps energy in). The
     /// step ahead counts because `v^n` already carries half of the impulse `Δt M⁻¹ P(t_n)`: a
     /// load that rises from zero would otherwise show kinetic energy before any work is booked.

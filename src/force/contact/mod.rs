@@ -12,7 +12,8 @@
 //!    (`x = x_e + u_e + R(θ_e)(d + E_e d)`, `E_e d` the strain part of a hybrid element);
 //! 2. a neighbour list (from a bucket grid of the edges, rebuilt only when a vertex has moved
 //!    half its skin) holds the edges near each vertex, and eqs. 18–19 find the paths `p → m`
-//!    over the step that enter an edge of another body; the crossing point `c` (eq. 20) is kept with the contact as a fraction of the
+//!    over the step that enter an edge of another body; the crossing point `c` (eq. 20) is kept
+//!    with the contact as a fraction of the
 //!    target edge, so it moves with it;
 //! 3. each contact's gap `δ_n`, `δ_s` (eq. 17) is measured; the contact is released when the
 //!    gap opens (`δ_n ≤ 0`) or the vertex leaves the edge's span; with a Coulomb limit `μ` the

@@ -16,7 +16,8 @@
 //! element `e` once it has done the interfaces that start at `e` (those that end at `e` started
 //! earlier). The element's force is then complete and, in a time step, its velocity and
 //! displacement are advanced at once ([`ElementWise`] fuses eq. 15 with the update of
-//! [`crate::step::integrator`]): `U_e` is read by no later interface, and the step moves each vector once.
+//! [`crate::step::integrator`]): `U_e` is read by no later interface, and the step moves each
+//! vector once.
 //!
 //! While it sweeps, an element's force is pending only from its first interface to its own
 //! completion, and an interface reaches at most `max(b − a)` elements ahead. The pending forces
