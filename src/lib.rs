@@ -70,7 +70,7 @@
 //! | --- | --- | --- |
 //! | 1 | [`input`] | the scene file: its types, parsing, ranges and JSON Schema |
 //! | 2 | [`mesh`] | polygons and pure geometry: grids, Voronoi cells, explicit polygons, gmsh files |
-//! | 3 | [`model`] | elements, interfaces, supports and loads; the formulation ($N_e$), the mass, memory and input warnings |
+//! | 3 | [`model`] | elements, interfaces, supports and loads; the formulation ($N_e$), the interface law (eq. 11), the mass, memory and input warnings |
 //! | 4 | [`force`] | internal forces (the two evaluators) and contact forces |
 //! | 5 | [`step`] | the explicit central-difference step, its energies and its guard |
 //! | 6 | [`output`] | the files a run writes: summary, history, final state, VTK, SVG |
