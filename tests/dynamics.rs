@@ -2,7 +2,6 @@
 //! an unstable run, and the outputs follow the README's *Outputs*.
 
 mod common;
-use rbsm::analysis::run::{self, Silent};
 use rbsm::analysis::setup::{Overrides, Setup};
 use rbsm::input::scene::{EvaluatorKind, Scene};
 use rbsm::step::integrator::Status;
@@ -67,20 +66,7 @@ fn drift(scene: &Scene, factor: f64, steps: u64) -> f64 {
     s.time.dt = None;
     s.time.dt_factor = Some(factor);
     let dir = tempfile::tempdir().unwrap();
-    let summary = run::run(
-        &Setup::new(
-            &s,
-            &Overrides {
-                steps: Some(steps),
-                ..Default::default()
-            },
-        )
-        .unwrap(),
-        &Default::default(),
-        dir.path(),
-        &mut Silent,
-    )
-    .unwrap();
+    let summary = common::run_into(&s, Some(steps), dir.path());
     assert_eq!(summary.status, "ok");
     summary.energy.max_relative_drift
 }
@@ -109,13 +95,7 @@ fn unstable_run_stops_with_reason_and_keeps_its_outputs() {
     s.time.dt_factor = Some(1.05);
     s.output.every = 50;
     let dir = tempfile::tempdir().unwrap();
-    let summary = run::run(
-        &Setup::new(&s, &Overrides::default()).unwrap(),
-        &Default::default(),
-        dir.path(),
-        &mut Silent,
-    )
-    .unwrap();
+    let summary = common::run_into(&s, None, dir.path());
     assert_eq!(summary.status, "diverged");
     let reason = summary.reason.unwrap();
     assert!(
@@ -161,37 +141,11 @@ fn a_run_clears_an_earlier_runs_outputs() {
     s.output.vtk = true;
     let dir = tempfile::tempdir().unwrap();
     let frames = |dir: &std::path::Path| std::fs::read_dir(dir.join("vtk")).unwrap().count();
-    run::run(
-        &Setup::new(
-            &s,
-            &Overrides {
-                steps: Some(1000),
-                ..Default::default()
-            },
-        )
-        .unwrap(),
-        &Default::default(),
-        dir.path(),
-        &mut Silent,
-    )
-    .unwrap();
+    common::run_into(&s, Some(1000), dir.path());
     assert_eq!(frames(dir.path()), 11);
     std::fs::write(dir.path().join("notes.txt"), "mine").unwrap();
     std::fs::write(dir.path().join("vtk").join("mine.vtk"), "mine").unwrap();
-    let summary = run::run(
-        &Setup::new(
-            &s,
-            &Overrides {
-                steps: Some(300),
-                ..Default::default()
-            },
-        )
-        .unwrap(),
-        &Default::default(),
-        dir.path(),
-        &mut Silent,
-    )
-    .unwrap();
+    let summary = common::run_into(&s, Some(300), dir.path());
     assert_eq!(summary.steps, 300);
     // Frames of steps 0 … 300 and the user's own file; the earlier run's 400 … 1000 are gone.
     assert_eq!(frames(dir.path()), 5);
@@ -207,13 +161,7 @@ fn outputs_follow_the_contract() {
     let mut s = scene("voronoi_panel");
     s.time.end = None;
     s.time.steps = Some(200);
-    let summary = run::run(
-        &Setup::new(&s, &Overrides::default()).unwrap(),
-        &Default::default(),
-        dir.path(),
-        &mut Silent,
-    )
-    .unwrap();
+    let summary = common::run_into(&s, None, dir.path());
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.path().join("summary.json")).unwrap())
             .unwrap();
@@ -274,13 +222,7 @@ fn no_vtk_unless_asked() {
     let mut s = scene("bar_pulse");
     s.time.end = None;
     s.time.steps = Some(20);
-    run::run(
-        &Setup::new(&s, &Overrides::default()).unwrap(),
-        &Default::default(),
-        dir.path(),
-        &mut Silent,
-    )
-    .unwrap();
+    common::run_into(&s, None, dir.path());
     assert!(!dir.path().join("vtk").exists() && !dir.path().join("series.pvd").exists());
     let history = std::fs::read_to_string(dir.path().join("history.csv")).unwrap();
     assert!(history.lines().next().unwrap().ends_with(",u_tip,u_mid"));
@@ -307,20 +249,7 @@ fn probes_by_point_read_the_displacement_there() {
     ]);
     let dir = tempfile::tempdir().unwrap();
     let s = Scene::from_json(&v.to_string()).unwrap();
-    run::run(
-        &Setup::new(
-            &s,
-            &Overrides {
-                steps: Some(2000),
-                ..Default::default()
-            },
-        )
-        .unwrap(),
-        &Default::default(),
-        dir.path(),
-        &mut Silent,
-    )
-    .unwrap();
+    common::run_into(&s, Some(2000), dir.path());
     let history = std::fs::read_to_string(dir.path().join("history.csv")).unwrap();
     let header: Vec<&str> = history.lines().next().unwrap().split(',').collect();
     assert_eq!(

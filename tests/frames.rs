@@ -2,7 +2,7 @@
 //! unstructured grids (`.vtu`), read back here with vtkio's XML parser; cells carry their own
 //! VTK type; rigid elements are drawn with their finite rotation.
 
-use rbsm::analysis::run::{self, Silent};
+mod common;
 use rbsm::analysis::setup::{Overrides, Setup};
 use rbsm::input::scene::Scene;
 use serde_json::Value;
@@ -94,20 +94,7 @@ fn the_series_lists_xml_frames_with_every_cell_typed_and_every_array() {
         .unwrap();
         let model = rbsm::model::Model::build(&s).unwrap();
         let dir = tempfile::tempdir().unwrap();
-        run::run(
-            &Setup::new(
-                &s,
-                &Overrides {
-                    steps: Some(200),
-                    ..Default::default()
-                },
-            )
-            .unwrap(),
-            &Default::default(),
-            dir.path(),
-            &mut Silent,
-        )
-        .unwrap();
+        common::run_into(&s, Some(200), dir.path());
         let frames = listed(dir.path());
         assert_eq!(
             frames,
@@ -146,13 +133,7 @@ fn a_block_spun_by_two_radians_keeps_its_shape_in_the_frames() {
     });
     let s = Scene::from_json(&scene.to_string()).unwrap();
     let dir = tempfile::tempdir().unwrap();
-    run::run(
-        &Setup::new(&s, &Overrides::default()).unwrap(),
-        &Default::default(),
-        dir.path(),
-        &mut Silent,
-    )
-    .unwrap();
+    common::run_into(&s, None, dir.path());
     let (points, cells, _, _) = read(&dir.path().join("vtk/step_000001000.vtu"));
     let p = |k: u64| (points[3 * k as usize], points[3 * k as usize + 1]);
     let cell = &cells[0];

@@ -1,8 +1,11 @@
 //! Scenes built in code for the tests.
 #![allow(dead_code)]
 
+use rbsm::analysis::run;
+use rbsm::analysis::setup::{Overrides, Setup};
 use rbsm::input::scene::Scene;
 use rbsm::model::Model;
+use rbsm::output::Summary;
 
 /// A one-body scene around `mesh` (a JSON object) with `supports` (a JSON array).
 pub fn scene_json(mesh: &str, supports: &str) -> String {
@@ -62,4 +65,14 @@ pub fn max_abs_diff(a: &[f64], b: &[f64]) -> f64 {
         .zip(b)
         .map(|(x, y)| (x - y).abs())
         .fold(0.0, f64::max)
+}
+
+/// Runs `scene` silently into `dir`, for `steps` steps when given (else the scene's).
+pub fn run_into(scene: &Scene, steps: Option<u64>, dir: &std::path::Path) -> Summary {
+    let overrides = Overrides {
+        steps,
+        ..Default::default()
+    };
+    let setup = Setup::new(scene, &overrides).expect("the scene sets up");
+    run::run(&setup, &Default::default(), dir, &mut run::Silent).expect("the run writes")
 }
