@@ -353,20 +353,54 @@ fn render(
     x: &Extras,
 ) -> String {
     let mut s = String::new();
-    let _ = writeln!(s, "# Step benchmark summary\n\nRegenerate with `cargo bench --bench step` (about 10 minutes). Machine: {}.\n", machine());
-    let _ = writeln!(s, "Triad bandwidth `a = b + s c` (3 × 8 bytes per entry): {} GB/s on 1 thread, {} GB/s on 2.\n",
-        fmt(bandwidth[0] / 1e9, 1), fmt(bandwidth[1] / 1e9, 1));
-    let _ = writeln!(s, "Each time is the median of the criterion samples ({}), in ns per element-step: one step of the central-difference",
-        sampling_text());
-    let _ = writeln!(s, "loop between its checks. *Bytes* is what one step must move per element: assembled, the evaluator's data, `U` read");
-    let _ = writeln!(s, "and `f` written, then `f`, `M⁻¹` read and `v`, `U` updated; element-wise, whose sweep advances each element as soon as");
-    let _ = writeln!(s, "its force is complete, the evaluator's data (its rings of pending forces included) and `M⁻¹` read, `U` and `v` read and");
-    let _ = writeln!(s, "written; the bench scene has no gravity and no contact, so `−P` is read only at its loaded elements. *Limit* is bytes /");
+    let _ = writeln!(
+        s,
+        "# Step benchmark summary\n\nRegenerate with `cargo bench --bench step` \
+        (about 10 minutes). Machine: {}.\n",
+        machine()
+    );
+    let _ = writeln!(
+        s,
+        "Triad bandwidth `a = b + s c` (3 × 8 bytes per entry): {} GB/s on 1 \
+        thread, {} GB/s on 2.\n",
+        fmt(bandwidth[0] / 1e9, 1),
+        fmt(bandwidth[1] / 1e9, 1)
+    );
+    let _ = writeln!(
+        s,
+        "Each time is the median of the criterion samples ({}), in ns per \
+        element-step: one step of the central-difference",
+        sampling_text()
+    );
+    let _ = writeln!(
+        s,
+        "loop between its checks. *Bytes* is what one step must move per element: \
+        assembled, the evaluator's data, `U` read"
+    );
+    let _ = writeln!(
+        s,
+        "and `f` written, then `f`, `M⁻¹` read and `v`, `U` updated; \
+        element-wise, whose sweep advances each element as soon as"
+    );
+    let _ = writeln!(
+        s,
+        "its force is complete, the evaluator's data (its rings of pending forces \
+        included) and `M⁻¹` read, `U` and `v` read and"
+    );
+    let _ = writeln!(
+        s,
+        "written; the bench scene has no gravity and no contact, so `−P` is read \
+        only at its loaded elements. *Limit* is bytes /"
+    );
     let _ = writeln!(
         s,
         "triad bandwidth, and *× limit* how far the step is from that memory bound.\n"
     );
-    let _ = writeln!(s, "| mesh | formulation | evaluator | elements | bytes/elt | 1 thr ns | × limit | 2 thr ns | × limit |\n|---|---|---|---:|---:|---:|---:|---:|---:|");
+    let _ = writeln!(
+        s,
+        "| mesh | formulation | evaluator | elements | bytes/elt | 1 thr ns | × \
+        limit | 2 thr ns | × limit |\n|---|---|---|---:|---:|---:|---:|---:|---:|"
+    );
     for pair in rows.chunks(2) {
         let (a, b) = (&pair[0], &pair[1]);
         let _ = writeln!(
@@ -402,7 +436,11 @@ fn render(
         s,
         "\n## Targets (issue 6), 10⁶ rigid elements on a square grid\n"
     );
-    let _ = writeln!(s, "A step time is the median of its samples, and beside it the middle half of them (first to third quartile).\n");
+    let _ = writeln!(
+        s,
+        "A step time is the median of its samples, and beside it the middle half \
+        of them (first to third quartile).\n"
+    );
     let _ = writeln!(s, "| target | measured | met |\n|---|---|---|");
     let mut target = |what: &str, measured: f64, limit: f64, unit: &str, spread: &str| {
         let met = if measured <= limit { "yes" } else { "**no**" };
@@ -456,13 +494,36 @@ fn render(
         "s",
         "",
     );
-    let _ = writeln!(s, "\nThe working set is the evaluator's data, `M⁻¹` and the integrator's six vectors (`U`, `v`, `f`, the averaged");
-    let _ = writeln!(s, "velocity and the guard's last good `U`, `v`). The whole process grows by {} bytes per element from nothing to", fmt(x.rss_per_element, 0));
+    let _ = writeln!(
+        s,
+        "\nThe working set is the evaluator's data, `M⁻¹` and the integrator's \
+        six vectors (`U`, `v`, `f`, the averaged"
+    );
+    let _ = writeln!(
+        s,
+        "velocity and the guard's last good `U`, `v`). The whole process grows by \
+        {} bytes per element from nothing to",
+        fmt(x.rss_per_element, 0)
+    );
     let _ = writeln!(s, "ready to step (resident memory, measured first in the bench process; this adds the model itself: meshes, elements,
 interfaces, and what the allocator keeps of the build).\n");
-    let _ = writeln!(s, "No allocation inside a step: `tests/allocation.rs` counts them. Contact: a 10⁵-element rigid grid steps in {} ns per", fmt(x.contact_ns[0], 1));
-    let _ = writeln!(s, "element without a `contact` section, which builds no contact engine; declaring contact with a ground far away costs {} ns", fmt(x.contact_ns[1], 1));
-    let _ = writeln!(s, "(median of 7 × 20 steps, 2 threads).\n\nModel build times (s):\n\n| mesh | formulation | elements | build s |\n|---|---|---:|---:|");
+    let _ = writeln!(
+        s,
+        "No allocation inside a step: `tests/allocation.rs` counts them. Contact: \
+        a 10⁵-element rigid grid steps in {} ns per",
+        fmt(x.contact_ns[0], 1)
+    );
+    let _ = writeln!(
+        s,
+        "element without a `contact` section, which builds no contact engine; \
+        declaring contact with a ground far away costs {} ns",
+        fmt(x.contact_ns[1], 1)
+    );
+    let _ = writeln!(
+        s,
+        "(median of 7 × 20 steps, 2 threads).\n\nModel build times (s):\n\n| mesh \
+        | formulation | elements | build s |\n|---|---|---:|---:|"
+    );
     for b in builds {
         let _ = writeln!(s, "| {} | {} | {} | {} |", b.0, b.1, b.2, fmt(b.3, 2));
     }

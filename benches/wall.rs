@@ -163,8 +163,13 @@ fn main() {
                 Err(e) => (format!("not run: {e}"), "–".into()),
             };
             println!(
-                "{model}, {threads} thread(s): {:.3} µs per body-step, {:.2} tests and {:.2} contacts per body-step, contact {:.0} % of the step; pymunk {q_text} (ratio {ratio})",
-                o.us, o.tests, o.live, 100.0 * o.contact_share
+                "{model}, {threads} thread(s): {:.3} µs per body-step, {:.2} tests and {:.2} \
+                    contacts per body-step, contact {:.0} % of the step; pymunk {q_text} (ratio \
+                    {ratio})",
+                o.us,
+                o.tests,
+                o.live,
+                100.0 * o.contact_share
             );
             writeln!(
                 table,
@@ -195,7 +200,13 @@ fn main() {
          spring: this compares the cost of one step, not of a simulated second.\n"
     )
     .unwrap();
-    writeln!(md, "| contact | threads | rbsm µs per body-step | narrow-phase tests per body-step | live contacts per body | contact share of the step | pymunk µs per body-step | peer / rbsm |").unwrap();
+    writeln!(
+        md,
+        "| contact | threads | rbsm µs per body-step | narrow-phase tests per body-step \
+        | live contacts per body | contact share of the step | pymunk µs per body-step | peer / \
+        rbsm |"
+    )
+    .unwrap();
     writeln!(md, "|---|---:|---:|---:|---:|---:|---:|---:|").unwrap();
     md.push_str(&table);
     writeln!(

@@ -119,7 +119,10 @@ fn main() {
         o.omega_max, o.dt_crit
     );
     for (fraction, steps, largest) in &o.runs {
-        println!("  dt = {fraction:.2} dt_crit, {steps} steps: largest elastic energy = {largest:.3e} x the initial");
+        println!(
+            "  dt = {fraction:.2} dt_crit, {steps} steps: largest elastic energy = \
+            {largest:.3e} x the initial"
+        );
     }
     println!("elastic energy of the run at 1.01 dt_crit, every tenth step (J):");
     for (k, e) in o.unstable.iter().enumerate() {
@@ -129,7 +132,11 @@ fn main() {
         "energy growth per step at 1.01 dt_crit: measured {:.4}, closed form z^2 = {:.4}",
         o.measured_growth, o.predicted_growth
     );
-    println!("the library's integrator at 1.01 dt_crit stops after {} steps: its guard saw the energy grow", o.guarded_steps);
+    println!(
+        "the library's integrator at 1.01 dt_crit stops after {} steps: its guard saw the \
+        energy grow",
+        o.guarded_steps
+    );
 }
 
 #[cfg(test)]

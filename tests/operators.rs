@@ -289,9 +289,19 @@ fn the_fused_step_matches_evaluation_then_update() {
                 scale > 1e-9,
                 "{formulation}, gravity {gravity}, damping {damping}: the model moved ({scale:e})"
             );
-            assert!(max_abs_diff(&u, &u2) <= 1e-12 * scale, "{formulation}, gravity {gravity}, damping {damping}, {name}: |ΔU| = {:e} of {scale:e}", max_abs_diff(&u, &u2));
+            assert!(
+                max_abs_diff(&u, &u2) <= 1e-12 * scale,
+                "{formulation}, gravity {gravity}, \
+                damping {damping}, {name}: |ΔU| = {:e} of {scale:e}",
+                max_abs_diff(&u, &u2)
+            );
             let vscale = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-            assert!(max_abs_diff(&v, &v2) <= 1e-12 * vscale, "{formulation}, gravity {gravity}, damping {damping}, {name}: |Δv| = {:e} of {vscale:e}", max_abs_diff(&v, &v2));
+            assert!(
+                max_abs_diff(&v, &v2) <= 1e-12 * vscale,
+                "{formulation}, gravity {gravity}, \
+                damping {damping}, {name}: |Δv| = {:e} of {vscale:e}",
+                max_abs_diff(&v, &v2)
+            );
         }
     }
 }

@@ -542,7 +542,11 @@ fn the_schema_names_exactly_the_keys_and_kinds_the_parser_accepts() {
             if at_mut(&mut scene.clone(), &path).get("kind").is_some() {
                 parser.insert("kind".into());
             }
-            assert_eq!(parser, listed, "{where_}: the parser's keys (left) differ from the schema's (right); message: {message}");
+            assert_eq!(
+                parser, listed,
+                "{where_}: the parser's keys (left) differ from the \
+                schema's (right); message: {message}"
+            );
 
             // The parser's kinds for this object.
             if at_mut(&mut scene.clone(), &path).get("kind").is_some() {
@@ -571,7 +575,11 @@ fn the_schema_names_exactly_the_keys_and_kinds_the_parser_accepts() {
                             .to_string()
                     })
                     .collect();
-                assert_eq!(parser, consts, "{where_}: the parser's kinds (left) differ from the schema's (right); message: {message}");
+                assert_eq!(
+                    parser, consts,
+                    "{where_}: the parser's kinds (left) differ from the \
+                    schema's (right); message: {message}"
+                );
                 kinds_checked.insert(oneof.to_string());
             }
         }

@@ -110,7 +110,8 @@ fn running_bond_walls_settle_on_the_ground() {
             let s = settle(&wall(nx, ny, 0.25 * W, model, Some(0.5), 1000.0, 0.2), 1000);
             let weight = (nx * ny) as f64 * brick_weight();
             eprintln!(
-                "{nx}x{ny} {model}: reaction {:?} N, weight {weight} N, tests/step {:.0}, contacts {:.0}",
+                "{nx}x{ny} {model}: reaction {:?} N, weight {weight} N, tests/step {:.0}, \
+                    contacts {:.0}",
                 s.reaction, s.tests_per_step, s.mean_pairs
             );
             assert!(
@@ -139,7 +140,8 @@ fn running_bond_walls_settle_on_the_ground() {
                     let (ux, uy, th) = (s.u[3 * e], s.u[3 * e + 1], s.u[3 * e + 2]);
                     assert!(
                         uy < -closed + 1e-7 && uy > -closed - 2.0 * settle - 1e-7,
-                        "{model}: brick ({i}, {j}) sank by {uy:e} m; gaps {closed:e}, settlement {settle:e}"
+                        "{model}: brick ({i}, {j}) sank by {uy:e} m; gaps {closed:e}, settlement \
+                            {settle:e}"
                     );
                     assert!(
                         ux.abs() < GAP && (th * W).abs() < GAP,
@@ -175,7 +177,11 @@ fn a_frictionless_wall_keeps_its_energy() {
         assert!(fine < bound, "{model}: drift {fine:e} at 0.05 Δt_crit");
         if model == "point" {
             let (widest, finest) = (drift(0.4), drift(0.025));
-            assert!(finest < 0.1 * widest, "point: the drift does not fall with the step: {widest:e} at 0.4 Δt_crit → {finest:e} at 0.025");
+            assert!(
+                finest < 0.1 * widest,
+                "point: the drift does not fall with the step: \
+                {widest:e} at 0.4 Δt_crit → {finest:e} at 0.025"
+            );
         } else {
             assert!(
                 fine < 0.5 * coarse,

@@ -199,7 +199,10 @@ pub fn contact(r: &mut Report) {
             the block lands on a corner and tumbles. The theory of a flat landing therefore holds for the first bounces \
             only; they are checked, and the growth is shown as measured (with μ = 0 it is the same, so it is not \
             the tangential springs).\n");
-    r.line("| model | bounce | impact time err. | contact time / theory | rebound / impact speed | apex err. | max |θ| before the next impact (rad) |");
+    r.line(
+        "| model | bounce | impact time err. | contact time / theory | rebound / impact speed \
+        | apex err. | max |θ| before the next impact (rad) |",
+    );
     r.line("|---|---|---|---|---|---|---|");
     let mut traces = vec![("theory", theory_curve(&th, end, 4000))];
     for model in ["edge-to-edge", "point"] {
@@ -339,9 +342,15 @@ pub fn contact(r: &mut Report) {
     r.line("The meshed block is an elastic body: the impact excites its internal vibration, so part of the energy stays in \
             the body and the apex is lower than H; the contact time is governed by the elastic wave in the block \
             (2D/c' = 2 · 0.06 m / √(E'/ρ) for a bar) rather than the spring of one rigid element.\n");
-    r.line("| model | contact time (µs) | 2D/c' (µs) | rebound / impact speed | apex err. bounce 1, 2 | energy drift | contact pairs (mean, max) |");
+    r.line(
+        "| model | contact time (µs) | 2D/c' (µs) | rebound / impact speed | apex err. bounce \
+        1, 2 | energy drift | contact pairs (mean, max) |",
+    );
     r.line("|---|---|---|---|---|---|---|");
-    r.timing("\n## 8.3 The block as 21 × 6 rigid elements\n\n| model | contact share of the step time | wall (s) |\n|---|---|---|");
+    r.timing(
+        "\n## 8.3 The block as 21 × 6 rigid elements\n\n| model | contact share of the step \
+        time | wall (s) |\n|---|---|---|",
+    );
     let c_bar = (E / (1.0 - NU * NU) / RHO).sqrt();
     for model in ["edge-to-edge", "point"] {
         let o = run(
@@ -380,7 +389,10 @@ pub fn contact(r: &mut Report) {
             face the ground. Frictionless (μ = 0) contact keeps the energy; without a slip limit the tangential springs \
             still hold energy when the normal gap opens, and that energy leaves the motion (it is booked as contact \
             energy, so the energy balance still closes).\n");
-    r.line("| model | friction | apex 1 of the centroid over its start (m) | θ at 0.6 s (rad) | spin at 0.6 s (rad/s) | energy taken by contact (J) | energy drift |");
+    r.line(
+        "| model | friction | apex 1 of the centroid over its start (m) | θ at 0.6 s (rad) | \
+        spin at 0.6 s (rad/s) | energy taken by contact (J) | energy drift |",
+    );
     r.line("|---|---|---|---|---|---|---|");
     let mut tilt_traces = Vec::new();
     for friction in [Some(0.0), None] {
@@ -469,7 +481,10 @@ pub fn contact(r: &mut Report) {
             );
         }
     }
-    r.line("\n| model | steps at rest | static penetration (m) | max |v| at the end (m/s) | max |u| at the end (m) |");
+    r.line(
+        "\n| model | steps at rest | static penetration (m) | max |v| at the end (m/s) | max \
+        |u| at the end (m) |",
+    );
     r.line("|---|---|---|---|---|");
     for model in ["edge-to-edge", "point"] {
         let o = run(
@@ -495,9 +510,15 @@ pub fn contact(r: &mut Report) {
     // 8.6 Toppling stack.
     r.line("\n### 8.6 A toppling stack of four bricks (`examples/scenes/toppling_stack.json`)\n");
     let scene = Scene::from_json(include_str!("../examples/scenes/toppling_stack.json")).unwrap();
-    r.line("| model | steps | Δt (s) | contact pairs per step (mean, max) | narrow-phase tests per step | all vertex–edge pairs | energy drift |");
+    r.line(
+        "| model | steps | Δt (s) | contact pairs per step (mean, max) | narrow-phase tests \
+        per step | all vertex–edge pairs | energy drift |",
+    );
     r.line("|---|---|---|---|---|---|---|");
-    r.timing("\n## 8.6 A toppling stack of four bricks\n\n| model | contact share of step time | µs per step |\n|---|---|---|");
+    r.timing(
+        "\n## 8.6 A toppling stack of four bricks\n\n| model | contact share of step time | \
+        µs per step |\n|---|---|---|",
+    );
     let mut stack_traces = Vec::new();
     for model in ["edge-to-edge", "point"] {
         let json = include_str!("../examples/scenes/toppling_stack.json")
@@ -670,7 +691,11 @@ fn walls(r: &mut Report) {
             contact springs' stored energy in place of the contact work) is kept up to the step's error, which falls \
             as Δt² (checks for edge-to-edge: a fall by at least 8 from 0.2 to 0.05 Δt_crit, and 1e-4 at 0.035 Δt_crit). \
             Point contact is not built on a potential.\n");
-    r.line("| model | ground reaction / weight at 50 ms | kinetic energy at 50 ms (J) | contact work taken (J) | narrow-phase tests per body-step | no friction: drift at 0.2 Δt_crit | at 0.05 Δt_crit | at 0.035 Δt_crit |");
+    r.line(
+        "| model | ground reaction / weight at 50 ms | kinetic energy at 50 ms (J) | contact \
+        work taken (J) | narrow-phase tests per body-step | no friction: drift at 0.2 Δt_crit | \
+        at 0.05 Δt_crit | at 0.035 Δt_crit |",
+    );
     r.line("|---|---|---|---|---|---|---|---|");
     let mut kinetic = Vec::new();
     let mut reaction = Vec::new();
@@ -691,7 +716,8 @@ fn walls(r: &mut Report) {
         };
         let (coarse, fine, finer) = (free(0.2), free(0.05), free(0.035));
         r.line(&format!(
-            "| {model} | {:.6} | {:.2e} | {:.3e} | {:.2} | {coarse:.1e} | {fine:.1e} | {finer:.1e} |",
+            "| {model} | {:.6} | {:.2e} | {:.3e} | {:.2} | {coarse:.1e} | {fine:.1e} | \
+                {finer:.1e} |",
             last[5], last[1], last[3], w.tests_per_body_step
         ));
         let tag = model.replace('-', "_");
@@ -702,7 +728,12 @@ fn walls(r: &mut Report) {
         );
         if model == "edge-to-edge" {
             // Second order would give 16 between 0.2 and 0.05 Δt_crit.
-            r.bound("8.7 edge_to_edge frictionless wall: drift(0.05) / drift(0.2) (1/16 at second order)", fine / coarse, 1.0 / 8.0);
+            r.bound(
+                "8.7 edge_to_edge frictionless wall: drift(0.05) / drift(0.2) (1/16 at second \
+                order)",
+                fine / coarse,
+                1.0 / 8.0,
+            );
             r.bound(
                 "8.7 edge_to_edge frictionless wall drift at 0.035 dt_crit",
                 finer,
@@ -756,6 +787,12 @@ fn walls(r: &mut Report) {
         "reaction / weight",
         &reaction,
     );
-    r.line("\n![wall](wall.svg)\n\n![kinetic energy](wall_kinetic.svg)\n\n![reaction](wall_reaction.svg)\n");
-    r.line("Histories: `validation/wall_edge_to_edge.csv`, `validation/wall_point.csv` (t, kinetic, stored contact, contact work, potential, reaction / weight).\n");
+    r.line(
+        "\n![wall](wall.svg)\n\n![kinetic \
+        energy](wall_kinetic.svg)\n\n![reaction](wall_reaction.svg)\n",
+    );
+    r.line(
+        "Histories: `validation/wall_edge_to_edge.csv`, `validation/wall_point.csv` (t, \
+        kinetic, stored contact, contact work, potential, reaction / weight).\n",
+    );
 }

@@ -40,7 +40,10 @@ pub fn extremes(r: &mut Report) {
     r.line("### 10.1 Hybrid penalty up to 1e8\n");
     r.line("The tension patch on 60 Voronoi cells (section 3), hybrid: static error against the continuum, `Δt_crit` against the \
             rigid model of the same mesh, and 4000 steps at 0.9 `Δt_crit`.\n");
-    r.line("| p | patch error | Δt_crit / rigid | × √p | run at 0.9 | warned |\n|---|---|---|---|---|---|");
+    r.line(
+        "| p | patch error | Δt_crit / rigid | × √p | run at 0.9 | warned \
+        |\n|---|---|---|---|---|---|",
+    );
     let mut last = None;
     for p in [1e2, 1e4, 1e6, 1e8] {
         let x = extremes::penalty(p).unwrap();
@@ -72,7 +75,10 @@ pub fn extremes(r: &mut Report) {
     r.line("### 10.2 Aspect ratio up to 1:1000\n");
     r.line("A stack of 10 elements `a` times wider than tall on a ground spring, moving from an initial velocity and spin: \
             `ω_max` by Lanczos against the dense eigenvalues, 20 000 steps at 0.9 and at 1.02 `Δt_crit`.\n");
-    r.line("| formulation | aspect | Δt_crit (s) | Lanczos vs dense | at 0.9 | at 1.02 | warned |\n|---|---|---|---|---|---|---|");
+    r.line(
+        "| formulation | aspect | Δt_crit (s) | Lanczos vs dense | at 0.9 | at 1.02 | warned \
+        |\n|---|---|---|---|---|---|---|",
+    );
     for (f, name) in [
         (r#"{"kind": "rigid"}"#, "rigid"),
         (r#"{"kind": "hybrid", "penalty": 10}"#, "hybrid p=10"),
@@ -113,7 +119,10 @@ pub fn extremes(r: &mut Report) {
     r.line("### 10.3 Element sizes spanning 1:1000 in one mesh\n");
     r.line("A quarter annulus from r = 1 mm to r = 1 mm × ratio, 4 near-square cells per ring (a conforming graded mesh), on \
             rollers, moving from an initial velocity.\n");
-    r.line("| radii ratio | elements | largest / smallest √A | Δt_crit (s) | Lanczos vs dense | at 0.9 | at 1.02 | warned |\n|---|---|---|---|---|---|---|---|");
+    r.line(
+        "| radii ratio | elements | largest / smallest √A | Δt_crit (s) | Lanczos vs dense | \
+        at 0.9 | at 1.02 | warned |\n|---|---|---|---|---|---|---|---|",
+    );
     for ratio in [10.0, 100.0, 1000.0] {
         let x = extremes::size_ratio(ratio).unwrap();
         r.line(&format!(
@@ -148,8 +157,14 @@ pub fn extremes(r: &mut Report) {
     r.line("### 10.4 Poisson's ratio 0.49 and −0.9\n");
     r.line("The tension patch (section 3), static: `ν` and `E` fitted to the element displacements (`u = a x`, `v = b y`), and \
             4000 steps at 0.9 `Δt_crit`. Hybrid with p = 1000.\n");
-    r.line("In plane strain the in-plane answer is `ν' = ν/(1 − ν)` and `E' = E/(1 − ν²)`; the table compares with those.\n");
-    r.line("| ν | formulation | plane | continuum ν (in plane) | fitted ν | fitted E / continuum E | Δt_crit (s) | at 0.9 | warned |\n|---|---|---|---|---|---|---|---|---|");
+    r.line(
+        "In plane strain the in-plane answer is `ν' = ν/(1 − ν)` and `E' = E/(1 − ν²)`; the \
+        table compares with those.\n",
+    );
+    r.line(
+        "| ν | formulation | plane | continuum ν (in plane) | fitted ν | fitted E / continuum \
+        E | Δt_crit (s) | at 0.9 | warned |\n|---|---|---|---|---|---|---|---|---|",
+    );
     for nu in [0.2, 0.49, -0.9] {
         for (hybrid, plane) in [(false, "stress"), (true, "stress"), (true, "strain")] {
             let x = extremes::poisson(nu, hybrid, plane).unwrap();
@@ -209,7 +224,10 @@ pub fn extremes(r: &mut Report) {
     r.line("### 10.6 Large rigid rotations in contact\n");
     r.line("A 0.1 m square block spun at 20 rad/s, moving sideways at 0.5 m/s, dropped 5 cm onto ground with μ = 0.3, for 1 s: \
             one element, then meshed 4 × 4.\n");
-    r.line("| elements | largest rotation (rad) | run | spurious elastic / initial kinetic | warned |\n|---|---|---|---|---|");
+    r.line(
+        "| elements | largest rotation (rad) | run | spurious elastic / initial kinetic | \
+        warned |\n|---|---|---|---|---|",
+    );
     for cells in [1, 4] {
         let x = extremes::tumble(cells, 20.0, 1.0).unwrap();
         r.line(&format!(

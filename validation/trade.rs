@@ -21,7 +21,10 @@ fn trade(r: &mut Report, file: &str, args: &[&str]) -> Trade {
             .collect::<Vec<_>>()
             .join(" ")
     );
-    r.line(&format!("`{command}`; the errors (the wall times and the Pareto front are in `validation/timings/tradeoff_{name}/`):\n"));
+    r.line(&format!(
+        "`{command}`; the errors (the wall times and the Pareto front are in \
+        `validation/timings/tradeoff_{name}/`):\n"
+    ));
     let names: Vec<&str> = report
         .points
         .first()

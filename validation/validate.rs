@@ -129,7 +129,10 @@ fn column(r: &mut Report) {
          `ω_j = 2 √(K/m) sin((2j − 1) π / (4n))`, `K = k_n h t = E' t`, `m = ρ h² t`; bar `ω_j = (2j − 1) π c' / (2L)`, \
          `c' = √(E'/ρ)`. Check: every mode of every `n` within 1e-10 of the closed form.\n"
     ));
-    r.line("| n | max rel. error vs closed form (all modes) | ω₁ rel. error vs bar | ω₂ vs bar | ω₃ vs bar |");
+    r.line(
+        "| n | max rel. error vs closed form (all modes) | ω₁ rel. error vs bar | ω₂ vs bar | \
+        ω₃ vs bar |",
+    );
     r.line("|---|---|---|---|---|");
     let mut rows = Vec::new();
     let mut series: Vec<(&str, Vec<(f64, f64)>)> =
@@ -181,7 +184,11 @@ fn column(r: &mut Report) {
     );
     let slope = (rows[6][2] / rows[5][2]).ln() / 2f64.ln();
     r.figure("column: convergence order of ω₁ to the bar", -slope, 1e-3);
-    r.line(&format!("\nω₁ converges to the bar at order {:.3} (last halving); 2 is expected from `sin x ≈ x − x³/6`.\n", -slope));
+    r.line(&format!(
+        "\nω₁ converges to the bar at order {:.3} (last halving); 2 is expected from \
+        `sin x ≈ x − x³/6`.\n",
+        -slope
+    ));
     r.csv(
         "column.csv",
         "n,max_err_closed_form,err_bar_1,err_bar_2,err_bar_3",
@@ -289,9 +296,18 @@ fn cantilever(r: &mut Report) {
             s_fem[j].1.push((ny as f64, d_fem[j].abs()));
         }
         r.line(&format!(
-            "| {nx} × {ny} | {} | {:.3} | {:.3} | {:.3} | {:+.2} % / {:+.2} % / {:+.2} % | {:+.2} % / {:+.2} % / {:+.2} % |",
-            sys.n(), hz(w[0]), hz(w[1]), hz(w[2]),
-            100.0 * d_eb[0], 100.0 * d_eb[1], 100.0 * d_eb[2], 100.0 * d_fem[0], 100.0 * d_fem[1], 100.0 * d_fem[2]
+            "| {nx} × {ny} | {} | {:.3} | {:.3} | {:.3} | {:+.2} % / {:+.2} % / {:+.2} % | {:+.2} \
+                % / {:+.2} % / {:+.2} % |",
+            sys.n(),
+            hz(w[0]),
+            hz(w[1]),
+            hz(w[2]),
+            100.0 * d_eb[0],
+            100.0 * d_eb[1],
+            100.0 * d_eb[2],
+            100.0 * d_fem[0],
+            100.0 * d_fem[1],
+            100.0 * d_fem[2]
         ));
         rows.push(vec![
             nx as f64,
@@ -315,8 +331,17 @@ fn cantilever(r: &mut Report) {
         }
     }
     r.line(&format!(
-        "\nReferences (Hz): EB(E') {:.3} / {:.3} / {:.3}; EB(E) {:.3} / {:.3} / {:.3}; Q8 {:.3} / {:.3} / {:.3}.\n",
-        hz(eb(e1, 0)), hz(eb(e1, 1)), hz(eb(e1, 2)), hz(eb(e, 0)), hz(eb(e, 1)), hz(eb(e, 2)), hz(fine[0]), hz(fine[1]), hz(fine[2])
+        "\nReferences (Hz): EB(E') {:.3} / {:.3} / {:.3}; EB(E) {:.3} / {:.3} / {:.3}; Q8 {:.3} / \
+            {:.3} / {:.3}.\n",
+        hz(eb(e1, 0)),
+        hz(eb(e1, 1)),
+        hz(eb(e1, 2)),
+        hz(eb(e, 0)),
+        hz(eb(e, 1)),
+        hz(eb(e, 2)),
+        hz(fine[0]),
+        hz(fine[1]),
+        hz(fine[2])
     ));
     r.line(
         "What this shows: with refinement the RBSM bending frequencies settle on a value of their own, not on the continuum's: \
@@ -402,7 +427,10 @@ fn patch(r: &mut Report) {
          `|t − σ·n|` over the applied stress. The square grid is exact for its own lattice law \
          (`ε_x = σ(1 − ν²)/E`, `ε_y = 0`; tests/analyses.rs checks this to 1e-12), which equals the continuum only at ν = 0.\n",
     );
-    r.line("| mesh | ν | tension: displacement | tension: traction | shear: displacement | shear: traction | passes |");
+    r.line(
+        "| mesh | ν | tension: displacement | tension: traction | shear: displacement | shear: \
+        traction | passes |",
+    );
     r.line("|---|---|---|---|---|---|---|");
     let meshes = [
         (
@@ -587,7 +615,10 @@ fn critical_time_step(r: &mut Report) {
          the top mode is the uniform rotation, `Δt_crit = (h/c) √((1 + ν)/3)`, `c = √(E/ρ)`. Exact `Δt_crit = 2/ω_max` \
          (Lanczos through the element-wise evaluator, top Ritz value settled to 1e-11). Bounds: each as its ratio to the exact value; `safe` ones must be ≤ 1.\n"
     ));
-    r.line("| n | supports | exact Δt_crit (s) | exact / closed form | gershgorin | irons-treharne | per-body | single-body |");
+    r.line(
+        "| n | supports | exact Δt_crit (s) | exact / closed form | gershgorin | \
+        irons-treharne | per-body | single-body |",
+    );
     r.line("|---|---|---|---|---|---|---|---|");
     let mut rows = Vec::new();
     let mut series: Vec<(&str, Vec<(f64, f64)>)> =
@@ -916,7 +947,14 @@ fn hybrid(r: &mut Report) {
                         .join(" | ")
                 ));
                 // The error falls by a decade per decade of p until round-off takes over.
-                r.bound(&format!("hybrid patch {name} ν={nu} {case}: error at p = 1e4 over error at p = 1e1 (1/p predicts 1e-3)"), errs[3] / errs[0], 2e-3);
+                r.bound(
+                    &format!(
+                        "hybrid patch {name} ν={nu} {case}: error at p = 1e4 over error \
+                    at p = 1e1 (1/p predicts 1e-3)"
+                    ),
+                    errs[3] / errs[0],
+                    2e-3,
+                );
                 if nu == 0.2 {
                     series.push((
                         format!("{name}, {case}"),
@@ -1116,7 +1154,17 @@ fn hybrid(r: &mut Report) {
 fn main() {
     let bless = std::env::args().any(|a| a == "--bless");
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("validation");
-    let mut r = Report { dir: dir.clone(), md: String::new(), timings: String::from("# Validation wall times\n\nWritten by `cargo run --release --example validate` beside `report.md`; single runs on this machine, with its noise. Not tracked by git: the results are in `report.md`.\n"), checks: Vec::new() };
+    let mut r = Report {
+        dir: dir.clone(),
+        md: String::new(),
+        timings: String::from(
+            "# Validation \
+        wall times\n\nWritten by `cargo run --release --example validate` beside `report.md`; \
+        single runs on this machine, with its noise. Not tracked by git: the results are in \
+        `report.md`.\n",
+        ),
+        checks: Vec::new(),
+    };
     r.line("# rbsm validation report\n");
     r.line("Regenerated by `cargo run --release --example validate`; nothing here is edited by hand. Every figure is checked \
             either against a closed form (bound stated beside it) or against the committed reference run \

@@ -142,7 +142,8 @@ impl Report for CheckReport {
         t += &match &r.contact {
             None => "  contact: none declared (no contact search)\n".to_string(),
             Some(c) => format!(
-                "  contact: {}, {} vertices against {} edges; at the start {} pairs tested, {} in contact\n",
+                "  contact: {}, {} vertices against {} edges; at the start {} pairs tested, {} in \
+                    contact\n",
                 c.model, c.vertices, c.edges, c.pairs_tested_at_start, c.pairs_in_contact_at_start
             ),
         };

@@ -190,7 +190,11 @@ pub fn sweep(
     let base_model = Model::build(scene)?;
     let scene = &probes_by_point(scene, &base_model)?;
     if scene.reference.is_none() && scene.output.probes.is_empty() {
-        return Err(Error::scene("output.probes", "the tradeoff needs at least one probe to compare runs (or a `reference` with a closed form)"));
+        return Err(Error::scene(
+            "output.probes",
+            "the tradeoff needs at least one probe to \
+            compare runs (or a `reference` with a closed form)",
+        ));
     }
     let combos = combinations(sweeps);
     let mut runs = Vec::with_capacity(combos.len());
@@ -424,7 +428,13 @@ fn score(scene: &Scene, model: &Model, runs: &mut [(Point, Measure)]) -> Result<
                     p.error = a.is_finite().then(|| (*a - height).abs() / height);
                 }
             }
-            Ok((format!("theory of the hopping block: the first apex returns to the drop height H = {height} m"), "|apex − H| / H".into()))
+            Ok((
+                format!(
+                    "theory of the hopping block: the first apex returns to the drop height H \
+                = {height} m"
+                ),
+                "|apex − H| / H".into(),
+            ))
         }
         Some(ReferenceSpec::BarStep { probe }) => {
             let k = names
@@ -445,7 +455,11 @@ fn score(scene: &Scene, model: &Model, runs: &mut [(Point, Measure)]) -> Result<
                 }
             }
             Ok((
-                format!("closed form of the bar (L = {} m) under a step end load, modal series of 4000 modes, at the centroid of the probe's element", bar.length),
+                format!(
+                    "closed form of the bar (L = {} m) under a step end load, modal series of \
+                    4000 modes, at the centroid of the probe's element",
+                    bar.length
+                ),
                 format!("RMS over time of (u − u_exact) / RMS of u_exact, probe `{probe}`"),
             ))
         }
@@ -653,7 +667,11 @@ impl TradeoffReport {
             "Scene `{}`. Reference: {}. Error: {}.\n\n",
             self.scene, self.reference, self.error
         );
-        md.push_str(&format!("| {} | elements | Δt (s) | Δt/Δt_crit | steps | wall (s) | peak (MiB) | error | Pareto |\n", keys.join(" | ")));
+        md.push_str(&format!(
+            "| {} | elements | Δt (s) | Δt/Δt_crit | steps | wall (s) | peak \
+            (MiB) | error | Pareto |\n",
+            keys.join(" | ")
+        ));
         md.push_str(&format!(
             "|{}---|---|---|---|---|---|---|---|\n",
             "---|".repeat(keys.len())

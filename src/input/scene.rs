@@ -558,7 +558,8 @@ impl schemars::JsonSchema for EdgeSet {
         schemars::json_schema!({
             "type": "string",
             "minLength": 1,
-            "description": "A side of the body's bounding box (`left`, `right`, `bottom`, `top`) or, any other name, a physical group of lines of the body's gmsh mesh.",
+            "description": "A side of the body's bounding box (`left`, `right`, `bottom`, `top`) \
+                or, any other name, a physical group of lines of the body's gmsh mesh.",
             "examples": ["left", "right", "bottom", "top"]
         })
     }
@@ -1170,7 +1171,13 @@ impl Scene {
                     .chars()
                     .any(|c| c == ',' || c == '"' || c.is_control())
             {
-                return Err(Error::scene(field, format!("must be a non-empty column name without commas, quotes or control characters, got {column:?}")));
+                return Err(Error::scene(
+                    field,
+                    format!(
+                        "must be a non-empty column name without \
+                    commas, quotes or control characters, got {column:?}"
+                    ),
+                ));
             }
             if let Some(i) = columns.iter().position(|c| *c == column) {
                 let what = if i < HISTORY_COLUMNS.len() {
@@ -1202,7 +1209,11 @@ impl Scene {
             }
         }
         if !self.ground.is_empty() && self.contact.is_none() {
-            return Err(Error::scene("contact", "ground segments act only through contact: add `\"contact\": {\"model\": \"edge-to-edge\"}` (or `point`)"));
+            return Err(Error::scene(
+                "contact",
+                "ground segments act only through contact: add \
+                `\"contact\": {\"model\": \"edge-to-edge\"}` (or `point`)",
+            ));
         }
         if let Some(c) = &self.contact {
             if let Some(mu) = c.friction {
@@ -1274,7 +1285,13 @@ impl Scene {
                 positive(&at("mesh.size[0]"), size[0])?;
                 positive(&at("mesh.size[1]"), size[1])?;
                 if cells[0] == 0 || cells[1] == 0 || cells[0].saturating_mul(cells[1]) > MAX_CELLS {
-                    return Err(Error::scene(at("mesh.cells"), format!("both counts must be ≥ 1 and their product ≤ {MAX_CELLS}, got {cells:?}")));
+                    return Err(Error::scene(
+                        at("mesh.cells"),
+                        format!(
+                            "both counts must be ≥ 1 \
+                        and their product ≤ {MAX_CELLS}, got {cells:?}"
+                        ),
+                    ));
                 }
             }
             MeshSpec::Voronoi(VoronoiSpec {
@@ -1290,7 +1307,10 @@ impl Scene {
                 if *sites < 3 || *sites > MAX_CELLS {
                     return Err(Error::scene(
                         at("mesh.sites"),
-                        format!("must lie in 3..={MAX_CELLS} (the Delaunay triangulation under the cells needs three sites), got {sites}"),
+                        format!(
+                            "must lie in 3..={MAX_CELLS} (the Delaunay triangulation under \
+                            the cells needs three sites), got {sites}"
+                        ),
                     ));
                 }
                 if *lloyd > 10_000 {
@@ -1369,7 +1389,11 @@ impl Scene {
             finite_all(&at("array.pitch"), &a.pitch)?;
             finite_all(&at("array.row_offset"), &[a.row_offset])?;
             if matches!(b.mesh, MeshSpec::Gmsh(_)) {
-                return Err(Error::scene(at("array"), "copies need a `grid`, `voronoi` or `polygons` mesh (a gmsh mesh cannot be shifted)"));
+                return Err(Error::scene(
+                    at("array"),
+                    "copies need a `grid`, `voronoi` or \
+                    `polygons` mesh (a gmsh mesh cannot be shifted)",
+                ));
             }
         }
         finite_all(&at("initial.velocity"), &b.initial.velocity)?;
@@ -1386,7 +1410,14 @@ fn positive(field: &str, x: f64) -> Result<()> {
     if x.is_normal() && x > 0.0 {
         Ok(())
     } else {
-        Err(Error::scene(field, format!("must be a finite number > 0 (at least {:e}, the smallest normal double), got {x:e}", f64::MIN_POSITIVE)))
+        Err(Error::scene(
+            field,
+            format!(
+                "must be a finite number > 0 (at least {:e}, the smallest \
+            normal double), got {x:e}",
+                f64::MIN_POSITIVE
+            ),
+        ))
     }
 }
 

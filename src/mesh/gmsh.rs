@@ -34,11 +34,15 @@ pub fn read(body: &str, path: &Path) -> Result<Mesh> {
     let [version, file_type, data_size] =
         [0, 1, 2].map(|i| header.get(i).map_or("", String::as_str));
     if version != "4.1" {
-        return Err(fail(format!("MSH version {version} is not supported; save the mesh as MSH 4.1 (`gmsh -2 -format msh41 file.geo`)")));
+        return Err(fail(format!(
+            "MSH version {version} is not supported; save the mesh as MSH 4.1 \
+            (`gmsh -2 -format msh41 file.geo`)"
+        )));
     }
     if !matches!(file_type, "0" | "1") || data_size != "8" {
         return Err(fail(format!(
-            "the `$MeshFormat` line reads `{}`: MSH 4.1 has file type 0 (ASCII) or 1 (binary) and data size 8",
+            "the `$MeshFormat` line reads `{}`: MSH 4.1 has file type 0 (ASCII) or 1 (binary) and \
+                data size 8",
             header.join(" ")
         )));
     }
@@ -114,8 +118,12 @@ pub fn read(body: &str, path: &Path) -> Result<Mesh> {
     }
     if cells.is_empty() && (!lines.is_empty() || !names.is_empty()) {
         // gmsh saves only the elements of physical groups once any is defined.
-        return Err(fail("the file has no triangles or quadrilaterals, only elements of physical groups: \
-            add a `Physical Surface(\"body\") = {...};` for the meshed surface to the .geo (gmsh saves only the elements of physical groups once one is defined)".into()));
+        return Err(fail(
+            "the file has no triangles or quadrilaterals, only elements of physical groups: \
+            add a `Physical Surface(\"body\") = {...};` for the meshed surface to the .geo (gmsh \
+                saves only the elements of physical groups once one is defined)"
+                .into(),
+        ));
     }
     if cells.is_empty() {
         return Err(fail(

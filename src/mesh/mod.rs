@@ -281,8 +281,15 @@ impl Mesh {
                 2 => {
                     let (_, b, w1, _) = keys[i + 1];
                     if w1 == v1 {
-                        return Err(Error::mesh(body, a.max(b) as usize, format!(
-                            "overlaps cell {}: both run their common edge ({v1}, {v2}) in the same direction", a.min(b))));
+                        return Err(Error::mesh(
+                            body,
+                            a.max(b) as usize,
+                            format!(
+                                "overlaps cell {}: both run their common edge ({v1}, {v2}) in the \
+                                same direction",
+                                a.min(b)
+                            ),
+                        ));
                     }
                     let (a, b, v1, v2) = if a < b {
                         (a, b, v1, v2)
@@ -292,8 +299,13 @@ impl Mesh {
                     self.shared.push(SharedEdge { a, b, v1, v2 });
                 }
                 _ => {
-                    return Err(Error::mesh(body, keys[j - 1].1 as usize, format!(
-                        "edge ({v1}, {v2}) is used by {} cells; at most two cells may share an edge", j - i)));
+                    return Err(Error::mesh(
+                        body,
+                        keys[j - 1].1 as usize,
+                        format!(
+                        "edge ({v1}, {v2}) is used by {} cells; at most two cells may share an \
+                            edge", j - i),
+                    ));
                 }
             }
             i = j;
@@ -326,8 +338,13 @@ impl Mesh {
                     let s = (x - p).dot(&d) / l2;
                     let off = d.perp(&(x - p)).abs() / l2.sqrt();
                     if s > 1e-9 && s < 1.0 - 1e-9 && off <= 1e-10 * scale {
-                        return Err(Error::mesh(body, e.cell as usize, format!(
-                            "non-conforming edge ({}, {}): vertex {i} lies on it; split the edge at that vertex", e.v1, e.v2)));
+                        return Err(Error::mesh(
+                            body,
+                            e.cell as usize,
+                            format!(
+                            "non-conforming edge ({}, {}): vertex {i} lies on it; split the edge \
+                                at that vertex", e.v1, e.v2),
+                        ));
                     }
                 }
             }
@@ -438,7 +455,14 @@ fn check_cell(body: &str, c: usize, cell: &[u32], vertices: &[Vec2], checks: Che
                 }
                 let gap = segment_distance(p.0, p.1, q.0, q.1);
                 if gap <= 1e-9 * perimeter {
-                    return Err(Error::mesh(body, c, format!("touches itself: edges {i} and {j} meet ({gap:e} m apart), as in a figure 8; split it into two cells")));
+                    return Err(Error::mesh(
+                        body,
+                        c,
+                        format!(
+                            "touches itself: edges {i} and {j} \
+                        meet ({gap:e} m apart), as in a figure 8; split it into two cells"
+                        ),
+                    ));
                 }
             }
         }

@@ -39,7 +39,8 @@ pub fn warnings(model: &Model, dt: f64, dt_crit: f64) -> Vec<String> {
         .fold((0.0, 0), |a, b| if b.0 > a.0 { b } else { a });
     if worst > ASPECT_LIMIT {
         out.push(format!(
-            "element {e} has an aspect ratio of {worst:.0}: its rotation is stiff and Δt_crit is set by its short side (validation §10.2)"
+            "element {e} has an aspect ratio of {worst:.0}: its rotation is stiff and Δt_crit is \
+                set by its short side (validation §10.2)"
         ));
     }
     let sizes = model.elements.iter().map(|el| el.props.area.sqrt());
@@ -71,7 +72,11 @@ pub fn warnings(model: &Model, dt: f64, dt_crit: f64) -> Vec<String> {
         }
     }
     if dt > dt_crit {
-        out.push(format!("dt is {:.4} × Δt_crit: central difference is unstable above 1; expect the guard to stop the run", dt / dt_crit));
+        out.push(format!(
+            "dt is {:.4} × Δt_crit: central difference is unstable above 1; expect \
+            the guard to stop the run",
+            dt / dt_crit
+        ));
     }
     out
 }

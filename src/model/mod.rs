@@ -445,8 +445,15 @@ impl Model {
         }
         for i in &self.interfaces {
             if !((i.k_n + i.k_s) * t * i.length * (1.0 + i.length * i.length)).is_finite() {
-                return Err(Error::scene(scene.most_extreme(self.elements[i.a as usize].body as usize, &["E", "thickness", "penalty"]), format!(
-                    "the springs between elements {} and {} overflow (k_n = {:e} Pa/m); check E, thickness, the penalty and the mesh size", i.a, i.b, i.k_n)));
+                return Err(Error::scene(
+                    scene.most_extreme(
+                        self.elements[i.a as usize].body as usize,
+                        &["E", "thickness", "penalty"],
+                    ),
+                    format!(
+                    "the springs between elements {} and {} overflow (k_n = {:e} Pa/m); check E, \
+                        thickness, the penalty and the mesh size", i.a, i.b, i.k_n),
+                ));
             }
         }
         Ok(())

@@ -498,7 +498,11 @@ pub fn histories(dir: &Path) -> Result<Vec<std::path::PathBuf>> {
         written.push(path);
     }
     if written.is_empty() {
-        return Err(invalid(dir, "holds neither history.csv (from `rbsm run`) nor fraction_F.csv files (from `rbsm stability --out`)"));
+        return Err(invalid(
+            dir,
+            "holds neither history.csv (from `rbsm run`) nor fraction_F.csv \
+            files (from `rbsm stability --out`)",
+        ));
     }
     Ok(written)
 }

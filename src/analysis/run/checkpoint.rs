@@ -83,8 +83,13 @@ impl Checkpoint {
     pub fn read(dir: &Path, scene: &Scene, opts: &Overrides) -> Result<Checkpoint> {
         let path: PathBuf = dir.join(FILE);
         let bytes = std::fs::read(&path).map_err(|e| match e.kind() {
-            std::io::ErrorKind::NotFound => Error::io(&path, std::io::Error::other(
-                "no checkpoint here: a run writes one only when its scene sets `output.checkpoint_every`, and removes it once it has finished")),
+            std::io::ErrorKind::NotFound => Error::io(
+                &path,
+                std::io::Error::other(
+                    "no checkpoint here: a run writes one only when its scene sets \
+                    `output.checkpoint_every`, and removes it once it has finished",
+                ),
+            ),
             _ => Error::io(&path, e),
         })?;
         let bad = |why: String| Error::io(&path, std::io::Error::other(why));
@@ -97,7 +102,12 @@ impl Checkpoint {
             )));
         }
         if checkpoint.fingerprint != fingerprint(scene, opts) {
-            return Err(bad("written by a run of another scene or other options (--evaluator, --dt, --dt-factor, --steps): resume with the scene and options the run was started with".into()));
+            return Err(bad(
+                "written by a run of another scene or other options (--evaluator, \
+                --dt, --dt-factor, --steps): resume with the scene and options the run was \
+                started with"
+                    .into(),
+            ));
         }
         Ok(checkpoint)
     }

@@ -110,7 +110,8 @@ pub fn run(
         .filter(|i| i.b == crate::model::GROUND)
         .count();
     monitor.info(&format!(
-        "{}: {} elements, {} interfaces between elements and {} ground springs, {} free DOFs ({} formulation, {} evaluator, {} threads)",
+        "{}: {} elements, {} interfaces between elements and {} ground springs, {} free DOFs ({} \
+            formulation, {} evaluator, {} threads)",
         model.name,
         model.elements.len(),
         model.interfaces.len() - ground_springs,
@@ -304,13 +305,24 @@ impl crate::analysis::Report for Summary {
                     "the step reached"
                 };
                 format!(
-                    "{}: {} at {reason}\n  the outputs in {} hold the run up to {state}: step {} (t = {:.6e} s)",
-                    self.scene, self.status, self.dir.display(), self.steps, self.t_end
+                    "{}: {} at {reason}\n  the outputs in {} hold the run up to {state}: step {} \
+                        (t = {:.6e} s)",
+                    self.scene,
+                    self.status,
+                    self.dir.display(),
+                    self.steps,
+                    self.t_end
                 )
             }
             None => format!(
-                "{}: ok, {} steps (t = {:.6e} s) in {:.3} s; energy drift {:.3e} of the largest energy; outputs in {}",
-                self.scene, self.steps, self.t_end, self.wall_time_s, self.energy.max_relative_drift, self.dir.display()
+                "{}: ok, {} steps (t = {:.6e} s) in {:.3} s; energy drift {:.3e} of the largest \
+                    energy; outputs in {}",
+                self.scene,
+                self.steps,
+                self.t_end,
+                self.wall_time_s,
+                self.energy.max_relative_drift,
+                self.dir.display()
             ),
         }
     }
