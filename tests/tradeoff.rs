@@ -89,6 +89,21 @@ fn the_column_converges_to_the_bar_and_the_front_is_marked() {
         .points
         .iter()
         .all(|p| p.status == "ok" && p.steps > 0 && p.dt_crit > 0.0 && p.wall_s > 0.0));
+    // Each time is a median of runs that add up to 0.2 s of stepping (or 25 runs; a median
+    // times the runs is at least half their sum), within the range of those runs.
+    for p in &report.points {
+        assert!(
+            (1..=25).contains(&p.runs)
+                && (p.runs == 25 || p.runs as f64 * p.stepping_s >= 0.1)
+                && p.wall_range_s[0] <= p.wall_s
+                && p.wall_s <= p.wall_range_s[1],
+            "{} runs, stepping {} s, wall {} in {:?}",
+            p.runs,
+            p.stepping_s,
+            p.wall_s,
+            p.wall_range_s
+        );
+    }
     let cheapest = report
         .points
         .iter()

@@ -145,8 +145,13 @@ pub struct Point {
     pub setup_s: f64,
     /// The time loop (s).
     pub stepping_s: f64,
-    /// `setup_s + stepping_s`: what the point cost.
+    /// `setup_s + stepping_s`: what the point cost. Each is the median of the point's runs.
     pub wall_s: f64,
+    /// Runs of the point: repeated until their stepping adds up to 0.2 s (at most 25), so that
+    /// its time is a median, not one noisy sample.
+    pub runs: usize,
+    /// The least and the largest wall time of those runs (s): the spread of `wall_s`.
+    pub wall_range_s: [f64; 2],
     /// Peak resident memory of the process during the point (MiB), where the system tells it.
     pub peak_mib: Option<f64>,
     /// `ok`, or why the run stopped.
@@ -204,7 +209,16 @@ pub fn sweep(
             apply(&mut point_scene, *key, value)?;
         }
         point_scene.validate()?;
-        let (point, measure) = run_point(&point_scene, settings)?;
+        let (mut point, measure) = run_point(&point_scene, settings.clone())?;
+        let mut times = vec![(point.setup_s, point.stepping_s)];
+        while point.status == "ok"
+            && times.len() < MAX_RUNS
+            && times.iter().map(|t| t.1).sum::<f64>() < MIN_STEPPING_S
+        {
+            let (again, _) = run_point(&point_scene, settings.clone())?;
+            times.push((again.setup_s, again.stepping_s));
+        }
+        point.timed(&times);
         progress(&point);
         runs.push((point, measure));
     }
@@ -325,6 +339,38 @@ fn peak_memory_mib() -> Option<f64> {
     Some(line.split_whitespace().nth(1)?.parse::<f64>().ok()? / 1024.0)
 }
 
+/// A point is run again until its runs' stepping adds up to this much (s)...
+const MIN_STEPPING_S: f64 = 0.2;
+/// ... or it has run this many times.
+const MAX_RUNS: usize = 25;
+
+/// The median of `x` (not empty).
+fn median(mut x: Vec<f64>) -> f64 {
+    x.sort_by(f64::total_cmp);
+    let n = x.len();
+    if n % 2 == 1 {
+        x[n / 2]
+    } else {
+        0.5 * (x[n / 2 - 1] + x[n / 2])
+    }
+}
+
+impl Point {
+    /// Sets the point's times from its runs' `(setup, stepping)` times (s): medians, and the
+    /// range of the wall times.
+    fn timed(&mut self, runs: &[(f64, f64)]) {
+        let walls: Vec<f64> = runs.iter().map(|t| t.0 + t.1).collect();
+        self.setup_s = median(runs.iter().map(|t| t.0).collect());
+        self.stepping_s = median(runs.iter().map(|t| t.1).collect());
+        self.wall_s = median(walls.clone());
+        self.runs = runs.len();
+        self.wall_range_s = [
+            walls.iter().copied().fold(f64::INFINITY, f64::min),
+            walls.iter().copied().fold(0.0, f64::max),
+        ];
+    }
+}
+
 /// Runs one point and measures it.
 fn run_point(scene: &Scene, settings: Vec<(Key, String)>) -> Result<(Point, Measure)> {
     reset_peak_memory();
@@ -406,6 +452,8 @@ fn run_point(scene: &Scene, settings: Vec<(Key, String)>) -> Result<(Point, Meas
         status,
         error: None,
         pareto: false,
+        runs: 1,
+        wall_range_s: [setup_s + stepping_s; 2],
     };
     Ok((point, measure))
 }
@@ -662,14 +710,16 @@ impl TradeoffReport {
             .map(|p| p.settings.iter().map(|s| s.0.name()).collect())
             .unwrap_or_default();
         let mut csv = keys.iter().map(|k| format!("{k},")).collect::<String>();
-        csv.push_str("elements,dofs,dt,dt_crit,steps,setup_s,stepping_s,wall_s,peak_mib,error,pareto,status\n");
+        csv.push_str("elements,dofs,dt,dt_crit,steps,setup_s,stepping_s,wall_s,runs,wall_min_s,wall_max_s,peak_mib,\
+            error,pareto,status\n",
+        );
         let mut md = format!(
             "Scene `{}`. Reference: {}. Error: {}.\n\n",
             self.scene, self.reference, self.error
         );
         md.push_str(&format!(
-            "| {} | elements | Δt (s) | Δt/Δt_crit | steps | wall (s) | peak \
-            (MiB) | error | Pareto |\n",
+            "| {} | elements | Δt (s) | Δt/Δt_crit | steps | wall (s), median (range) of \
+            runs | peak (MiB) | error | Pareto |\n",
             keys.join(" | ")
         ));
         md.push_str(&format!(
@@ -682,7 +732,7 @@ impl TradeoffReport {
             let peak = p.peak_mib.map_or(String::new(), |m| format!("{m:.1}"));
             csv.push_str(&values.iter().map(|v| format!("{v},")).collect::<String>());
             csv.push_str(&format!(
-                "{},{},{:e},{:e},{},{:.6},{:.6},{:.6},{peak},{err},{},\"{}\"\n",
+                "{},{},{:e},{:e},{},{:.6},{:.6},{:.6},{},{:.6},{:.6},{peak},{err},{},\"{}\"\n",
                 p.elements,
                 p.dofs,
                 p.dt,
@@ -691,6 +741,9 @@ impl TradeoffReport {
                 p.setup_s,
                 p.stepping_s,
                 p.wall_s,
+                p.runs,
+                p.wall_range_s[0],
+                p.wall_range_s[1],
                 p.pareto,
                 p.status.replace('"', "'")
             ));
@@ -700,13 +753,17 @@ impl TradeoffReport {
                 (None, s) => s.split(':').next().unwrap_or(s).to_string(),
             };
             md.push_str(&format!(
-                "| {} | {} | {:.3e} | {:.3} | {} | {:.3e} | {peak} | {err_md} | {} |\n",
+                "| {} | {} | {:.3e} | {:.3} | {} | {:.3e} ({:.2e}–{:.2e}) of {} | {peak} | \
+                {err_md} | {} |\n",
                 values.join(" | "),
                 p.elements,
                 p.dt,
                 p.dt / p.dt_crit,
                 p.steps,
                 p.wall_s,
+                p.wall_range_s[0],
+                p.wall_range_s[1],
+                p.runs,
                 if p.pareto { "◆" } else { "" }
             ));
         }
