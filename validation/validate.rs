@@ -474,24 +474,7 @@ fn patch(r: &mut Report) {
                         (gamma * x.y, 0.0)
                     }
                 };
-                let scale = m
-                    .elements
-                    .iter()
-                    .map(|el| {
-                        let (a, b) = exact(el.props.centroid);
-                        a.hypot(b)
-                    })
-                    .fold(0.0, f64::max);
-                let du = m
-                    .elements
-                    .iter()
-                    .enumerate()
-                    .map(|(k, el)| {
-                        let (a, b) = exact(el.props.centroid);
-                        (u[3 * k] - a).hypot(u[3 * k + 1] - b)
-                    })
-                    .fold(0.0, f64::max)
-                    / scale;
+                let du = fixtures::extremes::patch_error(&m, &u, exact);
                 let dt = m
                     .interfaces
                     .iter()
@@ -914,24 +897,7 @@ fn hybrid(r: &mut Report) {
                             (gamma * x.y, 0.0)
                         }
                     };
-                    let scale = m
-                        .elements
-                        .iter()
-                        .map(|el| {
-                            let (a, b) = exact(el.props.centroid);
-                            a.hypot(b)
-                        })
-                        .fold(0.0, f64::max);
-                    let err = m
-                        .elements
-                        .iter()
-                        .enumerate()
-                        .map(|(k, el)| {
-                            let (a, b) = exact(el.props.centroid);
-                            (u[6 * k] - a).hypot(u[6 * k + 1] - b)
-                        })
-                        .fold(0.0, f64::max)
-                        / scale;
+                    let err = fixtures::extremes::patch_error(&m, &u, exact);
                     errs.push(err);
                     r.figure(
                         &format!("hybrid patch {name} ν={nu} {case} p={p:.0e}"),
