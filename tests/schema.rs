@@ -94,6 +94,12 @@ fn extras() -> Vec<(String, Value)> {
     contact["contact"] = json!({"model": "point", "friction": 0.3});
     contact["reference"] = json!({"kind": "hopping-block"});
 
+    let mut plastic = load("tension_bar.json");
+    plastic["materials"]["concrete"]["interface"] = json!({"kind": "mohr-coulomb",
+        "tensile_strength": 1e6, "cohesion": 2e6, "friction_angle": 35});
+    let mut elastic = load("tension_bar.json");
+    elastic["materials"]["concrete"]["interface"] = json!({"kind": "elastic"});
+
     let mut minimal = load("cantilever.json");
     for key in ["plane", "evaluator", "output"] {
         minimal.as_object_mut().unwrap().remove(key);
@@ -106,6 +112,8 @@ fn extras() -> Vec<(String, Value)> {
         ("polygons array", polygons),
         ("hybrid", hybrid),
         ("point contact", contact),
+        ("mohr-coulomb", plastic),
+        ("elastic law", elastic),
         ("minimal", minimal),
     ]
     .into_iter()

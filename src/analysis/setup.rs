@@ -6,6 +6,7 @@ use crate::analysis::{eigen, stability};
 use crate::error::{Error, Result};
 use crate::force::contact::{self, Contact, WithBlocks};
 use crate::force::evaluator::{self, Evaluator};
+use crate::force::failure::{self, PlasticForces};
 use crate::input::scene::{EvaluatorKind, Scene};
 use crate::model::loads::Loads;
 use crate::model::mass::Mass;
@@ -36,6 +37,9 @@ pub struct Setup {
     pub model: Model,
     /// The evaluator of `f_int`.
     pub evaluator: Box<dyn Evaluator>,
+    /// The plastic forces of the failing interfaces, in the evaluator's manner; `None` when no
+    /// material's interfaces fail (then no interface has a state).
+    pub plastic: Option<Box<dyn PlasticForces>>,
     /// `M` and its inverse.
     pub mass: Mass,
     /// Point loads and gravity.
@@ -59,7 +63,9 @@ impl Setup {
     /// Builds everything an analysis of `scene` needs.
     pub fn new(scene: &Scene, overrides: &Overrides) -> Result<Setup> {
         let model = Model::build(scene)?;
-        let evaluator = evaluator::build(&model, overrides.evaluator.unwrap_or(scene.evaluator));
+        let kind = overrides.evaluator.unwrap_or(scene.evaluator);
+        let evaluator = evaluator::build(&model, kind);
+        let plastic = failure::build(&model, kind);
         let mass = Mass::new(&model);
         let loads = Loads::new(&model);
         let contact = Contact::new(&model);
@@ -103,6 +109,7 @@ impl Setup {
             overrides: overrides.clone(),
             model,
             evaluator,
+            plastic,
             mass,
             loads,
             contact,
@@ -114,7 +121,8 @@ impl Setup {
     }
 
     /// A central-difference integrator of the model at time step `dt`, from the initial state
-    /// (the contact's included), with the guard told `Δt_crit`.
+    /// (the contact's and the failing interfaces' included), with the guard told `Δt_crit`
+    /// (the elastic one: softening only lowers the stiffness).
     pub fn integrator(&self, dt: f64) -> CentralDifference<'_> {
         let mut cd = CentralDifference::new(
             &self.model,
@@ -124,6 +132,12 @@ impl Setup {
             self.contact.as_ref().map(Contact::copy),
             dt,
         );
+        if let Some(plastic) = &self.plastic {
+            cd = cd.with_failure(plastic.as_ref());
+        }
+        if !self.model.prescribed.is_empty() {
+            cd = cd.with_prescribed(&self.model);
+        }
         cd.set_stability_limit(self.dt_crit);
         cd
     }

@@ -183,7 +183,7 @@ pub fn write(dir: &Path, setup: &Setup, report: &StaticReport) -> Result<()> {
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
     crate::output::write_json(&dir.join("summary.json"), report)?;
     let v = vec![0.0; u.len()];
-    crate::output::write_final_state(dir, model, 0.0, u, &v)?;
+    crate::output::write_final_state(dir, model, 0.0, u, &v, None)?;
     crate::output::write_probe_rows(
         dir,
         &setup.probes()?,

@@ -1,5 +1,7 @@
 //! Stage 4, the forces: the internal forces of the interfaces ([`evaluator`], assembled or
-//! element-wise) and the contact forces between bodies ([`contact`]).
+//! element-wise), their plastic part where interfaces fail ([`failure`]) and the contact
+//! forces between bodies ([`contact`]).
 
 pub mod contact;
 pub mod evaluator;
+pub mod failure;

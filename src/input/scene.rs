@@ -112,7 +112,7 @@ pub enum FormulationSpec {
 /// The keys of a `kind` that has none: an object with only `kind` (serde's internally tagged
 /// unit variants would accept and drop any other key, so `{"kind": "rigid", "penalty": 100}`
 /// would pass silently).
-#[derive(Deserialize)]
+#[derive(Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 struct NoKeys {}
 
@@ -191,6 +191,114 @@ pub struct MaterialSpec {
     /// Density (kg/m³), > 0.
     #[schemars(extend("exclusiveMinimum" = 0))]
     pub rho: f64,
+    /// The law of the interfaces between its elements (eq. 11): `elastic` when absent.
+    #[serde(default)]
+    pub interface: InterfaceLawSpec,
+}
+
+/// The law of a material's interfaces (`kind`: `elastic`, `mohr-coulomb` or `softening`;
+/// `docs/scene.md`, *Interfaces that fail*).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+#[serde(tag = "kind", rename_all = "kebab-case")]
+pub enum InterfaceLawSpec {
+    /// Springs that never yield.
+    #[default]
+    Elastic,
+    /// Mohr–Coulomb with a tension cut-off, elastic–perfectly plastic.
+    MohrCoulomb(StrengthSpec),
+    /// The same surface, softening with the plastic opening and slip until it is exhausted.
+    Softening(SofteningSpec),
+}
+
+/// The strength of an interface: `σ ≤ f_t` and `|τ| ≤ c − σ tan φ` (compression negative).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct StrengthSpec {
+    /// Tensile strength `f_t` (Pa), ≥ 0.
+    #[schemars(extend("minimum" = 0))]
+    pub tensile_strength: f64,
+    /// Cohesion `c` (Pa), ≥ 0.
+    #[schemars(extend("minimum" = 0))]
+    pub cohesion: f64,
+    /// Friction angle `φ` (degrees), in [0, 90).
+    #[schemars(extend("minimum" = 0, "exclusiveMaximum" = 90))]
+    pub friction_angle: f64,
+}
+
+/// A softening strength: [`StrengthSpec`]'s keys and the fracture energies that exhaust it.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct SofteningSpec {
+    /// Tensile strength `f_t` (Pa), ≥ 0.
+    #[schemars(extend("minimum" = 0))]
+    pub tensile_strength: f64,
+    /// Cohesion `c` (Pa), ≥ 0.
+    #[schemars(extend("minimum" = 0))]
+    pub cohesion: f64,
+    /// Friction angle `φ` (degrees), in [0, 90).
+    #[schemars(extend("minimum" = 0, "exclusiveMaximum" = 90))]
+    pub friction_angle: f64,
+    /// Mode I fracture energy `G_f` (J/m²), > 0: the work of tension per unit crack area.
+    #[schemars(extend("exclusiveMinimum" = 0))]
+    pub fracture_energy: f64,
+    /// Mode II fracture energy `G_f,II` (J/m²), > 0: the work of cohesion per unit crack area.
+    #[schemars(extend("exclusiveMinimum" = 0))]
+    pub fracture_energy_shear: f64,
+}
+
+impl InterfaceLawSpec {
+    /// The strength, and the fracture energies `(G_f, G_f,II)` of a softening law; `None` for
+    /// an elastic law.
+    pub fn strength(&self) -> Option<(StrengthSpec, Option<[f64; 2]>)> {
+        match *self {
+            InterfaceLawSpec::Elastic => None,
+            InterfaceLawSpec::MohrCoulomb(s) => Some((s, None)),
+            InterfaceLawSpec::Softening(s) => Some((
+                StrengthSpec {
+                    tensile_strength: s.tensile_strength,
+                    cohesion: s.cohesion,
+                    friction_angle: s.friction_angle,
+                },
+                Some([s.fracture_energy, s.fracture_energy_shear]),
+            )),
+        }
+    }
+}
+
+impl<'de> Deserialize<'de> for InterfaceLawSpec {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        let (kind, rest) = split_kind(d)?;
+        match kind.as_str() {
+            "elastic" => variant(rest).map(|NoKeys {}| InterfaceLawSpec::Elastic),
+            "mohr-coulomb" => variant(rest).map(InterfaceLawSpec::MohrCoulomb),
+            "softening" => variant(rest).map(InterfaceLawSpec::Softening),
+            other => Err(unknown_kind(
+                other,
+                &["elastic", "mohr-coulomb", "softening"],
+            )),
+        }
+    }
+}
+
+/// One object per kind, as [`InterfaceLawSpec`]'s `Deserialize` reads them (keep the two in
+/// step).
+impl JsonSchema for InterfaceLawSpec {
+    fn schema_name() -> Cow<'static, str> {
+        "InterfaceLawSpec".into()
+    }
+
+    fn json_schema(generator: &mut SchemaGenerator) -> Schema {
+        let variants = [
+            kind_variant::<NoKeys>(generator, "elastic"),
+            kind_variant::<StrengthSpec>(generator, "mohr-coulomb"),
+            kind_variant::<SofteningSpec>(generator, "softening"),
+        ];
+        one_of_kinds(
+            "The law of a material's interfaces (`kind`: `elastic`, `mohr-coulomb` or \
+             `softening`).",
+            variants,
+        )
+    }
 }
 
 /// One body: a meshed region of one material.
@@ -609,6 +717,15 @@ pub struct ClampSpec {
     /// DOF names (`u`, `v`, `theta`; hybrid also `ex`, `ey`, `gxy`); all when absent.
     #[schemars(transform = items_dof_names)]
     pub dofs: Option<Vec<String>>,
+    /// Displacement control: the clamped `u` and `v` move at this velocity `[v_x, v_y]` (m/s)
+    /// instead of staying at zero, and the history records the clamp's displacement and
+    /// reaction. A component other than 0 needs its DOF clamped.
+    #[serde(default)]
+    pub velocity: Option<[f64; 2]>,
+    /// Time over which the velocity rises linearly from zero (s), ≥ 0: a smooth start.
+    #[serde(default)]
+    #[schemars(extend("minimum" = 0))]
+    pub ramp: f64,
 }
 
 impl<'de> Deserialize<'de> for SupportSpec {
@@ -1136,6 +1253,31 @@ impl Scene {
                     format!("must lie in (-1, 0.5), got {}", m.nu),
                 ));
             }
+            if let Some((strength, energies)) = m.interface.strength() {
+                let at = |k: &str| format!("materials.{name}.interface.{k}");
+                for (key, x) in [
+                    ("tensile_strength", strength.tensile_strength),
+                    ("cohesion", strength.cohesion),
+                ] {
+                    if !(x >= 0.0 && x.is_finite()) {
+                        return Err(Error::scene(
+                            at(key),
+                            format!("must be a finite number ≥ 0 (Pa), got {x}"),
+                        ));
+                    }
+                }
+                let phi = strength.friction_angle;
+                if !(0.0..90.0).contains(&phi) {
+                    return Err(Error::scene(
+                        at("friction_angle"),
+                        format!("must lie in [0, 90) degrees, got {phi}"),
+                    ));
+                }
+                if let Some([g_f, g_s]) = energies {
+                    positive(&at("fracture_energy"), g_f)?;
+                    positive(&at("fracture_energy_shear"), g_s)?;
+                }
+            }
         }
         if self.bodies.is_empty() {
             return Err(Error::scene("bodies", "at least one body is needed"));
@@ -1153,7 +1295,24 @@ impl Scene {
                 ));
             }
         }
-        let mut columns: Vec<String> = HISTORY_COLUMNS.iter().map(|c| c.to_string()).collect();
+        // The history's own columns: the energies, those a model may add, and the moving
+        // clamps'.
+        let mut columns: Vec<String> = HISTORY_COLUMNS
+            .iter()
+            .chain(&["fracture", "friction", "damping"])
+            .map(|c| c.to_string())
+            .collect();
+        for b in &self.bodies {
+            for (k, s) in b.supports.iter().enumerate() {
+                if let SupportSpec::Clamp(ClampSpec {
+                    velocity: Some(_), ..
+                }) = s
+                {
+                    columns.extend(["disp", "force"].map(|c| format!("{}_s{k}_{c}", b.name)));
+                }
+            }
+        }
+        let own = columns.len();
         for (k, p) in self.output.probes.iter().enumerate() {
             match (p.element, p.at) {
                 (Some(_), None) => {}
@@ -1180,13 +1339,10 @@ impl Scene {
                 ));
             }
             if let Some(i) = columns.iter().position(|c| *c == column) {
-                let what = if i < HISTORY_COLUMNS.len() {
+                let what = if i < own {
                     "one of the history's own columns".to_string()
                 } else {
-                    format!(
-                        "the column of `output.probes[{}]`",
-                        i - HISTORY_COLUMNS.len()
-                    )
+                    format!("the column of `output.probes[{}]`", i - own)
                 };
                 return Err(Error::scene(
                     field,
@@ -1341,12 +1497,39 @@ impl Scene {
             }
         }
         for (k, s) in b.supports.iter().enumerate() {
-            if let SupportSpec::GroundSpring(GroundSpringSpec { components, .. }) = s {
-                if components.is_empty() {
-                    return Err(Error::scene(
-                        at(&format!("supports[{k}].components")),
-                        "must list `n`, `s` or both",
-                    ));
+            match s {
+                SupportSpec::GroundSpring(GroundSpringSpec { components, .. }) => {
+                    if components.is_empty() {
+                        return Err(Error::scene(
+                            at(&format!("supports[{k}].components")),
+                            "must list `n`, `s` or both",
+                        ));
+                    }
+                }
+                SupportSpec::Clamp(ClampSpec {
+                    dofs,
+                    velocity,
+                    ramp,
+                    ..
+                }) => {
+                    if let Some(velocity) = velocity {
+                        finite_all(&at(&format!("supports[{k}].velocity")), velocity)?;
+                        for (c, dof) in ["u", "v"].into_iter().enumerate() {
+                            let clamped = dofs.as_ref().is_none_or(|d| d.iter().any(|n| n == dof));
+                            if velocity[c] != 0.0 && !clamped {
+                                return Err(Error::scene(
+                                    at(&format!("supports[{k}].velocity[{c}]")),
+                                    format!("must be 0 unless `dofs` lists `{dof}`"),
+                                ));
+                            }
+                        }
+                    }
+                    if !(*ramp >= 0.0 && ramp.is_finite()) {
+                        return Err(Error::scene(
+                            at(&format!("supports[{k}].ramp")),
+                            format!("must be a finite number ≥ 0 (s), got {ramp}"),
+                        ));
+                    }
                 }
             }
         }

@@ -63,3 +63,160 @@ impl InterfaceLaw for Elastic {
         true
     }
 }
+
+/// The strength of an interface that fails (eq. 11 beyond its elastic range): Mohr–Coulomb with
+/// a tension cut-off, `σ ≤ f_t` and `|τ| ≤ c − σ tan φ` on the traction `(σ, τ) = (λ_n, λ_s)`
+/// (compression negative), softening linearly with the plastic opening and slip until it is
+/// exhausted (`paper_notes.md`, item 22).
+///
+/// Inside the surface the springs are elastic, `λ = diag(k_n, k_s) (δ − δ_p)`; on it the plastic
+/// relative displacement `δ_p` grows. The flow is not associated and has no dilatancy: the
+/// tension cut-off opens `δ_p,n`, the shear surface slides `δ_p,s`, so the return of each is
+/// one division and the two do not interact ([`Strength::update`]). With fracture energies
+/// `G_f`, `G_f,II` the strengths scale by `1 − ξ`, `ξ = κ_n / w_n + κ_s / w_s` (at most 1),
+/// where `κ_n` and `κ_s` are the plastic opening and slip accumulated on the cut-off and on the
+/// shear surface, and `w_n = 2 G_f / f_t`, `w_s = 2 G_f,II / c` the opening and slip at which
+/// linear softening has spent `G_f` and `G_f,II` per unit area: written in displacement, the
+/// dissipated energy does not depend on the element size. An interface with `ξ = 1` is broken:
+/// it keeps compression and Coulomb friction, `|τ| ≤ −σ tan φ`, and nothing else.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Strength {
+    /// Tensile strength `f_t` (Pa).
+    pub f_t: f64,
+    /// Cohesion `c` (Pa).
+    pub c: f64,
+    /// `tan φ` of the friction angle.
+    pub tan_phi: f64,
+    /// Plastic opening `w_n = 2 G_f / f_t` (m) that exhausts the strength in tension; infinite
+    /// for perfect plasticity.
+    pub w_n: f64,
+    /// Plastic slip `w_s = 2 G_f,II / c` (m) that exhausts it in shear; infinite for perfect
+    /// plasticity.
+    pub w_s: f64,
+}
+
+/// The state of one Gauss point of an interface with a [`Strength`].
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct PlasticPoint {
+    /// Plastic relative displacement `δ_p = (δ_p,n, δ_p,s)` (m).
+    pub p: [f64; 2],
+    /// Plastic opening and slip accumulated on the cut-off and the shear surface (m).
+    pub kappa: [f64; 2],
+    /// Work of the strength (tension and cohesion) per unit area (J/m²).
+    pub fracture: f64,
+    /// Work of friction `−σ tan φ |Δδ_p,s|` per unit area (J/m²).
+    pub friction: f64,
+}
+
+impl Strength {
+    /// The strength of a scene's law, `None` for an elastic one.
+    pub fn from_spec(spec: &crate::input::scene::InterfaceLawSpec) -> Option<Strength> {
+        let (s, energies) = spec.strength()?;
+        let exhaust = |g: Option<f64>, strength: f64| match g {
+            Some(g) if strength > 0.0 => 2.0 * g / strength,
+            _ => f64::INFINITY,
+        };
+        Some(Strength {
+            f_t: s.tensile_strength,
+            c: s.cohesion,
+            tan_phi: s.friction_angle.to_radians().tan(),
+            w_n: exhaust(energies.map(|e| e[0]), s.tensile_strength),
+            w_s: exhaust(energies.map(|e| e[1]), s.cohesion),
+        })
+    }
+
+    /// How much of the strength is spent, `ξ` in [0, 1].
+    pub fn softening(&self, point: &PlasticPoint) -> f64 {
+        (point.kappa[0] / self.w_n + point.kappa[1] / self.w_s).min(1.0)
+    }
+
+    /// Whether the point's strength is exhausted.
+    pub fn is_broken(&self, point: &PlasticPoint) -> bool {
+        self.softening(point) >= 1.0 && (self.f_t > 0.0 || self.c > 0.0)
+    }
+
+    /// The return mapping at relative displacement `δ` with elastic springs `k` (Pa/m): the
+    /// traction `(σ, τ)` (Pa), with the point's plastic displacement, softening and dissipated
+    /// work updated. Backward Euler: the tension cut-off returns to the surface softened by its
+    /// own plastic opening, then the shear surface to the one softened by both, so that the
+    /// traction lies on the softening curve and the work booked is the work done; when an
+    /// increment exhausts the strength, the traction returns to the broken surface instead.
+    /// Where the softening is steeper than the spring (`k < f_t / w_n`, a snap-back at the
+    /// point) the strength of the start of the update is used. Returns whether the point
+    /// flowed.
+    #[inline]
+    pub fn update(
+        &self,
+        k: [f64; 2],
+        delta: [f64; 2],
+        point: &mut PlasticPoint,
+    ) -> ([f64; 2], bool) {
+        let xi = self.softening(point);
+        // The cut-off, lowered to the apex of the shear surface when that comes first; both
+        // scale with `1 − ξ`.
+        let cap = if self.tan_phi > 0.0 {
+            self.f_t.min(self.c / self.tan_phi)
+        } else {
+            self.f_t
+        };
+        let mut sigma = k[0] * (delta[0] - point.p[0]);
+        let mut dp_n = 0.0;
+        let mut spent = xi;
+        // The work of the flow: the area under the (linear) softening curve it followed, from
+        // the surface at the start to the traction at the end.
+        let mut work = 0.0;
+        if sigma > cap * (1.0 - xi) {
+            let slope = cap / self.w_n;
+            dp_n = if k[0] > slope {
+                (sigma - cap * (1.0 - xi)) / (k[0] - slope)
+            } else {
+                (sigma - cap * (1.0 - xi)) / k[0]
+            };
+            spent = (xi + dp_n / self.w_n).min(1.0);
+            if spent >= 1.0 {
+                dp_n = sigma / k[0];
+            }
+            sigma -= k[0] * dp_n;
+            // The softening part of the opening, then none: a broken cut-off does no work.
+            let softening = dp_n.min((1.0 - xi) * self.w_n);
+            work += 0.5 * cap * (2.0 * (1.0 - xi) - softening / self.w_n) * softening;
+        }
+        let friction_limit = (-sigma * self.tan_phi).max(0.0);
+        let limit = (self.c * (1.0 - spent) - sigma * self.tan_phi).max(0.0);
+        let mut tau = k[1] * (delta[1] - point.p[1]);
+        let mut dp_s = 0.0;
+        if tau.abs() > limit {
+            let slope = self.c / self.w_s;
+            let mut slide = if k[1] > slope && limit > friction_limit {
+                (tau.abs() - limit) / (k[1] - slope)
+            } else {
+                (tau.abs() - limit) / k[1]
+            };
+            if spent + slide / self.w_s >= 1.0 && self.c > 0.0 {
+                slide = ((tau.abs() - friction_limit) / k[1]).max(0.0);
+            }
+            dp_s = slide.copysign(tau);
+            tau -= k[1] * dp_s;
+            // Friction over the whole slide; the cohesion, softening, over its part of it.
+            let cohesion = |xi: f64| (self.c * (1.0 - xi) - sigma.max(0.0) * self.tan_phi).max(0.0);
+            let softening = if self.c > 0.0 {
+                slide.min((1.0 - spent) * self.w_s)
+            } else {
+                0.0
+            };
+            work += friction_limit * slide
+                + 0.5 * (cohesion(spent) + cohesion(spent + softening / self.w_s)) * softening;
+        }
+        let flowed = dp_n != 0.0 || dp_s != 0.0;
+        if flowed {
+            point.p[0] += dp_n;
+            point.p[1] += dp_s;
+            point.kappa[0] += dp_n;
+            point.kappa[1] += dp_s.abs();
+            let friction = friction_limit * dp_s.abs();
+            point.friction += friction;
+            point.fracture += work - friction;
+        }
+        ([sigma, tau], flowed)
+    }
+}

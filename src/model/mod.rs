@@ -17,7 +17,7 @@ use crate::input::scene::{
 use crate::mesh::geometry::{area_properties, AreaProperties, Vec2};
 use crate::mesh::Mesh;
 use crate::model::formulation::{elasticity, Formulation};
-use crate::model::law::{Elastic, InterfaceLaw};
+use crate::model::law::{Elastic, InterfaceLaw, Strength};
 use std::sync::Arc;
 
 /// Marks the `b` side of an interface tied to fixed ground (`U_b = 0`, `h_b = 0`).
@@ -161,6 +161,43 @@ pub struct Model {
     pub ground: Vec<[Vec2; 2]>,
     /// The law of the interfaces and contact springs (eq. 11): [`Elastic`] unless replaced.
     pub law: Arc<dyn InterfaceLaw>,
+    /// The strength of each interface whose material's law fails (`materials.*.interface`),
+    /// in interface order; empty when no law fails (then no interface has a state).
+    pub strength: Vec<Option<Strength>>,
+    /// Clamps that move (displacement control), in scene order.
+    pub prescribed: Vec<Prescribed>,
+}
+
+/// A clamp that moves at a given velocity (displacement control): its elements' clamped `u`
+/// and `v` follow `d(t)`, the velocity rising linearly over the ramp.
+#[derive(Debug, Clone)]
+pub struct Prescribed {
+    /// `<body>_s<k>`: the body's name and the support's index, the prefix of its history
+    /// columns.
+    pub name: String,
+    /// The velocity after the ramp (m/s).
+    pub velocity: Vec2,
+    /// The ramp's duration (s).
+    pub ramp: f64,
+    /// The moving DOFs (global indices) with the velocity component each follows (0: x, 1: y).
+    pub dofs: Vec<(usize, usize)>,
+}
+
+impl Prescribed {
+    /// The displacement `d(t)` along the velocity's direction per unit speed: `t²/(2 T)` during
+    /// the ramp `T`, then `t − T/2`.
+    pub fn travel(&self, t: f64) -> f64 {
+        if t < self.ramp {
+            0.5 * t * t / self.ramp
+        } else {
+            t - 0.5 * self.ramp
+        }
+    }
+
+    /// The displacement of component `c` at time `t` (m).
+    pub fn displacement(&self, c: usize, t: f64) -> f64 {
+        self.velocity[c] * self.travel(t)
+    }
 }
 
 /// The numerators of eq. 12, `k_n = E_n / (h_a + h_b)`, `k_s = E_s / (h_a + h_b)`:
@@ -203,7 +240,13 @@ impl Model {
                 .map(|g| [Vec2::new(g.from[0], g.from[1]), Vec2::new(g.to[0], g.to[1])])
                 .collect(),
             law: Arc::new(Elastic),
+            strength: Vec::new(),
+            prescribed: Vec::new(),
         };
+        let fails = scene
+            .materials
+            .values()
+            .any(|m| m.interface != crate::input::scene::InterfaceLawSpec::Elastic);
         // What the scene's meshes will make, known before meshing except for gmsh files,
         // whose elements are counted once read.
         let mut expected: u64 = scene
@@ -261,6 +304,11 @@ impl Model {
                     )
                     .map_err(|m| Error::mesh(&spec.name, e.a as usize, m))?;
                 model.interfaces.push(iface);
+                if fails {
+                    model
+                        .strength
+                        .push(Strength::from_spec(&material.interface));
+                }
             }
             for (k, s) in spec.supports.iter().enumerate() {
                 let field = at(&format!("supports[{k}].edge"));
@@ -284,9 +332,19 @@ impl Model {
                                 iface.k_s = 0.0;
                             }
                             model.interfaces.push(iface);
+                            if fails {
+                                // Supports are boundary conditions, not material: they stay
+                                // elastic.
+                                model.strength.push(None);
+                            }
                         }
                     }
-                    SupportSpec::Clamp(ClampSpec { edge, dofs }) => {
+                    SupportSpec::Clamp(ClampSpec {
+                        edge,
+                        dofs,
+                        velocity,
+                        ramp,
+                    }) => {
                         let which: Vec<usize> = match dofs {
                             None => (0..nd).collect(),
                             Some(names) => names
@@ -296,9 +354,23 @@ impl Model {
                                 })
                                 .collect::<Result<_>>()?,
                         };
+                        let mut moving = Vec::new();
                         for e in side_edges(&mesh, edge, &field)? {
                             let el = first + e.cell as usize;
                             model.fixed.extend(which.iter().map(|&d| el * nd + d));
+                            moving.extend(
+                                which.iter().filter(|&&d| d < 2).map(|&d| (el * nd + d, d)),
+                            );
+                        }
+                        if let Some(v) = velocity {
+                            moving.sort_unstable();
+                            moving.dedup();
+                            model.prescribed.push(Prescribed {
+                                name: format!("{}_s{k}", spec.name),
+                                velocity: Vec2::new(v[0], v[1]),
+                                ramp: *ramp,
+                                dofs: moving,
+                            });
                         }
                     }
                 }

@@ -58,9 +58,99 @@ pub struct Summary {
     /// The probe columns of `history.csv` with their units (`rbsm plot` labels its axes so).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub probes: Vec<ProbeColumn>,
+    /// The failing interfaces at the end; only when a material's interfaces can fail.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub failure: Option<FailureSummary>,
+    /// Each moving clamp's largest reaction and where it was reached (the peak of its
+    /// load–displacement curve in `history.csv`).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub clamps: Vec<ClampSummary>,
     /// The folder the run wrote into (not in `summary.json`).
     #[serde(skip)]
     pub dir: PathBuf,
+}
+
+/// The failing interfaces of `summary.json` at the end of the run.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct FailureSummary {
+    /// Interfaces that can fail.
+    pub interfaces: usize,
+    /// Of these, those with plastic displacement and strength left.
+    pub yielding: usize,
+    /// Those whose strength is exhausted.
+    pub broken: usize,
+    /// Work of the strengths (tension and cohesion) (J).
+    pub fracture: f64,
+    /// Work of friction on the interfaces (J).
+    pub friction: f64,
+}
+
+impl FailureSummary {
+    /// The counts and works of a report of every failing interface.
+    pub fn of(
+        interfaces: &[crate::force::failure::InterfaceFailure],
+        dissipated: [f64; 2],
+    ) -> Self {
+        FailureSummary {
+            interfaces: interfaces.len(),
+            yielding: interfaces.iter().filter(|i| i.status == "yielding").count(),
+            broken: interfaces.iter().filter(|i| i.status == "broken").count(),
+            fracture: dissipated[0],
+            friction: dissipated[1],
+        }
+    }
+}
+
+/// A moving clamp's peak reaction in `summary.json`.
+#[derive(Debug, Clone, Serialize)]
+pub struct ClampSummary {
+    /// The prefix of its history columns, `<body>_s<k>`.
+    pub name: String,
+    /// The largest reaction along its velocity among the recorded steps (N).
+    pub peak_force: f64,
+    /// The clamp's displacement there (m).
+    pub displacement_at_peak: f64,
+}
+
+/// The columns of `history.csv` beyond the seven energies, as the model asks for them.
+#[derive(Debug, Clone, Default)]
+pub struct Columns {
+    /// `fracture` and `friction`, when interfaces can fail.
+    pub failure: bool,
+    /// `damping`, when the model is damped.
+    pub damping: bool,
+    /// `<name>_disp` and `<name>_force` of each moving clamp.
+    pub clamps: Vec<crate::model::Prescribed>,
+    /// One column per probe.
+    pub probes: Vec<Probe>,
+}
+
+impl Columns {
+    /// The columns of `model`'s history with `probes`.
+    pub fn of(model: &Model, probes: Vec<Probe>) -> Self {
+        Columns {
+            failure: !model.strength.is_empty(),
+            damping: model.damping > 0.0,
+            clamps: model.prescribed.clone(),
+            probes,
+        }
+    }
+
+    /// The header after the seven energies.
+    fn header(&self) -> Vec<String> {
+        let mut h: Vec<String> = Vec::new();
+        if self.failure {
+            h.extend(["fracture".into(), "friction".into()]);
+        }
+        if self.damping {
+            h.push("damping".into());
+        }
+        for c in &self.clamps {
+            h.extend([format!("{}_disp", c.name), format!("{}_force", c.name)]);
+        }
+        h.extend(self.probes.iter().map(|p| p.name.clone()));
+        h
+    }
 }
 
 /// A probe column of `history.csv` and its unit.
@@ -149,34 +239,34 @@ impl Probe {
 pub struct History {
     file: std::fs::File,
     path: PathBuf,
-    probes: Vec<Probe>,
+    columns: Columns,
     /// Bytes of whole rows written so far.
     len: u64,
 }
 
 impl History {
     /// Creates the file and writes the header.
-    pub fn create(dir: &Path, probes: Vec<Probe>) -> Result<History> {
+    pub fn create(dir: &Path, columns: Columns) -> Result<History> {
         let path = dir.join("history.csv");
         let file = std::fs::File::create(&path).map_err(|e| Error::io(&path, e))?;
+        let mut header = crate::input::scene::HISTORY_COLUMNS.join(",");
+        for c in columns.header() {
+            header.push(',');
+            header.push_str(&c);
+        }
         let mut h = History {
             file,
             path,
-            probes,
+            columns,
             len: 0,
         };
-        let mut header = crate::input::scene::HISTORY_COLUMNS.join(",");
-        for p in &h.probes {
-            header.push(',');
-            header.push_str(&p.name);
-        }
         h.append(header)?;
         Ok(h)
     }
 
     /// Opens the history of an earlier run to go on after its first `len` bytes (the rows up to
     /// a checkpoint); the rest is cut off.
-    pub fn resume(dir: &Path, probes: Vec<Probe>, len: u64) -> Result<History> {
+    pub fn resume(dir: &Path, columns: Columns, len: u64) -> Result<History> {
         let path = dir.join("history.csv");
         let file = std::fs::OpenOptions::new()
             .write(true)
@@ -195,7 +285,7 @@ impl History {
         let mut h = History {
             file,
             path,
-            probes,
+            columns,
             len,
         };
         use std::io::Seek;
@@ -216,7 +306,18 @@ impl History {
             "{:e},{:e},{:e},{:e},{:e},{:e},{:e}",
             e.t, e.kinetic, e.elastic, e.contact, e.potential, e.external_work, e.total
         );
-        for p in &self.probes {
+        let c = &self.columns;
+        if c.failure {
+            row.push_str(&format!(",{:e},{:e}", e.fracture, e.friction));
+        }
+        if c.damping {
+            row.push_str(&format!(",{:e}", e.damping));
+        }
+        for (p, r) in c.clamps.iter().zip(s.reactions) {
+            let d = p.velocity.norm() * p.travel(s.t);
+            row.push_str(&format!(",{d:e},{r:e}"));
+        }
+        for p in &c.probes {
             row.push_str(&format!(",{:e}", p.value(s.u)));
         }
         self.append(row)
@@ -264,7 +365,15 @@ pub fn element_stress(model: &Model, e: usize, u: &[f64]) -> Option<[f64; 3]> {
 }
 
 /// Writes `final_state.json`: per element its reference centroid, `U` and `V`.
-pub fn write_final_state(dir: &Path, model: &Model, t: f64, u: &[f64], v: &[f64]) -> Result<()> {
+/// `interfaces` lists the failing interfaces' state, written only when the model has any.
+pub fn write_final_state(
+    dir: &Path,
+    model: &Model,
+    t: f64,
+    u: &[f64],
+    v: &[f64],
+    interfaces: Option<&[crate::force::failure::InterfaceFailure]>,
+) -> Result<()> {
     let nd = model.formulation.ndof();
     let elements: Vec<ElementState> = model
         .elements
@@ -277,10 +386,11 @@ pub fn write_final_state(dir: &Path, model: &Model, t: f64, u: &[f64], v: &[f64]
             stress: element_stress(model, e, &u[e * nd..(e + 1) * nd]),
         })
         .collect();
-    write_json(
-        &dir.join("final_state.json"),
-        &serde_json::json!({ "t": t, "elements": elements }),
-    )
+    let mut state = serde_json::json!({ "t": t, "elements": elements });
+    if let Some(i) = interfaces {
+        state["interfaces"] = serde_json::json!(i);
+    }
+    write_json(&dir.join("final_state.json"), &state)
 }
 
 /// Writes any serialisable value as pretty JSON, atomically ([`write_atomic`]).

@@ -10,15 +10,16 @@
 use crate::error::Result;
 use crate::force::contact::Contact;
 use crate::force::evaluator::Evaluator;
+use crate::force::failure::{FailureState, PlasticForces};
 use crate::model::loads::Loads;
 use crate::model::mass::{Mass, Update};
-use crate::model::Model;
+use crate::model::{Model, Prescribed};
 use crate::parallel::for_each_chunk;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
-/// The energies at one time (J); `total = kinetic + elastic + contact + potential − external_work`
-/// is constant for an undamped run, up to the integrator's error.
+/// The energies at one time (J); `total = kinetic + elastic + contact + potential + fracture +
+/// friction + damping − external_work` is constant, up to the integrator's error.
 #[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Energy {
     /// Time (s).
@@ -32,9 +33,16 @@ pub struct Energy {
     pub contact: f64,
     /// Gravitational potential energy relative to the initial configuration.
     pub potential: f64,
-    /// Work done by the applied loads since the start.
+    /// Work done by the applied loads and the moving clamps since the start.
     pub external_work: f64,
-    /// `kinetic + elastic + contact + potential − external_work` (J).
+    /// Work of the interfaces' strengths (tension and cohesion) so far (J; failing laws).
+    pub fracture: f64,
+    /// Work of friction on the interfaces so far (J; failing laws).
+    pub friction: f64,
+    /// Work of the mass-proportional damping so far (J).
+    pub damping: f64,
+    /// `kinetic + elastic + contact + potential + fracture + friction + damping −
+    /// external_work` (J).
     pub total: f64,
 }
 
@@ -72,6 +80,10 @@ pub struct Snapshot<'a> {
     pub u: &'a [f64],
     /// Whole-step velocities `v^n` (m/s, rad/s, 1/s).
     pub v: &'a [f64],
+    /// Each moving clamp's reaction along its velocity (N): what it pushes the body with.
+    pub reactions: &'a [f64],
+    /// The state of the failing interfaces, when the model has any.
+    pub failure: Option<&'a FailureState>,
 }
 
 /// The kinetic plus elastic energy may not exceed this multiple of the energy put in (the
@@ -123,6 +135,13 @@ pub struct CentralDifference<'a> {
     fraction: Option<f64>,
     /// Raised from outside (a signal handler) to stop the run at the next step.
     interrupt: Option<Arc<AtomicBool>>,
+    /// The plastic forces and the state of the failing interfaces, when the model has any.
+    failure: Option<(&'a dyn PlasticForces, FailureState)>,
+    /// The moving clamps, their element masses (kg) per DOF, and their reactions at the last
+    /// check.
+    prescribed: &'a [Prescribed],
+    clamp_mass: Vec<Vec<f64>>,
+    reactions: Vec<f64>,
 }
 
 impl Status {
@@ -146,8 +165,12 @@ impl Status {
 struct EnergyLedger {
     /// Contact energy at `t_n`: minus the work of the contact forces (`Contact::apply`).
     contact_energy: f64,
-    /// Work of the applied loads since the start.
+    /// Work of the applied loads and of the moving clamps (at rest mass) since the start.
     external_work: f64,
+    /// Work of the damping since the start.
+    damping: f64,
+    /// The moving clamps' work booked for the half step after the last check.
+    clamp_ahead: f64,
     /// The total energy at the first check.
     initial_total: Option<f64>,
     /// The largest energy put in so far (the guard's measure).
@@ -171,6 +194,7 @@ pub struct State {
     v: Vec<f64>,
     velocity: Vec<f64>,
     contact: Option<Contact>,
+    failure: Option<FailureState>,
     ledger: EnergyLedger,
 }
 
@@ -243,6 +267,10 @@ impl<'a> CentralDifference<'a> {
             fraction: None,
             pending: false,
             interrupt: None,
+            failure: None,
+            prescribed: &[],
+            clamp_mass: Vec::new(),
+            reactions: Vec::new(),
         };
         if s.contact.is_none() {
             s.loaded = loads.loaded_elements();
@@ -252,13 +280,154 @@ impl<'a> CentralDifference<'a> {
         s
     }
 
+    /// Lets the interfaces of `plastic` fail, from a state where all are elastic. The start
+    /// `v^{−½}` was taken with elastic springs, which is exact when `U^0` is within the
+    /// strengths (as the reference configuration `U^0 = 0` is).
+    pub fn with_failure(mut self, plastic: &'a dyn PlasticForces) -> Self {
+        self.failure = Some((plastic, plastic.initial()));
+        self
+    }
+
+    /// Moves the clamps of `model.prescribed` (displacement control). Their DOFs must be fixed
+    /// DOFs of the model, as `Model::build` makes them.
+    pub fn with_prescribed(mut self, model: &'a Model) -> Self {
+        let nd = model.formulation.ndof();
+        self.prescribed = &model.prescribed;
+        self.clamp_mass = model
+            .prescribed
+            .iter()
+            .map(|p| {
+                p.dofs
+                    .iter()
+                    .map(|&(d, _)| {
+                        let e = &model.elements[d / nd];
+                        e.rho * model.thickness * e.props.area
+                    })
+                    .collect()
+            })
+            .collect();
+        self.reactions = vec![0.0; model.prescribed.len()];
+        self.place_clamps();
+        self
+    }
+
+    /// The velocity of each moving clamp over the step from `t_n` to `t_{n+1}` (m/s per unit
+    /// speed), `(d(t_{n+1}) − d(t_n)) / Δt`.
+    fn clamp_rate(p: &Prescribed, step: u64, dt: f64) -> f64 {
+        let at = |n: u64| p.travel(n as f64 * dt);
+        (at(step + 1) - at(step)) / dt
+    }
+
+    /// Puts the moving clamps' DOFs at `d(t_n)`.
+    fn place_clamps(&mut self) {
+        for p in self.prescribed {
+            for &(d, c) in &p.dofs {
+                self.u[d] = p.displacement(c, self.t);
+            }
+        }
+    }
+
+    /// With `force` holding the net force at `t_n` and `v` the velocities `v^{n+½}`: books the
+    /// moving clamps' work by the trapezoidal rule, `R_n · (Δd_{n−1} + Δd_n) / 2` with the
+    /// reaction `R_n` the net force on their DOFs and `Δd_n = d(t_{n+1}) − d(t_n)` (the half
+    /// ahead, `R_n · Δd_n / 2`, is left out of the energies at `t_n`), keeps their reactions, and
+    /// sets their velocities (the update left them still).
+    fn book_clamps(&mut self, dt: f64) {
+        let (mut behind, mut ahead) = (0.0, 0.0);
+        for (k, p) in self.prescribed.iter().enumerate() {
+            let rate = Self::clamp_rate(p, self.step, dt);
+            let before = match self.step {
+                0 => 0.0,
+                n => Self::clamp_rate(p, n - 1, dt),
+            };
+            let speed = p.velocity.norm();
+            let mut along = 0.0;
+            for &(d, c) in &p.dofs {
+                let r = self.force[d] * p.velocity[c] * dt;
+                behind += 0.5 * r * before;
+                ahead += 0.5 * r * rate;
+                if speed > 0.0 {
+                    along += self.force[d] * p.velocity[c] / speed;
+                }
+                self.v[d] = p.velocity[c] * rate;
+            }
+            self.reactions[k] = along;
+        }
+        self.ledger.external_work += behind + ahead;
+        self.ledger.clamp_ahead = ahead;
+    }
+
+    /// The clamps' kinetic energy as the total counts it, `½ m v^{n+½} v^{n−½}` (J): the work
+    /// that moved their mass, which `book_clamps` leaves out.
+    fn clamp_kinetic(&self) -> f64 {
+        self.prescribed
+            .iter()
+            .zip(&self.clamp_mass)
+            .map(|(p, m)| {
+                let ahead = Self::clamp_rate(p, self.step, self.dt);
+                // `v^{−½}` of a clamped DOF is zero (`from_state`).
+                let behind = match self.step {
+                    0 => 0.0,
+                    n => Self::clamp_rate(p, n - 1, self.dt),
+                };
+                let v2 = p.velocity.norm_squared() * ahead * behind;
+                p.dofs
+                    .iter()
+                    .zip(m)
+                    .map(|(&(_, c), m)| {
+                        let share = if v2 > 0.0 {
+                            p.velocity[c] * p.velocity[c] / p.velocity.norm_squared()
+                        } else {
+                            0.0
+                        };
+                        0.5 * m * v2 * share
+                    })
+                    .sum::<f64>()
+            })
+            .sum()
+    }
+
+    /// The damping's work over the step once `v` holds `v^{n+½}` and `scratch` `v^{n−½}`:
+    /// `α Δt (v^n)ᵀ M v^n` with `v^n` their mean, which central difference dissipates exactly;
+    /// leaves `v^n` in `scratch`. The moving clamps do not count (the update does not damp
+    /// them).
+    fn book_damping(&mut self, dt: f64) -> f64 {
+        for (s, v) in self.scratch.iter_mut().zip(&self.v) {
+            *s = 0.5 * (*s + v);
+        }
+        let kinetic = self.mass.kinetic_energy(&self.scratch);
+        let mut work = 2.0 * self.damping * dt * kinetic;
+        for (p, m) in self.prescribed.iter().zip(&self.clamp_mass) {
+            for (&(d, _), m) in p.dofs.iter().zip(m) {
+                work -= self.damping * dt * m * self.scratch[d] * self.scratch[d];
+            }
+        }
+        self.ledger.damping += work;
+        kinetic
+    }
+
+    /// Whether a step must go through the net force vector: the fused step has no place for
+    /// the plastic forces, the clamps' reactions or the damping's work.
+    fn needs_net_force(&self) -> bool {
+        self.failure.is_some() || !self.prescribed.is_empty() || self.damping > 0.0
+    }
+
     /// `force ← f_int(U^n) − f_c^n − P(t_n)`, so that `a^n = −M⁻¹ force`; returns the elastic
-    /// energy `½ Uᵀ f_int` when `energy` is asked for (a pass over the vectors), else 0.
+    /// energy `½ Uᵀ f_int` (less the plastic part of the failing interfaces) when `energy` is
+    /// asked for (a pass over the vectors), else 0.
     fn net_force(&mut self, energy: bool) -> f64 {
         self.evaluator.internal_force(&self.u, &mut self.force);
+        if let Some((plastic, state)) = self.failure.as_mut() {
+            plastic.update(&self.u, state);
+            plastic.subtract_plastic(state, &mut self.force);
+        }
         self.force_clear = false;
         let elastic = if energy {
-            0.5 * dot(&self.u, &self.force)
+            let offset = self
+                .failure
+                .as_ref()
+                .map_or(0.0, |(p, s)| p.energy_offset(&self.u, s));
+            0.5 * dot(&self.u, &self.force) - offset
         } else {
             0.0
         };
@@ -306,6 +475,7 @@ impl<'a> CentralDifference<'a> {
             v: self.v.clone(),
             velocity: self.scratch.clone(),
             contact: self.contact.clone(),
+            failure: self.failure.as_ref().map(|(_, s)| s.clone()),
             ledger: self.ledger,
         }
     }
@@ -332,6 +502,11 @@ impl<'a> CentralDifference<'a> {
         if state.contact.is_some() != self.contact.is_some() {
             return Err("one of the two has contact and the other not".into());
         }
+        if state.failure.as_ref().map(|s| s.points.len())
+            != self.failure.as_ref().map(|(_, s)| s.points.len())
+        {
+            return Err("the failing interfaces differ".into());
+        }
         self.step = state.step;
         self.t = state.step as f64 * self.dt;
         self.good = (state.step, self.t, state.u.clone(), state.velocity.clone());
@@ -339,10 +514,19 @@ impl<'a> CentralDifference<'a> {
         if let (Some(c), Some(saved)) = (self.contact.as_mut(), state.contact) {
             c.resume(saved);
         }
+        if let (Some((_, s)), Some(saved)) = (self.failure.as_mut(), state.failure) {
+            *s = saved;
+        }
         self.ledger = state.ledger;
         self.force_clear = false;
         self.pending = true;
         Ok(())
+    }
+
+    /// The state of the failing interfaces, when the model has any: that of the last step
+    /// taken (after a divergence, up to [`CHECK_EVERY`] steps past the state restored).
+    pub fn failure(&self) -> Option<&FailureState> {
+        self.failure.as_ref().map(|(_, s)| s)
     }
 
     /// Whole-step velocities `v^n` of the last state handed to the observer (or restored by
@@ -402,12 +586,11 @@ impl<'a> CentralDifference<'a> {
             self.scratch.copy_from_slice(&self.v);
             self.mass
                 .advance(&self.force, &mut self.v, &mut [], dt, damping);
+            self.book_clamps(dt);
             let shadow = self.mass.kinetic_product(&self.scratch, &self.v);
             // v^n = (v^{n−½} + v^{n+½}) / 2 for the energies and the outputs.
-            for (s, v) in self.scratch.iter_mut().zip(&self.v) {
-                *s = 0.5 * (*s + v);
-            }
-            let energy = self.energy(elastic, shadow);
+            let kinetic = self.book_damping(dt);
+            let energy = self.energy(elastic, shadow, kinetic);
             self.book_energy_in(&energy, dt);
             if let Some(reason) = self.guard(&energy) {
                 let (step, t) = (self.step, self.t);
@@ -424,6 +607,8 @@ impl<'a> CentralDifference<'a> {
                         t: self.t,
                         u: &self.u,
                         v: &self.scratch,
+                        reactions: &self.reactions,
+                        failure: self.failure.as_ref().map(|(_, s)| s),
                     },
                     &energy,
                 )?;
@@ -459,6 +644,7 @@ impl<'a> CentralDifference<'a> {
         });
         self.step += 1;
         self.t = self.step as f64 * dt;
+        self.place_clamps();
     }
 
     /// `(1 − αΔt/2, 1/(1 + αΔt/2))` of the damped velocity update.
@@ -471,6 +657,23 @@ impl<'a> CentralDifference<'a> {
     /// `v^{n+½}` and `U^{n+1}`, fused with the evaluation when the evaluator can do that, else
     /// in one element-local pass after it.
     fn step_unchecked(&mut self, dt: f64, damping: (f64, f64)) {
+        if self.needs_net_force() {
+            self.net_force(false);
+            if self.damping > 0.0 {
+                self.scratch.copy_from_slice(&self.v);
+            }
+            self.mass
+                .advance(&self.force, &mut self.v, &mut self.u, dt, damping);
+            self.book_clamps(dt);
+            if self.damping > 0.0 {
+                self.book_damping(dt);
+            }
+            self.ledger.external_work += self.loads.work_increment(self.t, dt, &self.v);
+            self.step += 1;
+            self.t = self.step as f64 * dt;
+            self.place_clamps();
+            return;
+        }
         if let Some(fused) = self.evaluator.fused() {
             if !self.force_clear {
                 self.force.fill(0.0);
@@ -563,17 +766,29 @@ impl<'a> CentralDifference<'a> {
     /// central difference conserves exactly with linear springs, `½ (v^{n+½})ᵀ M v^{n−½}`
     /// (`shadow`): then `total` changes only by contact, damping and round-off, while
     /// `½ (v^n)ᵀ M v^n`, reported as `kinetic`, oscillates by `O((ω Δt)²)` about it.
-    fn energy(&mut self, elastic: f64, shadow: f64) -> Energy {
-        let kinetic = self.mass.kinetic_energy(&self.scratch);
+    fn energy(&mut self, elastic: f64, shadow: f64, kinetic: f64) -> Energy {
         let potential = self.loads.gravity_potential(&self.u);
-        let external_work = self.ledger.external_work;
+        let external_work =
+            self.ledger.external_work - self.ledger.clamp_ahead + self.clamp_kinetic();
         let contact = self.ledger.contact_energy;
-        let total = shadow + elastic + contact + potential - external_work;
+        let [fracture, friction] = self
+            .failure
+            .as_ref()
+            .map_or([0.0; 2], |(p, s)| p.dissipated(s));
+        let damping = self.ledger.damping;
+        let total =
+            shadow + elastic + contact + potential + fracture + friction + damping - external_work;
         let initial = *self.ledger.initial_total.get_or_insert(total);
-        self.ledger.energy_scale = self
-            .ledger
-            .energy_scale
-            .max(kinetic + elastic + contact + potential.abs() + external_work.abs());
+        self.ledger.energy_scale = self.ledger.energy_scale.max(
+            kinetic
+                + elastic
+                + contact
+                + potential.abs()
+                + external_work.abs()
+                + fracture
+                + friction
+                + damping,
+        );
         self.ledger.max_drift = self.ledger.max_drift.max((total - initial).abs());
         Energy {
             t: self.t,
@@ -582,6 +797,9 @@ impl<'a> CentralDifference<'a> {
             contact,
             potential,
             external_work,
+            fracture,
+            friction,
+            damping,
             total,
         }
     }

@@ -7,7 +7,10 @@ use crate::analysis::run::checkpoint::Checkpoint;
 use crate::analysis::setup::Setup;
 use crate::error::{Error, Result};
 use crate::output::vtk::VtkSeries;
-use crate::output::{self, ContactSummary, EnergySummary, History, ProbeColumn, Summary};
+use crate::output::{
+    self, ClampSummary, Columns, ContactSummary, EnergySummary, FailureSummary, History,
+    ProbeColumn, Summary,
+};
 use crate::step::integrator::Status;
 use std::path::Path;
 use std::time::Instant;
@@ -141,7 +144,7 @@ pub fn run(
     let mut cd = p.integrator(p.dt);
     let (mut history, mut vtk, mut first, mut rotation) = match checkpoint {
         None => (
-            History::create(out, probes)?,
+            History::create(out, Columns::of(model, probes))?,
             scene
                 .output
                 .vtk
@@ -167,7 +170,7 @@ pub fn run(
                 .then(|| VtkSeries::resume(out, c.frames))
                 .transpose()?;
             (
-                History::resume(out, probes, c.history_bytes)?,
+                History::resume(out, Columns::of(model, probes), c.history_bytes)?,
                 vtk,
                 c.first,
                 c.rotation,
@@ -185,6 +188,8 @@ pub fn run(
             .is_some_and(|f| f.load(std::sync::atomic::Ordering::Relaxed))
     };
     let mut last = None;
+    // Each moving clamp's peak reaction and its displacement there.
+    let mut peaks = vec![(f64::NEG_INFINITY, 0.0); model.prescribed.len()];
     let start = Instant::now();
     // In chunks that end at the checkpoints; a chunk's end is recorded only when it is a
     // history row's step, the last step or the step where the run was interrupted.
@@ -205,6 +210,14 @@ pub fn run(
                 last = Some(*e);
                 rotation = rotation.max(crate::model::checks::largest_rotation(model, s.u, true));
                 history.write(s, e)?;
+                for ((peak, at), (c, r)) in peaks
+                    .iter_mut()
+                    .zip(model.prescribed.iter().zip(s.reactions))
+                {
+                    if *r > *peak {
+                        (*peak, *at) = (*r, c.velocity.norm() * c.travel(s.t));
+                    }
+                }
                 if let Some(v) = vtk.as_mut() {
                     v.write(model, s)?;
                 }
@@ -251,7 +264,25 @@ pub fn run(
         ),
     };
     // After a divergence the integrator has rolled back to its last good state.
-    output::write_final_state(out, model, cd.t, &cd.u, cd.velocity())?;
+    let failure = p
+        .plastic
+        .as_ref()
+        .zip(cd.failure())
+        .map(|(plastic, state)| {
+            let report = plastic.report(state);
+            (
+                FailureSummary::of(&report, plastic.dissipated(state)),
+                report,
+            )
+        });
+    output::write_final_state(
+        out,
+        model,
+        cd.t,
+        &cd.u,
+        cd.velocity(),
+        failure.as_ref().map(|(_, r)| &r[..]),
+    )?;
     let (first, last) = (first.unwrap_or_default(), last.unwrap_or_default());
     let summary = Summary {
         scene: scene.name.clone(),
@@ -285,6 +316,17 @@ pub fn run(
             time_s: c.stats.time_s,
         }),
         probes: probe_columns,
+        failure: failure.map(|(s, _)| s),
+        clamps: model
+            .prescribed
+            .iter()
+            .zip(peaks)
+            .map(|(c, (peak_force, displacement_at_peak))| ClampSummary {
+                name: c.name.clone(),
+                peak_force,
+                displacement_at_peak,
+            })
+            .collect(),
         dir: out.to_path_buf(),
     };
     output::write_json(&out.join("summary.json"), &summary)?;

@@ -1,0 +1,308 @@
+//! Interfaces that fail: the plastic part of the internal forces when a material's interface
+//! law has a strength ([`Strength`]; eq. 11 beyond its elastic range).
+//!
+//! The traction at a Gauss point is `λ = diag(k_n, k_s) (δ − δ_p)`, so the internal forces
+//! split into the elastic ones of the evaluator and a plastic correction:
+//! `f_int = f_el(U) − f_p`, `f_p = Σ_gp t w Bᵀ diag(k_n, k_s) δ_p` (eq. 7 with the plastic
+//! relative displacements as eigen-displacements). The evaluators keep their elastic hot loops
+//! untouched; the correction is computed in their own manner: the assembled evaluator stores
+//! `G = Σ t w Bᵀ diag(k)` as blocks per element and multiplies `f_p = G δ_p`; the element-wise
+//! one forms each element's share from its own edges' Gauss points, `±N_e(x)ᵀ T_p`, with no
+//! stored matrix (eq. 15). Both update the state the same way, [`PlasticForces::update`]: the
+//! relative displacement `δ = N_b U_b − N_a U_a` at each Gauss point and the return mapping of
+//! its strength ([`Strength::update`]), once per evaluation, that is once per time step.
+//!
+//! Only the interfaces between elements of a failing material have points; ground springs
+//! (supports) stay elastic.
+
+use crate::input::scene::EvaluatorKind;
+use crate::mesh::geometry::Vec2;
+use crate::model::formulation::{Formulation, Hybrid, Kinematics, Rigid};
+use crate::model::law::{PlasticPoint, Strength};
+use crate::model::{Model, GROUND};
+use crate::parallel::for_each_chunk;
+use rayon::prelude::*;
+use std::marker::PhantomData;
+
+/// The state of every Gauss point of the failing interfaces: two per interface, in the order of
+/// [`PlasticForces::interfaces`].
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct FailureState {
+    /// One per Gauss point.
+    pub points: Vec<PlasticPoint>,
+}
+
+/// What an interface has done so far, from its two Gauss points.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct InterfaceFailure {
+    /// The interface (index in `Model::interfaces`).
+    pub interface: usize,
+    /// `elastic` (no plastic displacement), `yielding` (plastic displacement, strength left) or
+    /// `broken` (strength exhausted at both Gauss points).
+    pub status: &'static str,
+    /// Mean plastic opening `δ_p,n` (m): the crack opening.
+    pub opening: f64,
+    /// Mean plastic slip `δ_p,s` (m).
+    pub slip: f64,
+    /// Work of the strength and of friction on the interface (J).
+    pub dissipated: f64,
+}
+
+/// The plastic correction of the internal forces and the state update, for one model and one
+/// evaluator kind.
+pub trait PlasticForces: Send + Sync {
+    /// The failing interfaces (indices in `Model::interfaces`), two Gauss points each.
+    fn interfaces(&self) -> &[u32];
+    /// A state with every point elastic.
+    fn initial(&self) -> FailureState {
+        FailureState {
+            points: vec![PlasticPoint::default(); 2 * self.interfaces().len()],
+        }
+    }
+    /// The return mapping at every Gauss point for the displacements `u`.
+    fn update(&self, u: &[f64], state: &mut FailureState);
+    /// `f −= f_p`: with `f = f_el(U)`, the internal forces `f_int = f_el − f_p`.
+    fn subtract_plastic(&self, state: &FailureState, f: &mut [f64]);
+    /// `½ Uᵀ f_int` minus the elastic energy `½ Σ t w (δ − δ_p)ᵀ k (δ − δ_p)` of the failing
+    /// interfaces: `½ Σ t w (δ − δ_p)ᵀ k δ_p` (J).
+    fn energy_offset(&self, u: &[f64], state: &FailureState) -> f64;
+    /// The work of the strengths and of friction so far (J).
+    fn dissipated(&self, state: &FailureState) -> [f64; 2];
+    /// Each failing interface's status, openings and dissipated work.
+    fn report(&self, state: &FailureState) -> Vec<InterfaceFailure>;
+}
+
+/// The plastic forces of `model` for the evaluator `kind`; `None` when no interface can fail.
+pub fn build(model: &Model, kind: EvaluatorKind) -> Option<Box<dyn PlasticForces>> {
+    if !model.strength.iter().any(Option::is_some) {
+        return None;
+    }
+    Some(match model.formulation {
+        Formulation::Rigid => Box::new(Points::<Rigid, 3>::new(model, kind)),
+        Formulation::Hybrid { .. } => Box::new(Points::<Hybrid, 6>::new(model, kind)),
+    })
+}
+
+/// One Gauss point of a failing interface.
+#[derive(Debug, Clone, Copy)]
+struct Point {
+    a: u32,
+    /// The other element, or [`GROUND`] (not used yet: supports stay elastic).
+    b: u32,
+    /// The point from the centroids of `a` and `b` (m).
+    da: Vec2,
+    db: Vec2,
+    normal: Vec2,
+    tangent: Vec2,
+    /// Elastic springs `(k_n, k_s)` (Pa/m).
+    k: [f64; 2],
+    /// `t w`: thickness times the Gauss weight `L/2` (m²).
+    tw: f64,
+    strength: Strength,
+}
+
+impl Point {
+    /// `δ = N_b U_b − N_a U_a` on the interface's axes, `(δ_n, δ_s)`.
+    #[inline]
+    fn delta<K: Kinematics<N>, const N: usize>(&self, u: &[[f64; N]]) -> [f64; 2] {
+        let mut d = -K::displacement(&u[self.a as usize], self.da);
+        if self.b != GROUND {
+            d += K::displacement(&u[self.b as usize], self.db);
+        }
+        [self.normal.dot(&d), self.tangent.dot(&d)]
+    }
+
+    /// `T_p = t w (k_n δ_p,n n + k_s δ_p,s s)`: the traction that `δ_p` relieves, as a force.
+    #[inline]
+    fn plastic_force(&self, p: &[f64; 2]) -> Vec2 {
+        self.tw * (self.k[0] * p[0] * self.normal + self.k[1] * p[1] * self.tangent)
+    }
+}
+
+/// How an evaluator forms `f_p`: per element, its Gauss points with a sign and an offset
+/// (element-wise), or the blocks `G_ej` of `f_p = G δ_p` (assembled).
+enum Correction<const N: usize> {
+    ElementWise(Vec<(u32, f64, Vec2)>),
+    Assembled(Vec<(u32, [[f64; 2]; N])>),
+}
+
+struct Points<K: Kinematics<N>, const N: usize> {
+    points: Vec<Point>,
+    interfaces: Vec<u32>,
+    /// Entries of element `e` are `row_start[e] .. row_start[e + 1]` of `correction`.
+    row_start: Vec<u32>,
+    correction: Correction<N>,
+    kinematics: PhantomData<K>,
+}
+
+impl<K: Kinematics<N>, const N: usize> Points<K, N> {
+    fn new(model: &Model, kind: EvaluatorKind) -> Self {
+        let mut points = Vec::new();
+        let mut interfaces = Vec::new();
+        let centroid = |e: u32| model.elements[e as usize].props.centroid;
+        for (k, (i, s)) in model.interfaces.iter().zip(&model.strength).enumerate() {
+            let Some(strength) = *s else { continue };
+            interfaces.push(k as u32);
+            let (gauss, w) = i.gauss_points();
+            for x in gauss {
+                points.push(Point {
+                    a: i.a,
+                    b: i.b,
+                    da: x - centroid(i.a),
+                    db: if i.b == GROUND {
+                        Vec2::zeros()
+                    } else {
+                        x - centroid(i.b)
+                    },
+                    normal: i.normal,
+                    tangent: i.tangent,
+                    k: [i.k_n, i.k_s],
+                    tw: model.thickness * w,
+                    strength,
+                });
+            }
+        }
+        // Each element's entries: its points as side `a` (f_int gains `N_aᵀ T_p`) and as side
+        // `b` (loses `N_bᵀ T_p`), in point order.
+        let mut entries: Vec<(u32, u32, f64, Vec2)> = Vec::with_capacity(2 * points.len());
+        for (j, p) in points.iter().enumerate() {
+            entries.push((p.a, j as u32, 1.0, p.da));
+            if p.b != GROUND {
+                entries.push((p.b, j as u32, -1.0, p.db));
+            }
+        }
+        entries.sort_by_key(|&(e, j, _, _)| (e, j));
+        let mut row_start = vec![0u32; model.elements.len() + 1];
+        for &(e, ..) in &entries {
+            row_start[e as usize + 1] += 1;
+        }
+        for e in 0..model.elements.len() {
+            row_start[e + 1] += row_start[e];
+        }
+        let correction = match kind {
+            EvaluatorKind::ElementWise => {
+                Correction::ElementWise(entries.iter().map(|&(_, j, s, d)| (j, s, d)).collect())
+            }
+            EvaluatorKind::Assembled => Correction::Assembled(
+                entries
+                    .iter()
+                    .map(|&(_, j, sign, d)| {
+                        let p = &points[j as usize];
+                        // Column c of the block: N(d)ᵀ of the unit plastic force of δ_p,c.
+                        let mut cols = [[0.0; N]; 2];
+                        K::add_force(&mut cols[0], d, sign * p.tw * p.k[0] * p.normal);
+                        K::add_force(&mut cols[1], d, sign * p.tw * p.k[1] * p.tangent);
+                        (j, std::array::from_fn(|r| [cols[0][r], cols[1][r]]))
+                    })
+                    .collect(),
+            ),
+        };
+        Points {
+            points,
+            interfaces,
+            row_start,
+            correction,
+            kinematics: PhantomData,
+        }
+    }
+}
+
+impl<K: Kinematics<N>, const N: usize> PlasticForces for Points<K, N> {
+    fn interfaces(&self) -> &[u32] {
+        &self.interfaces
+    }
+
+    fn update(&self, u: &[f64], state: &mut FailureState) {
+        let (u, _) = u.as_chunks::<N>();
+        state
+            .points
+            .par_iter_mut()
+            .zip(self.points.par_iter())
+            .with_min_len(4096)
+            .for_each(|(s, p)| {
+                p.strength.update(p.k, p.delta::<K, N>(u), s);
+            });
+    }
+
+    fn subtract_plastic(&self, state: &FailureState, f: &mut [f64]) {
+        let (f, _) = f.as_chunks_mut::<N>();
+        let state = &state.points;
+        for_each_chunk(f, |first, rows| {
+            for (i, fe) in rows.iter_mut().enumerate() {
+                let e = first + i;
+                let range = self.row_start[e] as usize..self.row_start[e + 1] as usize;
+                match &self.correction {
+                    Correction::ElementWise(entries) => {
+                        for &(j, sign, d) in &entries[range] {
+                            let j = j as usize;
+                            let t = self.points[j].plastic_force(&state[j].p);
+                            K::add_force(fe, d, sign * t);
+                        }
+                    }
+                    Correction::Assembled(blocks) => {
+                        for (j, g) in &blocks[range] {
+                            let p = &state[*j as usize].p;
+                            for r in 0..N {
+                                fe[r] += g[r][0] * p[0] + g[r][1] * p[1];
+                            }
+                        }
+                    }
+                }
+            }
+        });
+    }
+
+    fn energy_offset(&self, u: &[f64], state: &FailureState) -> f64 {
+        let (u, _) = u.as_chunks::<N>();
+        self.points
+            .iter()
+            .zip(&state.points)
+            .map(|(p, s)| {
+                let d = p.delta::<K, N>(u);
+                0.5 * p.tw
+                    * (0..2)
+                        .map(|c| (d[c] - s.p[c]) * p.k[c] * s.p[c])
+                        .sum::<f64>()
+            })
+            .sum()
+    }
+
+    fn dissipated(&self, state: &FailureState) -> [f64; 2] {
+        self.points
+            .iter()
+            .zip(&state.points)
+            .fold([0.0; 2], |[a, b], (p, s)| {
+                [a + p.tw * s.fracture, b + p.tw * s.friction]
+            })
+    }
+
+    fn report(&self, state: &FailureState) -> Vec<InterfaceFailure> {
+        self.interfaces
+            .iter()
+            .enumerate()
+            .map(|(k, &i)| {
+                let (p, s) = (
+                    &self.points[2 * k..2 * k + 2],
+                    &state.points[2 * k..2 * k + 2],
+                );
+                let broken = (0..2).all(|g| p[g].strength.is_broken(&s[g]));
+                let plastic = s.iter().any(|s| s.p != [0.0; 2]);
+                InterfaceFailure {
+                    interface: i as usize,
+                    status: if broken {
+                        "broken"
+                    } else if plastic {
+                        "yielding"
+                    } else {
+                        "elastic"
+                    },
+                    opening: 0.5 * (s[0].p[0] + s[1].p[0]),
+                    slip: 0.5 * (s[0].p[1] + s[1].p[1]),
+                    dissipated: (0..2)
+                        .map(|g| p[g].tw * (s[g].fracture + s[g].friction))
+                        .sum(),
+                }
+            })
+            .collect()
+    }
+}

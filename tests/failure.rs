@@ -1,0 +1,283 @@
+//! Interfaces that fail (`model::law::Strength`, `force::failure`): the return mapping against
+//! closed forms, the two evaluators against each other while interfaces yield and break, the
+//! energy balance, a plastic collapse against its closed form, checkpoints, and scenes without
+//! failure paying nothing.
+
+mod common;
+
+use rbsm::analysis::setup::{Overrides, Setup};
+use rbsm::input::scene::{EvaluatorKind, Scene};
+use rbsm::model::law::{PlasticPoint, Strength};
+use serde_json::{json, Value};
+
+fn bundled(name: &str) -> Value {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("examples/scenes")
+        .join(name);
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
+fn setup(scene: &Value, evaluator: EvaluatorKind) -> Setup {
+    let scene = Scene::from_json(&scene.to_string()).expect("valid scene");
+    let overrides = Overrides {
+        evaluator: Some(evaluator),
+        ..Overrides::default()
+    };
+    Setup::new(&scene, &overrides).expect("setup")
+}
+
+const K: [f64; 2] = [1.0e12, 8.0e11];
+
+fn strength(phi_deg: f64, energies: Option<[f64; 2]>) -> Strength {
+    let (f_t, c) = (2.0e6, 4.0e6);
+    Strength {
+        f_t,
+        c,
+        tan_phi: phi_deg.to_radians().tan(),
+        w_n: energies.map_or(f64::INFINITY, |e| 2.0 * e[0] / f_t),
+        w_s: energies.map_or(f64::INFINITY, |e| 2.0 * e[1] / c),
+    }
+}
+
+/// Under a fixed compression, the shear traction rises elastically to `c − σ tan φ` and stays
+/// there (perfect plasticity); the slide's work splits into cohesion and friction.
+#[test]
+fn mohr_coulomb_caps_the_shear_at_c_minus_sigma_tan_phi() {
+    let s = strength(30.0, None);
+    let mut point = PlasticPoint::default();
+    let dn = -3.0e-6; // σ = −3 MPa
+    let cap = s.c + 3.0e6 * s.tan_phi;
+    let mut last = 0.0;
+    for i in 0..=400 {
+        let ds = i as f64 * 5e-8;
+        let ([sigma, tau], _) = s.update(K, [dn, ds], &mut point);
+        assert!((sigma + 3.0e6).abs() < 1e-6, "σ = {sigma}");
+        let elastic = K[1] * ds;
+        assert!(
+            (tau - elastic.min(cap)).abs() <= 1e-9 * cap,
+            "at δ_s = {ds:e}: τ = {tau:e}, expected {:e}",
+            elastic.min(cap)
+        );
+        last = ds;
+    }
+    let slide = last - cap / K[1];
+    assert!((point.p[1] - slide).abs() < 1e-12 * last);
+    assert!((point.fracture - s.c * slide).abs() < 1e-9 * s.c * slide);
+    assert!((point.friction - 3.0e6 * s.tan_phi * slide).abs() < 1e-9 * cap * slide);
+}
+
+/// Pure shear at zero normal traction exhausts the cohesion after `G_f,II` per unit area; the
+/// broken point then carries compression and Coulomb friction only.
+#[test]
+fn a_broken_interface_keeps_compression_and_friction_only() {
+    let s = strength(30.0, Some([100.0, 400.0]));
+    let mut point = PlasticPoint::default();
+    for i in 0..=2000 {
+        s.update(K, [0.0, i as f64 * 2e-7], &mut point);
+    }
+    assert!(s.is_broken(&point));
+    assert!(
+        (point.fracture - 400.0).abs() < 1e-9 * 400.0,
+        "shear fracture work {} J/m², expected G_f,II = 400",
+        point.fracture
+    );
+    // Tension: nothing. Compression: the elastic spring on δ − δ_p. Shear: friction only.
+    let at = |d: [f64; 2]| s.update(K, d, &mut point.clone()).0;
+    let ds = point.p[1];
+    assert_eq!(at([1e-5, ds])[0], 0.0);
+    let [sigma, tau] = at([-1e-6, ds + 1e-5]);
+    assert!((sigma + K[0] * 1e-6).abs() < 1e-6 * K[0] * 1e-6);
+    assert!((tau - (-sigma) * s.tan_phi).abs() < 1e-9 * tau.abs());
+}
+
+/// The tension bar (`examples/scenes/tension_bar.json`) cracks: its interfaces yield and
+/// break. The two evaluators compute the same plastic forces (the assembled one with the stored
+/// `G δ_p`, the element-wise one from each element's edges) and follow the same trajectory to
+/// round-off, and the energy balance closes.
+#[test]
+fn both_evaluators_agree_while_a_bar_cracks_and_the_energy_balance_closes() {
+    let scene = bundled("tension_bar.json");
+    let run = |kind| {
+        let s = setup(&scene, kind);
+        let mut cd = s.integrator(s.dt);
+        let mut rows = Vec::new();
+        cd.run(
+            s.steps,
+            100,
+            |_, e| {
+                rows.push(*e);
+                Ok(())
+            },
+            |_| {},
+        )
+        .unwrap();
+        let report = s.plastic.as_ref().unwrap().report(cd.failure().unwrap());
+        (cd.u.clone(), rows, report)
+    };
+    let (ua, rows_a, report_a) = run(EvaluatorKind::Assembled);
+    let (ue, rows_e, report_e) = run(EvaluatorKind::ElementWise);
+    let scale = ua.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let diff = ua
+        .iter()
+        .zip(&ue)
+        .fold(0.0f64, |m, (a, e)| m.max((a - e).abs()));
+    assert!(diff <= 1e-9 * scale, "|ΔU| = {diff:e} of {scale:e}");
+    let broken = |r: &[rbsm::force::failure::InterfaceFailure]| {
+        r.iter().filter(|i| i.status == "broken").count()
+    };
+    assert!(broken(&report_a) > 0, "the bar did not crack");
+    assert_eq!(broken(&report_a), broken(&report_e));
+    for rows in [&rows_a, &rows_e] {
+        let last = rows.last().unwrap();
+        assert!(last.fracture > 1.0, "fracture work {} J", last.fracture);
+        let drift = rows
+            .iter()
+            .map(|e| (e.total - rows[0].total).abs())
+            .fold(0.0, f64::max);
+        assert!(
+            drift < 1e-4 * last.external_work,
+            "energy balance off by {drift:e} J of {:e} J put in",
+            last.external_work
+        );
+    }
+    let (fa, fe) = (rows_a.last().unwrap(), rows_e.last().unwrap());
+    assert!((fa.fracture - fe.fracture).abs() <= 1e-9 * fa.fracture);
+}
+
+/// A block of a cohesive material (φ = 0) squeezed between smooth platens collapses at
+/// `q = 2c`; its mesh of right triangles has interfaces along the 45° planes where the shear
+/// traction is largest, so the lattice can form the mechanism.
+#[test]
+fn a_cohesive_block_collapses_at_twice_its_cohesion() {
+    let c = 1.0e5;
+    let scene = json!({
+        "name": "squeeze", "thickness": 1.0, "formulation": {"kind": "rigid"},
+        "evaluator": "element-wise",
+        "materials": {"soil": {"E": 1.0e8, "nu": 0.2, "rho": 2000,
+            "interface": {"kind": "mohr-coulomb", "tensile_strength": 1.0e6, "cohesion": c,
+                "friction_angle": 0}}},
+        "damping": 300,
+        "bodies": [{"name": "block", "material": "soil",
+            "mesh": {"kind": "grid", "origin": [0, 0], "size": [0.5, 1.0], "cells": [5, 10], "cell": "tri"},
+            "supports": [{"kind": "clamp", "edge": "bottom", "dofs": ["v"]},
+                {"kind": "clamp", "edge": "top", "dofs": ["v"], "velocity": [0, -0.02], "ramp": 0.01}]}],
+        "time": {"dt_factor": 0.5, "end": 0.5},
+    });
+    let s = setup(&scene, EvaluatorKind::ElementWise);
+    let mut cd = s.integrator(s.dt);
+    let mut peak = 0.0f64;
+    cd.run(
+        s.steps,
+        50,
+        |snap, _| {
+            peak = peak.max(snap.reactions[0]);
+            Ok(())
+        },
+        |_| {},
+    )
+    .unwrap();
+    let q = peak / 0.5;
+    assert!(
+        (q / (2.0 * c) - 1.0).abs() < 0.03,
+        "collapse pressure {q:e} Pa, 2c = {:e} Pa",
+        2.0 * c
+    );
+}
+
+/// A run stopped at a checkpoint and resumed from its state ends with the same bits as one run
+/// straight through: the failing interfaces' state is part of the checkpoint.
+#[test]
+fn a_resumed_run_keeps_the_interfaces_state() {
+    let mut scene = bundled("tension_bar.json");
+    scene["time"] = json!({"dt_factor": 0.5, "steps": 2000});
+    let s = setup(&scene, EvaluatorKind::ElementWise);
+    let mut straight = s.integrator(s.dt);
+    straight.run(2000, 2000, |_, _| Ok(()), |_| {}).unwrap();
+    let mut first = s.integrator(s.dt);
+    first.run(1200, 1200, |_, _| Ok(()), |_| {}).unwrap();
+    let state = first.state();
+    let mut second = s.integrator(s.dt);
+    second.restore(state).unwrap();
+    second.run(800, 800, |_, _| Ok(()), |_| {}).unwrap();
+    assert!(straight
+        .u
+        .iter()
+        .zip(&second.u)
+        .all(|(a, b)| a.to_bits() == b.to_bits()));
+    assert_eq!(straight.failure(), second.failure());
+    assert!(straight
+        .failure()
+        .unwrap()
+        .points
+        .iter()
+        .any(|p| p.p != [0.0; 2]));
+}
+
+/// A scene whose materials are elastic has no failure state, no plastic forces and no extra
+/// history columns; its steps stay fused.
+#[test]
+fn a_scene_without_failure_pays_nothing() {
+    let mut scene = bundled("tension_bar.json");
+    scene["materials"]["concrete"]
+        .as_object_mut()
+        .unwrap()
+        .remove("interface");
+    scene.as_object_mut().unwrap().remove("damping");
+    scene["bodies"][0]["supports"] = json!([{"kind": "clamp", "edge": "left"}]);
+    let s = setup(&scene, EvaluatorKind::ElementWise);
+    assert!(s.plastic.is_none() && s.model.strength.is_empty());
+    let dir = tempfile::tempdir().unwrap();
+    let summary = common::run_into(&s.scene, Some(10), dir.path());
+    assert!(summary.failure.is_none());
+    let history = std::fs::read_to_string(dir.path().join("history.csv")).unwrap();
+    assert_eq!(
+        history.lines().next().unwrap(),
+        "t,kinetic,elastic,contact,potential,external_work,total"
+    );
+    let state = std::fs::read_to_string(dir.path().join("final_state.json")).unwrap();
+    assert!(!state.contains("\"interfaces\""));
+}
+
+/// Bad laws and moving clamps are refused with the key and the allowed range.
+#[test]
+fn bad_strengths_and_clamps_name_the_key() {
+    let cases = [
+        (
+            "/materials/concrete/interface/friction_angle",
+            json!(90.0),
+            "materials.concrete.interface.friction_angle",
+        ),
+        (
+            "/materials/concrete/interface/tensile_strength",
+            json!(-1.0),
+            "materials.concrete.interface.tensile_strength",
+        ),
+        (
+            "/materials/concrete/interface/fracture_energy",
+            json!(0.0),
+            "materials.concrete.interface.fracture_energy",
+        ),
+        (
+            "/bodies/0/supports/1/ramp",
+            json!(-1.0),
+            "bodies[0].supports[1].ramp",
+        ),
+    ];
+    for (pointer, value, key) in cases {
+        let mut scene = bundled("tension_bar.json");
+        *scene.pointer_mut(pointer).unwrap() = value;
+        let err = Scene::from_json(&scene.to_string())
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains(key), "{pointer}: {err}");
+    }
+    let mut scene = bundled("tension_bar.json");
+    scene["bodies"][0]["supports"][1]["dofs"] = json!(["v"]);
+    let err = Scene::from_json(&scene.to_string())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("bodies[0].supports[1].velocity[0]") && err.contains("`u`"),
+        "{err}"
+    );
+}
