@@ -55,18 +55,18 @@ fn closed_form(k: f64, d: f64) -> f64 {
 }
 
 /// What the run shows.
-struct Outcome {
+pub struct Outcome {
     /// `(d, σ run, σ closed form)` at every step (m, Pa, Pa).
-    curve: Vec<(f64, f64, f64)>,
+    pub curve: Vec<(f64, f64, f64)>,
     /// Largest `|σ run − σ closed form| / f_t`.
-    error: f64,
+    pub error: f64,
     /// Fracture work at the end over `G_f L t`.
-    energy_ratio: f64,
+    pub energy_ratio: f64,
     /// The interface's status at the end.
-    status: &'static str,
+    pub status: &'static str,
 }
 
-fn compute() -> Outcome {
+pub fn compute() -> Outcome {
     let setup = Setup::new(&scene(), &Overrides::default()).expect("the setup builds");
     let face = setup.model.interfaces[0];
     let area = face.length * setup.model.thickness;

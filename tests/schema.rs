@@ -97,6 +97,7 @@ fn extras() -> Vec<(String, Value)> {
     let mut plastic = load("tension_bar.json");
     plastic["materials"]["concrete"]["interface"] = json!({"kind": "mohr-coulomb",
         "tensile_strength": 1e6, "cohesion": 2e6, "friction_angle": 35});
+    plastic["bodies"][0]["supports"][1]["span"] = json!([0.0, 0.05]);
     let mut elastic = load("tension_bar.json");
     elastic["materials"]["concrete"]["interface"] = json!({"kind": "elastic"});
 

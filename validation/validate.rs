@@ -8,9 +8,14 @@
 #[path = "contact.rs"]
 mod contact;
 mod extremes;
+#[path = "failure.rs"]
+mod failure;
 #[path = "fem.rs"]
 mod fem;
 mod fixtures;
+#[path = "../examples/interface_failure.rs"]
+#[allow(dead_code)]
+mod interface_failure;
 mod trade;
 
 use rbsm::analysis::eigen::{self, Method};
@@ -1146,6 +1151,7 @@ fn main() {
     contact::contact(&mut r);
     trade::trade_section(&mut r);
     extremes::extremes(&mut r);
+    failure::failure(&mut r);
     // Checks: bounds, and figures against the reference.
     let reference: BTreeMap<String, f64> = std::fs::read_to_string(dir.join("reference.json"))
         .ok()

@@ -726,6 +726,10 @@ pub struct ClampSpec {
     #[serde(default)]
     #[schemars(extend("minimum" = 0))]
     pub ramp: f64,
+    /// Only the edges of the side whose midpoints lie in `[from, to]` (m) along it: `x` on
+    /// `bottom` and `top`, `y` on `left` and `right` (a footing on part of a surface).
+    #[serde(default)]
+    pub span: Option<[f64; 2]>,
 }
 
 impl<'de> Deserialize<'de> for SupportSpec {
@@ -1507,11 +1511,28 @@ impl Scene {
                     }
                 }
                 SupportSpec::Clamp(ClampSpec {
+                    edge,
                     dofs,
                     velocity,
                     ramp,
-                    ..
+                    span,
                 }) => {
+                    if let Some(span) = span {
+                        let field = at(&format!("supports[{k}].span"));
+                        finite_all(&field, span)?;
+                        if !(span[0] < span[1]) {
+                            return Err(Error::scene(
+                                field,
+                                format!("must be [from, to] with from < to, got {span:?}"),
+                            ));
+                        }
+                        if let EdgeSet::Group(_) = edge {
+                            return Err(Error::scene(
+                                field,
+                                "applies to a side (`left`, `right`, `bottom`, `top`) only",
+                            ));
+                        }
+                    }
                     if let Some(velocity) = velocity {
                         finite_all(&at(&format!("supports[{k}].velocity")), velocity)?;
                         for (c, dof) in ["u", "v"].into_iter().enumerate() {

@@ -9,11 +9,11 @@ pub mod mass;
 pub mod memory;
 
 use crate::error::{Error, Result};
-use crate::input::scene::EdgeSet;
 use crate::input::scene::{
     ClampSpec, Component, ContactSpec, ForceSpec, GroundSpringSpec, LoadSpec, MaterialSpec, Plane,
     Scene, SupportSpec, TractionSpec,
 };
+use crate::input::scene::{EdgeSet, Side};
 use crate::mesh::geometry::{area_properties, AreaProperties, Vec2};
 use crate::mesh::Mesh;
 use crate::model::formulation::{elasticity, Formulation};
@@ -344,6 +344,7 @@ impl Model {
                         dofs,
                         velocity,
                         ramp,
+                        span,
                     }) => {
                         let which: Vec<usize> = match dofs {
                             None => (0..nd).collect(),
@@ -355,7 +356,28 @@ impl Model {
                                 .collect::<Result<_>>()?,
                         };
                         let mut moving = Vec::new();
-                        for e in side_edges(&mesh, edge, &field)? {
+                        let mut edges = side_edges(&mesh, edge, &field)?;
+                        if let (Some([from, to]), EdgeSet::Side(side)) = (span, edge) {
+                            let along = |e: &&crate::mesh::BoundaryEdge| {
+                                let m = 0.5
+                                    * (mesh.vertices[e.v1 as usize] + mesh.vertices[e.v2 as usize]);
+                                match side {
+                                    Side::Bottom | Side::Top => m.x,
+                                    Side::Left | Side::Right => m.y,
+                                }
+                            };
+                            edges.retain(|e| (*from..=*to).contains(&along(e)));
+                            if edges.is_empty() {
+                                return Err(Error::scene(
+                                    at(&format!("supports[{k}].span")),
+                                    format!(
+                                        "no edge of side `{side:?}` has its midpoint in {:?}",
+                                        [from, to]
+                                    ),
+                                ));
+                            }
+                        }
+                        for e in edges {
                             let el = first + e.cell as usize;
                             model.fixed.extend(which.iter().map(|&d| el * nd + d));
                             moving.extend(

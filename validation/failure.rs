@@ -1,0 +1,437 @@
+//! Section 11 of the validation report: interfaces that fail (`materials.*.interface`). One
+//! interface against its law in closed form, uniaxial tension of a bar (strength and fracture
+//! energy, on a grid and on three Voronoi meshes), plastic collapse in compression against
+//! `2c cos φ / (1 − sin φ)`, and Prandtl's strip footing against `(2 + π) c`, each with its
+//! cost in steps and element-steps (wall times in `timings.md`).
+
+use super::Report;
+use rbsm::analysis::setup::{Overrides, Setup};
+use rbsm::force::failure::InterfaceFailure;
+use rbsm::input::scene::{EvaluatorKind, Scene};
+use rbsm::step::integrator::Energy;
+use serde_json::{json, Value};
+use std::f64::consts::PI;
+
+/// What one displacement-controlled run gives.
+struct Run {
+    /// `(clamp displacement, reaction)` at every recorded step (m, N) of the scene's last
+    /// moving clamp.
+    curve: Vec<(f64, f64)>,
+    last: Energy,
+    /// Largest `|total − total(0)|` (J).
+    drift: f64,
+    interfaces: Vec<InterfaceFailure>,
+    u: Vec<f64>,
+    elements: usize,
+    steps: u64,
+    wall_s: f64,
+}
+
+fn run(scene: &Value, evaluator: EvaluatorKind, every: u64) -> Run {
+    let scene = Scene::from_json(&scene.to_string()).unwrap_or_else(|e| panic!("{e}\n{scene}"));
+    let overrides = Overrides {
+        evaluator: Some(evaluator),
+        ..Overrides::default()
+    };
+    let start = std::time::Instant::now();
+    let setup = Setup::new(&scene, &overrides).unwrap();
+    let clamp = setup.model.prescribed.last().unwrap().clone();
+    let mut cd = setup.integrator(setup.dt);
+    let (mut curve, mut rows) = (Vec::new(), Vec::new());
+    let status = cd
+        .run(
+            setup.steps,
+            every,
+            |s, e| {
+                let d = clamp.velocity.norm() * clamp.travel(s.t);
+                curve.push((d, *s.reactions.last().unwrap()));
+                rows.push(*e);
+                Ok(())
+            },
+            |_| {},
+        )
+        .unwrap();
+    assert_eq!(status, rbsm::step::integrator::Status::Ok, "{}", scene.name);
+    let plastic = setup.plastic.as_ref().unwrap();
+    let drift = rows
+        .iter()
+        .map(|e| (e.total - rows[0].total).abs())
+        .fold(0.0, f64::max);
+    Run {
+        curve,
+        last: *rows.last().unwrap(),
+        drift,
+        interfaces: plastic.report(cd.failure().unwrap()),
+        u: cd.u.clone(),
+        elements: setup.model.elements.len(),
+        steps: cd.step,
+        wall_s: start.elapsed().as_secs_f64(),
+    }
+}
+
+impl Run {
+    fn peak(&self) -> f64 {
+        self.curve
+            .iter()
+            .map(|c| c.1)
+            .fold(f64::NEG_INFINITY, f64::max)
+    }
+    fn count(&self, status: &str) -> usize {
+        self.interfaces
+            .iter()
+            .filter(|i| i.status == status)
+            .count()
+    }
+    fn cost(&self) -> String {
+        format!(
+            "{} | {:.2e}",
+            self.steps,
+            self.steps as f64 * self.elements as f64
+        )
+    }
+}
+
+const F_T: f64 = 3.0e6;
+const G_F: f64 = 100.0;
+
+/// The tension bar of `examples/scenes/tension_bar.json` on `mesh`.
+fn bar(mesh: Value) -> Value {
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/scenes/tension_bar.json");
+    let mut scene: Value = serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+    scene["bodies"][0]["mesh"] = mesh;
+    scene
+}
+
+/// A block squeezed between smooth platens, perfectly plastic with cohesion `c`.
+fn squeeze(mesh: Value, phi: f64, f_t: f64) -> Value {
+    json!({
+        "name": "squeeze", "thickness": 1.0, "formulation": {"kind": "rigid"},
+        "evaluator": "element-wise",
+        "materials": {"soil": {"E": 1.0e8, "nu": 0.2, "rho": 2000,
+            "interface": {"kind": "mohr-coulomb", "tensile_strength": f_t, "cohesion": 1.0e5,
+                "friction_angle": phi}}},
+        "damping": 300,
+        "bodies": [{"name": "block", "material": "soil", "mesh": mesh,
+            "supports": [{"kind": "clamp", "edge": "bottom", "dofs": ["v"]},
+                {"kind": "clamp", "edge": "top", "dofs": ["v"], "velocity": [0, -0.01], "ramp": 0.01}]}],
+        "time": {"dt_factor": 0.5, "end": 2.0},
+    })
+}
+
+/// A rigid rough footing of width 0.4 m pushed into a weightless clay (φ = 0, `c` = 100 kPa,
+/// no tension) 2 m wide and 1 m deep, on smooth side walls and a fixed base.
+fn footing(mesh: Value) -> Value {
+    json!({
+        "name": "prandtl", "thickness": 1.0, "formulation": {"kind": "rigid"},
+        "evaluator": "element-wise",
+        "materials": {"clay": {"E": 1.0e8, "nu": 0.3, "rho": 2000,
+            "interface": {"kind": "mohr-coulomb", "tensile_strength": 0, "cohesion": 1.0e5,
+                "friction_angle": 0}}},
+        "damping": 200,
+        "bodies": [{"name": "soil", "material": "clay", "mesh": mesh,
+            "supports": [{"kind": "clamp", "edge": "bottom"},
+                {"kind": "clamp", "edge": "left", "dofs": ["u"]},
+                {"kind": "clamp", "edge": "right", "dofs": ["u"]},
+                {"kind": "clamp", "edge": "top", "span": [0.8, 1.2], "velocity": [0, -0.01], "ramp": 0.05}]}],
+        "time": {"dt_factor": 0.5, "end": 1.5},
+    })
+}
+
+/// Squares of `size` cut into four triangles by both diagonals: interfaces at 0°, 90° and
+/// ±45°, the directions of Prandtl's wedges.
+fn crossed(nx: usize, ny: usize, size: [f64; 2]) -> Value {
+    let mut vertices: Vec<[f64; 2]> = Vec::new();
+    let corner = |i: usize, j: usize| j * (nx + 1) + i;
+    for j in 0..=ny {
+        for i in 0..=nx {
+            vertices.push([
+                i as f64 * size[0] / nx as f64,
+                j as f64 * size[1] / ny as f64,
+            ]);
+        }
+    }
+    let mut cells = Vec::new();
+    for j in 0..ny {
+        for i in 0..nx {
+            let m = vertices.len();
+            vertices.push([
+                (i as f64 + 0.5) * size[0] / nx as f64,
+                (j as f64 + 0.5) * size[1] / ny as f64,
+            ]);
+            let [a, b, c, d] = [
+                corner(i, j),
+                corner(i + 1, j),
+                corner(i + 1, j + 1),
+                corner(i, j + 1),
+            ];
+            cells.extend([[a, b, m], [b, c, m], [c, d, m], [d, a, m]]);
+        }
+    }
+    json!({"kind": "polygons", "vertices": vertices, "cells": cells})
+}
+
+fn voronoi(size: [f64; 2], sites: usize) -> Value {
+    json!({"kind": "voronoi", "origin": [0, 0], "size": size, "sites": sites, "seed": 1, "lloyd": 10})
+}
+
+fn grid(size: [f64; 2], cells: [usize; 2], cell: &str) -> Value {
+    json!({"kind": "grid", "origin": [0, 0], "size": size, "cells": cells, "cell": cell})
+}
+
+pub fn failure(r: &mut Report) {
+    r.line("## 11. Interfaces that fail\n");
+    r.line(
+        "Materials with `\"interface\": {\"kind\": \"mohr-coulomb\"}` (elastic–perfectly plastic, \
+        tension cut-off) or `\"softening\"` (the same surface softening linearly with the plastic \
+        opening and slip until `G_f`, `G_f,II` are spent; `docs/scene.md`, paper_notes item 22). \
+        Every run here is displacement-controlled (a clamp with `velocity`), damped, and \
+        explicit at 0.5 Δt_crit; the cost column is steps and element-steps (wall times in \
+        `timings.md`).\n",
+    );
+    tension(r);
+    compression(r);
+    prandtl(r);
+}
+
+/// Uniaxial tension: one interface, the grid bar, the Voronoi bar at three sizes; parity and
+/// energy balance.
+fn tension(r: &mut Report) {
+    r.line("### 11.1 Uniaxial tension\n");
+    r.line(
+        "`examples/scenes/tension_bar.json`: a 0.2 × 0.05 m bar, `f_t` = 3 MPa, `G_f` = 100 J/m², \
+        `c` = 6 MPa, φ = 30°, `G_f,II` = 1000 J/m², pulled at 0.05 m/s (after a 0.2 ms ramp) to \
+        0.15 mm, damping α = 2000 1/s. Peak: the largest reaction over the section, `F / (0.05 m × \
+        1 m)`, sampled every 100 steps. Fracture work: the `fracture` column at the end, against \
+        `G_f` × the section (5 J). The one-interface case is `cargo run --release --example \
+        interface_failure` (two clamped squares, every step against the law in closed form).\n",
+    );
+    let one = super::interface_failure::compute();
+    r.line(&format!(
+        "- one interface, {} steps: largest |σ − closed form| / f_t = {:.1e}; fracture work / \
+        (G_f L t) = {:.12}; status `{}`.\n",
+        one.curve.len() - 1,
+        one.error,
+        one.energy_ratio,
+        one.status
+    ));
+    r.bound(
+        "one interface: |sigma - closed form| / f_t",
+        one.error,
+        1e-9,
+    );
+    r.bound(
+        "one interface: |fracture work / (G_f L t) - 1|",
+        (one.energy_ratio - 1.0).abs(),
+        1e-9,
+    );
+    r.line("| mesh | elements | peak / f_t | fracture work / (G_f A) | yielding | broken | |total drift| / work in | steps | element-steps |");
+    r.line("|---|---|---|---|---|---|---|---|---|");
+    let cases: Vec<(String, Value)> = std::iter::once((
+        "grid 20 × 5".to_string(),
+        grid([0.2, 0.05], [20, 5], "rect"),
+    ))
+    .chain([200usize, 800, 3200].map(|n| (format!("Voronoi {n} sites"), voronoi([0.2, 0.05], n))))
+    .collect();
+    for (name, mesh) in cases {
+        let run = run(&bar(mesh), EvaluatorKind::ElementWise, 100);
+        let peak = run.peak() / 0.05 / F_T;
+        let energy = run.last.fracture / (G_F * 0.05);
+        let balance = run.drift / run.last.external_work;
+        r.line(&format!(
+            "| {name} | {} | {peak:.4} | {energy:.4} | {} | {} | {balance:.2e} | {} |",
+            run.elements,
+            run.count("yielding"),
+            run.count("broken"),
+            run.cost()
+        ));
+        r.timing(&format!("- tension bar, {name}: {:.2} s", run.wall_s));
+        let key = name.replace(' ', "_");
+        r.bound(
+            &format!("tension {key}: energy balance |drift| / work in"),
+            balance,
+            1e-4,
+        );
+        if name.starts_with("grid") {
+            r.bound(
+                &format!("tension {key}: |peak / f_t − 1|"),
+                (peak - 1.0).abs(),
+                0.02,
+            );
+        } else {
+            r.figure(&format!("tension {key}: peak / f_t"), peak, 1e-6);
+        }
+        r.figure(
+            &format!("tension {key}: fracture work / (G_f A)"),
+            energy,
+            1e-6,
+        );
+    }
+    r.line("");
+    // Parity while the bar cracks.
+    let scene = bar(voronoi([0.2, 0.05], 200));
+    let (a, e) = (
+        run(&scene, EvaluatorKind::Assembled, 100),
+        run(&scene, EvaluatorKind::ElementWise, 100),
+    );
+    let scale = a.u.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let diff =
+        a.u.iter()
+            .zip(&e.u)
+            .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
+    r.line(&format!(
+        "Both evaluators on the 200-site bar, {} steps, while {} interfaces break: final \
+        displacements differ by {:.2e} of the largest; fracture works {:.10e} J (assembled, \
+        `K U − G δ_p`) and {:.10e} J (element-wise, each element's own edges).\n",
+        a.steps,
+        a.count("broken"),
+        diff / scale,
+        a.last.fracture,
+        e.last.fracture
+    ));
+    r.bound(
+        "tension parity: |U_assembled − U_element-wise| / |U|",
+        diff / scale,
+        1e-9,
+    );
+    r.line(
+        "The grid bar reaches `f_t` (the bound of 2 % holds), but its fracture work exceeds \
+        `G_f A`: every section of a uniform bar reaches `f_t` at once and softens a little \
+        before one localises. On the Voronoi bars the interfaces are inclined to the load, the \
+        crack is tortuous and damage spreads before it localises: the peak is 20–40 % above \
+        `f_t` and the fracture work is about three times `G_f A`, on every mesh size. Each \
+        interface spends exactly its `G_f` (the one-interface case), but the bar does not: plain \
+        Voronoi RBSM is not mesh-objective in this sense without a calibration of the \
+        interface strength, which this code does not make. Reported as measured.\n",
+    );
+}
+
+/// Plastic collapse of a block squeezed between smooth platens.
+fn compression(r: &mut Report) {
+    r.line("### 11.2 Collapse in compression\n");
+    r.line(
+        "A 0.5 × 1 m block, `c` = 100 kPa, `f_t` = 1 MPa, squeezed between smooth platens at \
+        0.01 m/s to 2 cm. The collapse stress of a Mohr–Coulomb continuum is \
+        `q = 2c cos φ / (1 − sin φ)`, on planes at 45° + φ/2 to the platens. Meshes of right \
+        triangles whose diagonals lie on those planes (10 × 20 cells for φ = 0°, 20 × 23 for \
+        30°: diagonals at 45.0° and 60.1°) can form that mechanism; Voronoi cells cannot (below). \
+        `q`: the largest platen reaction over the width.\n",
+    );
+    r.line("| mesh | φ | q / c | closed form | error | steps | element-steps |");
+    r.line("|---|---|---|---|---|---|---|");
+    for (cells, phi) in [([10, 20], 0.0), ([20, 23], 30.0)] {
+        let run = run(
+            &squeeze(grid([0.5, 1.0], cells, "tri"), phi, 1.0e6),
+            EvaluatorKind::ElementWise,
+            200,
+        );
+        let q = run.peak() / 0.5 / 1.0e5;
+        let s = f64::to_radians(phi).sin();
+        let exact = 2.0 * (1.0 - s * s).sqrt() / (1.0 - s);
+        let error = q / exact - 1.0;
+        r.line(&format!(
+            "| triangles {} × {} | {phi}° | {q:.4} | {exact:.4} | {:+.2} % | {} |",
+            cells[0],
+            cells[1],
+            100.0 * error,
+            run.cost()
+        ));
+        r.timing(&format!(
+            "- compression, triangles, φ = {phi}°: {:.2} s",
+            run.wall_s
+        ));
+        r.bound(
+            &format!("compression phi={phi}: |q / closed form − 1|"),
+            error.abs(),
+            0.03,
+        );
+    }
+    for sites in [100usize, 400, 1600] {
+        let run = run(
+            &squeeze(voronoi([0.5, 1.0], sites), 0.0, 0.0),
+            EvaluatorKind::ElementWise,
+            200,
+        );
+        let at = |f: f64| run.curve[((run.curve.len() - 1) as f64 * f) as usize].1 / 0.5 / 1.0e5;
+        r.line(&format!(
+            "| Voronoi {sites} sites (`f_t` = 0) | 0° | {:.2} at 1 cm, {:.2} at 2 cm | 2 | {:+.0} % | {} |",
+            at(0.5),
+            at(1.0),
+            100.0 * (at(1.0) / 2.0 - 1.0),
+            run.cost()
+        ));
+        r.timing(&format!(
+            "- compression, Voronoi {sites}: {:.2} s",
+            run.wall_s
+        ));
+        r.figure(
+            &format!("compression voronoi {sites}: q / c at 2 cm"),
+            at(1.0),
+            1e-6,
+        );
+    }
+    r.line(
+        "\nOn the aligned triangles the collapse stress is met within 2 %. On Voronoi cells the \
+        load does not level off: rigid cells with non-dilatant slip can only shear along a \
+        zig-zag band by opening or squeezing the inclined interfaces, so even with no tensile \
+        strength the lattice interlocks and hardens (the rigid-cell analogue of volumetric \
+        locking). Limit loads from Voronoi RBSM with these laws are upper values far above the \
+        continuum's.\n",
+    );
+}
+
+/// Prandtl's strip footing.
+fn prandtl(r: &mut Report) {
+    r.line("### 11.3 Prandtl's strip footing\n");
+    r.line(
+        "A rigid rough footing 0.4 m wide pushed at 0.01 m/s (after a 0.05 s ramp) into the middle \
+        of a weightless clay layer 2 m wide and 1 m deep (φ = 0, `c` = 100 kPa, no tension: the \
+        Prandtl field is compressive everywhere), smooth side walls, fixed base. Collapse pressure \
+        `(2 + π) c` = 5.142 c. `q`: the footing's reaction over its width at 1.5 cm.\n",
+    );
+    r.line("| mesh | elements | q / c | error | steps | element-steps |");
+    r.line("|---|---|---|---|---|---|");
+    let exact = 2.0 + PI;
+    let meshes: Vec<(String, Value)> = [(20usize, 10usize), (40, 20)]
+        .map(|(nx, ny)| {
+            (
+                format!("crossed triangles {nx} × {ny}"),
+                crossed(nx, ny, [2.0, 1.0]),
+            )
+        })
+        .into_iter()
+        .chain(
+            [400usize, 800, 1600].map(|n| (format!("Voronoi {n} sites"), voronoi([2.0, 1.0], n))),
+        )
+        .collect();
+    for (name, mesh) in meshes {
+        let run = run(&footing(mesh), EvaluatorKind::ElementWise, 500);
+        let q = run.curve.last().unwrap().1 / 0.4 / 1.0e5;
+        r.line(&format!(
+            "| {name} | {} | {q:.3} | {:+.1} % | {} |",
+            run.elements,
+            100.0 * (q / exact - 1.0),
+            run.cost()
+        ));
+        r.timing(&format!("- Prandtl, {name}: {:.2} s", run.wall_s));
+        let key = name.replace(' ', "_");
+        r.figure(&format!("prandtl {key}: q / c"), q, 1e-6);
+        if name.starts_with("crossed") {
+            // The three-wedge mechanism of 45° blocks: q = 6c, an upper bound.
+            r.bound(
+                &format!("prandtl {key}: |q / 6c − 1|"),
+                (q / 6.0 - 1.0).abs(),
+                0.01,
+            );
+        }
+    }
+    r.line(
+        "\nThe crossed triangles level off at 6.01 c on both meshes: their interfaces run at 0°, \
+        45° and 90° only, so the mechanism they can form is the classical upper bound of three \
+        rigid 45° wedges, `q = 6c` (+16.7 % over Prandtl), not Prandtl's fan, and refining the \
+        same pattern does not change it. The Voronoi meshes interlock as in 11.2: the pressure \
+        at 1.5 cm is about four times Prandtl's and still rising; it falls only slowly with \
+        refinement. RBSM limit analysis reaches a few per cent only on meshes laid out for the \
+        mechanism; this code reports, it does not tune.\n",
+    );
+}
