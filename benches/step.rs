@@ -237,8 +237,17 @@ fn main() {
         return;
     };
     let extras = extras(rss_per_element, working_set);
-    let summary = render(&bandwidth, &rows, &builds, &extras);
+    let mut summary = render(&bandwidth, &rows, &builds, &extras);
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/benches/summary.md");
+    // The section that `cargo bench --bench failure` writes stays.
+    let old = std::fs::read_to_string(path).unwrap_or_default();
+    if let (Some(a), Some(b)) = (old.find("<!-- failure:"), old.find("<!-- /failure -->")) {
+        summary = format!(
+            "{}\n\n{}\n",
+            summary.trim_end(),
+            &old[a..b + "<!-- /failure -->".len()]
+        );
+    }
     std::fs::write(path, summary).expect("benches/summary.md is writable");
     eprintln!("wrote {path}");
 }

@@ -192,6 +192,134 @@ pub fn failure(r: &mut Report) {
     tension(r);
     compression(r);
     prandtl(r);
+    fragments(r);
+}
+
+/// The bundled fragmentation scene, by both evaluators: the energy balance while the beam
+/// breaks and its pieces collide, and the two evaluators side by side.
+fn fragments(r: &mut Report) {
+    r.line("### 11.4 Fragments: RBSM and DEM as one algorithm\n");
+    r.line(
+        "`examples/scenes/beam_drop.json`: a 1 m × 0.1 m concrete beam (150 Voronoi cells, `f_t` = \
+        3 MPa, `G_f` = 50 J/m²) dropped at 2 m/s under gravity onto a ridge of rigid ground, \
+        edge-to-edge contact with μ = 0.5, undamped, 0.25 Δt_crit, 80 ms. Broken interfaces \
+        whose elements separate by 1 % of their length are released to contact (paper_notes \
+        22). Energy put in: the initial kinetic energy plus the largest fall of the potential.\n",
+    );
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/scenes/beam_drop.json");
+    let scene: Value = serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+    r.line("| evaluator | released | broken | yielding | fracture (J) | friction (J) | |total drift| / put in | steps | element-steps |");
+    r.line("|---|---|---|---|---|---|---|---|---|");
+    let mut runs = Vec::new();
+    for kind in [EvaluatorKind::Assembled, EvaluatorKind::ElementWise] {
+        let scene = Scene::from_json(&scene.to_string()).unwrap();
+        let overrides = Overrides {
+            evaluator: Some(kind),
+            ..Overrides::default()
+        };
+        let start = std::time::Instant::now();
+        let setup = Setup::new(&scene, &overrides).unwrap();
+        let mut cd = setup.integrator(setup.dt);
+        let (mut rows, mut states) = (Vec::new(), Vec::new());
+        cd.run(
+            setup.steps,
+            1000,
+            |s, e| {
+                rows.push(*e);
+                states.push((s.t, s.u.to_vec()));
+                Ok(())
+            },
+            |_| {},
+        )
+        .unwrap();
+        let report = setup
+            .plastic
+            .as_ref()
+            .unwrap()
+            .report(cd.failure().unwrap());
+        let count = |s: &str| report.iter().filter(|i| i.status == s).count();
+        let put_in = rows[0].kinetic - rows.iter().map(|e| e.potential).fold(0.0, f64::min);
+        let drift = rows
+            .iter()
+            .map(|e| (e.total - rows[0].total).abs())
+            .fold(0.0, f64::max)
+            / put_in;
+        let last = rows.last().unwrap();
+        r.line(&format!(
+            "| {} | {} | {} | {} | {:.4} | {:.4} | {drift:.2e} | {} | {:.2e} |",
+            kind.name(),
+            count("released"),
+            count("broken"),
+            count("yielding"),
+            last.fracture,
+            last.friction,
+            cd.step,
+            cd.step as f64 * setup.model.elements.len() as f64
+        ));
+        r.timing(&format!(
+            "- beam drop, {}: {:.2} s",
+            kind.name(),
+            start.elapsed().as_secs_f64()
+        ));
+        r.bound(
+            &format!("fragments {}: |total drift| / put in", kind.name()),
+            drift,
+            1e-3,
+        );
+        r.figure(
+            &format!("fragments {}: released", kind.name()),
+            count("released") as f64,
+            0.0,
+        );
+        runs.push(states);
+    }
+    // The two evaluators side by side in time: |ΔU| over the largest |U| at that time.
+    let parity: Vec<(f64, f64)> = runs[0]
+        .iter()
+        .zip(&runs[1])
+        .map(|((t, a), (_, e))| {
+            let scale = a
+                .iter()
+                .fold(0.0f64, |m, x| m.max(x.abs()))
+                .max(f64::MIN_POSITIVE);
+            let diff = a
+                .iter()
+                .zip(e)
+                .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
+            (*t, diff / scale)
+        })
+        .collect();
+    r.line("\n|U_assembled − U_element-wise| / |U| in time (the beam lands at about 25 ms):\n");
+    r.line("| t (ms) | 20 | 25 | 30 | 35 | 40 | 50 | 60 | 80 |");
+    r.line("|---|---|---|---|---|---|---|---|---|");
+    let at = |ms: f64| {
+        parity
+            .iter()
+            .min_by(|a, b| (a.0 - ms * 1e-3).abs().total_cmp(&(b.0 - ms * 1e-3).abs()))
+            .map_or(f64::NAN, |p| p.1)
+    };
+    let times = [20.0, 25.0, 30.0, 35.0, 40.0, 50.0, 60.0, 80.0];
+    r.line(&format!(
+        "| difference | {} |",
+        times.map(|ms| format!("{:.1e}", at(ms))).join(" | ")
+    ));
+    r.bound("fragments: parity before landing (20 ms)", at(20.0), 1e-9);
+    r.bound(
+        "fragments: parity through the first cracks (40 ms)",
+        at(40.0),
+        1e-6,
+    );
+    r.line(
+        "\nIn free fall the two differ by 1e-10: the assembled `K U` of a 4 cm translation cancels \
+        only to the round-off of `K`'s entries, where the element-wise form takes `δ` as a \
+        difference directly. Through the landing and the first cracks (25–40 ms) they stay within \
+        1e-8. Each break and each contact decision is a threshold, so once the pieces fly and \
+        collide the difference grows by orders of magnitude per few milliseconds, as a round-off \
+        perturbation of a chaotic motion does, until the pieces' paths are unrelated; the counts \
+        and the works above stay alike. The energy balance closes within 1e-3 of the energy put \
+        in; it falls with the step (3.2e-4 at 0.1 Δt_crit on the same scene).\n",
+    );
 }
 
 /// Uniaxial tension: one interface, the grid bar, the Voronoi bar at three sizes; parity and

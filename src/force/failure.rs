@@ -14,6 +14,15 @@
 //!
 //! Only the interfaces between elements of a failing material have points; ground springs
 //! (supports) stay elastic.
+//!
+//! **Hand-over to contact.** In a scene with edge-to-edge contact a broken interface whose
+//! elements have moved apart by more than [`RELEASE`] of its length (in opening or in slip),
+//! beyond the range where its linear kinematics hold, is *released*: its springs stop acting
+//! (`δ_p` follows `δ`, the traction is zero) and its two elements touch through edge-to-edge
+//! contact from then on, so that the fragments the released interfaces cut out collide as
+//! blocks (`force::contact`, where every element of a body that fragments is a contact body). The elastic energy the interface still held goes to the contact account
+//! ([`FailureState::handover`]); both sides' forces stay equal and opposite, so momentum is
+//! kept.
 
 use crate::input::scene::EvaluatorKind;
 use crate::mesh::geometry::Vec2;
@@ -24,12 +33,24 @@ use crate::parallel::for_each_chunk;
 use rayon::prelude::*;
 use std::marker::PhantomData;
 
+/// A broken interface is released to contact once its elements have moved apart by more than
+/// this fraction of its length.
+pub const RELEASE: f64 = 0.01;
+
 /// The state of every Gauss point of the failing interfaces: two per interface, in the order of
 /// [`PlasticForces::interfaces`].
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct FailureState {
     /// One per Gauss point.
     pub points: Vec<PlasticPoint>,
+    /// Per failing interface, whether it has been released to contact (only in scenes whose
+    /// fragments collide, else all false).
+    pub released: Vec<bool>,
+    /// The elastic energy the released interfaces held when they were released (J): contact
+    /// energy from then on.
+    pub handover: f64,
+    /// Whether the last update released an interface (contact must be told).
+    pub changed: bool,
 }
 
 /// What an interface has done so far, from its two Gauss points.
@@ -37,8 +58,9 @@ pub struct FailureState {
 pub struct InterfaceFailure {
     /// The interface (index in `Model::interfaces`).
     pub interface: usize,
-    /// `elastic` (no plastic displacement), `yielding` (plastic displacement, strength left) or
-    /// `broken` (strength exhausted at both Gauss points).
+    /// `elastic` (no plastic displacement), `yielding` (plastic displacement, strength left),
+    /// `broken` (strength exhausted at both Gauss points) or `released` (broken and handed over
+    /// to contact).
     pub status: &'static str,
     /// Mean plastic opening `δ_p,n` (m): the crack opening.
     pub opening: f64,
@@ -57,6 +79,9 @@ pub trait PlasticForces: Send + Sync {
     fn initial(&self) -> FailureState {
         FailureState {
             points: vec![PlasticPoint::default(); 2 * self.interfaces().len()],
+            released: vec![false; self.interfaces().len()],
+            handover: 0.0,
+            changed: false,
         }
     }
     /// The return mapping at every Gauss point for the displacements `u`.
@@ -129,6 +154,9 @@ enum Correction<const N: usize> {
 struct Points<K: Kinematics<N>, const N: usize> {
     points: Vec<Point>,
     interfaces: Vec<u32>,
+    /// Per failing interface, the separation beyond which a broken one is released (m):
+    /// [`RELEASE`] of its length where its body fragments (`Model::fragments`), else infinite.
+    release: Vec<f64>,
     /// Entries of element `e` are `row_start[e] .. row_start[e + 1]` of `correction`.
     row_start: Vec<u32>,
     correction: Correction<N>,
@@ -139,10 +167,20 @@ impl<K: Kinematics<N>, const N: usize> Points<K, N> {
     fn new(model: &Model, kind: EvaluatorKind) -> Self {
         let mut points = Vec::new();
         let mut interfaces = Vec::new();
+        let mut release = Vec::new();
         let centroid = |e: u32| model.elements[e as usize].props.centroid;
+        let fragments: Vec<bool> = (0..model.bodies.len())
+            .map(|b| model.fragments(b))
+            .collect();
         for (k, (i, s)) in model.interfaces.iter().zip(&model.strength).enumerate() {
             let Some(strength) = *s else { continue };
             interfaces.push(k as u32);
+            let body = model.elements[i.a as usize].body as usize;
+            release.push(if fragments[body] && i.b != GROUND {
+                RELEASE * i.length
+            } else {
+                f64::INFINITY
+            });
             let (gauss, w) = i.gauss_points();
             for x in gauss {
                 points.push(Point {
@@ -200,6 +238,7 @@ impl<K: Kinematics<N>, const N: usize> Points<K, N> {
         Points {
             points,
             interfaces,
+            release,
             row_start,
             correction,
             kinematics: PhantomData,
@@ -214,14 +253,46 @@ impl<K: Kinematics<N>, const N: usize> PlasticForces for Points<K, N> {
 
     fn update(&self, u: &[f64], state: &mut FailureState) {
         let (u, _) = u.as_chunks::<N>();
+        let released = &state.released;
         state
             .points
             .par_iter_mut()
             .zip(self.points.par_iter())
+            .enumerate()
             .with_min_len(4096)
-            .for_each(|(s, p)| {
-                p.strength.update(p.k, p.delta::<K, N>(u), s);
+            .for_each(|(j, (s, p))| {
+                let delta = p.delta::<K, N>(u);
+                if released[j / 2] {
+                    s.p = delta;
+                } else {
+                    p.strength.update(p.k, delta, s);
+                }
             });
+        // Hand-over: broken interfaces whose elements moved apart beyond their range.
+        state.changed = false;
+        for (k, &range) in self.release.iter().enumerate() {
+            if range.is_infinite() || state.released[k] {
+                continue;
+            }
+            let (p, s) = (
+                &self.points[2 * k..2 * k + 2],
+                &mut state.points[2 * k..2 * k + 2],
+            );
+            if !(0..2).all(|g| p[g].strength.is_broken(&s[g])) {
+                continue;
+            }
+            let d = [0, 1].map(|g| p[g].delta::<K, N>(u));
+            if (0..2).any(|c| (0.5 * (d[0][c] + d[1][c])).abs() > range) {
+                for g in 0..2 {
+                    let e = [d[g][0] - s[g].p[0], d[g][1] - s[g].p[1]];
+                    state.handover +=
+                        0.5 * p[g].tw * (p[g].k[0] * e[0] * e[0] + p[g].k[1] * e[1] * e[1]);
+                    s[g].p = d[g];
+                }
+                state.released[k] = true;
+                state.changed = true;
+            }
+        }
     }
 
     fn subtract_plastic(&self, state: &FailureState, f: &mut [f64]) {
@@ -289,7 +360,9 @@ impl<K: Kinematics<N>, const N: usize> PlasticForces for Points<K, N> {
                 let plastic = s.iter().any(|s| s.p != [0.0; 2]);
                 InterfaceFailure {
                     interface: i as usize,
-                    status: if broken {
+                    status: if state.released[k] {
+                        "released"
+                    } else if broken {
                         "broken"
                     } else if plastic {
                         "yielding"

@@ -126,6 +126,8 @@ pub struct Body {
     pub first_element: usize,
     /// The numerators `E_n`, `E_s` (Pa) of its springs, `k = E / (h_a + h_b)` (eq. 12).
     pub moduli: [f64; 2],
+    /// The interfaces of its shared edges are `first_interface ..` in `mesh.shared` order.
+    pub first_interface: usize,
 }
 
 /// Everything the evaluators, the integrator and the analyses need.
@@ -197,6 +199,22 @@ impl Prescribed {
     /// The displacement of component `c` at time `t` (m).
     pub fn displacement(&self, c: usize, t: f64) -> f64 {
         self.velocity[c] * self.travel(t)
+    }
+}
+
+impl Model {
+    /// Whether body `bi` breaks into fragments: its interfaces can fail and the scene has
+    /// edge-to-edge contact, so that a broken interface whose elements have moved apart is
+    /// handed over to contact (`force::failure`, `force::contact`).
+    pub fn fragments(&self, bi: usize) -> bool {
+        let body = &self.bodies[bi];
+        self.contact
+            .is_some_and(|c| c.model == crate::input::scene::ContactModel::EdgeToEdge)
+            && !body.mesh.shared.is_empty()
+            && self
+                .strength
+                .get(body.first_interface)
+                .is_some_and(Option::is_some)
     }
 }
 
@@ -292,6 +310,7 @@ impl Model {
                 model.initial_velocity.extend(v);
             }
             let at = |k: &str| format!("bodies[{bi}].{k}");
+            let first_interface = model.interfaces.len();
             for e in &mesh.shared {
                 let iface = model
                     .interface(
@@ -449,6 +468,7 @@ impl Model {
                 mesh,
                 first_element: first,
                 moduli: spring_moduli(&material, scene.plane),
+                first_interface,
             });
         }
         model.check_finite(scene)?;

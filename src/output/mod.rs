@@ -79,6 +79,8 @@ pub struct FailureSummary {
     pub yielding: usize,
     /// Those whose strength is exhausted.
     pub broken: usize,
+    /// Those broken and handed over to contact (bodies that fragment).
+    pub released: usize,
     /// Work of the strengths (tension and cohesion) (J).
     pub fracture: f64,
     /// Work of friction on the interfaces (J).
@@ -95,6 +97,7 @@ impl FailureSummary {
             interfaces: interfaces.len(),
             yielding: interfaces.iter().filter(|i| i.status == "yielding").count(),
             broken: interfaces.iter().filter(|i| i.status == "broken").count(),
+            released: interfaces.iter().filter(|i| i.status == "released").count(),
             fracture: dissipated[0],
             friction: dissipated[1],
         }

@@ -420,6 +420,11 @@ impl<'a> CentralDifference<'a> {
         if let Some((plastic, state)) = self.failure.as_mut() {
             plastic.update(&self.u, state);
             plastic.subtract_plastic(state, &mut self.force);
+            if state.changed {
+                if let Some(c) = self.contact.as_mut() {
+                    c.release(*plastic, state);
+                }
+            }
         }
         self.force_clear = false;
         let elastic = if energy {
@@ -770,7 +775,9 @@ impl<'a> CentralDifference<'a> {
         let potential = self.loads.gravity_potential(&self.u);
         let external_work =
             self.ledger.external_work - self.ledger.clamp_ahead + self.clamp_kinetic();
-        let contact = self.ledger.contact_energy;
+        // The energy the released interfaces handed over is contact energy from then on.
+        let contact =
+            self.ledger.contact_energy + self.failure.as_ref().map_or(0.0, |(_, s)| s.handover);
         let [fracture, friction] = self
             .failure
             .as_ref()

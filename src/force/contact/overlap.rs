@@ -54,8 +54,9 @@ struct Target {
 struct Face {
     /// Compliances `h / E_n`, `h / E_s` of its side (zero for the ground).
     compliance: [f64; 2],
-    /// Whether it is a surface (on the body's boundary, a ground segment or a free end of one)
-    /// or only bounds the target (shared with another element, a joint between segments).
+    /// Whether it is a surface (on the body's boundary, a ground segment or a free end of one,
+    /// any face of an element of a body that fragments) or only bounds the target (shared with
+    /// another element, a joint between segments).
     surface: bool,
 }
 
@@ -64,6 +65,7 @@ struct Face {
 #[derive(Debug, Clone, Copy, serde::Serialize, serde::Deserialize)]
 struct Source {
     element: u32,
+    /// Its body, or in a body that fragments, `bodies +` its element (`Overlap::apart`).
     body: u32,
     ends: [u32; 2],
     compliance: [f64; 2],
@@ -118,6 +120,16 @@ pub(super) struct Overlap {
     friction: Option<f64>,
     /// No evaluation yet: no step to measure slips over, and the neighbour list to build.
     fresh: bool,
+    /// The fragments changed: the neighbour list must be rebuilt.
+    stale: bool,
+    /// The bodies of the model: a contact body from this on is a fragment.
+    bodies: u32,
+    /// In the bodies that fragment, the elements that share an edge with each element, sorted,
+    /// with the interface of that edge: `neighbours[neighbour_start[e]..neighbour_start[e + 1]]`.
+    neighbour_start: Vec<u32>,
+    neighbours: Vec<(u32, u32)>,
+    /// Per interface of the model, whether it is released (bodies that fragment only).
+    released: Vec<bool>,
 }
 
 /// Candidates per block of the narrow phase (a rayon task).
@@ -228,11 +240,25 @@ impl Overlap {
             let mesh = &body.mesh;
             let on_boundary: HashSet<(u32, u32)> =
                 mesh.boundary.iter().map(|e| (e.cell, e.v1)).collect();
-            let mut cells: Vec<u32> = mesh.boundary.iter().map(|e| e.cell).collect();
+            // In a body that fragments every element is a contact body of its own: a target
+            // whose faces are all surfaces, each edge a source. Elements still bonded by their
+            // interface do not touch (`Overlap::apart`); the others do, from the start, so that
+            // no overlap can build up unseen before an interface is released.
+            let fragments = model.fragments(bi);
+            let mut cells: Vec<u32> = if fragments {
+                (0..mesh.n_cells() as u32).collect()
+            } else {
+                mesh.boundary.iter().map(|e| e.cell).collect()
+            };
             cells.sort_unstable();
             cells.dedup();
             for c in cells {
                 let element = body.first_element + c as usize;
+                let contact_body = if fragments {
+                    (model.bodies.len() + element) as u32
+                } else {
+                    bi as u32
+                };
                 let centroid = model.elements[element].props.centroid;
                 let cell = mesh.cell(c as usize);
                 let first = offsets.len() as u32;
@@ -244,7 +270,7 @@ impl Overlap {
                     let (_, n, _) = frame(p1, p2);
                     let h = (p1 - centroid).dot(&n).abs();
                     let compliance = [h / body.moduli[0], h / body.moduli[1]];
-                    let surface = on_boundary.contains(&(c, v));
+                    let surface = fragments || on_boundary.contains(&(c, v));
                     offsets.push(p1 - centroid);
                     faces.push(Face {
                         compliance,
@@ -254,7 +280,7 @@ impl Overlap {
                         let ends = [first + k as u32, first + ((k + 1) % cell.len()) as u32];
                         sources.push(Source {
                             element: element as u32,
-                            body: bi as u32,
+                            body: contact_body,
                             ends,
                             compliance,
                         });
@@ -262,12 +288,13 @@ impl Overlap {
                 }
                 targets.push(Target {
                     element: element as u32,
-                    body: bi as u32,
+                    body: contact_body,
                     first,
                     count: cell.len() as u32,
                 });
             }
         }
+        let (neighbour_start, neighbours) = neighbours(model);
         for (gi, g) in model.ground.iter().enumerate() {
             // The strip below the segment, stored `to → from` as a body's boundary is (solid on
             // the left), closed at each end by a wall: perpendicular at a free end, the bisector
@@ -296,6 +323,22 @@ impl Overlap {
             };
             let (down_from, free_from) = wall(from, joined(from, true));
             let (down_to, free_to) = wall(to, joined(to, false));
+            // Walls that converge (a free end beside a joint, a segment between a ridge and a
+            // valley) would cross below the segment and fold the strip: it stops at half the
+            // depth where they meet.
+            let gap = to - from;
+            let det = down_to.x * down_from.y - down_from.x * down_to.y;
+            let depth = if det.abs() > 1e-12 {
+                let a = (down_to.x * gap.y - gap.x * down_to.y) / det;
+                let b = (down_from.x * gap.y - gap.x * down_from.y) / det;
+                if a > 0.0 && b > 0.0 {
+                    depth.min(0.5 * a.min(b))
+                } else {
+                    depth
+                }
+            } else {
+                depth
+            };
             let first = offsets.len() as u32;
             offsets.extend([to, from, from + depth * down_from, to + depth * down_to]);
             faces.extend([
@@ -357,6 +400,15 @@ impl Overlap {
             factor: model.formulation.spring_factor(),
             friction,
             fresh: true,
+            stale: false,
+            bodies: model.bodies.len() as u32,
+            released: if neighbours.is_empty() {
+                Vec::new()
+            } else {
+                vec![false; model.interfaces.len()]
+            },
+            neighbour_start,
+            neighbours,
         };
         overlap.reserve();
         overlap.place_lines(true);
@@ -389,9 +441,10 @@ impl Overlap {
         tests: &mut u64,
     ) -> f64 {
         self.place(frames, u);
-        if moved_beyond(&self.corners, &self.anchors, 0.5 * self.skin) {
+        if self.stale || moved_beyond(&self.corners, &self.anchors, 0.5 * self.skin) {
             self.rebuild(u);
             self.rebuilds += 1;
+            self.stale = false;
         }
         if self.candidates.is_empty() {
             self.pieces.clear();
@@ -453,6 +506,36 @@ impl Overlap {
         energy
     }
 
+    /// Interfaces handed over to contact: `released[i]` tells whether interface `i` is; the two
+    /// elements of a released interface touch from now on. The neighbour list is rebuilt at the
+    /// next evaluation.
+    pub fn release(&mut self, released: &[bool]) {
+        self.released.copy_from_slice(released);
+        self.stale = true;
+    }
+
+    /// Whether source `s` and target `t` may not touch: the same element, the same body, or two
+    /// elements still bonded by their interface (the interface keeps them apart; elements that
+    /// share a corner, or whose interface is released, do touch).
+    fn apart(&self, s: &Source, t: &Target) -> bool {
+        if t.element == s.element {
+            return true;
+        }
+        if t.body != s.body {
+            return false;
+        }
+        if s.body < self.bodies {
+            return true;
+        }
+        let e = s.element as usize;
+        let range = self.neighbour_start[e] as usize..self.neighbour_start[e + 1] as usize;
+        let near = &self.neighbours[range];
+        match near.binary_search_by_key(&t.element, |n| n.0) {
+            Ok(k) => !self.released[near[k].1 as usize],
+            Err(_) => false,
+        }
+    }
+
     /// The number of live pieces.
     pub fn len(&self) -> usize {
         self.pieces.len()
@@ -462,7 +545,7 @@ impl Overlap {
     /// half the skin since the last rebuild (`|Δu| + r |Δθ|`, `r` its farthest corner), so
     /// that not even the corners need placing (a body in flight).
     pub fn idle(&self, u: &[f64]) -> bool {
-        if !self.candidates.is_empty() || self.fresh || !self.rigid {
+        if !self.candidates.is_empty() || self.fresh || self.stale || !self.rigid {
             return false;
         }
         let limit = 0.5 * self.skin;
@@ -547,7 +630,7 @@ impl Overlap {
             for k in grid.touching(slo, shi) {
                 for &t in self.buckets.bucket(k) {
                     let target = &self.targets[t as usize];
-                    if target.body == s.body {
+                    if self.apart(s, target) {
                         continue;
                     }
                     if boxes_meet(boxes(target), (slo, shi)) {
@@ -753,4 +836,33 @@ impl Overlap {
             block.forces.push((tgt.element, on_target));
         }
     }
+}
+
+/// The edge neighbours of every element of the bodies that fragment, with the interface of
+/// their edge (`Overlap::neighbours`). Empty when no body fragments.
+fn neighbours(model: &Model) -> (Vec<u32>, Vec<(u32, u32)>) {
+    let mut pairs: Vec<(u32, u32, u32)> = Vec::new();
+    for (bi, body) in model.bodies.iter().enumerate() {
+        if !model.fragments(bi) {
+            continue;
+        }
+        let element = |c: u32| (body.first_element + c as usize) as u32;
+        for (j, e) in body.mesh.shared.iter().enumerate() {
+            let i = (body.first_interface + j) as u32;
+            pairs.push((element(e.a), element(e.b), i));
+            pairs.push((element(e.b), element(e.a), i));
+        }
+    }
+    if pairs.is_empty() {
+        return (Vec::new(), Vec::new());
+    }
+    pairs.sort_unstable();
+    let mut start = vec![0u32; model.elements.len() + 1];
+    for &(a, ..) in &pairs {
+        start[a as usize + 1] += 1;
+    }
+    for e in 0..model.elements.len() {
+        start[e + 1] += start[e];
+    }
+    (start, pairs.into_iter().map(|(_, b, i)| (b, i)).collect())
 }
