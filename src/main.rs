@@ -140,13 +140,18 @@ enum Command {
         #[arg(long)]
         out: Option<PathBuf>,
     },
-    /// Draw a scene's model as SVG: elements, interface springs, supports, loads, ground.
+    /// Draw a scene's model as SVG: elements, interface springs, supports, loads, ground; or,
+    /// with --state, a run's final state with its cracks.
     Draw {
         /// The scene file (JSON; see docs/scene.md).
         scene: PathBuf,
         /// The SVG file to write.
         #[arg(long)]
         out: PathBuf,
+        /// Draw the final state of the run in DIR (DIR/final_state.json, of this scene):
+        /// the deformed elements, broken interfaces as thick red lines, yielding ones orange.
+        #[arg(long, value_name = "DIR")]
+        state: Option<PathBuf>,
     },
     /// Draw the histories a run left in DIR as SVG beside them: energies.svg and probes.svg
     /// from history.csv (rbsm run), stability.svg from fraction_F.csv (rbsm stability --out).
@@ -359,9 +364,16 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
             };
             print(cli.json, &check::check(&setup(scene, overrides)?)?)?;
         }
-        Command::Draw { scene, out } => {
+        Command::Draw { scene, out, state } => {
             let model = rbsm::model::Model::build(&Scene::from_file(scene)?)?;
-            let svg = rbsm::output::drawing::model_svg(&model);
+            let svg = match state {
+                None => rbsm::output::drawing::model_svg(&model),
+                Some(dir) => {
+                    let path = dir.join("final_state.json");
+                    let state = rbsm::output::read_final_state(&path, &model)?;
+                    rbsm::output::drawing::state_svg(&model, &state)
+                }
+            };
             std::fs::write(out, svg).map_err(|e| rbsm::error::Error::io(out, e))?;
             print(
                 cli.json,

@@ -188,3 +188,254 @@ fn mode_shapes_open_as_a_series() {
         assert!(types.iter().all(|t| *t == CellType::Quad));
     }
 }
+
+/// Scenes without failing interfaces write the frames they wrote before the cracks were added,
+/// byte for byte: `tests/golden/frames/{rigid,hybrid}/` hold the collection and the frames of
+/// `tests/golden/frames/{rigid,hybrid}.json` as commit a61c31b wrote them (a fixed `dt`, and
+/// motions that are translations up to round-off, so that no eigen solve or trigonometry of
+/// the platform enters); and they write nothing about cracks.
+#[test]
+fn frames_without_failure_are_the_frames_written_before_cracks() {
+    let golden = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/golden/frames");
+    for name in ["rigid", "hybrid"] {
+        let s = Scene::from_file(golden.join(format!("{name}.json"))).unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        common::run_into(&s, None, dir.path());
+        let expected = golden.join(name);
+        let mut files = vec!["series.pvd".to_string()];
+        files.extend(listed(&expected));
+        assert_eq!(
+            files.len(),
+            4,
+            "{name}: three frames in the golden collection"
+        );
+        for f in &files {
+            let (got, want) = (
+                std::fs::read(dir.path().join(f)).unwrap(),
+                std::fs::read(expected.join(f)).unwrap(),
+            );
+            assert!(got == want, "{name}: {f} differs from the golden file");
+        }
+        let mut written: Vec<String> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        written.sort();
+        assert_eq!(
+            written,
+            [
+                "final_state.json",
+                "history.csv",
+                "series.pvd",
+                "summary.json",
+                "vtk"
+            ],
+            "{name}"
+        );
+        assert_eq!(
+            std::fs::read_dir(dir.path().join("vtk")).unwrap().count(),
+            3
+        );
+    }
+}
+
+/// The cell arrays of a `.vtu` file by name, as numbers, and its points.
+fn arrays(path: &Path) -> (Vec<f64>, Vec<(String, Vec<f64>)>) {
+    let vtk = vtkio::Vtk::import(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let DataSet::UnstructuredGrid { pieces, .. } = vtk.data else {
+        panic!("not an unstructured grid")
+    };
+    let Piece::Inline(piece) = pieces.into_iter().next().unwrap() else {
+        panic!("not inline")
+    };
+    let named = piece
+        .data
+        .cell
+        .into_iter()
+        .map(|a| match a {
+            Attribute::DataArray(d) => (d.name, d.data.cast_into::<f64>().unwrap()),
+            Attribute::Field { name, .. } => panic!("field data {name}"),
+        })
+        .collect();
+    (piece.points.cast_into().unwrap(), named)
+}
+
+/// The bundled tension bar, which cracks within its run, with frames every 500 steps.
+fn tension_bar() -> Value {
+    let mut v = bundled("tension_bar");
+    v["output"] = serde_json::json!({"vtk": true, "every": 500});
+    v
+}
+
+/// A run whose interfaces can fail writes beside each element frame a frame of its failing
+/// interfaces, `cracks/step_N.vtu`, listed by `cracks.pvd` at the same times: one line per
+/// interface that can fail (the same lines in every frame), on its edge (the reference edge
+/// at the start), with the arrays of its state; at the end they are the states of
+/// `final_state.json`, some broken. The element frames keep one cell per element and their
+/// arrays.
+#[test]
+fn a_cracking_run_writes_the_state_of_each_failing_interface_beside_the_frames() {
+    let s = Scene::from_json(&tension_bar().to_string()).unwrap();
+    let model = rbsm::model::Model::build(&s).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let summary = common::run_into(&s, None, dir.path());
+    let failing = summary
+        .failure
+        .expect("the bar's interfaces can fail")
+        .interfaces;
+    assert_eq!(failing, model.strength.iter().flatten().count());
+    let frames = listed(dir.path());
+    assert_eq!(frames.len(), 12, "steps 0, 500, …, 5000 and the last, 5367");
+    let pvd = std::fs::read_to_string(dir.path().join("cracks.pvd")).unwrap();
+    let series = std::fs::read_to_string(dir.path().join("series.pvd")).unwrap();
+    assert_eq!(pvd, series.replace("file=\"vtk/", "file=\"cracks/"));
+    let names = [
+        "interface_status",
+        "crack_opening",
+        "crack_slip",
+        "dissipated",
+        "interface",
+    ];
+    let mut statuses = Vec::new();
+    for f in &frames {
+        let (_, cells, _, elements) = read(&dir.path().join(f));
+        assert_eq!(cells.len(), model.elements.len());
+        assert_eq!(elements, ["displacement", "velocity", "rotation", "body"]);
+        let crack = dir.path().join(f.replace("vtk/", "cracks/"));
+        let (_, lines, types, _) = read(&crack);
+        assert_eq!(lines.len(), failing, "{f}: one line per failing interface");
+        assert!(lines.iter().all(|l| l.len() == 2) && types.iter().all(|t| *t == CellType::Line));
+        let (points, data) = arrays(&crack);
+        assert_eq!(points.len(), 3 * 2 * failing);
+        assert_eq!(data.iter().map(|d| d.0.as_str()).collect::<Vec<_>>(), names);
+        for (name, values) in &data {
+            assert_eq!(values.len(), failing, "{f}: tuples of {name}");
+        }
+        statuses.push(data[0].1.clone());
+        if f == &frames[0] {
+            // Nothing has moved: each line is its interface's reference edge (up to the
+            // round-off of `x_e + (x − x_e)`, 1e-17 m on the 0.2 m bar).
+            for (k, &i) in data[4].1.iter().enumerate() {
+                let i = &model.interfaces[i as usize];
+                for (j, p) in [i.p1, i.p2].iter().enumerate() {
+                    let at = 6 * k + 3 * j;
+                    let d = (points[at] - p.x).hypot(points[at + 1] - p.y);
+                    assert!(d < 1e-15, "line {k} end {j} is {d:e} m off its edge");
+                }
+            }
+        }
+    }
+    assert!(
+        statuses[0].iter().all(|s| *s == 0.0),
+        "all elastic at t = 0"
+    );
+    // The last frame is the final state.
+    let state: Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.path().join("final_state.json")).unwrap(),
+    )
+    .unwrap();
+    let (_, data) = arrays(
+        &dir.path()
+            .join(frames.last().unwrap().replace("vtk/", "cracks/")),
+    );
+    let listed = state["interfaces"].as_array().unwrap();
+    assert_eq!(listed.len(), failing);
+    for (k, i) in listed.iter().enumerate() {
+        let code = match i["status"].as_str().unwrap() {
+            "elastic" => 0.0,
+            "yielding" => 1.0,
+            "broken" => 2.0,
+            s => panic!("status {s}"),
+        };
+        assert_eq!(data[0].1[k], code);
+        assert_eq!(data[1].1[k], i["opening"].as_f64().unwrap());
+        assert_eq!(data[2].1[k], i["slip"].as_f64().unwrap());
+        assert_eq!(data[3].1[k], i["dissipated"].as_f64().unwrap());
+        assert_eq!(data[4].1[k], i["interface"].as_f64().unwrap());
+    }
+    let broken = statuses
+        .last()
+        .unwrap()
+        .iter()
+        .filter(|s| **s == 2.0)
+        .count();
+    assert!(broken > 0, "the bar has cracked through some interfaces");
+    // Cracks only grow: an interface once broken stays broken.
+    for w in statuses.windows(2) {
+        assert!(w[0].iter().zip(&w[1]).all(|(a, b)| *a < 2.0 || *b == 2.0));
+    }
+}
+
+/// A run of the cracking bar stopped after a checkpoint and resumed ends with the crack frames
+/// and collection of a run that was never stopped, byte for byte; and a later run of a scene
+/// without failure in the same folder removes them.
+#[test]
+fn crack_frames_resume_byte_for_byte_and_go_with_the_next_run() {
+    struct StopAt(u64, std::sync::Arc<std::sync::atomic::AtomicBool>);
+    impl rbsm::analysis::run::Monitor for StopAt {
+        fn info(&mut self, _: &str) {}
+        fn progress(&mut self, step: u64, _: u64) {
+            if step >= self.0 {
+                self.1.store(true, std::sync::atomic::Ordering::Relaxed);
+            }
+        }
+    }
+    let mut v = tension_bar();
+    v["output"]["checkpoint_every"] = 1000.into();
+    let s = Scene::from_json(&v.to_string()).unwrap();
+    let setup = Setup::new(&s, &Overrides::default()).unwrap();
+    let (whole, stopped) = (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
+    common::run_into(&s, None, whole.path());
+    let flag = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let params = rbsm::analysis::run::RunParams {
+        resume: false,
+        interrupt: Some(flag.clone()),
+    };
+    let summary = rbsm::analysis::run::run(
+        &setup,
+        &params,
+        stopped.path(),
+        &mut StopAt(2600, flag.clone()),
+    )
+    .unwrap();
+    assert_eq!(summary.status, "interrupted");
+    assert!(summary.steps < 5367);
+    let resume = rbsm::analysis::run::RunParams {
+        resume: true,
+        interrupt: None,
+    };
+    rbsm::analysis::run::run(
+        &setup,
+        &resume,
+        stopped.path(),
+        &mut rbsm::analysis::run::Silent,
+    )
+    .unwrap();
+    let files = |d: &Path| {
+        let mut names: Vec<String> = std::fs::read_dir(d.join("cracks"))
+            .unwrap()
+            .map(|e| format!("cracks/{}", e.unwrap().file_name().to_string_lossy()))
+            .collect();
+        names.sort();
+        names.push("cracks.pvd".into());
+        names
+    };
+    assert_eq!(files(whole.path()), files(stopped.path()));
+    assert_eq!(files(whole.path()).len(), 13);
+    for f in files(whole.path()) {
+        assert!(
+            std::fs::read(whole.path().join(&f)).unwrap()
+                == std::fs::read(stopped.path().join(&f)).unwrap(),
+            "{f} differs"
+        );
+    }
+    let golden = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/golden/frames/rigid.json");
+    common::run_into(&Scene::from_file(golden).unwrap(), None, whole.path());
+    assert!(!whole.path().join("cracks.pvd").exists());
+    assert_eq!(
+        std::fs::read_dir(whole.path().join("cracks"))
+            .unwrap()
+            .count(),
+        0
+    );
+}

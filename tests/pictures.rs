@@ -290,3 +290,129 @@ fn the_commands_write_the_pictures() {
         "{s:?}"
     );
 }
+
+/// `rbsm draw SCENE --state DIR` draws a run's final state: every element displaced, each
+/// broken interface of `final_state.json` as a thick red line and each yielding one as an
+/// orange line, counted in the legend; without `--state` the command draws the model as
+/// before. A missing state, or the state of another scene (other elements, or as many
+/// elements elsewhere), is an error that names the file, not a panic.
+#[test]
+fn draw_state_shows_the_cracks_of_a_run_and_refuses_another_scenes_state() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let bar = root.join("examples/scenes/tension_bar.json");
+    let scene = Scene::from_file(&bar).unwrap();
+    let setup = rbsm::analysis::setup::Setup::new(&scene, &Default::default()).unwrap();
+    let run = d.join("run");
+    rbsm::analysis::run::run(
+        &setup,
+        &Default::default(),
+        &run,
+        &mut rbsm::analysis::run::Silent,
+    )
+    .unwrap();
+    let rbsm = |args: &[&std::ffi::OsStr]| {
+        Command::new(env!("CARGO_BIN_EXE_rbsm"))
+            .arg("draw")
+            .args(args)
+            .arg("--quiet")
+            .output()
+            .unwrap()
+    };
+    let (svg, plain) = (d.join("state.svg"), d.join("model.svg"));
+    for (out, state) in [(&svg, Some(&run)), (&plain, None)] {
+        let mut args = vec![bar.as_os_str(), "--out".as_ref(), out.as_os_str()];
+        if let Some(s) = state {
+            args.extend(["--state".as_ref(), s.as_os_str()]);
+        }
+        let o = rbsm(&args);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    let m = &setup.model;
+    assert_eq!(std::fs::read_to_string(&plain).unwrap(), model_svg(m));
+    let svg = std::fs::read_to_string(&svg).unwrap();
+    let state: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(run.join("final_state.json")).unwrap())
+            .unwrap();
+    let count = |s: &str| {
+        state["interfaces"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|i| i["status"] == s)
+            .count()
+    };
+    let (broken, yielding) = (count("broken"), count("yielding"));
+    assert!(broken > 0, "the bar cracks through");
+    let red = tags(&svg, "line", "class=\"crack broken\"");
+    let orange = tags(&svg, "line", "class=\"crack yielding\"");
+    assert_eq!((red.len(), orange.len()), (broken, yielding));
+    assert!(red
+        .iter()
+        .all(|t| t.contains("#d62728") && t.contains("stroke-width=\"3.5\"")));
+    assert!(orange
+        .iter()
+        .all(|t| t.contains("#ff8c00") && t.contains("stroke-width=\"1.5\"")));
+    assert_eq!(
+        tags(&svg, "polygon", "fill-opacity").len(),
+        m.elements.len(),
+        "every element displaced"
+    );
+    let legend = format!(
+        "{} broken (thick red, {} of them released to contact), {yielding} yielding (orange), \
+         {} elastic",
+        broken + count("released"),
+        count("released"),
+        count("elastic")
+    );
+    assert!(texts(&svg).contains(&legend), "{:?}", texts(&svg));
+    // Every crack inside the picture.
+    let (w, h) = view_box(&svg);
+    let attr = |t: &str, a: &str| -> f64 {
+        t.split(&format!("{a}=\""))
+            .nth(1)
+            .unwrap()
+            .split('"')
+            .next()
+            .unwrap()
+            .parse()
+            .unwrap()
+    };
+    for t in red.iter().chain(&orange) {
+        for (x, y) in [("x1", "y1"), ("x2", "y2")] {
+            assert!((0.0..=w).contains(&attr(t, x)) && (0.0..=h).contains(&attr(t, y)));
+        }
+    }
+    // Bad states: none, another scene's (640 elements), and 200 elements of another mesh.
+    let other = d.join("other.json");
+    std::fs::write(
+        &other,
+        std::fs::read_to_string(&bar)
+            .unwrap()
+            .replace("\"seed\": 1", "\"seed\": 2"),
+    )
+    .unwrap();
+    let cantilever = root.join("examples/scenes/cantilever.json");
+    for (scene, state, why) in [
+        (&bar, d.join("nothing"), "No such file"),
+        (&cantilever, run.clone(), "holds 200 elements"),
+        (&other, run.clone(), "centroid"),
+    ] {
+        let o = rbsm(&[
+            scene.as_os_str(),
+            "--out".as_ref(),
+            d.join("bad.svg").as_os_str(),
+            "--state".as_ref(),
+            state.as_os_str(),
+        ]);
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{e}");
+        let file = state.join("final_state.json");
+        assert!(
+            e.contains(&*file.to_string_lossy()) && e.contains(why),
+            "{e}"
+        );
+        assert!(!d.join("bad.svg").exists());
+    }
+}

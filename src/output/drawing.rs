@@ -1,6 +1,7 @@
 //! Dependency-free SVG pictures of a model, written as plain text: the elements with their
-//! interfaces, supports and loads ([`model_svg`]), or the elements displaced by a DOF vector
-//! such as a mode shape ([`displaced_svg`]). Made for the README and for teaching, so every
+//! interfaces, supports and loads ([`model_svg`]), the elements displaced by a DOF vector
+//! such as a mode shape ([`displaced_svg`]), or a run's final state with its cracks
+//! ([`state_svg`]). Made for the README and for teaching, so every
 //! mark is one of the model's objects: an interface is drawn as its two springs, centroid to
 //! edge midpoint (the lengths `h_a`, `h_b` of eq. 12).
 
@@ -314,6 +315,116 @@ pub fn displaced_svg(model: &Model, u: &[f64], caption: &str) -> String {
         13.0,
         &format!("{caption} (displacements × {scale:.3e}; grey: reference)"),
     );
+    cv.finish()
+}
+
+/// Broken interfaces: thick red lines.
+pub const BROKEN: &str =
+    r##"class="crack broken" stroke="#d62728" stroke-width="3.5" stroke-linecap="round""##;
+/// Yielding interfaces: thinner orange lines.
+pub const YIELDING: &str =
+    r##"class="crack yielding" stroke="#ff8c00" stroke-width="1.5" stroke-linecap="round""##;
+
+/// A run's final state (`rbsm draw --state`): the elements where `state` puts them, filled over
+/// the reference outline (grey), and the cracks: each broken interface as a thick red line,
+/// each yielding one as a thinner orange line, on its edge midway between its two sides. When
+/// the largest vertex displacement is below a tenth of the model's larger side, the
+/// displacements are magnified to a tenth (linear `N_e U_e`, like a mode shape) so that the
+/// openings show; otherwise the elements are drawn where they are, with finite rotations. The
+/// caption gives the time and the factor, the line below counts the interfaces of each state.
+pub fn state_svg(model: &Model, state: &crate::output::FinalState) -> String {
+    use crate::output::vtk::{interface_edge, Placement};
+    let largest = element_polygons(model, Some(&state.u))
+        .iter()
+        .flat_map(|p| p.2.iter())
+        .map(|d| d.norm())
+        .fold(0.0, f64::max);
+    let (lo, hi) = all_vertices(model).fold(
+        (Vec2::repeat(f64::MAX), Vec2::repeat(f64::MIN)),
+        |(lo, hi), p| (lo.inf(&p), hi.sup(&p)),
+    );
+    let size = (hi - lo).max();
+    let (scale, placement) = if largest > 0.0 && largest < 0.1 * size {
+        (0.1 * size / largest, Placement::Linear)
+    } else {
+        (1.0, Placement::Current)
+    };
+    let u: Vec<f64> = state.u.iter().map(|x| x * scale).collect();
+    let nd = model.formulation.ndof();
+    let mut polygons = Vec::with_capacity(model.elements.len());
+    for (b, body) in model.bodies.iter().enumerate() {
+        for c in 0..body.mesh.n_cells() {
+            let e = body.first_element + c;
+            let reference: Vec<Vec2> = body
+                .mesh
+                .cell(c)
+                .iter()
+                .map(|&k| body.mesh.vertices[k as usize])
+                .collect();
+            let placed = reference
+                .iter()
+                .map(|&x| placement.position(model, e, &u[e * nd..(e + 1) * nd], x))
+                .collect::<Vec<_>>();
+            polygons.push((b, reference, placed));
+        }
+    }
+    let points: Vec<Vec2> = polygons
+        .iter()
+        .flat_map(|p| p.1.iter().chain(&p.2).copied())
+        .collect();
+    let mut cv = Canvas::fit(points.into_iter(), 800.0);
+    for (_, reference, _) in &polygons {
+        cv.polygon(
+            reference,
+            r##"fill="none" stroke="#bbb" stroke-width="0.6""##,
+        );
+    }
+    for (b, _, placed) in &polygons {
+        let fill = BODY_FILLS[b % BODY_FILLS.len()];
+        cv.polygon(
+            placed,
+            &format!(r##"fill="{fill}" fill-opacity="0.85" stroke="#333" stroke-width="0.4""##),
+        );
+    }
+    let of = |status: &'static str| state.interfaces.iter().filter(move |i| i.status == status);
+    // Broken ones (and those released to contact) last, over the yielding ones.
+    for (status, style) in [
+        ("yielding", YIELDING),
+        ("broken", BROKEN),
+        ("released", BROKEN),
+    ] {
+        for i in of(status) {
+            let [p1, p2] = interface_edge(model, &u, &model.interfaces[i.interface], placement);
+            cv.line(p1, p2, style);
+        }
+    }
+    let factor = if scale == 1.0 {
+        "true scale".to_string()
+    } else {
+        format!("displacements × {scale:.3e}")
+    };
+    cv.text(
+        cv.margin,
+        20.0,
+        13.0,
+        &format!(
+            "{} at t = {:.6e} s ({factor}; grey: reference)",
+            model.name, state.t
+        ),
+    );
+    let legend = if state.interfaces.is_empty() {
+        "no interface can fail".to_string()
+    } else {
+        format!(
+            "{} broken (thick red, {} of them released to contact), {} yielding (orange), {} \
+             elastic",
+            of("broken").count() + of("released").count(),
+            of("released").count(),
+            of("yielding").count(),
+            of("elastic").count()
+        )
+    };
+    cv.text(cv.margin, 38.0, 13.0, &legend);
     cv.finish()
 }
 

@@ -396,6 +396,123 @@ pub fn write_final_state(
     write_json(&dir.join("final_state.json"), &state)
 }
 
+/// A run's `final_state.json` read back for a model: what `rbsm draw --state` draws.
+#[derive(Debug, Clone)]
+pub struct FinalState {
+    /// Time (s).
+    pub t: f64,
+    /// Displacements `U`, `ndof` per element.
+    pub u: Vec<f64>,
+    /// The failing interfaces' states; empty when the run had none.
+    pub interfaces: Vec<crate::force::failure::InterfaceFailure>,
+}
+
+/// `final_state.json` as [`write_final_state`] writes it; other keys are ignored.
+#[derive(serde::Deserialize)]
+struct StateFile {
+    t: f64,
+    elements: Vec<StateElement>,
+    #[serde(default)]
+    interfaces: Vec<StateInterface>,
+}
+
+#[derive(serde::Deserialize)]
+struct StateElement {
+    centroid: [f64; 2],
+    #[serde(rename = "U")]
+    u: Vec<f64>,
+}
+
+#[derive(serde::Deserialize)]
+struct StateInterface {
+    interface: usize,
+    status: String,
+    opening: f64,
+    slip: f64,
+    dissipated: f64,
+}
+
+/// Reads `path`, the `final_state.json` of a run of `model`'s scene. Refuses, naming the file,
+/// a state that is not one (missing, not JSON, keys missing) or that belongs to another scene:
+/// another number of elements or of DOFs per element, centroids elsewhere, interfaces that
+/// the model does not have or that cannot fail.
+pub fn read_final_state(path: &Path, model: &Model) -> Result<FinalState> {
+    let fail = |why: String| Error::io(path, std::io::Error::other(crate::error::cut(why)));
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let file: StateFile = serde_json::from_str(&text)
+        .map_err(|e| fail(format!("not a final state of `rbsm run`: {e}")))?;
+    let other = "the final state of another scene";
+    if file.elements.len() != model.elements.len() {
+        return Err(fail(format!(
+            "holds {}, the scene `{}` has {}: {other}",
+            count(file.elements.len(), "element", "elements"),
+            model.name,
+            model.elements.len()
+        )));
+    }
+    let nd = model.formulation.ndof();
+    let (lo, hi) = model.elements.iter().fold(
+        (
+            crate::mesh::geometry::Vec2::repeat(f64::MAX),
+            crate::mesh::geometry::Vec2::repeat(f64::MIN),
+        ),
+        |(lo, hi), e| (lo.inf(&e.props.centroid), hi.sup(&e.props.centroid)),
+    );
+    let tolerance = 1e-9 * (hi - lo).norm().max(f64::MIN_POSITIVE);
+    let mut u = Vec::with_capacity(nd * model.elements.len());
+    for (k, (e, el)) in file.elements.iter().zip(&model.elements).enumerate() {
+        if e.u.len() != nd {
+            return Err(fail(format!(
+                "element {k}: `U` has {} values, the {} formulation {nd}: {other}",
+                e.u.len(),
+                model.formulation.name()
+            )));
+        }
+        let c = el.props.centroid;
+        if (e.centroid[0] - c.x).hypot(e.centroid[1] - c.y) > tolerance {
+            return Err(fail(format!(
+                "element {k}: centroid ({:e}, {:e}), the scene's is ({:e}, {:e}): {other}",
+                e.centroid[0], e.centroid[1], c.x, c.y
+            )));
+        }
+        u.extend_from_slice(&e.u);
+    }
+    let mut interfaces = Vec::with_capacity(file.interfaces.len());
+    for (k, i) in file.interfaces.iter().enumerate() {
+        let status = match i.status.as_str() {
+            "elastic" => "elastic",
+            "yielding" => "yielding",
+            "broken" => "broken",
+            "released" => "released",
+            s => {
+                return Err(fail(format!(
+                    "interfaces[{k}]: status `{s}` is not elastic, yielding, broken or released"
+                )))
+            }
+        };
+        let fails = model.strength.get(i.interface).is_some_and(Option::is_some);
+        if !fails {
+            return Err(fail(format!(
+                "interfaces[{k}]: interface {} is not one of the scene's {} that can fail: {other}",
+                i.interface,
+                model.strength.iter().filter(|s| s.is_some()).count()
+            )));
+        }
+        interfaces.push(crate::force::failure::InterfaceFailure {
+            interface: i.interface,
+            status,
+            opening: i.opening,
+            slip: i.slip,
+            dissipated: i.dissipated,
+        });
+    }
+    Ok(FinalState {
+        t: file.t,
+        u,
+        interfaces,
+    })
+}
+
 /// Writes any serialisable value as pretty JSON, atomically ([`write_atomic`]).
 pub fn write_json(path: &Path, value: &impl Serialize) -> Result<()> {
     let mut text = serde_json::to_vec_pretty(value).map_err(|e| Error::io(path, e.into()))?;

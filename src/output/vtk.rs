@@ -5,9 +5,16 @@
 //! ([`Formulation::current_position`](crate::model::formulation::Formulation::current_position)),
 //! as
 //! triangles, quadrilaterals or polygons.
+//!
+//! A run whose interfaces can fail also writes the cracks: per recorded step a grid of lines,
+//! one per interface that can fail, with its state, in `DIR/cracks/` and their collection
+//! `DIR/cracks.pvd` ([`write_cracks`]). They are a series of their own so that the element frames
+//! keep one cell per element and only the elements' arrays, whatever the scene.
 
 use crate::error::{Error, Result};
-use crate::model::Model;
+use crate::force::failure::{InterfaceFailure, PlasticForces};
+use crate::mesh::geometry::Vec2;
+use crate::model::{Interface, Model, GROUND};
 use crate::step::integrator::Snapshot;
 use std::path::{Path, PathBuf};
 use vtkio::model::{
@@ -15,16 +22,18 @@ use vtkio::model::{
     Version, VertexNumbers, Vtk,
 };
 
-/// A series of frames in `DIR/vtk/` and its collection `DIR/series.pvd`. Each frame is written
-/// whole under a temporary name and renamed; the collection then gains its entry in one write
-/// over its closing tags, so that it lists exactly the frames written, even after the process
-/// is killed, at a cost that does not grow with the number of frames.
-pub struct VtkSeries {
+/// A series of frames in `DIR/vtk/` and its collection `DIR/series.pvd`, and, when the
+/// model's interfaces can fail, the cracks of the same steps in `DIR/cracks/` and
+/// `DIR/cracks.pvd`. Each frame is written whole under a temporary name and renamed; the
+/// collections then gain their entries, each in one write over its closing tags, so that they
+/// list exactly the frames written, even after the process is killed, at a cost that does not
+/// grow with the number of frames.
+pub struct VtkSeries<'a> {
     dir: PathBuf,
     frames: Vec<(f64, String)>,
-    collection: std::fs::File,
-    /// Where the closing tags of the collection start.
-    tail: u64,
+    collection: Collection,
+    /// The plastic forces that report the interfaces' states, and the cracks' collection.
+    cracks: Option<(&'a dyn PlasticForces, Collection)>,
 }
 
 const HEAD: &str =
@@ -35,42 +44,125 @@ fn entry(t: f64, name: &str) -> String {
     format!("    <DataSet timestep=\"{t:e}\" part=\"0\" file=\"{name}\"/>\n")
 }
 
-impl VtkSeries {
-    /// Creates `DIR/vtk/` and an empty collection.
-    pub fn create(dir: &Path) -> Result<VtkSeries> {
-        Self::resume(dir, Vec::new())
-    }
+/// The folder of the crack frames and their collection, under a run's folder.
+pub const CRACKS: (&str, &str) = ("cracks", "cracks.pvd");
 
-    /// Goes on with the frames `frames` (time, name under `DIR`) of an earlier run: removes the
-    /// frames it wrote after them and writes the collection of these.
-    pub fn resume(dir: &Path, frames: Vec<(f64, String)>) -> Result<VtkSeries> {
-        let frames_dir = dir.join("vtk");
-        std::fs::create_dir_all(&frames_dir).map_err(|e| Error::io(&frames_dir, e))?;
-        let keep: std::collections::HashSet<&str> =
-            frames.iter().map(|(_, f)| f.as_str()).collect();
-        for entry in std::fs::read_dir(&frames_dir).map_err(|e| Error::io(&frames_dir, e))? {
-            let path = entry.map_err(|e| Error::io(&frames_dir, e))?.path();
-            let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("");
-            if is_frame(name) && !keep.contains(format!("vtk/{name}").as_str()) {
-                std::fs::remove_file(&path).map_err(|e| Error::io(&path, e))?;
-            }
-        }
-        let path = dir.join("series.pvd");
-        write_collection(&path, &frames)?;
+/// The crack frame (name under `DIR`) of the element frame `frame`: `vtk/step_N.vtu` →
+/// `cracks/step_N.vtu`.
+pub fn crack_frame(frame: &str) -> String {
+    let name = frame.rsplit('/').next().unwrap_or(frame);
+    format!("{}/{name}", CRACKS.0)
+}
+
+/// An open collection file that grows by one entry per frame.
+struct Collection {
+    path: PathBuf,
+    file: std::fs::File,
+    /// Where the closing tags start.
+    tail: u64,
+}
+
+impl Collection {
+    /// Writes the collection `path` listing `frames` and opens it to add more.
+    fn open(path: PathBuf, frames: &[(f64, String)]) -> Result<Collection> {
+        write_collection(&path, frames)?;
         let tail = (HEAD.len()
             + frames
                 .iter()
                 .map(|(t, f)| entry(*t, f).len())
                 .sum::<usize>()) as u64;
-        let collection = std::fs::OpenOptions::new()
+        let file = std::fs::OpenOptions::new()
             .write(true)
             .open(&path)
             .map_err(|e| Error::io(&path, e))?;
+        Ok(Collection { path, file, tail })
+    }
+
+    /// Adds the frame `name` at time `t`, in one write over the closing tags.
+    fn append(&mut self, t: f64, name: &str) -> Result<()> {
+        use std::io::{Seek, SeekFrom, Write};
+        let line = entry(t, name);
+        let write = |file: &mut std::fs::File, at: u64, text: &str| {
+            file.seek(SeekFrom::Start(at))
+                .and_then(|_| file.write_all(text.as_bytes()))
+        };
+        if let Err(e) = write(&mut self.file, self.tail, &format!("{line}{TAIL}")) {
+            // Put the closing tags back where they were: the collection stays whole.
+            let _ = self
+                .file
+                .set_len(self.tail)
+                .and_then(|_| write(&mut self.file, self.tail, TAIL));
+            return Err(Error::io(&self.path, e));
+        }
+        self.tail += line.len() as u64;
+        Ok(())
+    }
+}
+
+/// Creates `dir` and removes the frames in it that `keep` (names under its parent) does not
+/// list.
+fn prune(dir: &Path, keep: &std::collections::HashSet<String>) -> Result<()> {
+    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    let folder = dir.file_name().and_then(|n| n.to_str()).unwrap_or("");
+    for entry in std::fs::read_dir(dir).map_err(|e| Error::io(dir, e))? {
+        let path = entry.map_err(|e| Error::io(dir, e))?.path();
+        let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("");
+        if is_frame(name) && !keep.contains(&format!("{folder}/{name}")) {
+            std::fs::remove_file(&path).map_err(|e| Error::io(&path, e))?;
+        }
+    }
+    Ok(())
+}
+
+/// Writes `path` through its temporary name, which is removed when writing fails.
+fn write_whole(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
+    let tmp = crate::output::temporary(path);
+    if let Err(e) = write(&tmp) {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(match e {
+            Error::Io { source, .. } => Error::io(path, source),
+            other => other,
+        });
+    }
+    std::fs::rename(&tmp, path).map_err(|e| Error::io(path, e))
+}
+
+impl<'a> VtkSeries<'a> {
+    /// Creates `DIR/vtk/` and an empty collection; with `plastic` (a model whose interfaces can
+    /// fail) also `DIR/cracks/` and its empty collection.
+    pub fn create(dir: &Path, plastic: Option<&'a dyn PlasticForces>) -> Result<VtkSeries<'a>> {
+        Self::resume(dir, Vec::new(), plastic)
+    }
+
+    /// Goes on with the frames `frames` (time, name under `DIR`) of an earlier run: removes the
+    /// frames it wrote after them (and their cracks) and writes the collections of these.
+    pub fn resume(
+        dir: &Path,
+        frames: Vec<(f64, String)>,
+        plastic: Option<&'a dyn PlasticForces>,
+    ) -> Result<VtkSeries<'a>> {
+        prune(
+            &dir.join("vtk"),
+            &frames.iter().map(|(_, f)| f.clone()).collect(),
+        )?;
+        let collection = Collection::open(dir.join("series.pvd"), &frames)?;
+        let cracks = match plastic {
+            None => None,
+            Some(plastic) => {
+                let cracks: Vec<(f64, String)> =
+                    frames.iter().map(|(t, f)| (*t, crack_frame(f))).collect();
+                prune(
+                    &dir.join(CRACKS.0),
+                    &cracks.iter().map(|(_, f)| f.clone()).collect(),
+                )?;
+                Some((plastic, Collection::open(dir.join(CRACKS.1), &cracks)?))
+            }
+        };
         Ok(VtkSeries {
             dir: dir.to_path_buf(),
             frames,
             collection,
-            tail,
+            cracks,
         })
     }
 
@@ -79,35 +171,28 @@ impl VtkSeries {
         &self.frames
     }
 
-    /// Writes the frame of one recorded step, then adds it to the collection.
+    /// Writes the frame of one recorded step (and its cracks), then adds it to the
+    /// collection(s).
     pub fn write(&mut self, model: &Model, s: &Snapshot) -> Result<()> {
-        use std::io::{Seek, SeekFrom, Write};
         let name = format!("vtk/step_{:09}.vtu", s.step);
-        let path = self.dir.join(&name);
-        let tmp = crate::output::temporary(&path);
-        if let Err(e) = write_frame(&tmp, model, s.u, s.v, Placement::Current) {
-            let _ = std::fs::remove_file(&tmp);
-            return Err(match e {
-                Error::Io { source, .. } => Error::io(&path, source),
-                other => other,
-            });
-        }
-        std::fs::rename(&tmp, &path).map_err(|e| Error::io(&path, e))?;
-        let line = entry(s.t, &name);
-        let pvd = self.dir.join("series.pvd");
-        let write = |file: &mut std::fs::File, at: u64, text: &str| {
-            file.seek(SeekFrom::Start(at))
-                .and_then(|_| file.write_all(text.as_bytes()))
+        write_whole(&self.dir.join(&name), |tmp| {
+            write_frame(tmp, model, s.u, s.v, Placement::Current)
+        })?;
+        let cracks = match (&self.cracks, s.failure) {
+            (Some((plastic, _)), Some(state)) => {
+                let crack = crack_frame(&name);
+                let report = plastic.report(state);
+                write_whole(&self.dir.join(&crack), |tmp| {
+                    write_cracks(tmp, model, s.u, &report)
+                })?;
+                Some(crack)
+            }
+            _ => None,
         };
-        if let Err(e) = write(&mut self.collection, self.tail, &format!("{line}{TAIL}")) {
-            // Put the closing tags back where they were: the collection stays whole.
-            let _ = self
-                .collection
-                .set_len(self.tail)
-                .and_then(|_| write(&mut self.collection, self.tail, TAIL));
-            return Err(Error::io(&pvd, e));
+        self.collection.append(s.t, &name)?;
+        if let (Some((_, collection)), Some(crack)) = (self.cracks.as_mut(), cracks) {
+            collection.append(s.t, &crack)?;
         }
-        self.tail += line.len() as u64;
         self.frames.push((s.t, name));
         Ok(())
     }
@@ -127,6 +212,46 @@ pub enum Placement {
     Current,
     /// Moved by the linear `N_e(x) U_e` (a mode shape, linear by definition).
     Linear,
+}
+
+impl Placement {
+    /// Where the reference point `x` of element `e` is placed, with the element's DOFs `ue`.
+    pub fn position(self, model: &Model, e: usize, ue: &[f64], x: Vec2) -> Vec2 {
+        let xe = model.elements[e].props.centroid;
+        match self {
+            Placement::Current => model.formulation.current_position(xe, ue, x - xe),
+            Placement::Linear => x + model.formulation.displacement(ue, x - xe),
+        }
+    }
+}
+
+/// The edge of the interface `i` placed by `placement` with the displacements `u`: each end
+/// midway between where it is on side `a` and on side `b` (on side `a` alone for a ground
+/// spring), so that a crack is drawn in the middle of its opening.
+pub fn interface_edge(model: &Model, u: &[f64], i: &Interface, placement: Placement) -> [Vec2; 2] {
+    let nd = model.formulation.ndof();
+    let on = |e: u32, x: Vec2| {
+        let e = e as usize;
+        placement.position(model, e, &u[e * nd..(e + 1) * nd], x)
+    };
+    [i.p1, i.p2].map(|x| {
+        if i.b == GROUND {
+            on(i.a, x)
+        } else {
+            0.5 * (on(i.a, x) + on(i.b, x))
+        }
+    })
+}
+
+/// `1` for a `yielding` interface, `2` for a `broken` one, `3` for one `released` to contact,
+/// `0` for an `elastic` one.
+pub fn status_code(status: &str) -> i32 {
+    match status {
+        "yielding" => 1,
+        "broken" => 2,
+        "released" => 3,
+        _ => 0,
+    }
 }
 
 /// Writes one VTK XML unstructured grid (`.vtu`) of the elements placed by `placement`, with
@@ -152,14 +277,9 @@ pub fn write_frame(
                 strain.extend_from_slice(&ue[3..6]);
                 stress.extend(s);
             }
-            let xe = model.elements[e].props.centroid;
             let cell = b.mesh.cell(c);
             for &k in cell {
-                let x = b.mesh.vertices[k as usize];
-                let p = match placement {
-                    Placement::Current => model.formulation.current_position(xe, ue, x - xe),
-                    Placement::Linear => x + model.formulation.displacement(ue, x - xe),
-                };
+                let p = placement.position(model, e, ue, b.mesh.vertices[k as usize]);
                 conn.push((points.len() / 3) as u64);
                 points.extend([p.x, p.y, 0.0]);
             }
@@ -186,12 +306,9 @@ pub fn write_frame(
         cell.push(Attribute::scalars("strain", 3).with_data(strain));
         cell.push(Attribute::scalars("stress", 3).with_data(stress));
     }
-    let vtk = Vtk {
-        version: Version::new((1, 0)),
-        title: String::new(),
-        byte_order: ByteOrder::LittleEndian,
-        file_path: None,
-        data: DataSet::inline(UnstructuredGridPiece {
+    write_grid(
+        path,
+        UnstructuredGridPiece {
             points: IOBuffer::F64(points),
             cells: Cells {
                 cell_verts: VertexNumbers::XML {
@@ -204,7 +321,70 @@ pub fn write_frame(
                 point: Vec::new(),
                 cell,
             },
-        }),
+        },
+    )
+}
+
+/// Writes the cracks of one recorded step as a VTK XML unstructured grid (`.vtu`): a line
+/// (`VTK_LINE`) per failing interface of `report`, in its order, on its edge placed as
+/// [`interface_edge`] says with the finite rotations of the run, and the cell data
+/// `interface_status` (0 elastic, 1 yielding, 2 broken: the cracks are the lines above 0),
+/// `crack_opening` and `crack_slip` (the mean plastic opening and slip, m), `dissipated` (J)
+/// and `interface` (its index in `Model::interfaces`, as in `final_state.json`). Every frame
+/// has the same lines, so that cell `k` is the same interface throughout a run, and none is
+/// empty (meshio 5.3 cannot read a grid without cells).
+pub fn write_cracks(
+    path: &Path,
+    model: &Model,
+    u: &[f64],
+    report: &[InterfaceFailure],
+) -> Result<()> {
+    let mut points = Vec::with_capacity(6 * report.len());
+    for r in report {
+        let edge = interface_edge(model, u, &model.interfaces[r.interface], Placement::Current);
+        for p in edge {
+            points.extend([p.x, p.y, 0.0]);
+        }
+    }
+    let n = report.len() as u64;
+    let data = |f: fn(&InterfaceFailure) -> f64| report.iter().map(f).collect::<Vec<_>>();
+    let status: Vec<i32> = report.iter().map(|r| status_code(r.status)).collect();
+    let index: Vec<i64> = report.iter().map(|r| r.interface as i64).collect();
+    // The first scalars are the active ones, which ParaView colours by when it opens the file.
+    let cell = vec![
+        Attribute::scalars("interface_status", 1).with_data(status),
+        Attribute::scalars("crack_opening", 1).with_data(data(|r| r.opening)),
+        Attribute::scalars("crack_slip", 1).with_data(data(|r| r.slip)),
+        Attribute::scalars("dissipated", 1).with_data(data(|r| r.dissipated)),
+        Attribute::scalars("interface", 1).with_data(index),
+    ];
+    write_grid(
+        path,
+        UnstructuredGridPiece {
+            points: IOBuffer::F64(points),
+            cells: Cells {
+                cell_verts: VertexNumbers::XML {
+                    connectivity: (0..2 * n).collect(),
+                    offsets: (1..=n).map(|k| 2 * k).collect(),
+                },
+                types: vec![CellType::Line; report.len()],
+            },
+            data: Attributes {
+                point: Vec::new(),
+                cell,
+            },
+        },
+    )
+}
+
+/// Writes one unstructured grid as a VTK XML file (`.vtu`, binary, inline).
+fn write_grid(path: &Path, piece: UnstructuredGridPiece) -> Result<()> {
+    let vtk = Vtk {
+        version: Version::new((1, 0)),
+        title: String::new(),
+        byte_order: ByteOrder::LittleEndian,
+        file_path: None,
+        data: DataSet::inline(piece),
     };
     let fail = |e: String| Error::io(path, std::io::Error::other(e));
     let xml = vtkio::xml::VTKFile::try_from(vtk)
@@ -212,7 +392,7 @@ pub fn write_frame(
         .to_string();
     // vtkio declares connectivity and offsets `UInt64`, which meshio cannot subtract from for
     // polygons; `Int64` has the same bytes for these values and every reader takes it.
-    let xml = xml
+    let mut xml = xml
         .replacen(
             r#"type="UInt64" Name="connectivity""#,
             r#"type="Int64" Name="connectivity""#,
@@ -223,6 +403,14 @@ pub fn write_frame(
             r#"type="Int64" Name="offsets""#,
             1,
         );
+    // vtkio leaves out `NumberOfCells` when there are none, and readers then refuse the piece.
+    if !xml.contains("NumberOfCells=") {
+        xml = xml.replacen(
+            r#"NumberOfPoints="0""#,
+            r#"NumberOfPoints="0" NumberOfCells="0""#,
+            1,
+        );
+    }
     std::fs::write(path, xml).map_err(|e| Error::io(path, e))
 }
 

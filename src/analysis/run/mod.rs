@@ -15,31 +15,37 @@ use crate::step::integrator::Status;
 use std::path::Path;
 use std::time::Instant;
 
-/// The files a run writes into its folder, beside `history.csv` and the frames `vtk/step_*.vtk`.
-const OUTPUTS: [&str; 4] = [
+/// The files a run writes into its folder, beside `history.csv`, the frames `vtk/step_*.vtu`
+/// and the cracks `cracks/step_*.vtu`.
+const OUTPUTS: [&str; 5] = [
     "summary.json",
     "final_state.json",
     "series.pvd",
+    crate::output::vtk::CRACKS.1,
     crate::analysis::run::checkpoint::FILE,
 ];
 
 /// Removes what an earlier run left in `out` of the files a run writes (`summary.json`,
-/// `final_state.json`, `series.pvd`, `checkpoint.bin`, the frames `vtk/step_*.vtk` and files
-/// half written), so that a run that stops early never leaves an earlier run's results beside
-/// its own. Other files are left alone; `history.csv` is rewritten from its first line anyway.
+/// `final_state.json`, `series.pvd`, `cracks.pvd`, `checkpoint.bin`, the frames
+/// `vtk/step_*.vtu`, `cracks/step_*.vtu` and files half written), so that a run that stops
+/// early never leaves an earlier run's results beside its own. Other files are left alone;
+/// `history.csv` is rewritten from its first line anyway.
 fn clear_previous(out: &Path) -> Result<()> {
     for name in OUTPUTS {
         remove(&out.join(name))?;
         remove(&crate::output::temporary(&out.join(name)))?;
     }
-    let frames = out.join("vtk");
-    let Ok(entries) = std::fs::read_dir(&frames) else {
-        return Ok(());
-    };
-    for entry in entries {
-        let path = entry.map_err(|e| Error::io(&frames, e))?.path();
-        if crate::output::vtk::is_frame(path.file_name().and_then(|n| n.to_str()).unwrap_or("")) {
-            remove(&path)?;
+    for folder in ["vtk", crate::output::vtk::CRACKS.0] {
+        let frames = out.join(folder);
+        let Ok(entries) = std::fs::read_dir(&frames) else {
+            continue;
+        };
+        for entry in entries {
+            let path = entry.map_err(|e| Error::io(&frames, e))?.path();
+            if crate::output::vtk::is_frame(path.file_name().and_then(|n| n.to_str()).unwrap_or(""))
+            {
+                remove(&path)?;
+            }
         }
     }
     Ok(())
@@ -148,7 +154,7 @@ pub fn run(
             scene
                 .output
                 .vtk
-                .then(|| VtkSeries::create(out))
+                .then(|| VtkSeries::create(out, p.plastic.as_deref()))
                 .transpose()?,
             None,
             0.0f64,
@@ -167,7 +173,7 @@ pub fn run(
             let vtk = scene
                 .output
                 .vtk
-                .then(|| VtkSeries::resume(out, c.frames))
+                .then(|| VtkSeries::resume(out, c.frames, p.plastic.as_deref()))
                 .transpose()?;
             (
                 History::resume(out, Columns::of(model, probes), c.history_bytes)?,
