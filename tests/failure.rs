@@ -382,3 +382,15 @@ fn the_hand_over_to_contact_keeps_the_momentum() {
         );
     }
 }
+
+/// `rbsm static` stays linear: on a scene whose interfaces can fail and whose clamp moves it
+/// solves the elastic problem with the clamp in place, and its report says both.
+#[test]
+fn static_stays_linear_and_says_so() {
+    let s = setup(&bundled("tension_bar.json"), EvaluatorKind::Assembled);
+    let report = rbsm::analysis::statics::analyse(&s).unwrap();
+    assert_eq!(report.notes.len(), 2, "{:?}", report.notes);
+    assert!(report.notes[0].contains("strengths are ignored"));
+    use rbsm::analysis::Report;
+    assert!(report.text().contains("note: moving clamps are held"));
+}

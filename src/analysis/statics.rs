@@ -116,6 +116,10 @@ pub struct StaticReport {
     pub interfaces: Vec<StaticInterface>,
     /// Strain energy `½ Uᵀ K U` (J).
     pub energy: f64,
+    /// What the linear analysis leaves out of the scene: the interfaces' strengths, the
+    /// clamps' motion.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub notes: Vec<String>,
     /// `U` over all DOFs (m, rad, strains), for the files of [`write()`].
     #[serde(skip)]
     pub u: Vec<f64>,
@@ -150,10 +154,22 @@ pub fn analyse(setup: &Setup) -> Result<StaticReport> {
             traction: midpoint_traction(model, i, &sol.u),
         })
         .collect();
+    let mut notes = Vec::new();
+    if model.strength.iter().any(Option::is_some) {
+        notes.push(
+            "the analysis is linear: the interfaces' strengths are ignored (`rbsm run` with a \
+             moving clamp gives the collapse)"
+                .to_string(),
+        );
+    }
+    if !model.prescribed.is_empty() {
+        notes.push("moving clamps are held at their initial place".to_string());
+    }
     Ok(StaticReport {
         elements,
         interfaces,
         energy: sol.energy,
+        notes,
         u: sol.u,
     })
 }
@@ -165,13 +181,17 @@ impl Report for StaticReport {
             .iter()
             .map(|e| e.u[0].hypot(e.u[1]))
             .fold(0.0, f64::max);
-        format!(
+        let mut text = format!(
             "{} elements, {} interfaces; strain energy {:.6e} J; largest displacement {:.6e} m",
             self.elements.len(),
             self.interfaces.len(),
             self.energy,
             max
-        )
+        );
+        for n in &self.notes {
+            text.push_str(&format!("\nnote: {n}"));
+        }
+        text
     }
 }
 
