@@ -1,6 +1,6 @@
 //! No allocation inside a step: a counting global allocator watches the time loop once it is
-//! warm, for both evaluators and formulations, on a model large enough to run in parallel, and
-//! on the contact scene.
+//! warm, for both evaluators and formulations, on a model large enough to run in parallel, on
+//! the contact scene, and on a bar whose interfaces crack under a moving, damped clamp.
 
 use rbsm::analysis::setup::{Overrides, Setup};
 use rbsm::input::scene::{EvaluatorKind, Scene};
@@ -44,6 +44,27 @@ fn allocations(p: &Setup, warm: u64, steps: u64) -> usize {
 fn the_time_loop_does_not_allocate() {
     plain_steps();
     contact_steps();
+    failure_steps();
+}
+
+fn failure_steps() {
+    let scene = Scene::from_file(std::path::Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/examples/scenes/tension_bar.json"
+    )))
+    .unwrap();
+    for evaluator in [EvaluatorKind::Assembled, EvaluatorKind::ElementWise] {
+        let p = Setup::new(
+            &scene,
+            &Overrides {
+                evaluator: Some(evaluator),
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        // The bar yields from about step 800 and cracks through by step 2500.
+        assert_eq!(allocations(&p, 1000, 1500), 0, "{}", evaluator.name());
+    }
 }
 
 fn plain_steps() {
