@@ -26,6 +26,34 @@ fn setup(scene: &Value, evaluator: EvaluatorKind) -> Setup {
     Setup::new(&scene, &overrides).expect("setup")
 }
 
+/// Runs `scene` to its end with `evaluator`: the final `U`, the energies every `every` steps and
+/// the failing interfaces' report.
+fn run_through(
+    scene: &Value,
+    evaluator: EvaluatorKind,
+    every: u64,
+) -> (
+    Vec<f64>,
+    Vec<rbsm::step::integrator::Energy>,
+    Vec<rbsm::force::failure::InterfaceFailure>,
+) {
+    let s = setup(scene, evaluator);
+    let mut cd = s.integrator(s.dt);
+    let mut rows = Vec::new();
+    cd.run(
+        s.steps,
+        every,
+        |_, e| {
+            rows.push(*e);
+            Ok(())
+        },
+        |_| {},
+    )
+    .unwrap();
+    let report = s.plastic.as_ref().unwrap().report(cd.failure().unwrap());
+    (cd.u.clone(), rows, report)
+}
+
 const K: [f64; 2] = [1.0e12, 8.0e11];
 
 fn strength(phi_deg: f64, energies: Option<[f64; 2]>) -> Strength {
@@ -97,25 +125,8 @@ fn a_broken_interface_keeps_compression_and_friction_only() {
 #[test]
 fn both_evaluators_agree_while_a_bar_cracks_and_the_energy_balance_closes() {
     let scene = bundled("tension_bar.json");
-    let run = |kind| {
-        let s = setup(&scene, kind);
-        let mut cd = s.integrator(s.dt);
-        let mut rows = Vec::new();
-        cd.run(
-            s.steps,
-            100,
-            |_, e| {
-                rows.push(*e);
-                Ok(())
-            },
-            |_| {},
-        )
-        .unwrap();
-        let report = s.plastic.as_ref().unwrap().report(cd.failure().unwrap());
-        (cd.u.clone(), rows, report)
-    };
-    let (ua, rows_a, report_a) = run(EvaluatorKind::Assembled);
-    let (ue, rows_e, report_e) = run(EvaluatorKind::ElementWise);
+    let (ua, rows_a, report_a) = run_through(&scene, EvaluatorKind::Assembled, 100);
+    let (ue, rows_e, report_e) = run_through(&scene, EvaluatorKind::ElementWise, 100);
     let scale = ua.iter().fold(0.0f64, |m, x| m.max(x.abs()));
     let diff = ua
         .iter()
@@ -292,22 +303,9 @@ fn a_dropped_beam_breaks_into_blocks_with_its_energy_balanced() {
     scene["bodies"][0]["mesh"]["sites"] = json!(60);
     scene["time"]["end"] = json!(0.04);
     let run = |kind| {
-        let s = setup(&scene, kind);
-        let mut cd = s.integrator(s.dt);
-        let mut rows = Vec::new();
-        cd.run(
-            s.steps,
-            200,
-            |_, e| {
-                rows.push(*e);
-                Ok(())
-            },
-            |_| {},
-        )
-        .unwrap();
-        let report = s.plastic.as_ref().unwrap().report(cd.failure().unwrap());
+        let (u, rows, report) = run_through(&scene, kind, 200);
         let released = report.iter().filter(|i| i.status == "released").count();
-        (cd.u.clone(), rows, released)
+        (u, rows, released)
     };
     let (ua, rows_a, released_a) = run(EvaluatorKind::Assembled);
     let (ue, rows_e, released_e) = run(EvaluatorKind::ElementWise);

@@ -291,24 +291,7 @@ pub fn displaced_svg(model: &Model, u: &[f64], caption: &str) -> String {
             )
         })
         .collect();
-    let points = polygons
-        .iter()
-        .flat_map(|p| p.1.iter().chain(&p.2).copied())
-        .collect::<Vec<_>>();
-    let mut cv = Canvas::fit(points.into_iter(), 800.0);
-    for (_, reference, _) in &polygons {
-        cv.polygon(
-            reference,
-            r##"fill="none" stroke="#bbb" stroke-width="0.6""##,
-        );
-    }
-    for (b, _, displaced) in &polygons {
-        let fill = BODY_FILLS[b % BODY_FILLS.len()];
-        cv.polygon(
-            displaced,
-            &format!(r##"fill="{fill}" fill-opacity="0.85" stroke="#333" stroke-width="0.6""##),
-        );
-    }
+    let mut cv = over_reference(&polygons, 0.6);
     cv.text(
         cv.margin,
         20.0,
@@ -368,24 +351,7 @@ pub fn state_svg(model: &Model, state: &crate::output::FinalState) -> String {
             polygons.push((b, reference, placed));
         }
     }
-    let points: Vec<Vec2> = polygons
-        .iter()
-        .flat_map(|p| p.1.iter().chain(&p.2).copied())
-        .collect();
-    let mut cv = Canvas::fit(points.into_iter(), 800.0);
-    for (_, reference, _) in &polygons {
-        cv.polygon(
-            reference,
-            r##"fill="none" stroke="#bbb" stroke-width="0.6""##,
-        );
-    }
-    for (b, _, placed) in &polygons {
-        let fill = BODY_FILLS[b % BODY_FILLS.len()];
-        cv.polygon(
-            placed,
-            &format!(r##"fill="{fill}" fill-opacity="0.85" stroke="#333" stroke-width="0.4""##),
-        );
-    }
+    let mut cv = over_reference(&polygons, 0.4);
     let of = |status: &'static str| state.interfaces.iter().filter(move |i| i.status == status);
     // Broken ones (and those released to contact) last, over the yielding ones.
     for (status, style) in [
@@ -449,4 +415,29 @@ pub fn write_mode_shapes(
             .map_err(|e| Error::io(&path, e))?;
     }
     Ok(())
+}
+
+/// A canvas fitted to `polygons` (`(body, reference, placed)` per element) with the reference
+/// outlines in grey and the placed elements over them, filled by body, outlined `stroke` wide.
+fn over_reference(polygons: &[(usize, Vec<Vec2>, Vec<Vec2>)], stroke: f64) -> Canvas {
+    let points = polygons
+        .iter()
+        .flat_map(|p| p.1.iter().chain(&p.2).copied());
+    let mut cv = Canvas::fit(points, 800.0);
+    for (_, reference, _) in polygons {
+        cv.polygon(
+            reference,
+            r##"fill="none" stroke="#bbb" stroke-width="0.6""##,
+        );
+    }
+    for (b, _, placed) in polygons {
+        let fill = BODY_FILLS[b % BODY_FILLS.len()];
+        cv.polygon(
+            placed,
+            &format!(
+                r##"fill="{fill}" fill-opacity="0.85" stroke="#333" stroke-width="{stroke}""##
+            ),
+        );
+    }
+    cv
 }
