@@ -123,7 +123,8 @@ struct Point {
     k: [f64; 2],
     /// `t w`: thickness times the Gauss weight `L/2` (m²).
     tw: f64,
-    strength: Strength,
+    /// Its strength, in `Points::strengths` (one per material: the points stay small).
+    strength: u32,
 }
 
 impl Point {
@@ -153,6 +154,8 @@ enum Correction<const N: usize> {
 
 struct Points<K: Kinematics<N>, const N: usize> {
     points: Vec<Point>,
+    /// The distinct strengths of the model's failing interfaces.
+    strengths: Vec<Strength>,
     interfaces: Vec<u32>,
     /// Per failing interface, the separation beyond which a broken one is released (m):
     /// [`RELEASE`] of its length where its body fragments (`Model::fragments`), else infinite.
@@ -166,6 +169,7 @@ struct Points<K: Kinematics<N>, const N: usize> {
 impl<K: Kinematics<N>, const N: usize> Points<K, N> {
     fn new(model: &Model, kind: EvaluatorKind) -> Self {
         let mut points = Vec::new();
+        let mut strengths: Vec<Strength> = Vec::new();
         let mut interfaces = Vec::new();
         let mut release = Vec::new();
         let centroid = |e: u32| model.elements[e as usize].props.centroid;
@@ -174,6 +178,13 @@ impl<K: Kinematics<N>, const N: usize> Points<K, N> {
             .collect();
         for (k, (i, s)) in model.interfaces.iter().zip(&model.strength).enumerate() {
             let Some(strength) = *s else { continue };
+            let strength = match strengths.iter().position(|x| *x == strength) {
+                Some(k) => k as u32,
+                None => {
+                    strengths.push(strength);
+                    strengths.len() as u32 - 1
+                }
+            };
             interfaces.push(k as u32);
             let body = model.elements[i.a as usize].body as usize;
             release.push(if fragments[body] && i.b != GROUND {
@@ -237,6 +248,7 @@ impl<K: Kinematics<N>, const N: usize> Points<K, N> {
         };
         Points {
             points,
+            strengths,
             interfaces,
             release,
             row_start,
@@ -265,7 +277,7 @@ impl<K: Kinematics<N>, const N: usize> PlasticForces for Points<K, N> {
                 if released[j / 2] {
                     s.p = delta;
                 } else {
-                    p.strength.update(p.k, delta, s);
+                    self.strengths[p.strength as usize].update(p.k, delta, s);
                 }
             });
         // Hand-over: broken interfaces whose elements moved apart beyond their range.
@@ -278,7 +290,7 @@ impl<K: Kinematics<N>, const N: usize> PlasticForces for Points<K, N> {
                 &self.points[2 * k..2 * k + 2],
                 &mut state.points[2 * k..2 * k + 2],
             );
-            if !(0..2).all(|g| p[g].strength.is_broken(&s[g])) {
+            if !(0..2).all(|g| self.strengths[p[g].strength as usize].is_broken(&s[g])) {
                 continue;
             }
             let d = [0, 1].map(|g| p[g].delta::<K, N>(u));
@@ -356,7 +368,8 @@ impl<K: Kinematics<N>, const N: usize> PlasticForces for Points<K, N> {
                     &self.points[2 * k..2 * k + 2],
                     &state.points[2 * k..2 * k + 2],
                 );
-                let broken = (0..2).all(|g| p[g].strength.is_broken(&s[g]));
+                let broken =
+                    (0..2).all(|g| self.strengths[p[g].strength as usize].is_broken(&s[g]));
                 let plastic = s.iter().any(|s| s.p != [0.0; 2]);
                 InterfaceFailure {
                     interface: i as usize,
