@@ -392,3 +392,42 @@ fn static_stays_linear_and_says_so() {
     use rbsm::analysis::Report;
     assert!(report.text().contains("note: moving clamps are held"));
 }
+
+/// A run that diverges is rolled back to the last state that passed the guard, the failing
+/// interfaces' state with it. Here one body is stepped at 1.5 Δt_crit and diverges at the first
+/// check; another, two clamped squares pulled apart, yields from the first step. The run is
+/// restored to the start, where every interface is elastic.
+#[test]
+fn a_diverged_run_restores_the_interfaces_with_the_state() {
+    let scene = json!({
+        "name": "rollback", "thickness": 0.1, "formulation": {"kind": "rigid"},
+        "materials": {
+            "weak": {"E": 3.0e10, "nu": 0.2, "rho": 2400,
+                "interface": {"kind": "softening", "tensile_strength": 1.0e3, "cohesion": 1.0e3,
+                    "friction_angle": 30, "fracture_energy": 1, "fracture_energy_shear": 1}},
+            "elastic": {"E": 3.0e10, "nu": 0.2, "rho": 2400}},
+        "bodies": [
+            {"name": "pulled", "material": "weak",
+                "mesh": {"kind": "grid", "origin": [0, 0], "size": [0.2, 0.1], "cells": [2, 1]},
+                "supports": [{"kind": "clamp", "edge": "left"},
+                    {"kind": "clamp", "edge": "right", "velocity": [1.0, 0.0]}]},
+            {"name": "shaken", "material": "elastic",
+                "mesh": {"kind": "grid", "origin": [0, 1], "size": [0.2, 0.1], "cells": [2, 1]},
+                "supports": [{"kind": "clamp", "edge": "left"}],
+                "initial": {"velocity": [0.1, 0.0], "angular_velocity": 1.0}}],
+        "time": {"dt_factor": 1.5, "steps": 1000},
+    });
+    let s = setup(&scene, EvaluatorKind::ElementWise);
+    let mut cd = s.integrator(s.dt);
+    let status = cd.run(s.steps, 100, |_, _| Ok(()), |_| {}).unwrap();
+    assert!(
+        matches!(
+            status,
+            rbsm::step::integrator::Status::Diverged { step: 100, .. }
+        ),
+        "{status:?}"
+    );
+    assert_eq!(cd.step, 0);
+    let plastic = s.plastic.as_ref().unwrap();
+    assert_eq!(cd.failure().unwrap(), &plastic.initial());
+}

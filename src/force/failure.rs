@@ -53,6 +53,16 @@ pub struct FailureState {
     pub changed: bool,
 }
 
+impl FailureState {
+    /// Becomes a copy of `other` in the room it has (the derived `clone_from` would allocate).
+    pub fn copy_from(&mut self, other: &FailureState) {
+        self.points.clone_from(&other.points);
+        self.released.clone_from(&other.released);
+        self.handover = other.handover;
+        self.changed = other.changed;
+    }
+}
+
 /// What an interface has done so far, from its two Gauss points.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct InterfaceFailure {

@@ -127,6 +127,8 @@ pub struct CentralDifference<'a> {
     /// The energy bookkeeping: what was put in and taken out so far.
     ledger: EnergyLedger,
     good: (u64, f64, Vec<f64>, Vec<f64>),
+    /// The failing interfaces' state at the step of `good`.
+    good_failure: FailureState,
     /// Whether `v` already holds `v^{n+½}` of the current step `n`: a run ended there after its
     /// last record, and the next step only has `U` left to move.
     pending: bool,
@@ -264,6 +266,7 @@ impl<'a> CentralDifference<'a> {
             loaded: None,
             ledger: EnergyLedger::default(),
             good: (0, 0.0, vec![0.0; n], vec![0.0; n]),
+            good_failure: FailureState::default(),
             fraction: None,
             pending: false,
             interrupt: None,
@@ -284,6 +287,7 @@ impl<'a> CentralDifference<'a> {
     /// `v^{−½}` was taken with elastic springs, which is exact when `U^0` is within the
     /// strengths (as the reference configuration `U^0 = 0` is).
     pub fn with_failure(mut self, plastic: &'a dyn PlasticForces) -> Self {
+        self.good_failure = plastic.initial();
         self.failure = Some((plastic, plastic.initial()));
         self
     }
@@ -520,6 +524,7 @@ impl<'a> CentralDifference<'a> {
             c.resume(saved);
         }
         if let (Some((_, s)), Some(saved)) = (self.failure.as_mut(), state.failure) {
+            self.good_failure.copy_from(&saved);
             *s = saved;
         }
         self.ledger = state.ledger;
@@ -528,8 +533,8 @@ impl<'a> CentralDifference<'a> {
         Ok(())
     }
 
-    /// The state of the failing interfaces, when the model has any: that of the last step
-    /// taken (after a divergence, up to [`CHECK_EVERY`] steps past the state restored).
+    /// The state of the failing interfaces, when the model has any: that of the current `U`
+    /// (after a divergence, of the state the guard restored).
     pub fn failure(&self) -> Option<&FailureState> {
         self.failure.as_ref().map(|(_, s)| s)
     }
@@ -601,6 +606,9 @@ impl<'a> CentralDifference<'a> {
                 let (step, t) = (self.step, self.t);
                 let (gs, gt, gu, gv) = std::mem::take(&mut self.good);
                 (self.step, self.t, self.u, self.scratch) = (gs, gt, gu, gv);
+                if let Some((_, s)) = self.failure.as_mut() {
+                    std::mem::swap(s, &mut self.good_failure);
+                }
                 self.pending = false;
                 return Ok(Status::Diverged { step, t, reason });
             }
@@ -622,6 +630,9 @@ impl<'a> CentralDifference<'a> {
             self.good.1 = self.t;
             self.good.2.copy_from_slice(&self.u);
             self.good.3.copy_from_slice(&self.scratch);
+            if let Some((_, s)) = &self.failure {
+                self.good_failure.copy_from(s);
+            }
             if last || interrupted {
                 self.pending = true;
                 return Ok(if last {
