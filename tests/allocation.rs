@@ -39,6 +39,14 @@ fn allocations(p: &Setup, warm: u64, steps: u64) -> usize {
     ALLOCATIONS.load(Ordering::Relaxed) - before
 }
 
+fn setup(scene: &Scene, evaluator: EvaluatorKind) -> Setup {
+    let overrides = Overrides {
+        evaluator: Some(evaluator),
+        ..Default::default()
+    };
+    Setup::new(scene, &overrides).unwrap()
+}
+
 /// One test: the counter is global, and tests running side by side would count each other.
 #[test]
 fn the_time_loop_does_not_allocate() {
@@ -54,14 +62,7 @@ fn failure_steps() {
     )))
     .unwrap();
     for evaluator in [EvaluatorKind::Assembled, EvaluatorKind::ElementWise] {
-        let p = Setup::new(
-            &scene,
-            &Overrides {
-                evaluator: Some(evaluator),
-                ..Default::default()
-            },
-        )
-        .unwrap();
+        let p = setup(&scene, evaluator);
         // The bar yields from about step 800 and cracks through by step 2500.
         assert_eq!(allocations(&p, 1000, 1500), 0, "{}", evaluator.name());
     }
@@ -88,14 +89,7 @@ fn plain_steps() {
                 "time": {{"dt_factor": 0.5, "steps": 10}}}}"#
         );
         let scene = Scene::from_json(&json).unwrap_or_else(|e| panic!("{e}"));
-        let p = Setup::new(
-            &scene,
-            &Overrides {
-                evaluator: Some(evaluator),
-                ..Default::default()
-            },
-        )
-        .unwrap();
+        let p = setup(&scene, evaluator);
         assert_eq!(
             allocations(&p, 20, 200),
             0,

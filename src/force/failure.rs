@@ -168,7 +168,8 @@ struct Points<K: Kinematics<N>, const N: usize> {
     strengths: Vec<Strength>,
     interfaces: Vec<u32>,
     /// Per failing interface, the separation beyond which a broken one is released (m):
-    /// [`RELEASE`] of its length where its body fragments (`Model::fragments`), else infinite.
+    /// [`RELEASE`] of its length where its body fragments (`Model::fragments`), else infinite;
+    /// empty when no body fragments (then no step looks for releases).
     release: Vec<f64>,
     /// Entries of element `e` are `row_start[e] .. row_start[e + 1]` of `correction`.
     row_start: Vec<u32>,
@@ -256,6 +257,9 @@ impl<K: Kinematics<N>, const N: usize> Points<K, N> {
                     .collect(),
             ),
         };
+        if release.iter().all(|r| r.is_infinite()) {
+            release.clear();
+        }
         Points {
             points,
             strengths,

@@ -158,9 +158,6 @@ pub struct Contact {
     step: Option<u64>,
     /// Pairs, tests and time spent, for `summary.json`.
     pub stats: ContactStats,
-    /// Per interface of the model, whether it is released to contact; empty unless a body
-    /// fragments (`Model::fragments`).
-    released: Vec<bool>,
 }
 
 impl Contact {
@@ -265,11 +262,7 @@ impl Contact {
             ground: Vec2::zeros(),
             step: None,
             stats: ContactStats::default(),
-            released: Vec::new(),
         };
-        if (0..model.bodies.len()).any(|b| model.fragments(b)) {
-            contact.released = vec![false; model.interfaces.len()];
-        }
         contact.reserve();
         Some(contact)
     }
@@ -314,13 +307,9 @@ impl Contact {
         plastic: &dyn crate::force::failure::PlasticForces,
         state: &crate::force::failure::FailureState,
     ) {
-        let Some(o) = self.overlap.as_mut().filter(|_| !self.released.is_empty()) else {
-            return;
-        };
-        for (&i, &r) in plastic.interfaces().iter().zip(&state.released) {
-            self.released[i as usize] = r;
+        if let Some(o) = self.overlap.as_mut() {
+            o.release(plastic.interfaces(), &state.released);
         }
-        o.release(&self.released);
     }
 
     /// The live vertex contacts of point contact after the last step.

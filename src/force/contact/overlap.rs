@@ -506,11 +506,17 @@ impl Overlap {
         energy
     }
 
-    /// Interfaces handed over to contact: `released[i]` tells whether interface `i` is; the two
-    /// elements of a released interface touch from now on. The neighbour list is rebuilt at the
-    /// next evaluation.
-    pub fn release(&mut self, released: &[bool]) {
-        self.released.copy_from_slice(released);
+    /// Interfaces handed over to contact: `released[k]` tells whether interface
+    /// `interfaces[k]` (an index in `Model::interfaces`) is; the two elements of a released
+    /// interface touch from now on. Nothing to do when no body fragments. The neighbour list is
+    /// rebuilt at the next evaluation.
+    pub fn release(&mut self, interfaces: &[u32], released: &[bool]) {
+        if self.released.is_empty() {
+            return;
+        }
+        for (&i, &r) in interfaces.iter().zip(released) {
+            self.released[i as usize] = r;
+        }
         self.stale = true;
     }
 
