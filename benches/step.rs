@@ -3,6 +3,11 @@
 //! threads, as ns per element-step; each figure beside its memory-bound limit: the bytes a step
 //! must move divided by the bandwidth of a triad kernel measured in the same harness. Also the
 //! model build time of 10⁶ Voronoi elements, `ω_max` of 3 × 10⁶ DOFs and the bytes per element.
+//! In the same run, the peer: the explicit loop a user of a sparse library writes (`f = K u`
+//! by faer's CSR product on one thread, then `v += Δt M⁻¹ (P − f)`, `u += Δt v`) on the same
+//! rigid models; what a user's `rbsm run` costs per step against the inner loop on the same
+//! 10⁶-element model (checks, history rows, a probe and the final state included); and the
+//! setup of that run with a given `dt` and with a `dt_factor`.
 //!
 //! `cargo bench --bench step` measures everything and rewrites `benches/summary.md`.
 //! `RBSM_BENCH_MAX=100000 cargo bench --bench step` stops at 10⁵ elements, and a criterion filter
@@ -10,12 +15,14 @@
 //! which the summary is left as it was.
 
 use criterion::{Criterion, SamplingMode};
+use rbsm::analysis::run::{self, RunParams, Silent};
+use rbsm::analysis::setup::{Overrides, Setup};
 use rbsm::input::scene::{EvaluatorKind, Scene};
 use rbsm::model::loads::Loads;
 use rbsm::model::mass::Mass;
 use rbsm::model::Model;
 use rbsm::step::integrator::CentralDifference;
-use rbsm::{analysis::eigen, force::evaluator};
+use rbsm::{analysis::limit, force::evaluator};
 use std::cell::RefCell;
 use std::fmt::Write as _;
 use std::time::{Duration, Instant};
@@ -129,6 +136,154 @@ struct Row {
     bound_ns: f64,
 }
 
+/// The peer on one model: its ns per element-step on one thread (median, quartiles).
+struct Peer {
+    mesh: &'static str,
+    elements: usize,
+    ns: f64,
+    spread: (f64, f64),
+}
+
+/// The explicit loop of a sparse-library user on `model`: `K` in compressed rows (faer),
+/// `f = K u` on one thread, then one fused pass `v += Δt M⁻¹ (P − f)`, `u += Δt v`.
+fn peer(c: &mut Criterion, mesh: &'static str, model: &Model, mass: &Mass) -> Peer {
+    use faer::sparse::{SparseColMat, Triplet};
+    let n = model.n_dofs();
+    let triplets: Vec<Triplet<usize, usize, f64>> = evaluator::stiffness_triplets(model)
+        .into_iter()
+        .map(|(r, c, v)| Triplet::new(r, c, v))
+        .collect();
+    let k = SparseColMat::try_new_from_triplets(n, n, &triplets).expect("K assembles");
+    drop(triplets);
+    let minv: Vec<f64> = mass.diagonal().iter().map(|m| 1.0 / m).collect();
+    let mut p = vec![0.0; n];
+    Loads::new(model).subtract(0.0, &mut p);
+    p.iter_mut().for_each(|x| *x = -*x);
+    let (mut u, mut v, mut f) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+    let dt = 1e-9;
+    let ne = model.elements.len();
+    let (sample_size, time) = sampling(ne);
+    let samples = RefCell::new(Vec::new());
+    let mut group = c.benchmark_group("peer");
+    group.sample_size(sample_size).measurement_time(time);
+    if ne >= LARGE {
+        group.sampling_mode(SamplingMode::Flat);
+    }
+    group.bench_function(format!("{mesh}/rigid/faer-csr/1thr/{ne}"), |b| {
+        b.iter_custom(|iters| {
+            let t0 = Instant::now();
+            for _ in 0..iters {
+                // K is symmetric: its columns are its rows, and the transposed view is CSR.
+                faer::sparse::linalg::matmul::sparse_dense_matmul(
+                    faer::ColMut::from_slice_mut(&mut f).as_mat_mut(),
+                    faer::Accum::Replace,
+                    k.as_ref().transpose(),
+                    faer::ColRef::from_slice(&u).as_mat(),
+                    1.0,
+                    faer::Par::Seq,
+                );
+                for i in 0..n {
+                    v[i] += dt * minv[i] * (p[i] - f[i]);
+                    u[i] += dt * v[i];
+                }
+            }
+            let e = t0.elapsed();
+            samples.borrow_mut().push(e.as_secs_f64() / iters as f64);
+            e
+        })
+    });
+    group.finish();
+    std::hint::black_box(&u);
+    let [q1, ns, q3] = quartiles(&samples, sample_size).map(|t| t / ne as f64 * 1e9);
+    Peer {
+        mesh,
+        elements: ne,
+        ns,
+        spread: (q1, q3),
+    }
+}
+
+/// What a user's run costs on the 10⁶-element rigid grid (element-wise, all threads).
+struct RunPath {
+    /// `run::run`'s stepping loop (checks, history rows, a probe) per step over the inner
+    /// loop's on the same setup, each round; then the whole `run::run` (the final state
+    /// written too) over the inner loop.
+    loop_ratio: Vec<f64>,
+    whole_ratio: Vec<f64>,
+    inner_ns: Vec<f64>,
+    steps: u64,
+    /// `Setup::new` with a given `dt` and with a `dt_factor` (s), each round.
+    setup_dt: Vec<f64>,
+    setup_factor: Vec<f64>,
+}
+
+/// The 10⁶-element grid of the step bench as a user's scene: element-wise, `time` as given,
+/// a probe, history rows every 100 steps (the default).
+fn user_scene(time: &str) -> Scene {
+    let json = format!(
+        r#"{{"name": "user", "thickness": 1.0, "formulation": {{"kind": "rigid"}},
+            "evaluator": "element-wise",
+            "materials": {{"m": {{"E": 3e10, "nu": 0.2, "rho": 2400}}}},
+            "bodies": [{{"name": "b", "material": "m", "mesh": {},
+                         "supports": [{{"edge": "left", "kind": "ground-spring"}}],
+                         "loads": [{{"kind": "traction", "edge": "right", "value": [1e6, 1e5]}}]}}],
+            "time": {time},
+            "output": {{"probes": [{{"name": "corner_u", "element": 999999, "dof": "u"}}]}}}}"#,
+        mesh_json("grid", 1_000_000)
+    );
+    Scene::from_json(&json).expect("the user scene is valid")
+}
+
+/// Rounds of the run path and of the setup, interleaved so that the machine's load falls on
+/// both alike.
+fn run_path() -> RunPath {
+    const ROUNDS: usize = 3;
+    const STEPS: u64 = 300;
+    let out = std::env::temp_dir().join(format!("rbsm-bench-run-{}", std::process::id()));
+    let given = user_scene(&format!(r#"{{"dt": 1e-9, "steps": {STEPS}}}"#));
+    let factor = user_scene(&format!(r#"{{"dt_factor": 0.5, "steps": {STEPS}}}"#));
+    let mut r = RunPath {
+        loop_ratio: Vec::new(),
+        whole_ratio: Vec::new(),
+        inner_ns: Vec::new(),
+        steps: STEPS,
+        setup_dt: Vec::new(),
+        setup_factor: Vec::new(),
+    };
+    for _ in 0..ROUNDS {
+        let setup = Setup::new(&given, &Overrides::default()).expect("sets up");
+        r.setup_dt.push(setup.seconds);
+        let per_step = 1e9 / (STEPS as f64 * setup.model.elements.len() as f64);
+        let mut cd = setup.integrator(setup.dt);
+        let t0 = Instant::now();
+        cd.step_only(STEPS);
+        let inner = t0.elapsed().as_secs_f64() * per_step;
+        drop(cd);
+        let params = RunParams {
+            resume: false,
+            interrupt: None,
+        };
+        let t0 = Instant::now();
+        let summary = run::run(&setup, &params, &out, &mut Silent).expect("the run runs");
+        let whole = t0.elapsed().as_secs_f64() * per_step;
+        r.inner_ns.push(inner);
+        r.loop_ratio.push(summary.step_time_s * per_step / inner);
+        r.whole_ratio.push(whole / inner);
+        drop(setup);
+        let setup = Setup::new(&factor, &Overrides::default()).expect("sets up");
+        r.setup_factor.push(setup.seconds);
+    }
+    let _ = std::fs::remove_dir_all(&out);
+    r
+}
+
+/// Median and range of a few rounds.
+fn median_range(x: &[f64]) -> (f64, f64, f64) {
+    let mut s = x.to_vec();
+    s.sort_by(f64::total_cmp);
+    (s[s.len() / 2], s[0], s[s.len() - 1])
+}
+
 fn main() {
     let max: usize = std::env::var("RBSM_BENCH_MAX")
         .ok()
@@ -147,6 +302,7 @@ fn main() {
     };
     let bandwidth: Vec<f64> = THREADS.iter().map(|&t| triad(&mut c, t)).collect();
     let mut rows = Vec::new();
+    let mut peers = Vec::new();
     let mut builds = Vec::new();
     for mesh in ["grid", "voronoi"] {
         for n in SIZES.into_iter().filter(|&n| n <= max) {
@@ -161,6 +317,9 @@ fn main() {
                     t0.elapsed().as_secs_f64(),
                 ));
                 let (mass, loads) = (Mass::new(&model), Loads::new(&model));
+                if fname == "rigid" {
+                    peers.push(peer(&mut c, mesh, &model, &mass));
+                }
                 let nd = model.formulation.ndof();
                 let inv_bytes = if mass.is_diagonal() {
                     8 * nd
@@ -237,7 +396,9 @@ fn main() {
         return;
     };
     let extras = extras(rss_per_element, working_set);
+    let path = run_path();
     let mut summary = render(&bandwidth, &rows, &builds, &extras);
+    summary.push_str(&render_user(&rows, &peers, &path));
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/benches/summary.md");
     // The section that `cargo bench --bench failure` writes stays.
     let old = std::fs::read_to_string(path).unwrap_or_default();
@@ -297,7 +458,7 @@ fn extras(rss_per_element: f64, working_set: f64) -> Extras {
     let mass = Mass::new(&model);
     let ev = evaluator::build(&model, EvaluatorKind::ElementWise);
     let t0 = Instant::now();
-    std::hint::black_box(eigen::omega_max(&model, ev.as_ref(), &mass));
+    std::hint::black_box(limit::omega_max(&model, ev.as_ref(), &mass, limit::EXACT));
     let omega_max_s = t0.elapsed().as_secs_f64();
     let dofs = model.n_dofs();
     drop((ev, model));
@@ -551,4 +712,158 @@ fn sampling_text() -> String {
 
 fn fmt(x: f64, digits: usize) -> String {
     format!("{x:.digits$}")
+}
+
+/// The sections of issue 22: the peer, the goals on 10⁶ elements, the run path and the setup.
+fn render_user(rows: &[Row], peers: &[Peer], r: &RunPath) -> String {
+    let mut s = String::new();
+    let row = |mesh: &str, formulation: &str, ev: &str, n: usize, thr: usize| {
+        rows.iter().find(|r| {
+            r.mesh == mesh
+                && r.formulation == formulation
+                && r.evaluator == ev
+                && r.elements == n
+                && r.threads == thr
+        })
+    };
+    let _ = writeln!(
+        s,
+        "\n## Against the peer, in the same run\n\nThe peer is the explicit loop a user of a \
+        sparse library writes on the same rigid model: `K` in compressed rows (faer 0.24), \
+        `f = K u` on one thread, then one fused pass `v += Δt M⁻¹ (P − f)`, `u += Δt v`. It is \
+        measured like the steps above (median of its samples, quartiles in brackets). *× peer* \
+        is the peer's time over ours (above 1: we are faster), for our step on 1 and on 2 \
+        threads against the peer on one.\n"
+    );
+    let _ = writeln!(
+        s,
+        "| mesh | elements | peer ns | element-wise × peer, 1 thr | 2 thr | assembled × peer, \
+        1 thr | 2 thr |\n|---|---:|---:|---:|---:|---:|---:|"
+    );
+    let times = |p: &Peer, ev: &str, thr: usize| {
+        row(p.mesh, "rigid", ev, p.elements, thr)
+            .map_or(String::from("–"), |r| fmt(p.ns / r.ns, 2))
+    };
+    for p in peers {
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} ({}–{}) | {} | {} | {} | {} |",
+            p.mesh,
+            p.elements,
+            fmt(p.ns, 1),
+            fmt(p.spread.0, 1),
+            fmt(p.spread.1, 1),
+            times(p, "element-wise", 1),
+            times(p, "element-wise", 2),
+            times(p, "assembled", 1),
+            times(p, "assembled", 2)
+        );
+    }
+    let (ratio_med, ratio_lo, ratio_hi) = median_range(&r.loop_ratio);
+    let (whole_med, whole_lo, whole_hi) = median_range(&r.whole_ratio);
+    let (inner_med, _, _) = median_range(&r.inner_ns);
+    let (dt_med, dt_lo, dt_hi) = median_range(&r.setup_dt);
+    let (f_med, f_lo, f_hi) = median_range(&r.setup_factor);
+    // A 10⁴-step run of the same model at the inner loop's speed.
+    let run_s = 1e4 * inner_med * 1e-9 * 1e6;
+    let _ = writeln!(
+        s,
+        "\n## Goals (issue 22), 10⁶ elements\n\n| goal | measured | met |\n|---|---|---|"
+    );
+    let mut goal = |what: String, measured: f64, text: String, ok: bool| {
+        let met = if measured.is_nan() {
+            "–"
+        } else if ok {
+            "yes"
+        } else {
+            "**no**"
+        };
+        let _ = writeln!(s, "| {what} | {text} | {met} |");
+    };
+    let grid_peer = peers
+        .iter()
+        .find(|p| p.mesh == "grid" && p.elements == 1_000_000);
+    for (ev, thr, want) in [
+        ("element-wise", 1, 4.0),
+        ("element-wise", 2, 7.0),
+        ("assembled", 1, 2.0),
+        ("assembled", 2, 3.5),
+    ] {
+        let x = match (grid_peer, row("grid", "rigid", ev, 1_000_000, thr)) {
+            (Some(p), Some(r)) => p.ns / r.ns,
+            _ => f64::NAN,
+        };
+        goal(
+            format!("grid, rigid, {ev}, {thr} thr: ≥ {want}× faster than the peer"),
+            x,
+            format!("{}×", fmt(x, 2)),
+            x >= want,
+        );
+    }
+    for (mesh, formulation, want) in [
+        ("grid", "rigid", 1.3),
+        ("grid", "hybrid", 1.6),
+        ("voronoi", "rigid", 1.5),
+    ] {
+        for thr in THREADS {
+            let x = row(mesh, formulation, "element-wise", 1_000_000, thr)
+                .map_or(f64::NAN, |r| r.ns / r.bound_ns);
+            goal(
+                format!("{mesh}, {formulation}, element-wise, {thr} thr: within {want}× the memory bound"),
+                x,
+                format!("{}×", fmt(x, 2)),
+                x <= want,
+            );
+        }
+    }
+    goal(
+        "a user's run steps within 1.15× of the inner loop".into(),
+        ratio_med,
+        format!(
+            "{}× ({}–{}); with the final state written, {}× ({}–{})",
+            fmt(ratio_med, 2),
+            fmt(ratio_lo, 2),
+            fmt(ratio_hi, 2),
+            fmt(whole_med, 2),
+            fmt(whole_lo, 2),
+            fmt(whole_hi, 2)
+        ),
+        ratio_med <= 1.15,
+    );
+    goal(
+        "setup with a given `dt` ≤ 5 s".into(),
+        dt_med,
+        format!("{} s ({}–{})", fmt(dt_med, 2), fmt(dt_lo, 2), fmt(dt_hi, 2)),
+        dt_med <= 5.0,
+    );
+    goal(
+        "setup with a `dt_factor` ≤ 5 s".into(),
+        f_med,
+        format!("{} s ({}–{})", fmt(f_med, 2), fmt(f_lo, 2), fmt(f_hi, 2)),
+        f_med <= 5.0,
+    );
+    let share = f_med / (f_med + run_s);
+    goal(
+        "setup ≤ 10 % of a 10⁴-step run".into(),
+        share,
+        format!(
+            "{} % with a `dt_factor` (the run: {} s at the inner loop's speed)",
+            fmt(100.0 * share, 1),
+            fmt(run_s, 0)
+        ),
+        share <= 0.1,
+    );
+    let _ = writeln!(
+        s,
+        "\nThe run path: {} rounds, interleaved, each of {} steps of the 10⁶-element rigid grid \
+        (element-wise, all threads): the inner loop (`step_only`, {} ns per element-step, median) \
+        and a user's `run::run` of the same setup (a history row every 100 steps, one probe, the \
+        guard's checks; then `final_state.json`), and the setup (`Setup::new`: the model, the \
+        evaluator, the proven bracket of `Δt_crit`, and with a `dt_factor` the Lanczos `ω_max` \
+        to four digits). Medians, with the range of the rounds.",
+        r.loop_ratio.len(),
+        r.steps,
+        fmt(inner_med, 1)
+    );
+    s
 }

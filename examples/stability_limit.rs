@@ -84,7 +84,7 @@ fn compute() -> Outcome {
     let mut runs = Vec::new();
     let mut unstable = Vec::new();
     for (fraction, steps) in [(0.9, 4000), (0.99, 4000), (1.01, 100)] {
-        let e = elastic_history(&p, &u0, fraction * p.dt_crit, steps);
+        let e = elastic_history(&p, &u0, fraction * p.dt_crit(), steps);
         runs.push((
             fraction,
             steps,
@@ -98,8 +98,8 @@ fn compute() -> Outcome {
     let measured_growth = (unstable[n] / unstable[n - 20]).powf(1.0 / 20.0);
     let guarded = run_at_fraction(&p, 1.01, 2000);
     Outcome {
-        omega_max: p.omega_max,
-        dt_crit: p.dt_crit,
+        omega_max: p.omega_max(),
+        dt_crit: p.dt_crit(),
         runs,
         unstable: unstable.into_iter().step_by(10).collect(),
         measured_growth,

@@ -3,6 +3,7 @@
 mod common;
 use rbsm::analysis::eigen::{self, Method};
 use rbsm::analysis::free::FreeSystem;
+use rbsm::analysis::limit;
 use rbsm::analysis::statics;
 use rbsm::force::evaluator;
 use rbsm::input::scene::{EvaluatorKind, Scene};
@@ -286,7 +287,7 @@ fn bounds_and_empirical_limit_on_a_square_grid() {
         },
     )
     .unwrap();
-    assert!((setup.dt_crit / dt_crit - 1.0).abs() < 1e-10);
+    assert!((setup.dt_crit() / dt_crit - 1.0).abs() < 1e-10);
     let (_, ratio) = rbsm::analysis::stability::empirical_limit(&setup, 2000, 1e-3);
     assert!(
         (ratio - 1.0).abs() <= 0.01,
@@ -309,7 +310,7 @@ fn omega_max_of_long_free_chains_is_accurate_and_fast() {
         let ev = evaluator::build(m, EvaluatorKind::Assembled);
         let t = std::time::Instant::now();
         (
-            eigen::omega_max(m, ev.as_ref(), &mass),
+            limit::omega_max(m, ev.as_ref(), &mass, limit::EXACT),
             t.elapsed().as_secs_f64(),
         )
     };
@@ -343,4 +344,53 @@ fn omega_max_of_long_free_chains_is_accurate_and_fast() {
 
 fn model_of(mesh: &str) -> Model {
     common::model(mesh, r#"[{"edge": "left", "kind": "ground-spring"}]"#)
+}
+
+/// The bracket a setup knows without Lanczos (issue 22): `dt_safe ≤ Δt_crit ≤ dt_ceiling` on
+/// every bundled scene (rigid and hybrid, with and without contact, supported or free), each
+/// side proven, and the safe step no further than `1/√2` below the exact one.
+#[test]
+fn the_proven_bracket_holds_the_exact_critical_step_on_every_bundled_scene() {
+    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/examples/scenes");
+    let mut seen = 0;
+    for entry in std::fs::read_dir(dir).unwrap() {
+        let path = entry.unwrap().path();
+        let setup = rbsm::analysis::setup::Setup::new(
+            &Scene::from_file(&path).unwrap(),
+            &rbsm::analysis::setup::Overrides {
+                exact_dt_crit: true,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        let (lim, exact) = (setup.limit, setup.dt_crit());
+        let name = path.display();
+        assert!(
+            lim.dt_safe() <= exact * (1.0 + 1e-12),
+            "{name}: {lim:?} {exact}"
+        );
+        assert!(
+            exact <= lim.dt_ceiling() * (1.0 + 1e-12),
+            "{name}: {lim:?} {exact}"
+        );
+        assert!(
+            lim.dt_safe() >= exact / 2f64.sqrt() * (1.0 - 1e-12),
+            "{name}"
+        );
+        // A step between the bracket's ends is warned about, below it not.
+        assert_eq!(setup.limit.omega_max, Some(setup.omega_max()));
+        let bare = limit::Limit {
+            omega_max: None,
+            tolerance: None,
+            ..lim
+        };
+        assert!(bare.warning(0.99 * lim.dt_safe()).is_none(), "{name}");
+        assert!(bare.warning(1.01 * lim.dt_safe()).is_some(), "{name}");
+        assert!(bare
+            .warning(1.01 * lim.dt_ceiling())
+            .unwrap()
+            .contains("upper bound of Δt_crit"));
+        seen += 1;
+    }
+    assert!(seen >= 10, "{seen} scenes");
 }

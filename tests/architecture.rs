@@ -59,6 +59,33 @@ fn node_of_path(src: &Path, segments: &[&str]) -> String {
     }
 }
 
+/// The paths of a `use` group's top-level items, from the text after its `{`: `b`, `c::d`,
+/// `self` (nested groups keep their prefix only).
+fn group_items(text: &str) -> Vec<String> {
+    let mut depth = 0;
+    let mut items = vec![String::new()];
+    for c in text.chars() {
+        match c {
+            '{' => depth += 1,
+            '}' if depth == 0 => break,
+            '}' => depth -= 1,
+            ',' if depth == 0 => items.push(String::new()),
+            _ if depth == 0 => items.last_mut().unwrap().push(c),
+            _ => {}
+        }
+    }
+    items
+        .iter()
+        .map(|i| {
+            i.trim()
+                .chars()
+                .take_while(|c| c.is_alphanumeric() || *c == '_' || *c == ':')
+                .collect()
+        })
+        .filter(|i: &String| !i.is_empty())
+        .collect()
+}
+
 fn graph() -> BTreeMap<String, BTreeSet<String>> {
     let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
     let mut files = Vec::new();
@@ -77,13 +104,28 @@ fn graph() -> BTreeMap<String, BTreeSet<String>> {
                 .chars()
                 .take_while(|c| c.is_alphanumeric() || *c == '_' || *c == ':')
                 .collect();
-            let segments: Vec<&str> = path.split("::").filter(|s| !s.is_empty()).collect();
-            if segments.is_empty() {
-                continue;
-            }
-            let to = node_of_path(&src, &segments);
-            if to != from {
-                targets.insert(to);
+            let prefix: Vec<&str> = path.split("::").filter(|s| !s.is_empty()).collect();
+            // `crate::a::{b, c::d, self}` names `a::b`, `a::c` and `a`.
+            let group = rest[path.len()..]
+                .strip_prefix('{')
+                .map_or_else(Vec::new, group_items);
+            let paths: Vec<Vec<&str>> = if group.is_empty() {
+                vec![prefix]
+            } else {
+                group
+                    .iter()
+                    .map(|item| {
+                        let mut p = prefix.clone();
+                        p.extend(item.split("::").filter(|s| !s.is_empty() && *s != "self"));
+                        p
+                    })
+                    .collect()
+            };
+            for segments in paths.iter().filter(|s| !s.is_empty()) {
+                let to = node_of_path(&src, segments);
+                if to != from {
+                    targets.insert(to);
+                }
             }
         }
     }

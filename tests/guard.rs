@@ -16,7 +16,7 @@ fn bundled(name: &str) -> Value {
 fn status(scene: &Value, dt_factor: Option<f64>, steps: u64, every: u64) -> Status {
     let scene = Scene::from_json(&scene.to_string()).unwrap();
     let p = Setup::new(&scene, &Overrides::default()).unwrap();
-    let dt = dt_factor.map_or(p.dt, |f| f * p.dt_crit);
+    let dt = dt_factor.map_or(p.dt, |f| f * p.dt_crit());
     let mut cd = p.integrator(dt);
     cd.run(steps, every, |_, _| Ok(()), |_| {}).unwrap()
 }

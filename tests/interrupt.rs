@@ -71,7 +71,7 @@ fn same_outputs(a: &Path, b: &Path) {
             let clean = |p: &Path| {
                 let mut v: Value =
                     serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap();
-                for k in ["wall_time_s", "step_time_s", "threads"] {
+                for k in ["wall_time_s", "setup_time_s", "step_time_s", "threads"] {
                     v.as_object_mut().unwrap().remove(k);
                 }
                 if let Some(c) = v.get_mut("contact") {

@@ -117,7 +117,8 @@ fn trajectory(model: &Model, kind: EvaluatorKind, steps: u64) -> (Vec<f64>, f64)
     let ev = evaluator::build(model, kind);
     let mass = Mass::new(model);
     let loads = Loads::new(model);
-    let omega = rbsm::analysis::eigen::omega_max(model, ev.as_ref(), &mass);
+    let omega =
+        rbsm::analysis::limit::omega_max(model, ev.as_ref(), &mass, rbsm::analysis::limit::EXACT);
     let dt = 0.9 * 2.0 / omega;
     let mut cd = CentralDifference::new(model, ev.as_ref(), &mass, &loads, None, dt);
     assert_eq!(

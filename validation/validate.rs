@@ -20,6 +20,7 @@ mod trade;
 
 use rbsm::analysis::eigen::{self, Method};
 use rbsm::analysis::free::FreeSystem;
+use rbsm::analysis::limit;
 use rbsm::analysis::setup::{Overrides, Setup};
 use rbsm::analysis::stability;
 use rbsm::analysis::statics;
@@ -624,7 +625,8 @@ fn critical_time_step(r: &mut Report) {
             let mass = Mass::new(&m);
             let sys = FreeSystem::new(&m, &mass);
             let ev = evaluator::build(&m, EvaluatorKind::ElementWise);
-            let dt = stability::critical_time_step(eigen::omega_max(&m, ev.as_ref(), &mass));
+            let dt =
+                limit::critical_time_step(limit::omega_max(&m, ev.as_ref(), &mass, limit::EXACT));
             let closed = h / c * ((1.0 + nu) / 3.0).sqrt();
             let b = stability::bounds(&m, &sys, &mass, dt);
             r.line(&format!(
@@ -1074,7 +1076,7 @@ fn hybrid(r: &mut Report) {
             let modes = eigen::modes(&sys, ev.as_ref(), &mass, 8, Method::Sparse).unwrap();
             let nd = m.formulation.ndof();
             let w = bending(&modes.omega, &modes.shapes, &mass.diagonal(), nd);
-            let dt = stability::critical_time_step(modes.omega_max);
+            let dt = limit::critical_time_step(modes.omega_max);
             let d: Vec<f64> = (0..3).map(|j| (w[j] - q8[j]) / q8[j]).collect();
             let label = if p == 0.0 {
                 "rigid".to_string()

@@ -37,6 +37,9 @@ pub struct CheckReport {
     pub omega_max: f64,
     /// `2/ω_max` (s).
     pub dt_crit: f64,
+    /// The step proven stable without `ω_max` (s), what `run` checks a given `dt` against
+    /// ([`crate::analysis::limit::Limit`]).
+    pub dt_safe: f64,
     /// The time step a run would take (s), its ratio to `Δt_crit`, and the steps.
     pub dt: f64,
     /// `dt / Δt_crit`.
@@ -107,13 +110,14 @@ pub fn check(p: &Setup) -> Result<CheckReport> {
         loads: m.loads.len(),
         gravity: [m.gravity.x, m.gravity.y],
         contact,
-        omega_max: p.omega_max,
-        dt_crit: p.dt_crit,
+        omega_max: p.omega_max(),
+        dt_crit: p.dt_crit(),
+        dt_safe: p.limit.dt_safe(),
         dt: p.dt,
-        dt_ratio: p.dt / p.dt_crit,
+        dt_ratio: p.dt / p.dt_crit(),
         steps: p.steps,
         memory_bytes: p.evaluator.bytes() + mass_bytes + 6 * 8 * m.n_dofs(),
-        warnings: crate::model::checks::warnings(m, p.dt, p.dt_crit),
+        warnings: p.warnings(),
     })
 }
 
@@ -148,8 +152,10 @@ impl Report for CheckReport {
             ),
         };
         t += &format!(
-            "  ω_max = {:.6e} rad/s, Δt_crit = {:.6e} s\n",
-            r.omega_max, r.dt_crit
+            "  ω_max = {:.6e} rad/s, Δt_crit = {:.6e} s (proven-safe step without it: {:.4} Δt_crit)\n",
+            r.omega_max,
+            r.dt_crit,
+            r.dt_safe / r.dt_crit
         );
         t += &format!(
             "  dt = {:.6e} s = {:.4} Δt_crit, {} steps\n",

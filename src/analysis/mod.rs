@@ -6,6 +6,7 @@ pub mod check;
 pub mod eigen;
 pub mod free;
 pub mod hopping;
+pub mod limit;
 pub mod rigid_modes;
 pub mod run;
 pub mod setup;

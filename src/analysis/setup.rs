@@ -2,7 +2,7 @@
 //! command, test and bench starts from [`Setup::new`]; the analyses take it with their own
 //! parameters.
 
-use crate::analysis::{eigen, stability};
+use crate::analysis::limit::{self, Limit};
 use crate::error::{Error, Result};
 use crate::force::contact::{self, Contact, WithBlocks};
 use crate::force::evaluator::{self, Evaluator};
@@ -13,6 +13,7 @@ use crate::model::mass::Mass;
 use crate::model::{dof_index, Model};
 use crate::output::Probe;
 use crate::step::integrator::CentralDifference;
+use std::sync::OnceLock;
 
 /// Command-line overrides of the scene.
 #[derive(Debug, Clone, Default)]
@@ -25,6 +26,11 @@ pub struct Overrides {
     pub dt_factor: Option<f64>,
     /// Number of steps, replacing the scene's `end` or `steps`.
     pub steps: Option<u64>,
+    /// Compute `ω_max` to full precision ([`limit::EXACT`]) at setup, whatever the time step
+    /// needs: `check`, `stability`, `eigen`, `tradeoff` and `run --exact-dt-crit` ask for it.
+    /// Otherwise a given `dt` computes no `ω_max` at all (the proven bracket decides the
+    /// warning) and a `dt_factor` computes it to [`limit::FOR_STEP`].
+    pub exact_dt_crit: bool,
 }
 
 /// A scene ready to analyse: its model, evaluator, mass, loads, contact and time step.
@@ -47,21 +53,26 @@ pub struct Setup {
     /// The contact of the scene in its initial state; `None` when the scene declares none
     /// (then no contact search is done). Each integrator starts from a copy.
     pub contact: Option<Contact>,
-    /// Largest circular frequency (rad/s), by Lanczos (`eigen::omega_max`); with contact, of
-    /// `K` plus every contact closed against rigid ground (`contact::stiffness_estimate`). The
-    /// one definition every command uses.
-    pub omega_max: f64,
-    /// Critical time step `2/ω_max` (s).
-    pub dt_crit: f64,
+    /// What is known of the largest circular frequency `ω_max` (rad/s): with contact, of `K`
+    /// plus every contact closed against rigid ground (`contact::stiffness_estimate`), the one
+    /// definition every command uses. Its proven bracket always; its Lanczos value
+    /// (`limit::omega_max`) when the time step or [`Overrides::exact_dt_crit`] asks for it.
+    pub limit: Limit,
+    /// `ω_max` to full precision, computed on the first call of [`Setup::omega_max`] unless the
+    /// setup already had it.
+    exact: OnceLock<f64>,
     /// The time step of a run (s).
     pub dt: f64,
     /// Steps of a run.
     pub steps: u64,
+    /// Wall time of [`Setup::new`] (s).
+    pub seconds: f64,
 }
 
 impl Setup {
     /// Builds everything an analysis of `scene` needs.
     pub fn new(scene: &Scene, overrides: &Overrides) -> Result<Setup> {
+        let start = std::time::Instant::now();
         let model = Model::build(scene)?;
         let kind = overrides.evaluator.unwrap_or(scene.evaluator);
         let evaluator = evaluator::build(&model, kind);
@@ -69,31 +80,29 @@ impl Setup {
         let mass = Mass::new(&model);
         let loads = Loads::new(&model);
         let contact = Contact::new(&model);
-        let omega_max = match &contact {
-            None => eigen::omega_max(&model, evaluator.as_ref(), &mass),
-            Some(c) => {
-                let blocks = contact::stiffness_estimate(&model, c);
-                eigen::omega_max(
-                    &model,
-                    &WithBlocks {
-                        inner: evaluator.as_ref(),
-                        nd: model.formulation.ndof(),
-                        blocks,
-                    },
-                    &mass,
-                )
-            }
+        let blocks = contact
+            .as_ref()
+            .map(|c| contact::stiffness_estimate(&model, c));
+        let mut limit = Limit::bracket(&model, blocks.as_deref());
+        check_finite(scene, limit.bound)?;
+        let given_dt =
+            overrides.dt.is_some() || (overrides.dt_factor.is_none() && scene.time.dt.is_some());
+        let tolerance = match (overrides.exact_dt_crit, given_dt) {
+            (true, _) => Some(limit::EXACT),
+            (false, false) => Some(limit::FOR_STEP),
+            (false, true) => None,
         };
-        if !omega_max.is_finite() {
-            return Err(Error::scene(
-                scene.most_extreme(0, &["E", "rho", "thickness", "penalty"]),
-                format!(
-                    "the stiffness or mass of the model overflows (ω_max = {omega_max}); check E, \
-                     rho, thickness, the penalty and the mesh size"
-                ),
-            ));
+        let exact = OnceLock::new();
+        if let Some(tolerance) = tolerance {
+            let omega = lanczos(&model, evaluator.as_ref(), &mass, blocks, tolerance);
+            check_finite(scene, omega)?;
+            limit.omega_max = Some(omega);
+            limit.tolerance = Some(tolerance);
+            if tolerance == limit::EXACT {
+                exact.set(omega).expect("set once");
+            }
         }
-        let dt_crit = stability::critical_time_step(omega_max);
+        let dt_crit = limit.dt_crit().unwrap_or(f64::INFINITY);
         let dt = time_step(scene, overrides, dt_crit)?;
         let steps = match (overrides.steps, scene.time.steps, scene.time.end) {
             (Some(0), _, _) => {
@@ -113,10 +122,11 @@ impl Setup {
             mass,
             loads,
             contact,
-            omega_max,
-            dt_crit,
+            limit,
+            exact,
             dt,
             steps,
+            seconds: start.elapsed().as_secs_f64(),
         })
     }
 
@@ -138,14 +148,86 @@ impl Setup {
         if !self.model.prescribed.is_empty() {
             cd = cd.with_prescribed(&self.model);
         }
-        cd.set_stability_limit(self.dt_crit);
+        cd.set_stability_limit(self.limit.dt_crit_at_least());
         cd
+    }
+
+    /// `ω_max` (rad/s) to full precision ([`limit::EXACT`]): the setup's if it computed it so,
+    /// else by Lanczos now (once; later calls return it).
+    pub fn omega_max(&self) -> f64 {
+        *self.exact.get_or_init(|| {
+            let blocks = self
+                .contact
+                .as_ref()
+                .map(|c| contact::stiffness_estimate(&self.model, c));
+            lanczos(
+                &self.model,
+                self.evaluator.as_ref(),
+                &self.mass,
+                blocks,
+                limit::EXACT,
+            )
+        })
+    }
+
+    /// `Δt_crit = 2/ω_max` (s) to full precision (see [`Setup::omega_max`]).
+    pub fn dt_crit(&self) -> f64 {
+        limit::critical_time_step(self.omega_max())
+    }
+
+    /// What the checks found: extreme inputs (`model::checks::warnings`) and a time step
+    /// above, or not proven below, `Δt_crit` ([`Limit::warning`]).
+    pub fn warnings(&self) -> Vec<String> {
+        let mut out = crate::model::checks::warnings(&self.model);
+        out.extend(self.limit.warning(self.dt));
+        out
     }
 
     /// The history columns the scene asks for, each checked against the model's DOFs.
     pub fn probes(&self) -> Result<Vec<Probe>> {
         probes(&self.scene, &self.model)
     }
+}
+
+/// `ω_max` of `K` (by `evaluator`) plus the contact estimate's `blocks`, by Lanczos to
+/// `tolerance`.
+fn lanczos(
+    model: &Model,
+    evaluator: &dyn Evaluator,
+    mass: &Mass,
+    blocks: Option<Vec<f64>>,
+    tolerance: f64,
+) -> f64 {
+    match blocks {
+        None => limit::omega_max(model, evaluator, mass, tolerance),
+        Some(blocks) => limit::omega_max(
+            model,
+            &WithBlocks {
+                inner: evaluator,
+                nd: model.formulation.ndof(),
+                blocks,
+            },
+            mass,
+            tolerance,
+        ),
+    }
+}
+
+/// An error naming the scene's most extreme value when `omega` (rad/s) overflows, or its
+/// fourth power does: Lanczos forms `|K x|²` of unit vectors, so a model whose `ω⁴` overflows
+/// cannot be analysed (`check` refuses it), and a run is refused alike whether or not its step
+/// needs Lanczos.
+fn check_finite(scene: &Scene, omega: f64) -> Result<()> {
+    if omega.powi(4).is_finite() {
+        return Ok(());
+    }
+    Err(Error::scene(
+        scene.most_extreme(0, &["E", "rho", "thickness", "penalty"]),
+        format!(
+            "the stiffness or mass of the model overflows (ω_max = {omega}); check E, rho, \
+             thickness, the penalty and the mesh size"
+        ),
+    ))
 }
 
 /// The history columns `scene` asks for in `model` (the scene's), each checked against the

@@ -4,12 +4,13 @@
 //! limit found empirically by running.
 
 use crate::analysis::free::FreeSystem;
+use crate::analysis::limit::{fixed_dofs, generalized_max, Limit};
 use crate::analysis::setup::Setup;
 use crate::analysis::Report;
 use crate::error::{Error, Result};
 use crate::force::contact::Contact;
 use crate::force::evaluator::interface_stiffness;
-use crate::model::formulation::{Formulation, Hybrid, Rigid};
+use crate::model::formulation::{Formulation, Hybrid, Kinematics, Rigid};
 use crate::model::loads::Loads;
 use crate::model::mass::Mass;
 use crate::model::{Model, GROUND};
@@ -17,11 +18,6 @@ use crate::step::integrator::{CentralDifference, Status};
 use nalgebra::{DMatrix, SMatrix};
 use rand::{Rng, SeedableRng};
 use serde::Serialize;
-
-/// `Δt_crit = 2 / ω_max` (s).
-pub fn critical_time_step(omega_max: f64) -> f64 {
-    2.0 / omega_max
-}
 
 /// A cheap estimate of `Δt_crit` and how it compares with the exact value.
 #[derive(Debug, Clone, Serialize)]
@@ -77,10 +73,11 @@ pub fn bounds(model: &Model, sys: &FreeSystem, mass: &Mass, dt_crit: f64) -> Vec
         }
     }
     let gershgorin = rows.iter().cloned().fold(0.0, f64::max);
-    let (it, per_body) = match model.formulation {
-        Formulation::Rigid => interface_and_body_bounds::<Rigid, 3>(model),
-        Formulation::Hybrid { .. } => interface_and_body_bounds::<Hybrid, 6>(model),
+    let it = match model.formulation {
+        Formulation::Rigid => interface_bound::<Rigid, 3>(model),
+        Formulation::Hybrid { .. } => interface_bound::<Hybrid, 6>(model),
     };
+    let per_body = Limit::bracket(model, None).bound.powi(2);
     if mass.is_diagonal() {
         vec![
             mk("gershgorin", gershgorin, true),
@@ -96,15 +93,10 @@ pub fn bounds(model: &Model, sys: &FreeSystem, mass: &Mass, dt_crit: f64) -> Vec
     }
 }
 
-/// `max_s λ_max(K_s, M_s)` and `2 max_e λ_max(K_ee, M_e)` over the free DOFs.
-fn interface_and_body_bounds<K: crate::model::formulation::Kinematics<N>, const N: usize>(
-    model: &Model,
-) -> (f64, f64) {
+/// `max_s λ_max(K_s, M_s)` over the free DOFs (Irons–Treharne).
+fn interface_bound<K: Kinematics<N>, const N: usize>(model: &Model) -> f64 {
     let ne = model.elements.len();
-    let mut fixed = vec![false; model.n_dofs()];
-    for &d in &model.fixed {
-        fixed[d] = true;
-    }
+    let fixed = fixed_dofs(model);
     let mass: Vec<SMatrix<f64, N, N>> = model
         .elements
         .iter()
@@ -119,7 +111,6 @@ fn interface_and_body_bounds<K: crate::model::formulation::Kinematics<N>, const 
             count[i.b as usize] += 1;
         }
     }
-    let mut k_diag = vec![SMatrix::<f64, N, N>::zeros(); ne];
     let mut it = 0.0f64;
     for i in &model.interfaces {
         let xa = model.elements[i.a as usize].props.centroid;
@@ -130,10 +121,8 @@ fn interface_and_body_bounds<K: crate::model::formulation::Kinematics<N>, const 
         };
         let [kaa, kab, kba, kbb] =
             interface_stiffness::<K, N>(i, &*model.law, xa, xb, model.thickness);
-        k_diag[i.a as usize] += kaa;
         let mut elements = vec![i.a as usize];
         if i.b != GROUND {
-            k_diag[i.b as usize] += kbb;
             elements.push(i.b as usize);
         }
         let m = elements.len() * N;
@@ -158,12 +147,9 @@ fn interface_and_body_bounds<K: crate::model::formulation::Kinematics<N>, const 
             &dofs.iter().map(|&d| !fixed[d]).collect::<Vec<_>>(),
         ));
     }
-    let mut body = 0.0f64;
-    for e in 0..ne {
-        if K::HAS_INTERIOR {
-            let el = &model.elements[e];
+    if K::HAS_INTERIOR {
+        for (e, el) in model.elements.iter().enumerate() {
             let kint = K::interior_stiffness(&el.props, &el.d, model.thickness);
-            k_diag[e] += kint;
             let (k, m) = (
                 DMatrix::from_fn(N, N, |i, j| kint[(i, j)]),
                 DMatrix::from_fn(N, N, |i, j| mass[e][(i, j)] / count[e] as f64),
@@ -171,32 +157,8 @@ fn interface_and_body_bounds<K: crate::model::formulation::Kinematics<N>, const 
             let free: Vec<bool> = (0..N).map(|d| !fixed[e * N + d]).collect();
             it = it.max(generalized_max(&k, &m, &free));
         }
-        let free: Vec<bool> = (0..N).map(|d| !fixed[e * N + d]).collect();
-        let (k, m) = (
-            DMatrix::from_fn(N, N, |i, j| k_diag[e][(i, j)]),
-            DMatrix::from_fn(N, N, |i, j| mass[e][(i, j)]),
-        );
-        body = body.max(generalized_max(&k, &m, &free));
     }
-    (it, 2.0 * body)
-}
-
-/// `λ_max` of `K x = λ M x` restricted to the DOFs marked free (`M` positive definite there).
-fn generalized_max(k: &DMatrix<f64>, m: &DMatrix<f64>, free: &[bool]) -> f64 {
-    let idx: Vec<usize> = (0..free.len()).filter(|&i| free[i]).collect();
-    if idx.is_empty() {
-        return 0.0;
-    }
-    let kf = DMatrix::from_fn(idx.len(), idx.len(), |i, j| k[(idx[i], idx[j])]);
-    let mf = DMatrix::from_fn(idx.len(), idx.len(), |i, j| m[(idx[i], idx[j])]);
-    let l = mf
-        .cholesky()
-        .expect("element mass blocks are positive definite")
-        .l();
-    let li = l.try_inverse().expect("a Cholesky factor is invertible");
-    let a = &li * kf * li.transpose();
-    let a = 0.5 * (&a + a.transpose());
-    a.symmetric_eigenvalues().max()
+    it
 }
 
 /// The outcome of an undamped run at `fraction · Δt_crit`.
@@ -223,7 +185,7 @@ pub struct FractionRun {
 /// Runs the setup's model undamped and unloaded for `steps` steps at `fraction · Δt_crit`
 /// from a seeded random displacement (which excites every mode, the highest included).
 pub fn run_at_fraction(setup: &Setup, fraction: f64, steps: u64) -> FractionRun {
-    let (model, dt_crit) = (&setup.model, setup.dt_crit);
+    let (model, dt_crit) = (&setup.model, setup.dt_crit());
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
     let u0: Vec<f64> = (0..model.n_dofs())
         .map(|_| 1e-6 * (rng.random::<f64>() - 0.5))
@@ -293,7 +255,7 @@ pub fn empirical_limit(setup: &Setup, steps: u64, tol: f64) -> (f64, f64) {
             hi = mid;
         }
     }
-    (lo * setup.dt_crit, lo)
+    (lo * setup.dt_crit(), lo)
 }
 
 /// Writes `fraction_F.csv` (`t,total,stored`: s, J, J) for each run of a stability analysis.
@@ -360,7 +322,7 @@ pub fn analyse(setup: &Setup, params: &StabilityParams) -> Result<StabilityRepor
         ));
     }
     let sys = FreeSystem::new(&setup.model, &setup.mass);
-    let bounds = bounds(&setup.model, &sys, &setup.mass, setup.dt_crit);
+    let bounds = bounds(&setup.model, &sys, &setup.mass, setup.dt_crit());
     let (dt, ratio) = empirical_limit(setup, params.steps, 1e-4);
     let fractions = params
         .fractions
@@ -368,8 +330,8 @@ pub fn analyse(setup: &Setup, params: &StabilityParams) -> Result<StabilityRepor
         .map(|&f| run_at_fraction(setup, f, params.steps))
         .collect();
     Ok(StabilityReport {
-        omega_max: setup.omega_max,
-        dt_crit: setup.dt_crit,
+        omega_max: setup.omega_max(),
+        dt_crit: setup.dt_crit(),
         bounds,
         empirical: Empirical { dt, ratio },
         fractions,

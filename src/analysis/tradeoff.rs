@@ -375,7 +375,12 @@ impl Point {
 fn run_point(scene: &Scene, settings: Vec<(Key, String)>) -> Result<(Point, Measure)> {
     reset_peak_memory();
     let start = Instant::now();
-    let p = Setup::new(scene, &Overrides::default())?;
+    // The exact Δt_crit: each point's step is stated as a fraction of it.
+    let exact = Overrides {
+        exact_dt_crit: true,
+        ..Default::default()
+    };
+    let p = Setup::new(scene, &exact)?;
     let setup_s = start.elapsed().as_secs_f64();
     let model = &p.model;
     let mut cd = p.integrator(p.dt);
@@ -443,7 +448,7 @@ fn run_point(scene: &Scene, settings: Vec<(Key, String)>) -> Result<(Point, Meas
         elements: model.elements.len(),
         dofs: model.n_dofs(),
         dt: p.dt,
-        dt_crit: p.dt_crit,
+        dt_crit: p.dt_crit(),
         steps: cd.step,
         setup_s,
         stepping_s,

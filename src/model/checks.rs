@@ -20,8 +20,9 @@ pub fn aspect_ratio(p: &crate::mesh::geometry::AreaProperties) -> f64 {
     ((mean + r) / (mean - r).max(f64::MIN_POSITIVE)).sqrt()
 }
 
-/// The warnings for a model stepped at `dt` with the stability limit `dt_crit`.
-pub fn warnings(model: &Model, dt: f64, dt_crit: f64) -> Vec<String> {
+/// The warnings for extreme inputs of a model (the time step's is
+/// `analysis::limit::Limit::warning`).
+pub fn warnings(model: &Model) -> Vec<String> {
     let mut out = Vec::new();
     if let Formulation::Hybrid { penalty } = model.formulation {
         if penalty > PENALTY_LIMIT {
@@ -70,13 +71,6 @@ pub fn warnings(model: &Model, dt: f64, dt_crit: f64) -> Vec<String> {
                 e_s / e_n
             ));
         }
-    }
-    if dt > dt_crit {
-        out.push(format!(
-            "dt is {:.4} × Δt_crit: central difference is unstable above 1; expect \
-            the guard to stop the run",
-            dt / dt_crit
-        ));
     }
     out
 }

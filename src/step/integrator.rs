@@ -453,7 +453,9 @@ impl<'a> CentralDifference<'a> {
         self.loads.subtract(self.t, &mut self.force);
     }
 
-    /// Tells the guard the stability limit `Δt_crit` of the model (see [`GROWTH_LIMIT`]).
+    /// Tells the guard the stability limit `Δt_crit` of the model, or a lower bound of it (see
+    /// [`GROWTH_LIMIT`]: the guard is then more lenient below the bound, and as strict as without
+    /// one above it).
     pub fn set_stability_limit(&mut self, dt_crit: f64) {
         self.fraction = (dt_crit > 0.0 && dt_crit.is_finite()).then(|| self.dt / dt_crit);
     }

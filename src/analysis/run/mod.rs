@@ -130,12 +130,8 @@ pub fn run(
         p.evaluator.kind().name(),
         rayon::current_num_threads()
     ));
-    let ratio = p.dt / p.dt_crit;
-    monitor.info(&format!(
-        "dt = {:.6e} s, Δt_crit = {:.6e} s, dt/Δt_crit = {ratio:.4}, {} steps",
-        p.dt, p.dt_crit, p.steps
-    ));
-    let mut warnings = crate::model::checks::warnings(model, p.dt, p.dt_crit);
+    monitor.info(&format!("{}, {} steps", p.limit.describe(p.dt), p.steps));
+    let mut warnings = p.warnings();
     for w in &warnings {
         monitor.info(&format!("warning: {w}"));
     }
@@ -298,12 +294,14 @@ pub fn run(
         interfaces: model.interfaces.len(),
         dofs: model.n_free_dofs(),
         dt: p.dt,
-        dt_crit: p.dt_crit,
+        dt_crit: p.limit.dt_crit(),
+        dt_safe: p.limit.dt_safe(),
         steps: cd.step,
         t_end: cd.t,
         status: status_name.into(),
         reason,
-        wall_time_s: wall.elapsed().as_secs_f64(),
+        wall_time_s: p.seconds + wall.elapsed().as_secs_f64(),
+        setup_time_s: p.seconds,
         step_time_s: step_time,
         threads: rayon::current_num_threads(),
         warnings,
