@@ -142,6 +142,10 @@ struct Peer {
     elements: usize,
     ns: f64,
     spread: (f64, f64),
+    /// What one of its steps must move per element: `K`'s values and column indices (8 bytes
+    /// each) and row starts, `u` read, `f` written, then `f`, `P`, `M⁻¹` read and `v`, `u`
+    /// read and written.
+    bytes: f64,
 }
 
 /// The explicit loop of a sparse-library user on `model`: `K` in compressed rows (faer),
@@ -155,13 +159,14 @@ fn peer(c: &mut Criterion, mesh: &'static str, model: &Model, mass: &Mass) -> Pe
         .collect();
     let k = SparseColMat::try_new_from_triplets(n, n, &triplets).expect("K assembles");
     drop(triplets);
+    let ne = model.elements.len();
+    let bytes = (16 * k.compute_nnz() + 8 * (n + 1) + 8 * 9 * n) as f64 / ne as f64;
     let minv: Vec<f64> = mass.diagonal().iter().map(|m| 1.0 / m).collect();
     let mut p = vec![0.0; n];
     Loads::new(model).subtract(0.0, &mut p);
     p.iter_mut().for_each(|x| *x = -*x);
     let (mut u, mut v, mut f) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
     let dt = 1e-9;
-    let ne = model.elements.len();
     let (sample_size, time) = sampling(ne);
     let samples = RefCell::new(Vec::new());
     let mut group = c.benchmark_group("peer");
@@ -200,6 +205,7 @@ fn peer(c: &mut Criterion, mesh: &'static str, model: &Model, mass: &Mass) -> Pe
         elements: ne,
         ns,
         spread: (q1, q3),
+        bytes,
     }
 }
 
@@ -398,7 +404,7 @@ fn main() {
     let extras = extras(rss_per_element, working_set);
     let path = run_path();
     let mut summary = render(&bandwidth, &rows, &builds, &extras);
-    summary.push_str(&render_user(&rows, &peers, &path));
+    summary.push_str(&render_user(&rows, &peers, &path, bandwidth[0]));
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/benches/summary.md");
     // The section that `cargo bench --bench failure` writes stays.
     let old = std::fs::read_to_string(path).unwrap_or_default();
@@ -715,7 +721,7 @@ fn fmt(x: f64, digits: usize) -> String {
 }
 
 /// The sections of issue 22: the peer, the goals on 10⁶ elements, the run path and the setup.
-fn render_user(rows: &[Row], peers: &[Peer], r: &RunPath) -> String {
+fn render_user(rows: &[Row], peers: &[Peer], r: &RunPath, bandwidth: f64) -> String {
     let mut s = String::new();
     let row = |mesh: &str, formulation: &str, ev: &str, n: usize, thr: usize| {
         rows.iter().find(|r| {
@@ -733,12 +739,17 @@ fn render_user(rows: &[Row], peers: &[Peer], r: &RunPath) -> String {
         `f = K u` on one thread, then one fused pass `v += Δt M⁻¹ (P − f)`, `u += Δt v`. It is \
         measured like the steps above (median of its samples, quartiles in brackets). *× peer* \
         is the peer's time over ours (above 1: we are faster), for our step on 1 and on 2 \
-        threads against the peer on one.\n"
+        threads against the peer on one. *Bytes* is what a peer's step must move per element \
+        (`K`'s values and column indices, 8 bytes each, its row starts, `u` read, `f` written, \
+        then `f`, `P`, `M⁻¹` read and `v`, `u` read and written), and *× limit* its time over \
+        bytes / the one-thread triad bandwidth: the peer's own distance from its memory \
+        bound. The ratio of the two bytes columns bounds how much faster than the peer a \
+        step at its own memory bound can be.\n"
     );
     let _ = writeln!(
         s,
-        "| mesh | elements | peer ns | element-wise × peer, 1 thr | 2 thr | assembled × peer, \
-        1 thr | 2 thr |\n|---|---:|---:|---:|---:|---:|---:|"
+        "| mesh | elements | peer bytes/elt | peer ns | × limit | element-wise × peer, 1 thr | \
+        2 thr | assembled × peer, 1 thr | 2 thr |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|"
     );
     let times = |p: &Peer, ev: &str, thr: usize| {
         row(p.mesh, "rigid", ev, p.elements, thr)
@@ -747,12 +758,14 @@ fn render_user(rows: &[Row], peers: &[Peer], r: &RunPath) -> String {
     for p in peers {
         let _ = writeln!(
             s,
-            "| {} | {} | {} ({}–{}) | {} | {} | {} | {} |",
+            "| {} | {} | {:.0} | {} ({}–{}) | {} | {} | {} | {} | {} |",
             p.mesh,
             p.elements,
+            p.bytes,
             fmt(p.ns, 1),
             fmt(p.spread.0, 1),
             fmt(p.spread.1, 1),
+            fmt(p.ns / (p.bytes / bandwidth * 1e9), 2),
             times(p, "element-wise", 1),
             times(p, "element-wise", 2),
             times(p, "assembled", 1),

@@ -37,12 +37,15 @@ pub struct Checkpoint {
 /// A hash (FNV-1a, 64 bits) of everything that decides a run: the scene as parsed (its `Debug`
 /// form, which prints every number exactly) and the command-line overrides.
 pub fn fingerprint(scene: &Scene, opts: &Overrides) -> u64 {
+    // `--exact-dt-crit` changes the step of a `dt_factor` run (in its last digits); added
+    // only when set, so that earlier checkpoints keep their fingerprint.
     let text = format!(
-        "{scene:?}|{:?}|{:?}|{:?}|{:?}",
+        "{scene:?}|{:?}|{:?}|{:?}|{:?}{}",
         opts.evaluator,
         opts.dt.map(f64::to_bits),
         opts.dt_factor.map(f64::to_bits),
-        opts.steps
+        opts.steps,
+        if opts.exact_dt_crit { "|exact" } else { "" }
     );
     text.bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| {
         (h ^ b as u64).wrapping_mul(0x0100_0000_01b3)
@@ -104,7 +107,7 @@ impl Checkpoint {
         if checkpoint.fingerprint != fingerprint(scene, opts) {
             return Err(bad(
                 "written by a run of another scene or other options (--evaluator, \
-                --dt, --dt-factor, --steps): resume with the scene and options the run was \
+                --dt, --dt-factor, --steps, --exact-dt-crit): resume with the scene and options the run was \
                 started with"
                     .into(),
             ));
