@@ -695,9 +695,10 @@ pub struct Limit {
     /// `√max_e λ_max(K_ee, M_e)`: a proven lower bound of `ω_max` (the Rayleigh quotient of a
     /// motion of one element alone).
     pub floor: f64,
-    /// `√2` × the floor: a proven upper bound of `ω_max` (the `per-body` bound of [`bounds`]).
+    /// `√2` × the floor: a proven upper bound of `ω_max` (the `per-body` bound of
+    /// [`crate::analysis::stability::bounds`]).
     pub bound: f64,
-    /// `ω_max` by Lanczos ([`crate::analysis::eigen::omega_max`]), when it was computed.
+    /// `ω_max` by Lanczos ([`omega_max`]), when it was computed.
     pub omega_max: Option<f64>,
     /// The tolerance it was settled to ([`crate::analysis::limit::EXACT`] or
     /// [`crate::analysis::limit::FOR_STEP`]).
