@@ -223,7 +223,8 @@ fn forces_do_not_depend_on_the_thread_count() {
 /// gives the same steps as evaluating first and updating after, and as the assembled `K U`,
 /// up to round-off; and the same on 1 and 2 threads, bit for bit. Without gravity the fused
 /// step reads the external force only at the loaded elements, and without damping it leaves
-/// out the damping factors: the same holds.
+/// out the damping factors: the same holds. A damped fused step books the damping's work in
+/// its sweep: the same work as the two passes book, and the energy balance closes.
 #[test]
 fn the_fused_step_matches_evaluation_then_update() {
     use rbsm::force::evaluator::Evaluator;
@@ -269,13 +270,28 @@ fn the_fused_step_matches_evaluation_then_update() {
                 .build()
                 .unwrap();
             let mut cd = CentralDifference::new(&model, ev, &mass, &loads, None, 1e-7);
-            pool.install(|| cd.step_only(300));
-            (cd.u, cd.v)
+            // Checked every 100 steps, unchecked between: the fused step where it can be.
+            let mut last = None;
+            pool.install(|| {
+                cd.run(
+                    300,
+                    300,
+                    |_, e| {
+                        last = Some(*e);
+                        Ok(())
+                    },
+                    |_| {},
+                )
+            })
+            .unwrap();
+            let e = last.unwrap();
+            (cd.u, cd.v, e.damping, e.total, e.external_work)
         };
-        let (u, v) = run(fused.as_ref(), 1);
+        let (u, v, work, ..) = run(fused.as_ref(), 1);
+        let two = run(fused.as_ref(), 2);
         assert_eq!(
-            (&u, &v),
-            (&run(fused.as_ref(), 2).0, &run(fused.as_ref(), 2).1),
+            (&u, &v, work),
+            (&two.0, &two.1, two.2),
             "{formulation}, gravity {gravity}, damping {damping}: thread count"
         );
         let assembled = evaluator::build(&model, EvaluatorKind::Assembled);
@@ -283,7 +299,21 @@ fn the_fused_step_matches_evaluation_then_update() {
             ("two passes", &two_pass as &dyn evaluator::Evaluator),
             ("assembled", assembled.as_ref()),
         ] {
-            let (u2, v2) = run(ev, 2);
+            let (u2, v2, work2, total2, _) = run(ev, 2);
+            if damping > 0 {
+                // The damping did work, the same in both ways of booking it, and the balance
+                // `total` (which includes it) is the same.
+                assert!(
+                    work > 0.0 && (work - work2).abs() <= 1e-12 * work,
+                    "{name}: {work} {work2}"
+                );
+                assert!(
+                    (two.3 - total2).abs() <= 1e-12 * two.4,
+                    "{name}: {} {total2} of {}",
+                    two.3,
+                    two.4
+                );
+            }
             let scale = u.iter().fold(0.0f64, |m, x| m.max(x.abs()));
             assert!(
                 scale > 1e-9,

@@ -23,31 +23,47 @@ pub struct Update<'a> {
 }
 
 impl Update<'_> {
-    /// Runs `then` with this update for the consecutive `elements`, its `M⁻¹` sliced to them and
-    /// its kind (lumped or block) and whether it is damped fixed at compile time: the loop that
-    /// calls it per element then tests neither.
+    /// Runs `then` with this update for the consecutive `elements`, its `M` and `M⁻¹` sliced to
+    /// them and its kind (lumped or block) and whether it is damped fixed at compile time: the
+    /// loop that calls it per element then tests neither.
     pub fn resolve<const N: usize>(&self, elements: Range<usize>, then: impl WithUpdate<N>) {
         debug_assert_eq!(self.mass.nd(), N, "the update of {N} DOFs per element");
         fn run<B: ElementInverse<N>, const N: usize>(
-            inv: &[B],
+            (m, inv): (&[B], &[B]),
             dt: f64,
             damping: (f64, f64),
             then: impl WithUpdate<N>,
         ) {
             match damping != (1.0, 1.0) {
-                true => then.run(Resolved::<B, true> { inv, dt, damping }),
-                false => then.run(Resolved::<B, false> { inv, dt, damping }),
+                true => then.run(Resolved::<B, true> {
+                    m,
+                    inv,
+                    dt,
+                    damping,
+                }),
+                false => then.run(Resolved::<B, false> {
+                    m,
+                    inv,
+                    dt,
+                    damping,
+                }),
             }
         }
         match self.mass {
-            Mass::Diagonal { inv, .. } => run(
-                &inv.as_chunks::<N>().0[elements],
+            Mass::Diagonal { m, inv, .. } => run(
+                (
+                    &m.as_chunks::<N>().0[elements.clone()],
+                    &inv.as_chunks::<N>().0[elements],
+                ),
                 self.dt,
                 self.damping,
                 then,
             ),
-            Mass::Blocks { inv, .. } => run(
-                &inv.as_chunks::<N>().0.as_chunks::<N>().0[elements],
+            Mass::Blocks { m, inv, .. } => run(
+                (
+                    &m.as_chunks::<N>().0.as_chunks::<N>().0[elements.clone()],
+                    &inv.as_chunks::<N>().0.as_chunks::<N>().0[elements],
+                ),
                 self.dt,
                 self.damping,
                 then,
@@ -64,12 +80,18 @@ pub trait WithUpdate<const N: usize> {
 
 /// The update of an element of a run ([`Update::resolve`]).
 pub trait ElementUpdate<const N: usize> {
+    /// Whether the update is damped (then [`ElementUpdate::element`] returns the damping's power).
+    const DAMPED: bool;
     /// `v_i ← (c₁ v_i − Δt M_i⁻¹ f_i) c₂`, then `u_i ← u_i + Δt v_i`, for the run's element `i`.
-    fn element(&self, i: usize, f: &[f64; N], v: &mut [f64; N], u: &mut [f64; N]);
+    /// Returns `v̄ᵀ M_i v̄` with `v̄` the mean of the old and new `v_i` when damped (the damping's
+    /// work of the step is `α Δt` times its sum), else 0.
+    fn element(&self, i: usize, f: &[f64; N], v: &mut [f64; N], u: &mut [f64; N]) -> f64;
 }
 
-/// An element's `M_e⁻¹`: its diagonal (lumped) or its row-major block.
+/// An element's `M_e⁻¹` (or `M_e`): its diagonal (lumped) or its row-major block.
 trait ElementInverse<const N: usize> {
+    /// `aᵀ B a` for this block `B`.
+    fn quadratic(&self, a: &[f64; N]) -> f64;
     /// `v ← (c₁ v − Δt M_e⁻¹ f) c₂`; undamped, `c₁ = c₂ = 1` are left out, which changes no bit.
     fn velocity<const DAMPED: bool>(
         &self,
@@ -81,6 +103,10 @@ trait ElementInverse<const N: usize> {
 }
 
 impl<const N: usize> ElementInverse<N> for [f64; N] {
+    #[inline(always)]
+    fn quadratic(&self, a: &[f64; N]) -> f64 {
+        (0..N).map(|j| self[j] * a[j] * a[j]).sum()
+    }
     #[inline(always)]
     fn velocity<const DAMPED: bool>(
         &self,
@@ -95,6 +121,12 @@ impl<const N: usize> ElementInverse<N> for [f64; N] {
 
 impl<const N: usize> ElementInverse<N> for [[f64; N]; N] {
     #[inline(always)]
+    fn quadratic(&self, a: &[f64; N]) -> f64 {
+        (0..N)
+            .map(|i| a[i] * (0..N).map(|j| self[i][j] * a[j]).sum::<f64>())
+            .sum()
+    }
+    #[inline(always)]
     fn velocity<const DAMPED: bool>(
         &self,
         v: &mut [f64; N],
@@ -106,9 +138,10 @@ impl<const N: usize> ElementInverse<N> for [[f64; N]; N] {
     }
 }
 
-/// An [`Update`] resolved for a run of elements: their `M_e⁻¹`, `B` per element.
+/// An [`Update`] resolved for a run of elements: their `M_e` and `M_e⁻¹`, `B` per element.
 #[derive(Clone, Copy)]
 struct Resolved<'a, B, const DAMPED: bool> {
+    m: &'a [B],
     inv: &'a [B],
     dt: f64,
     damping: (f64, f64),
@@ -117,8 +150,9 @@ struct Resolved<'a, B, const DAMPED: bool> {
 impl<B: ElementInverse<N>, const N: usize, const DAMPED: bool> ElementUpdate<N>
     for Resolved<'_, B, DAMPED>
 {
+    const DAMPED: bool = DAMPED;
     #[inline(always)]
-    fn element(&self, i: usize, f: &[f64; N], v: &mut [f64; N], u: &mut [f64; N]) {
+    fn element(&self, i: usize, f: &[f64; N], v: &mut [f64; N], u: &mut [f64; N]) -> f64 {
         // `v_i` is updated in registers: read back from memory, its fresh scalar stores could not
         // be forwarded to a vector load.
         let mut vi = *v;
@@ -126,7 +160,13 @@ impl<B: ElementInverse<N>, const N: usize, const DAMPED: bool> ElementUpdate<N>
         for j in 0..N {
             u[j] += self.dt * vi[j];
         }
+        let power = if DAMPED {
+            self.m[i].quadratic(&std::array::from_fn(|j| 0.5 * (v[j] + vi[j])))
+        } else {
+            0.0
+        };
         *v = vi;
+        power
     }
 }
 

@@ -411,9 +411,9 @@ impl<'a> CentralDifference<'a> {
     }
 
     /// Whether a step must go through the net force vector: the fused step has no place for
-    /// the plastic forces, the clamps' reactions or the damping's work.
+    /// the plastic forces or the clamps' reactions (it books the damping's work itself).
     fn needs_net_force(&self) -> bool {
-        self.failure.is_some() || !self.prescribed.is_empty() || self.damping > 0.0
+        self.failure.is_some() || !self.prescribed.is_empty()
     }
 
     /// `force ← f_int(U^n) − f_c^n − P(t_n)`, so that `a^n = −M⁻¹ force`; returns the elastic
@@ -675,49 +675,44 @@ impl<'a> CentralDifference<'a> {
     /// `v^{n+½}` and `U^{n+1}`, fused with the evaluation when the evaluator can do that, else
     /// in one element-local pass after it.
     fn step_unchecked(&mut self, dt: f64, damping: (f64, f64)) {
-        if self.needs_net_force() {
-            self.net_force(false);
-            if self.damping > 0.0 {
-                self.scratch.copy_from_slice(&self.v);
+        match self.evaluator.fused().filter(|_| !self.needs_net_force()) {
+            Some(fused) => {
+                if !self.force_clear {
+                    self.force.fill(0.0);
+                }
+                self.subtract_external();
+                let update = Update {
+                    mass: self.mass,
+                    dt,
+                    damping,
+                };
+                let power = fused.advance(
+                    &mut self.u,
+                    &mut self.v,
+                    &mut self.force,
+                    self.loaded.as_deref(),
+                    &update,
+                );
+                self.force_clear = true;
+                self.ledger.damping += self.damping * dt * power;
             }
-            self.mass
-                .advance(&self.force, &mut self.v, &mut self.u, dt, damping);
-            self.book_clamps(dt);
-            if self.damping > 0.0 {
-                self.book_damping(dt);
+            None => {
+                self.net_force(false);
+                if self.damping > 0.0 {
+                    self.scratch.copy_from_slice(&self.v);
+                }
+                self.mass
+                    .advance(&self.force, &mut self.v, &mut self.u, dt, damping);
+                self.book_clamps(dt);
+                if self.damping > 0.0 {
+                    self.book_damping(dt);
+                }
             }
-            self.ledger.external_work += self.loads.work_increment(self.t, dt, &self.v);
-            self.step += 1;
-            self.t = self.step as f64 * dt;
-            self.place_clamps();
-            return;
-        }
-        if let Some(fused) = self.evaluator.fused() {
-            if !self.force_clear {
-                self.force.fill(0.0);
-            }
-            self.subtract_external();
-            let update = Update {
-                mass: self.mass,
-                dt,
-                damping,
-            };
-            fused.advance(
-                &mut self.u,
-                &mut self.v,
-                &mut self.force,
-                self.loaded.as_deref(),
-                &update,
-            );
-            self.force_clear = true;
-        } else {
-            self.net_force(false);
-            self.mass
-                .advance(&self.force, &mut self.v, &mut self.u, dt, damping);
         }
         self.ledger.external_work += self.loads.work_increment(self.t, dt, &self.v);
         self.step += 1;
         self.t = self.step as f64 * dt;
+        self.place_clamps();
     }
 
     /// Runs `steps` steps in chunks of `every`, calling `each` with the integrator (its contact

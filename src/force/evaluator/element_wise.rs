@@ -196,6 +196,7 @@ impl<K: Kinematics<N>, const N: usize> ElementWise<K, N> {
         let scratch = Mutex::new(Scratch {
             crossing: vec![[[0.0; N]; 2]; crossing.len()],
             rings: blocks.iter().map(|b| vec![[0.0; N]; b.ring]).collect(),
+            powers: vec![0.0; blocks.len()],
         });
         ElementWise {
             faces,
@@ -339,6 +340,8 @@ impl<K: Kinematics<N>, const N: usize> ElementWise<K, N> {
 struct Scratch<const N: usize> {
     crossing: Vec<[[f64; N]; 2]>,
     rings: Vec<Vec<[f64; N]>>,
+    /// Per block, `Σ v̄ᵀ M_e v̄` of a damped step ([`ElementUpdate::element`]).
+    powers: Vec<f64>,
 }
 
 /// Asks the cache for `x` ahead of its use: a hint, with no effect on any result (a no-op off
@@ -391,6 +394,8 @@ struct Advance<'a, const N: usize, E> {
     loaded: Option<&'a [u32]>,
     /// The block's update ([`Update::resolve`]).
     update: E,
+    /// The damping's power of the block's elements, summed in order (damped updates only).
+    power: &'a mut f64,
 }
 
 impl<const N: usize, E: ElementUpdate<N>> BlockState<N> for Advance<'_, N, E> {
@@ -414,7 +419,10 @@ impl<const N: usize, E: ElementUpdate<N>> BlockState<N> for Advance<'_, N, E> {
                 f[j] += p[j];
             }
         }
-        self.update.element(i, f, &mut self.v[i], &mut self.u[i]);
+        let power = self.update.element(i, f, &mut self.v[i], &mut self.u[i]);
+        if E::DAMPED {
+            *self.power += power;
+        }
     }
 }
 
@@ -428,6 +436,7 @@ struct AdvanceBlock<'a, K: Kinematics<N>, const N: usize> {
     v: &'a mut [[f64; N]],
     force: &'a mut [[f64; N]],
     loaded: Option<&'a [u32]>,
+    power: &'a mut f64,
 }
 
 impl<K: Kinematics<N>, const N: usize> WithUpdate<N> for AdvanceBlock<'_, K, N> {
@@ -441,7 +450,9 @@ impl<K: Kinematics<N>, const N: usize> WithUpdate<N> for AdvanceBlock<'_, K, N> 
             v,
             force,
             loaded,
+            power,
         } = self;
+        *power = 0.0;
         evaluator.sweep(
             block,
             crossing,
@@ -452,6 +463,7 @@ impl<K: Kinematics<N>, const N: usize> WithUpdate<N> for AdvanceBlock<'_, K, N> 
                 force,
                 loaded,
                 update,
+                power,
             },
         );
     }
@@ -482,7 +494,9 @@ impl<K: Kinematics<N>, const N: usize> Evaluator for ElementWise<K, N> {
         let (u, _) = u.as_chunks::<N>();
         let (f, _) = f.as_chunks_mut::<N>();
         let mut scratch = self.crossing_pass(u);
-        let Scratch { crossing, rings } = &mut *scratch;
+        let Scratch {
+            crossing, rings, ..
+        } = &mut *scratch;
         type Parts<'a, const N: usize> = (
             (&'a Block, &'a mut Vec<[f64; N]>),
             (&'a [[f64; N]], &'a mut [[f64; N]]),
@@ -516,17 +530,21 @@ impl<K: Kinematics<N>, const N: usize> FusedStep for ElementWise<K, N> {
         force: &mut [f64],
         loaded: Option<&[u32]>,
         update: &Update,
-    ) {
+    ) -> f64 {
         let (u, _) = u.as_chunks_mut::<N>();
         let (v, _) = v.as_chunks_mut::<N>();
         let (force, _) = force.as_chunks_mut::<N>();
         let mut scratch = self.crossing_pass(u);
-        let Scratch { crossing, rings } = &mut *scratch;
+        let Scratch {
+            crossing,
+            rings,
+            powers,
+        } = &mut *scratch;
         type Parts<'a, const N: usize> = (
-            (&'a Block, &'a mut Vec<[f64; N]>),
+            ((&'a Block, &'a mut Vec<[f64; N]>), &'a mut f64),
             ((&'a mut [[f64; N]], &'a mut [[f64; N]]), &'a mut [[f64; N]]),
         );
-        let work = |((block, ring), ((u, v), force)): Parts<N>| {
+        let work = |(((block, ring), power), ((u, v), force)): Parts<N>| {
             // The loaded elements of this block.
             let loaded = loaded.map(|l| {
                 let at = |e: usize| l.partition_point(|&x| (x as usize) < e);
@@ -544,11 +562,12 @@ impl<K: Kinematics<N>, const N: usize> FusedStep for ElementWise<K, N> {
                     v,
                     force,
                     loaded,
+                    power,
                 },
             );
         };
         match &self.blocks[..] {
-            [block] => work(((block, &mut rings[0]), ((u, v), force))),
+            [block] => work((((block, &mut rings[0]), &mut powers[0]), ((u, v), force))),
             blocks => {
                 let len = blocks.first().map_or(1, |b| b.elements.len());
                 let vectors = u
@@ -558,10 +577,13 @@ impl<K: Kinematics<N>, const N: usize> FusedStep for ElementWise<K, N> {
                 blocks
                     .par_iter()
                     .zip(rings.par_iter_mut())
+                    .zip(powers.par_iter_mut())
                     .zip(vectors)
                     .for_each(work);
             }
         }
+        // In block order: the same sum whatever the thread count.
+        powers.iter().sum()
     }
 }
 
@@ -581,7 +603,9 @@ mod tests {
         let (u, _) = u.as_chunks::<N>();
         let (fc, _) = f.as_chunks_mut::<N>();
         let mut scratch = ev.crossing_pass(u);
-        let Scratch { crossing, rings } = &mut *scratch;
+        let Scratch {
+            crossing, rings, ..
+        } = &mut *scratch;
         for (block, ring) in ev.blocks.iter().zip(rings.iter_mut()) {
             let r = block.elements.clone();
             ev.sweep_in_order(

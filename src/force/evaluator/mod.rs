@@ -38,7 +38,9 @@ pub trait FusedStep {
     /// One explicit step: with `force` holding the rest of the net force, `−P − f_c`, each
     /// element gets `f_int(U^n) + force` and is advanced by `update`; `force` is left zero.
     /// `loaded` lists, in order, the only elements where `force` may be non-zero (`None`: any
-    /// element), so that a step need not read the rest.
+    /// element), so that a step need not read the rest. Returns `Σ v̄ᵀ M v̄` (`v̄` the mean of
+    /// the old and new velocities) when the update is damped, else 0: the damping's work of
+    /// the step is `α Δt` times it.
     fn advance(
         &self,
         u: &mut [f64],
@@ -46,7 +48,7 @@ pub trait FusedStep {
         force: &mut [f64],
         loaded: Option<&[u32]>,
         update: &Update,
-    );
+    ) -> f64;
 }
 
 /// The global stiffness `K` of eq. 7 as scalar triplets `(row, col, value)` over all DOFs.
