@@ -135,35 +135,37 @@ impl Canvas {
     }
 }
 
-/// Every element as `(body, its vertices, each vertex's displacement N_e(x) U_e)`, the
-/// displacements zero without `u`.
-fn element_polygons(model: &Model, u: Option<&[f64]>) -> Vec<(usize, Vec<Vec2>, Vec<Vec2>)> {
-    let nd = model.formulation.ndof();
+/// Every element as `(body, its vertices, at(e, x) of each vertex x)`.
+fn element_polygons(
+    model: &Model,
+    at: impl Fn(usize, Vec2) -> Vec2,
+) -> Vec<(usize, Vec<Vec2>, Vec<Vec2>)> {
     let mut polygons = Vec::with_capacity(model.elements.len());
     for (b, body) in model.bodies.iter().enumerate() {
         for c in 0..body.mesh.n_cells() {
             let e = body.first_element + c;
-            let xe = model.elements[e].props.centroid;
             let vertices: Vec<Vec2> = body
                 .mesh
                 .cell(c)
                 .iter()
                 .map(|&k| body.mesh.vertices[k as usize])
                 .collect();
-            let moved = vertices
-                .iter()
-                .map(|&x| {
-                    u.map_or(Vec2::zeros(), |u| {
-                        model
-                            .formulation
-                            .displacement(&u[e * nd..(e + 1) * nd], x - xe)
-                    })
-                })
-                .collect();
-            polygons.push((b, vertices, moved));
+            let mapped = vertices.iter().map(|&x| at(e, x)).collect();
+            polygons.push((b, vertices, mapped));
         }
     }
     polygons
+}
+
+/// The displacement `N_e(x) U_e` of element `e` at `x` (`u`: `ndof` per element).
+fn displacement<'a>(model: &'a Model, u: &'a [f64]) -> impl Fn(usize, Vec2) -> Vec2 + 'a {
+    let nd = model.formulation.ndof();
+    move |e, x| {
+        model.formulation.displacement(
+            &u[e * nd..(e + 1) * nd],
+            x - model.elements[e].props.centroid,
+        )
+    }
 }
 
 fn all_vertices(model: &Model) -> impl Iterator<Item = Vec2> + '_ {
@@ -182,7 +184,7 @@ fn all_vertices(model: &Model) -> impl Iterator<Item = Vec2> + '_ {
 /// hatched black segments. About 800 pixels on its longer side.
 pub fn model_svg(model: &Model) -> String {
     let mut cv = Canvas::fit(all_vertices(model), 800.0);
-    for (b, vertices, _) in element_polygons(model, None) {
+    for (b, vertices, _) in element_polygons(model, |_, x| x) {
         let fill = BODY_FILLS[b % BODY_FILLS.len()];
         cv.polygon(
             &vertices,
@@ -266,7 +268,7 @@ pub fn model_svg(model: &Model) -> String {
 /// largest vertex displacement is a tenth of the model's larger side, filled over the reference
 /// outline (grey). `caption` is printed above with the scale factor.
 pub fn displaced_svg(model: &Model, u: &[f64], caption: &str) -> String {
-    let elements = element_polygons(model, Some(u));
+    let elements = element_polygons(model, displacement(model, u));
     let largest = elements
         .iter()
         .flat_map(|p| p.2.iter())
@@ -317,7 +319,7 @@ pub const YIELDING: &str =
 /// caption gives the time and the factor, the line below counts the interfaces of each state.
 pub fn state_svg(model: &Model, state: &crate::output::FinalState) -> String {
     use crate::output::vtk::{interface_edge, Placement};
-    let largest = element_polygons(model, Some(&state.u))
+    let largest = element_polygons(model, displacement(model, &state.u))
         .iter()
         .flat_map(|p| p.2.iter())
         .map(|d| d.norm())
@@ -334,23 +336,9 @@ pub fn state_svg(model: &Model, state: &crate::output::FinalState) -> String {
     };
     let u: Vec<f64> = state.u.iter().map(|x| x * scale).collect();
     let nd = model.formulation.ndof();
-    let mut polygons = Vec::with_capacity(model.elements.len());
-    for (b, body) in model.bodies.iter().enumerate() {
-        for c in 0..body.mesh.n_cells() {
-            let e = body.first_element + c;
-            let reference: Vec<Vec2> = body
-                .mesh
-                .cell(c)
-                .iter()
-                .map(|&k| body.mesh.vertices[k as usize])
-                .collect();
-            let placed = reference
-                .iter()
-                .map(|&x| placement.position(model, e, &u[e * nd..(e + 1) * nd], x))
-                .collect::<Vec<_>>();
-            polygons.push((b, reference, placed));
-        }
-    }
+    let polygons = element_polygons(model, |e, x| {
+        placement.position(model, e, &u[e * nd..(e + 1) * nd], x)
+    });
     let mut cv = over_reference(&polygons, 0.4);
     let of = |status: &'static str| state.interfaces.iter().filter(move |i| i.status == status);
     // Broken ones (and those released to contact) last, over the yielding ones.

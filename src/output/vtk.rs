@@ -306,23 +306,7 @@ pub fn write_frame(
         cell.push(Attribute::scalars("strain", 3).with_data(strain));
         cell.push(Attribute::scalars("stress", 3).with_data(stress));
     }
-    write_grid(
-        path,
-        UnstructuredGridPiece {
-            points: IOBuffer::F64(points),
-            cells: Cells {
-                cell_verts: VertexNumbers::XML {
-                    connectivity: conn,
-                    offsets,
-                },
-                types,
-            },
-            data: Attributes {
-                point: Vec::new(),
-                cell,
-            },
-        },
-    )
+    write_grid(path, points, (conn, offsets), types, cell)
 }
 
 /// Writes the cracks of one recorded step as a VTK XML unstructured grid (`.vtu`): a line
@@ -360,25 +344,36 @@ pub fn write_cracks(
     ];
     write_grid(
         path,
-        UnstructuredGridPiece {
-            points: IOBuffer::F64(points),
-            cells: Cells {
-                cell_verts: VertexNumbers::XML {
-                    connectivity: (0..2 * n).collect(),
-                    offsets: (1..=n).map(|k| 2 * k).collect(),
-                },
-                types: vec![CellType::Line; report.len()],
-            },
-            data: Attributes {
-                point: Vec::new(),
-                cell,
-            },
-        },
+        points,
+        ((0..2 * n).collect(), (1..=n).map(|k| 2 * k).collect()),
+        vec![CellType::Line; report.len()],
+        cell,
     )
 }
 
-/// Writes one unstructured grid as a VTK XML file (`.vtu`, binary, inline).
-fn write_grid(path: &Path, piece: UnstructuredGridPiece) -> Result<()> {
+/// Writes one unstructured grid as a VTK XML file (`.vtu`, binary, inline): its points
+/// (x, y, z), its cells as `(connectivity, offsets)` with their types, and the cell data.
+fn write_grid(
+    path: &Path,
+    points: Vec<f64>,
+    (connectivity, offsets): (Vec<u64>, Vec<u64>),
+    types: Vec<CellType>,
+    cell: Vec<Attribute>,
+) -> Result<()> {
+    let piece = UnstructuredGridPiece {
+        points: IOBuffer::F64(points),
+        cells: Cells {
+            cell_verts: VertexNumbers::XML {
+                connectivity,
+                offsets,
+            },
+            types,
+        },
+        data: Attributes {
+            point: Vec::new(),
+            cell,
+        },
+    };
     let vtk = Vtk {
         version: Version::new((1, 0)),
         title: String::new(),
