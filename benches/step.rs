@@ -268,6 +268,7 @@ fn run_path() -> RunPath {
         let params = RunParams {
             resume: false,
             interrupt: None,
+            keep_history: false,
         };
         let t0 = Instant::now();
         let summary = run::run(&setup, &params, &out, &mut Silent).expect("the run runs");

@@ -60,6 +60,22 @@ pub fn cut(text: impl Into<String>) -> String {
 }
 
 impl Error {
+    /// The error as `(kind, key, message)`: `kind` is `scene`, `mesh`, `parse` or `io`, and
+    /// `key` the scene key, the mesh's body and cell, or the file at fault. `rbsm --json` and
+    /// the Python package report errors so.
+    pub fn parts(&self) -> (&'static str, String, String) {
+        match self {
+            Error::Scene { field, message } => ("scene", field.clone(), message.clone()),
+            Error::Mesh {
+                body,
+                cell,
+                message,
+            } => ("mesh", format!("{body}, cell {cell}"), message.clone()),
+            Error::Parse { path, message } => ("parse", path.clone(), message.clone()),
+            Error::Io { path, source } => ("io", path.clone(), source.to_string()),
+        }
+    }
+
     /// A scene error for `field` with an explanation of the allowed values.
     pub fn scene(field: impl Into<String>, message: impl Into<String>) -> Self {
         Error::Scene {

@@ -181,7 +181,7 @@ enum Command {
         /// The scene file (JSON; see docs/scene.md).
         scene: PathBuf,
         /// KEY=V1,V2,... with KEY one of dt, dt_factor, refine, formulation, penalty, evaluator,
-        /// contact; repeat for a product of sweeps.
+        /// contact, seed; repeat for a product of sweeps.
         #[arg(long = "sweep", required = true)]
         sweeps: Vec<String>,
         /// Output directory (default: out/tradeoff-<scene name>).
@@ -306,17 +306,7 @@ fn tell(text: &str) {
 /// An error as `--json` prints it: `{"error": {"kind", "key", "message"}}`, `key` being the
 /// scene key, the mesh's body and cell, or the file at fault.
 fn error_json(e: &rbsm::error::Error) -> serde_json::Value {
-    use rbsm::error::Error;
-    let (kind, key, message) = match e {
-        Error::Scene { field, message } => ("scene", field.clone(), message.clone()),
-        Error::Mesh {
-            body,
-            cell,
-            message,
-        } => ("mesh", format!("{body}, cell {cell}"), message.clone()),
-        Error::Parse { path, message } => ("parse", path.clone(), message.clone()),
-        Error::Io { path, source } => ("io", path.clone(), source.to_string()),
-    };
+    let (kind, key, message) = e.parts();
     serde_json::json!({"error": {"kind": kind, "key": key, "message": message}})
 }
 
@@ -422,20 +412,12 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
                 method: (*method).into(),
             };
             let r = eigen::analyse(&setup, &params)?;
-            if let Some(dir) = out {
-                eigen::write(dir, &setup, &r)?;
-            }
-            if let Some(dir) = vtk {
-                rbsm::output::vtk::write_mode_shapes(dir, &setup.model, &r.modes.shapes)?;
-            }
-            if let Some(dir) = svg {
-                rbsm::output::drawing::write_mode_shapes(
-                    dir,
-                    &setup.model,
-                    &r.modes.omega,
-                    &r.modes.shapes,
-                )?;
-            }
+            let files = eigen::Files {
+                out: out.as_deref(),
+                vtk: vtk.as_deref(),
+                svg: svg.as_deref(),
+            };
+            files.write(&setup, &r)?;
             print(cli.json, &r)?;
         }
         Command::Stability {
@@ -506,6 +488,7 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
             let params = run::RunParams {
                 resume: resume.is_some(),
                 interrupt: Some(interrupt_flag()?),
+                keep_history: false,
             };
             let mut monitor = Terminal {
                 quiet: cli.quiet,

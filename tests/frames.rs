@@ -390,6 +390,7 @@ fn crack_frames_resume_byte_for_byte_and_go_with_the_next_run() {
     let params = rbsm::analysis::run::RunParams {
         resume: false,
         interrupt: Some(flag.clone()),
+        keep_history: false,
     };
     let summary = rbsm::analysis::run::run(
         &setup,
@@ -403,6 +404,7 @@ fn crack_frames_resume_byte_for_byte_and_go_with_the_next_run() {
     let resume = rbsm::analysis::run::RunParams {
         resume: true,
         interrupt: None,
+        keep_history: false,
     };
     rbsm::analysis::run::run(
         &setup,

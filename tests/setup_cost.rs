@@ -34,6 +34,7 @@ fn run_counted(scene: &Scene, overrides: &Overrides) -> (u64, Setup, Summary) {
     let params = RunParams {
         resume: false,
         interrupt: None,
+        keep_history: false,
     };
     let summary = run::run(&setup, &params, out.path(), &mut Silent).unwrap();
     assert_eq!(summary.status, "ok");

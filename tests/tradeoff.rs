@@ -289,3 +289,82 @@ fn a_gmsh_scene_finds_its_mesh_from_its_own_folder_whatever_the_working_director
         .as_f64()
         .is_some_and(|e| e > 0.0 && e < 0.1));
 }
+
+/// A study's points run alone, passed as JSON (as they come back from the workers of a
+/// cluster) and scored together, give `sweep`'s report: the same reference and errors.
+#[test]
+fn points_run_alone_and_scored_together_give_the_sweeps_report() {
+    use rbsm::analysis::tradeoff::{Measured, Study};
+    let scene = column();
+    let settings = |f: &str, r: &str| vec![(Key::DtFactor, f.to_string()), (Key::Refine, r.into())];
+    let study = Study::new(&scene).unwrap();
+    // Out of sweep order, as a cluster finishes them; reported in the order given.
+    let runs: Vec<Measured> = [("0.5", "1"), ("0.9", "2"), ("0.9", "1"), ("0.5", "2")]
+        .iter()
+        .map(|(f, r)| {
+            let json = serde_json::to_string(&study.point(settings(f, r)).unwrap()).unwrap();
+            serde_json::from_str(&json).unwrap()
+        })
+        .collect();
+    let alone = study.report(runs).unwrap();
+    let together = sweep(
+        &scene,
+        &sweeps(&["dt_factor=0.5,0.9", "refine=1,2"]),
+        |_| (),
+    )
+    .unwrap();
+    assert_eq!(alone.reference, together.reference);
+    let find = |settings: &Vec<(Key, String)>| {
+        together
+            .points
+            .iter()
+            .find(|p| &p.settings == settings)
+            .unwrap()
+    };
+    for p in &alone.points {
+        let q = find(&p.settings);
+        // The front depends on the wall times too, which differ from run to run.
+        assert_eq!(
+            (p.error, p.dt, p.steps, p.elements),
+            (q.error, q.dt, q.steps, q.elements),
+            "{:?}",
+            p.settings
+        );
+    }
+    // A value a sweep refuses is refused here too, before the point runs.
+    let e = study
+        .point(vec![(Key::Refine, "0".into())])
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("--sweep refine") && e.contains("1..=64"), "{e}");
+}
+
+/// `seed` redraws every Voronoi mesh: another mesh of the same density, another `Δt_crit`;
+/// a scene without a Voronoi mesh refuses it.
+#[test]
+fn a_seed_sweep_redraws_the_voronoi_mesh() {
+    let mut scene = Scene::from_file(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/examples/scenes/voronoi_panel.json"
+    ))
+    .unwrap();
+    scene.output.vtk = false;
+    scene.output.probes =
+        vec![serde_json::from_str(r#"{"name": "top_u", "at": [0.5, 0.49], "dof": "u"}"#).unwrap()];
+    let report = sweep(&scene, &sweeps(&["seed=1,2", "dt_factor=0.5"]), |_| ()).unwrap();
+    let [a, b] = &report.points[..] else {
+        panic!("two points")
+    };
+    assert_eq!(a.elements, b.elements);
+    assert_ne!(a.dt_crit, b.dt_crit, "the same mesh for two seeds");
+    assert!(a.error.is_some_and(|e| e > 0.0) || b.error.is_some_and(|e| e > 0.0));
+    let e = sweep(&column(), &sweeps(&["seed=1"]), |_| ())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("--sweep seed") && e.contains("no Voronoi mesh"),
+        "{e}"
+    );
+    let e = Sweep::parse("seed=-1").unwrap_err().to_string();
+    assert!(e.contains("--sweep seed"), "{e}");
+}

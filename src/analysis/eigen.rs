@@ -371,6 +371,39 @@ impl Report for EigenReport {
     }
 }
 
+/// Where `rbsm eigen` writes its files; each folder only when given.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Files<'a> {
+    /// `--out`: the files of [`write()`].
+    pub out: Option<&'a Path>,
+    /// `--vtk`: the shapes as VTK.
+    pub vtk: Option<&'a Path>,
+    /// `--svg`: the shapes drawn over the reference mesh.
+    pub svg: Option<&'a Path>,
+}
+
+impl Files<'_> {
+    /// Writes the files asked for.
+    pub fn write(&self, setup: &Setup, report: &EigenReport) -> Result<()> {
+        let modes = &report.modes;
+        if let Some(dir) = self.out {
+            write(dir, setup, report)?;
+        }
+        if let Some(dir) = self.vtk {
+            crate::output::vtk::write_mode_shapes(dir, &setup.model, &modes.shapes)?;
+        }
+        if let Some(dir) = self.svg {
+            crate::output::drawing::write_mode_shapes(
+                dir,
+                &setup.model,
+                &modes.omega,
+                &modes.shapes,
+            )?;
+        }
+        Ok(())
+    }
+}
+
 /// Writes what `rbsm eigen --out DIR` gives: `summary.json` (the report), the shapes as
 /// `mode_NNN.vtu` with `modes.pvd`, and `probes.csv` (per mode its number, frequency and each
 /// probe of the `M`-normalised shape).

@@ -16,12 +16,12 @@ use crate::input::scene::{
 use crate::mesh::geometry::Vec2;
 use crate::model::Model;
 use crate::step::integrator::Status;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use std::path::Path;
 use std::time::Instant;
 
 /// What a sweep varies.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Key {
     /// Absolute time step (s).
@@ -39,9 +39,11 @@ pub enum Key {
     Evaluator,
     /// `edge-to-edge` or `point` (the scene must declare contact).
     Contact,
+    /// The seed of every Voronoi mesh's sites (the scene must have one).
+    Seed,
 }
 
-const KEYS: [(&str, Key); 7] = [
+const KEYS: [(&str, Key); 8] = [
     ("dt", Key::Dt),
     ("dt_factor", Key::DtFactor),
     ("refine", Key::Refine),
@@ -49,9 +51,55 @@ const KEYS: [(&str, Key); 7] = [
     ("penalty", Key::Penalty),
     ("evaluator", Key::Evaluator),
     ("contact", Key::Contact),
+    ("seed", Key::Seed),
 ];
 
 impl Key {
+    /// Refuses a value the key cannot take, naming the key and the allowed values.
+    pub fn check(self, v: &str) -> Result<()> {
+        let ok = match self {
+            Key::Dt | Key::DtFactor | Key::Penalty => {
+                v.parse::<f64>().is_ok_and(|x| x > 0.0 && x.is_finite())
+            }
+            Key::Refine => v.parse::<u32>().is_ok_and(|r| (1..=64).contains(&r)),
+            Key::Formulation => v == "rigid" || v == "hybrid",
+            Key::Evaluator => v == "assembled" || v == "element-wise",
+            Key::Contact => v == "edge-to-edge" || v == "point",
+            Key::Seed => v.parse::<u64>().is_ok(),
+        };
+        if ok {
+            return Ok(());
+        }
+        let allowed = match self {
+            Key::Dt | Key::DtFactor | Key::Penalty => "a finite number > 0",
+            Key::Refine => "an integer in 1..=64",
+            Key::Formulation => "rigid or hybrid",
+            Key::Evaluator => "assembled or element-wise",
+            Key::Contact => "edge-to-edge or point",
+            Key::Seed => "an integer in 0..=18446744073709551615",
+        };
+        Err(Error::scene(
+            format!("--sweep {}", self.name()),
+            format!("must be {allowed}, got `{v}`"),
+        ))
+    }
+
+    /// The key of `name` as written on the command line, if there is one.
+    pub fn named(name: &str) -> Result<Key> {
+        KEYS.iter()
+            .find(|k| k.0 == name.trim())
+            .map(|k| k.1)
+            .ok_or_else(|| {
+                Error::scene(
+                    "--sweep",
+                    format!(
+                        "unknown key `{name}`; allowed: {}",
+                        KEYS.map(|k| k.0).join(", ")
+                    ),
+                )
+            })
+    }
+
     /// The key as written on the command line.
     pub fn name(self) -> &'static str {
         KEYS.iter().find(|k| k.1 == self).map_or("?", |k| k.0)
@@ -74,19 +122,7 @@ impl Sweep {
         let (key, values) = text
             .split_once('=')
             .ok_or_else(|| Error::scene(field, format!("expected KEY=V1,V2,..., got `{text}`")))?;
-        let key = KEYS
-            .iter()
-            .find(|k| k.0 == key.trim())
-            .map(|k| k.1)
-            .ok_or_else(|| {
-                Error::scene(
-                    field,
-                    format!(
-                        "unknown key `{key}`; allowed: {}",
-                        KEYS.map(|k| k.0).join(", ")
-                    ),
-                )
-            })?;
+        let key = Key::named(key)?;
         let values: Vec<String> = values
             .split(',')
             .map(|v| v.trim().to_string())
@@ -99,35 +135,14 @@ impl Sweep {
             ));
         }
         for v in &values {
-            let ok = match key {
-                Key::Dt | Key::DtFactor | Key::Penalty => {
-                    v.parse::<f64>().is_ok_and(|x| x > 0.0 && x.is_finite())
-                }
-                Key::Refine => v.parse::<u32>().is_ok_and(|r| (1..=64).contains(&r)),
-                Key::Formulation => v == "rigid" || v == "hybrid",
-                Key::Evaluator => v == "assembled" || v == "element-wise",
-                Key::Contact => v == "edge-to-edge" || v == "point",
-            };
-            if !ok {
-                let allowed = match key {
-                    Key::Dt | Key::DtFactor | Key::Penalty => "a finite number > 0",
-                    Key::Refine => "an integer in 1..=64",
-                    Key::Formulation => "rigid or hybrid",
-                    Key::Evaluator => "assembled or element-wise",
-                    Key::Contact => "edge-to-edge or point",
-                };
-                return Err(Error::scene(
-                    format!("--sweep {}", key.name()),
-                    format!("must be {allowed}, got `{v}`"),
-                ));
-            }
+            key.check(v)?;
         }
         Ok(Sweep { key, values })
     }
 }
 
 /// One point of the sweep and what it measured.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Point {
     /// `(key, value)` of each sweep, in the order given.
     pub settings: Vec<(Key, String)>,
@@ -176,7 +191,8 @@ pub struct TradeoffReport {
 }
 
 /// The quantity a run is measured by.
-enum Measure {
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub enum Measure {
     /// The histories `(t, value)` of the scene's probes, with the centroid of the element that
     /// carried each.
     Histories(Vec<Vec<(f64, f64)>>, Vec<Vec2>),
@@ -192,20 +208,56 @@ pub fn sweep(
     sweeps: &[Sweep],
     mut progress: impl FnMut(&Point),
 ) -> Result<TradeoffReport> {
-    let base_model = Model::build(scene)?;
-    let scene = &probes_by_point(scene, &base_model)?;
-    if scene.reference.is_none() && scene.output.probes.is_empty() {
-        return Err(Error::scene(
-            "output.probes",
-            "the tradeoff needs at least one probe to \
-            compare runs (or a `reference` with a closed form)",
-        ));
-    }
+    let study = Study::new(scene)?;
     let combos = combinations(sweeps);
     let mut runs = Vec::with_capacity(combos.len());
     for settings in combos {
-        let mut point_scene = scene.clone();
+        let measured = study.point(settings)?;
+        progress(&measured.point);
+        runs.push(measured);
+    }
+    study.report(runs)
+}
+
+/// A scene ready for a study: its probes placed by point on its own model. Its points are
+/// independent ([`Study::point`]), so that they may run anywhere, in any order; the errors are
+/// scored once all are in ([`Study::report`]).
+pub struct Study {
+    scene: Scene,
+    model: Model,
+}
+
+/// One point of a study: its figures, and what its error is scored from.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Measured {
+    /// The point's settings, costs and status; its error is scored by [`Study::report`].
+    pub point: Point,
+    /// The probes' histories, or the hopping block's apex.
+    pub measure: Measure,
+}
+
+impl Study {
+    /// The study of `scene` (read and validated): refuses a scene with neither a probe nor a
+    /// closed-form reference, which leaves nothing to compare.
+    pub fn new(scene: &Scene) -> Result<Study> {
+        let model = Model::build(scene)?;
+        let scene = probes_by_point(scene, &model)?;
+        if scene.reference.is_none() && scene.output.probes.is_empty() {
+            return Err(Error::scene(
+                "output.probes",
+                "the tradeoff needs at least one probe to \
+                compare runs (or a `reference` with a closed form)",
+            ));
+        }
+        Ok(Study { scene, model })
+    }
+
+    /// Runs the point `settings` (each value checked by [`Key::check`]), again until its stepping
+    /// adds up to 0.2 s (at most 25 runs); its times are the medians of those runs.
+    pub fn point(&self, settings: Vec<(Key, String)>) -> Result<Measured> {
+        let mut point_scene = self.scene.clone();
         for (key, value) in &settings {
+            key.check(value)?;
             apply(&mut point_scene, *key, value)?;
         }
         point_scene.validate()?;
@@ -219,18 +271,24 @@ pub fn sweep(
             times.push((again.setup_s, again.stepping_s));
         }
         point.timed(&times);
-        progress(&point);
-        runs.push((point, measure));
+        Ok(Measured { point, measure })
     }
-    let (reference, error) = score(scene, &base_model, &mut runs)?;
-    let mut points: Vec<Point> = runs.into_iter().map(|r| r.0).collect();
-    mark_pareto(&mut points);
-    Ok(TradeoffReport {
-        scene: scene.name.clone(),
-        reference,
-        error,
-        points,
-    })
+
+    /// The report of the points `runs`, in the order given: each error against the reference,
+    /// and the Pareto front.
+    pub fn report(&self, runs: Vec<Measured>) -> Result<TradeoffReport> {
+        let mut runs: Vec<(Point, Measure)> =
+            runs.into_iter().map(|m| (m.point, m.measure)).collect();
+        let (reference, error) = score(&self.scene, &self.model, &mut runs)?;
+        let mut points: Vec<Point> = runs.into_iter().map(|r| r.0).collect();
+        mark_pareto(&mut points);
+        Ok(TradeoffReport {
+            scene: self.scene.name.clone(),
+            reference,
+            error,
+            points,
+        })
+    }
 }
 
 /// Every combination of the sweeps' values, the first sweep varying slowest.
@@ -269,7 +327,7 @@ fn probes_by_point(scene: &Scene, model: &Model) -> Result<Scene> {
 
 /// Sets one sweep value in the scene; the caller validates the result.
 fn apply(scene: &mut Scene, key: Key, value: &str) -> Result<()> {
-    let number = || value.parse::<f64>().expect("checked by Sweep::parse");
+    let number = || value.parse::<f64>().expect("checked by Key::check");
     match key {
         Key::Dt => {
             scene.time.dt = Some(number());
@@ -280,7 +338,7 @@ fn apply(scene: &mut Scene, key: Key, value: &str) -> Result<()> {
             scene.time.dt_factor = Some(number());
         }
         Key::Refine => {
-            let r: usize = value.parse().expect("checked by Sweep::parse");
+            let r: usize = value.parse().expect("checked by Key::check");
             for (k, body) in scene.bodies.iter_mut().enumerate() {
                 match &mut body.mesh {
                     MeshSpec::Grid(grid) => {
@@ -313,7 +371,23 @@ fn apply(scene: &mut Scene, key: Key, value: &str) -> Result<()> {
             scene.evaluator = [EvaluatorKind::Assembled, EvaluatorKind::ElementWise]
                 .into_iter()
                 .find(|e| e.name() == value)
-                .expect("checked by Sweep::parse")
+                .expect("checked by Key::check")
+        }
+        Key::Seed => {
+            let seed: u64 = value.parse().expect("checked by Key::check");
+            let mut voronoi = 0;
+            for body in &mut scene.bodies {
+                if let MeshSpec::Voronoi(v) = &mut body.mesh {
+                    v.seed = seed;
+                    voronoi += 1;
+                }
+            }
+            if voronoi == 0 {
+                return Err(Error::scene(
+                    "--sweep seed",
+                    "the scene has no Voronoi mesh whose seed could vary",
+                ));
+            }
         }
         Key::Contact => {
             let contact = scene.contact.as_mut().ok_or_else(|| {
@@ -322,7 +396,7 @@ fn apply(scene: &mut Scene, key: Key, value: &str) -> Result<()> {
             contact.model = [ContactModel::EdgeToEdge, ContactModel::Point]
                 .into_iter()
                 .find(|m| m.name() == value)
-                .expect("checked by Sweep::parse");
+                .expect("checked by Key::check");
         }
     }
     Ok(())

@@ -42,7 +42,7 @@ pub struct Summary {
     pub steps: u64,
     /// Time reached (s).
     pub t_end: f64,
-    /// `ok` or `diverged`.
+    /// `ok`, `diverged` or `interrupted`.
     pub status: String,
     /// Why a run diverged, with the step and the time; `null` for `ok`.
     pub reason: Option<String>,
@@ -73,7 +73,7 @@ pub struct Summary {
     /// load–displacement curve in `history.csv`).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub clamps: Vec<ClampSummary>,
-    /// The folder the run wrote into (not in `summary.json`).
+    /// The folder the run wrote into (not in `summary.json`; empty for a run without one).
     #[serde(skip)]
     pub dir: PathBuf,
 }
@@ -244,40 +244,43 @@ impl Probe {
     }
 }
 
-/// `history.csv`, written as the run goes: each row in one write, so that the file holds whole
-/// rows only, even after the process is killed; a row that fails to be written (disk full, file
-/// size limit) is cut off again before the error is returned.
+/// The history of a run: one row per recorded step, the seven energies then the columns of
+/// [`Columns`]. Written to `history.csv` row by row (each row whole), kept in memory, or both.
 pub struct History {
-    file: std::fs::File,
-    path: PathBuf,
+    /// `history.csv`, its path and the bytes of whole rows written so far.
+    file: Option<(std::fs::File, PathBuf, u64)>,
     columns: Columns,
-    /// Bytes of whole rows written so far.
-    len: u64,
+    /// The rows kept in memory, one after the other; `None`: not kept.
+    rows: Option<Vec<f64>>,
 }
 
 impl History {
-    /// Creates the file and writes the header.
-    pub fn create(dir: &Path, columns: Columns) -> Result<History> {
+    /// A history kept in memory only ([`History::rows`]).
+    pub fn memory(columns: Columns) -> History {
+        History {
+            file: None,
+            columns,
+            rows: Some(Vec::new()),
+        }
+    }
+
+    /// Creates `history.csv` in `dir` and writes the header; the rows are kept in memory too
+    /// when `keep` is set.
+    pub fn create(dir: &Path, columns: Columns, keep: bool) -> Result<History> {
         let path = dir.join("history.csv");
         let file = std::fs::File::create(&path).map_err(|e| Error::io(&path, e))?;
-        let mut header = crate::input::scene::HISTORY_COLUMNS.join(",");
-        for c in columns.header() {
-            header.push(',');
-            header.push_str(&c);
-        }
         let mut h = History {
-            file,
-            path,
+            file: Some((file, path, 0)),
             columns,
-            len: 0,
+            rows: keep.then(Vec::new),
         };
-        h.append(header)?;
+        h.append(h.header().join(","))?;
         Ok(h)
     }
 
     /// Opens the history of an earlier run to go on after its first `len` bytes (the rows up to
-    /// a checkpoint); the rest is cut off.
-    pub fn resume(dir: &Path, columns: Columns, len: u64) -> Result<History> {
+    /// a checkpoint); the rest is cut off. Rows kept in memory start at the checkpoint.
+    pub fn resume(dir: &Path, columns: Columns, len: u64, keep: bool) -> Result<History> {
         let path = dir.join("history.csv");
         let file = std::fs::OpenOptions::new()
             .write(true)
@@ -293,62 +296,93 @@ impl History {
             ));
         }
         file.set_len(len).map_err(|e| Error::io(&path, e))?;
-        let mut h = History {
-            file,
-            path,
-            columns,
-            len,
-        };
+        let mut file = file;
         use std::io::Seek;
-        h.file
-            .seek(std::io::SeekFrom::Start(len))
-            .map_err(|e| Error::io(&h.path, e))?;
-        Ok(h)
+        file.seek(std::io::SeekFrom::Start(len))
+            .map_err(|e| Error::io(&path, e))?;
+        Ok(History {
+            file: Some((file, path, len)),
+            columns,
+            rows: keep.then(Vec::new),
+        })
     }
 
-    /// Bytes of whole rows written so far.
+    /// The column names: [`crate::input::scene::HISTORY_COLUMNS`], then those of the model.
+    pub fn header(&self) -> Vec<String> {
+        let mut h: Vec<String> = crate::input::scene::HISTORY_COLUMNS
+            .iter()
+            .map(|c| c.to_string())
+            .collect();
+        h.extend(self.columns.header());
+        h
+    }
+
+    /// Bytes of whole rows written to `history.csv` so far (0 in memory only).
     pub fn bytes(&self) -> u64 {
-        self.len
+        self.file.as_ref().map_or(0, |f| f.2)
     }
 
-    /// Appends the row of one recorded step.
+    /// The rows kept in memory, one after the other, each as long as [`History::header`];
+    /// empty when they are not kept.
+    pub fn rows(&self) -> &[f64] {
+        self.rows.as_deref().unwrap_or_default()
+    }
+
+    /// The rows kept in memory, as [`History::rows`], taken.
+    pub fn into_rows(self) -> Vec<f64> {
+        self.rows.unwrap_or_default()
+    }
+
+    /// Records the row of one recorded step. `history.csv` writes each value in the shortest
+    /// form that reads back to the same bits.
     pub fn write(&mut self, s: &Snapshot, e: &Energy) -> Result<()> {
-        let mut row = format!(
-            "{:e},{:e},{:e},{:e},{:e},{:e},{:e}",
-            e.t, e.kinetic, e.elastic, e.contact, e.potential, e.external_work, e.total
-        );
+        let mut row = vec![
+            e.t,
+            e.kinetic,
+            e.elastic,
+            e.contact,
+            e.potential,
+            e.external_work,
+            e.total,
+        ];
         let c = &self.columns;
         if c.failure {
-            row.push_str(&format!(",{:e},{:e}", e.fracture, e.friction));
+            row.extend([e.fracture, e.friction]);
         }
         if c.damping {
-            row.push_str(&format!(",{:e}", e.damping));
+            row.push(e.damping);
         }
         for (p, r) in c.clamps.iter().zip(s.reactions) {
-            let d = p.velocity.norm() * p.travel(s.t);
-            row.push_str(&format!(",{d:e},{r:e}"));
+            row.extend([p.velocity.norm() * p.travel(s.t), *r]);
         }
-        for p in &c.probes {
-            row.push_str(&format!(",{:e}", p.value(s.u)));
+        row.extend(c.probes.iter().map(|p| p.value(s.u)));
+        if self.file.is_some() {
+            let line: Vec<String> = row.iter().map(|x| format!("{x:e}")).collect();
+            self.append(line.join(","))?;
         }
-        self.append(row)
+        if let Some(rows) = &mut self.rows {
+            rows.extend(row);
+        }
+        Ok(())
     }
 
     /// Writes `line` and a newline in one call; on failure cuts the file back to whole rows.
     fn append(&mut self, mut line: String) -> Result<()> {
+        let Some((file, path, len)) = &mut self.file else {
+            return Ok(());
+        };
         line.push('\n');
-        match self.file.write_all(line.as_bytes()) {
+        match file.write_all(line.as_bytes()) {
             Ok(()) => {
-                self.len += line.len() as u64;
+                *len += line.len() as u64;
                 Ok(())
             }
             Err(e) => {
                 use std::io::Seek;
-                let _ = self
-                    .file
-                    .set_len(self.len)
-                    .and_then(|_| self.file.seek(std::io::SeekFrom::Start(self.len)));
-                Err(Error::io(&self.path, e))
+                let _ = file
+                    .set_len(*len)
+                    .and_then(|_| file.seek(std::io::SeekFrom::Start(*len)));
+                Err(Error::io(path, e))
             }
         }
     }

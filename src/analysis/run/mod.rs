@@ -69,6 +69,29 @@ pub struct RunParams {
     /// Raised from outside (a signal handler) to stop the run at the next step with a complete
     /// set of outputs (status `interrupted`).
     pub interrupt: Option<std::sync::Arc<std::sync::atomic::AtomicBool>>,
+    /// Keep the history's rows in memory ([`Outcome::history`]) when they are written to a
+    /// folder too; a run without a folder always keeps them.
+    pub keep_history: bool,
+}
+
+/// What a run ends with, in memory: its summary, its history and its final state.
+#[derive(Debug, Clone)]
+pub struct Outcome {
+    /// The summary (`summary.json` when the run has a folder).
+    pub summary: Summary,
+    /// The history's column names (the header of `history.csv`).
+    pub columns: Vec<String>,
+    /// The history's rows, one after the other (`columns.len()` values each); empty when the
+    /// run wrote them to a folder without [`RunParams::keep_history`].
+    pub history: Vec<f64>,
+    /// Time reached (s).
+    pub t: f64,
+    /// The final displacements `U`, `ndof` per element.
+    pub u: Vec<f64>,
+    /// The final velocities `V` (at `t`), `ndof` per element.
+    pub v: Vec<f64>,
+    /// The failing interfaces' state at the end; `None` when no interface can fail.
+    pub interfaces: Option<Vec<crate::force::failure::InterfaceFailure>>,
 }
 
 /// What the caller sees of a run while it goes: a line of text, and the step reached.
@@ -94,10 +117,27 @@ pub fn run(
     out: &Path,
     monitor: &mut dyn Monitor,
 ) -> Result<Summary> {
+    simulate(setup, params, Some(out), monitor).map(|o| o.summary)
+}
+
+/// Runs the setup's scene; with a folder `out`, writes its outputs there as [`run`] does;
+/// without, writes nothing and keeps the history in memory. Returns what the run ends with.
+pub fn simulate(
+    setup: &Setup,
+    params: &RunParams,
+    out: Option<&Path>,
+    monitor: &mut dyn Monitor,
+) -> Result<Outcome> {
     let wall = Instant::now();
+    if params.resume && out.is_none() {
+        return Err(Error::scene(
+            "resume",
+            "a run resumes from the checkpoint in its output folder: give the folder",
+        ));
+    }
     let (p, scene, opts) = (setup, &setup.scene, &setup.overrides);
     let model = &p.model;
-    let checkpoint = if params.resume {
+    let checkpoint = if let (true, Some(out)) = (params.resume, out) {
         let c = Checkpoint::read(out, scene, opts)?;
         // The summary and final state of the stopped run end at another step; files it was
         // writing when killed are half written.
@@ -109,8 +149,10 @@ pub fn run(
         }
         Some(c)
     } else {
-        std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
-        clear_previous(out)?;
+        if let Some(out) = out {
+            std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+            clear_previous(out)?;
+        }
         None
     };
     let ground_springs = model
@@ -144,9 +186,12 @@ pub fn run(
         })
         .collect();
     let mut cd = p.integrator(p.dt);
-    let (mut history, mut vtk, mut first, mut rotation) = match checkpoint {
-        None => (
-            History::create(out, Columns::of(model, probes))?,
+    let columns = Columns::of(model, probes);
+    let keep = params.keep_history;
+    let (mut history, mut vtk, mut first, mut rotation) = match (checkpoint, out) {
+        (None, None) => (History::memory(columns), None, None, 0.0f64),
+        (None, Some(out)) => (
+            History::create(out, columns, keep)?,
             scene
                 .output
                 .vtk
@@ -155,7 +200,8 @@ pub fn run(
             None,
             0.0f64,
         ),
-        Some(c) => {
+        (Some(_), None) => unreachable!("refused above: a resumed run has a folder"),
+        (Some(c), Some(out)) => {
             monitor.info(&format!(
                 "resuming from the checkpoint at step {}",
                 c.state.step()
@@ -172,7 +218,7 @@ pub fn run(
                 .then(|| VtkSeries::resume(out, c.frames, p.plastic.as_deref()))
                 .transpose()?;
             (
-                History::resume(out, Columns::of(model, probes), c.history_bytes)?,
+                History::resume(out, columns, c.history_bytes, keep)?,
                 vtk,
                 c.first,
                 c.rotation,
@@ -230,6 +276,9 @@ pub fn run(
         if status != Status::Ok || next == end {
             break status;
         }
+        let Some(out) = out else {
+            continue;
+        };
         let frames = vtk.as_ref().map_or_else(Vec::new, |v| v.frames().to_vec());
         Checkpoint::new(
             scene,
@@ -253,7 +302,7 @@ pub fn run(
             "interrupted",
             Some(format!(
                 "step {step}, t = {t:e} s: interrupted by a signal{}",
-                if scene.output.checkpoint_every.is_some() {
+                if scene.output.checkpoint_every.is_some() && out.is_some() {
                     "; `rbsm run SCENE --resume DIR` goes on from the last checkpoint"
                 } else {
                     ""
@@ -277,14 +326,17 @@ pub fn run(
                 report,
             )
         });
-    output::write_final_state(
-        out,
-        model,
-        cd.t,
-        &cd.u,
-        cd.velocity(),
-        failure.as_ref().map(|(_, r)| &r[..]),
-    )?;
+    let v = cd.velocity().to_vec();
+    if let Some(out) = out {
+        output::write_final_state(
+            out,
+            model,
+            cd.t,
+            &cd.u,
+            &v,
+            failure.as_ref().map(|(_, r)| &r[..]),
+        )?;
+    }
     let (first, last) = (first.unwrap_or_default(), last.unwrap_or_default());
     let summary = Summary {
         scene: scene.name.clone(),
@@ -320,7 +372,7 @@ pub fn run(
             time_s: c.stats.time_s,
         }),
         probes: probe_columns,
-        failure: failure.map(|(s, _)| s),
+        failure: failure.as_ref().map(|(s, _)| s.clone()),
         clamps: model
             .prescribed
             .iter()
@@ -331,14 +383,24 @@ pub fn run(
                 displacement_at_peak,
             })
             .collect(),
-        dir: out.to_path_buf(),
+        dir: out.map(Path::to_path_buf).unwrap_or_default(),
     };
-    output::write_json(&out.join("summary.json"), &summary)?;
-    if status == Status::Ok {
-        // A finished run has nothing to resume.
-        remove(&out.join(crate::analysis::run::checkpoint::FILE))?;
+    if let Some(out) = out {
+        output::write_json(&out.join("summary.json"), &summary)?;
+        if status == Status::Ok {
+            // A finished run has nothing to resume.
+            remove(&out.join(crate::analysis::run::checkpoint::FILE))?;
+        }
     }
-    Ok(summary)
+    Ok(Outcome {
+        summary,
+        columns: history.header(),
+        history: history.into_rows(),
+        t: cd.t,
+        u: std::mem::take(&mut cd.u),
+        v,
+        interfaces: failure.map(|(_, r)| r),
+    })
 }
 
 impl crate::analysis::Report for Summary {
