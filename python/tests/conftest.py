@@ -1,0 +1,26 @@
+"""Shared fixtures: the repository's scenes and the `rbsm` command line built from the same
+library, which the package's results must equal to the bit."""
+
+import subprocess
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+SCENES = ROOT / "examples" / "scenes"
+
+
+@pytest.fixture(scope="session")
+def cli() -> Path:
+    """The release `rbsm` binary (built if it is not there yet)."""
+    binary = ROOT / "target" / "release" / "rbsm"
+    if not binary.exists():
+        subprocess.run(
+            ["cargo", "build", "--release", "--quiet", "--bin", "rbsm"], cwd=ROOT, check=True
+        )
+    return binary
+
+
+@pytest.fixture(scope="session")
+def scenes() -> Path:
+    return SCENES
