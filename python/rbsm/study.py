@@ -29,6 +29,11 @@ Settings = List[Tuple[str, str]]
 RETRIES = 2
 
 
+def _failed(payload: Dict[str, Any], why: str) -> Dict[str, Any]:
+    """The result of a point that failed: its settings and why."""
+    return {"settings": payload["settings"], "measured": None, "failure": why}
+
+
 def _point(payload: Dict[str, Any]) -> Dict[str, Any]:
     """One point, run on a worker: its measure (JSON) or why it failed. Never raises for a
     failure of the point itself, so that one bad point cannot stop a study."""
@@ -39,11 +44,7 @@ def _point(payload: Dict[str, Any]) -> Dict[str, Any]:
         )
         return {"settings": payload["settings"], "measured": measured, "failure": None}
     except Exception as e:  # noqa: BLE001 - reported in the table, not lost
-        return {
-            "settings": payload["settings"],
-            "measured": None,
-            "failure": f"{type(e).__name__}: {e}",
-        }
+        return _failed(payload, f"{type(e).__name__}: {e}")
 
 
 def _text(value: Any) -> str:
@@ -117,18 +118,7 @@ def _run_dask(client: Any, payloads: List[Dict[str, Any]], done: Done) -> None:
     from distributed import as_completed
 
     futures = {client.submit(_point, p, pure=False): p for p in payloads}
-    for future in as_completed(list(futures)):  # type: ignore[no-untyped-call]
-        payload = futures[future]
-        try:
-            done(future.result())
-        except Exception as e:  # noqa: BLE001 - KilledWorker and the like
-            done(
-                {
-                    "settings": payload["settings"],
-                    "measured": None,
-                    "failure": f"{type(e).__name__}: {e}",
-                }
-            )
+    _collect(futures, as_completed(list(futures)), done)  # type: ignore[no-untyped-call]
 
 
 def _run_local(
@@ -154,31 +144,24 @@ def _run_local(
         for p in broken:
             tries[id(p)] += 1
             if tries[id(p)] > RETRIES:
-                done(
-                    {
-                        "settings": p["settings"],
-                        "measured": None,
-                        "failure": f"its worker process died {tries[id(p)]} times",
-                    }
-                )
+                done(_failed(p, f"its worker process died {tries[id(p)]} times"))
             else:
                 left.append(p)
 
 
 def _run_executor(executor: cf.Executor, payloads: List[Dict[str, Any]], done: Done) -> None:
     futures = {executor.submit(_point, p): p for p in payloads}
-    for future in cf.as_completed(futures):
-        payload = futures[future]
+    _collect(futures, cf.as_completed(futures), done)
+
+
+def _collect(futures: Dict[Any, Dict[str, Any]], finished: Iterable[Any], done: Done) -> None:
+    """Hands each finished future's result to `done`; a future that raised (a task that could
+    not run: KilledWorker and the like) is a failed point."""
+    for future in finished:
         try:
             done(future.result())
-        except Exception as e:  # noqa: BLE001
-            done(
-                {
-                    "settings": payload["settings"],
-                    "measured": None,
-                    "failure": f"{type(e).__name__}: {e}",
-                }
-            )
+        except Exception as e:  # noqa: BLE001 - reported in the table, not lost
+            done(_failed(futures[future], f"{type(e).__name__}: {e}"))
 
 
 #: The columns of a study's table after the swept keys.
