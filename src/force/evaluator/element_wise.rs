@@ -87,8 +87,9 @@ trait Faces<K: Kinematics<N>, const N: usize>: Sync {
     type Ref: Copy + Sync;
     /// Whether the sweep asks for the records and `U` ahead of their use ([`PREFETCH_AHEAD`]):
     /// inline records stream at 72 bytes per interface, shared ones at 12, which the hardware
-    /// prefetchers follow unaided (10⁶-element grid: 14.1 ns per element-step without, 15.5
-    /// with, one thread).
+    /// prefetchers follow unaided (10⁶-element grid, one thread: 14.1 ns per element-step
+    /// without, 15.5 with; `cargo bench --bench step -- grid/rigid/element-wise/1thr` on both
+    /// builds).
     const PREFETCH: bool;
     fn faces(&self) -> &[Face<Self::Ref>];
     fn record<'a>(&'a self, face: &'a Face<Self::Ref>) -> &'a Record<K, N>;
