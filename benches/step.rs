@@ -336,10 +336,11 @@ fn main() {
                 for kind in [EvaluatorKind::Assembled, EvaluatorKind::ElementWise] {
                     let ev = evaluator::build(&model, kind);
                     let ne = model.elements.len();
-                    // Evaluator data, U read and f written; then f, M⁻¹ read and v, U updated.
-                    // Fused into one sweep, U and v are each read and written once; the pending
-                    // forces stay in the sweep's rings, and this scene (no gravity, no contact)
-                    // reads −P only at its loaded elements.
+                    // Both evaluators step fused into one sweep: the evaluator's data and M⁻¹
+                    // read, U and v each read and written once; the pending forces stay in the
+                    // sweep's rings, and this scene (no gravity, no contact) reads −P only at
+                    // its loaded elements. (Evaluated first and updated after: U read and f
+                    // written, then f, M⁻¹ read and v, U updated, 7 vectors.)
                     let vectors = if ev.fused().is_some() { 4 } else { 7 };
                     let bytes =
                         ev.bytes() as f64 / ne as f64 + (8 * nd * vectors + inv_bytes) as f64;
@@ -551,19 +552,15 @@ fn render(
     );
     let _ = writeln!(
         s,
-        "loop between its checks. *Bytes* is what one step must move per element: \
-        assembled, the evaluator's data, `U` read"
+        "loop between its checks. *Bytes* is what one step must move per element; both \
+        evaluators advance each element as soon as its force is complete, in one sweep:"
     );
     let _ = writeln!(
         s,
-        "and `f` written, then `f`, `M⁻¹` read and `v`, `U` updated; \
-        element-wise, whose sweep advances each element as soon as"
-    );
-    let _ = writeln!(
-        s,
-        "its force is complete, the evaluator's data (its interfaces, of 12 bytes on a grid, \
-        whose few records they share, of 72 rigid and 80 hybrid on a Voronoi mesh; its rings \
-        of pending forces included) and `M⁻¹` read, `U` and `v` read and"
+        "the evaluator's data (assembled: `K`'s diagonal and upper blocks with their element \
+        pairs, 80 bytes a pair rigid; element-wise: its interfaces, of 12 bytes on a grid, \
+        whose few records they share, of 72 rigid and 80 hybrid on a Voronoi mesh; both with \
+        their rings of pending forces) and `M⁻¹` read, `U` and `v` read and"
     );
     let _ = writeln!(
         s,

@@ -3,7 +3,7 @@
 
 mod common;
 use common::*;
-use rbsm::force::evaluator::{self, interface_stiffness, Assembled};
+use rbsm::force::evaluator::{self, assemble, interface_stiffness};
 use rbsm::input::scene::EvaluatorKind;
 use rbsm::mesh::geometry::Vec2;
 use rbsm::model::formulation::Rigid;
@@ -67,7 +67,7 @@ fn rigid_motion_of_a_free_assembly_gives_zero_force() {
 }
 
 fn stiffness(model: &Model) -> faer::Mat<f64> {
-    Assembled::<Rigid, 3>::new(model).stiffness.to_dense()
+    assemble::<Rigid, 3>(model).to_dense()
 }
 
 /// `K` is symmetric positive semi-definite, and a free assembly has exactly three zero
@@ -217,11 +217,10 @@ fn forces_do_not_depend_on_the_thread_count() {
     }
 }
 
-/// The element-wise evaluator advances each element inside its sweep (eq. 15 fused with the
-/// update of `rbsm::step::integrator`). On a mesh of several blocks, with loads, gravity and
-/// damping, that
-/// gives the same steps as evaluating first and updating after, and as the assembled `K U`,
-/// up to round-off; and the same on 1 and 2 threads, bit for bit. Without gravity the fused
+/// Both evaluators advance each element inside their sweep (eq. 15, or the rows of `K U` of
+/// eq. 7, fused with the update of `rbsm::step::integrator`). On a mesh of several blocks, with
+/// loads, gravity and damping, that gives the same steps as evaluating first and updating after,
+/// and as the other evaluator, up to round-off; and the same on 1 and 2 threads, bit for bit. Without gravity the fused
 /// step reads the external force only at the loaded elements, and without damping it leaves
 /// out the damping factors: the same holds. A damped fused step books the damping's work in
 /// its sweep: the same work as the two passes book, and the energy balance closes.
@@ -261,9 +260,6 @@ fn the_fused_step_matches_evaluation_then_update() {
         );
         let model = Model::build(&rbsm::input::scene::Scene::from_json(&json).unwrap()).unwrap();
         let (mass, loads) = (Mass::new(&model), Loads::new(&model));
-        let fused = evaluator::build(&model, EvaluatorKind::ElementWise);
-        let two_pass = TwoPass(evaluator::build(&model, EvaluatorKind::ElementWise));
-        assert!(fused.fused().is_some() && two_pass.fused().is_none());
         let run = |ev: &dyn evaluator::Evaluator, threads: usize| {
             let pool = rayon::ThreadPoolBuilder::new()
                 .num_threads(threads)
@@ -287,51 +283,59 @@ fn the_fused_step_matches_evaluation_then_update() {
             let e = last.unwrap();
             (cd.u, cd.v, e.damping, e.total, e.external_work)
         };
-        let (u, v, work, ..) = run(fused.as_ref(), 1);
-        let two = run(fused.as_ref(), 2);
-        assert_eq!(
-            (&u, &v, work),
-            (&two.0, &two.1, two.2),
-            "{formulation}, gravity {gravity}, damping {damping}: thread count"
-        );
-        let assembled = evaluator::build(&model, EvaluatorKind::Assembled);
-        for (name, ev) in [
-            ("two passes", &two_pass as &dyn evaluator::Evaluator),
-            ("assembled", assembled.as_ref()),
+        for (kind, other) in [
+            (EvaluatorKind::ElementWise, EvaluatorKind::Assembled),
+            (EvaluatorKind::Assembled, EvaluatorKind::ElementWise),
         ] {
-            let (u2, v2, work2, total2, _) = run(ev, 2);
-            if damping > 0 {
-                // The damping did work, the same in both ways of booking it, and the balance
-                // `total` (which includes it) is the same.
+            let fused = evaluator::build(&model, kind);
+            let two_pass = TwoPass(evaluator::build(&model, kind));
+            let other = evaluator::build(&model, other);
+            assert!(fused.fused().is_some() && two_pass.fused().is_none());
+            let (u, v, work, ..) = run(fused.as_ref(), 1);
+            let two = run(fused.as_ref(), 2);
+            assert_eq!(
+                (&u, &v, work),
+                (&two.0, &two.1, two.2),
+                "{kind:?}, {formulation}, gravity {gravity}, damping {damping}: thread count"
+            );
+            for (name, ev) in [
+                ("two passes", &two_pass as &dyn evaluator::Evaluator),
+                ("the other evaluator", other.as_ref()),
+            ] {
+                let (u2, v2, work2, total2, _) = run(ev, 2);
+                if damping > 0 {
+                    // The damping did work, the same in both ways of booking it, and the balance
+                    // `total` (which includes it) is the same.
+                    assert!(
+                        work > 0.0 && (work - work2).abs() <= 1e-12 * work,
+                        "{kind:?}, {name}: {work} {work2}"
+                    );
+                    assert!(
+                        (two.3 - total2).abs() <= 1e-12 * two.4,
+                        "{kind:?}, {name}: {} {total2} of {}",
+                        two.3,
+                        two.4
+                    );
+                }
+                let scale = u.iter().fold(0.0f64, |m, x| m.max(x.abs()));
                 assert!(
-                    work > 0.0 && (work - work2).abs() <= 1e-12 * work,
-                    "{name}: {work} {work2}"
+                scale > 1e-9,
+                "{kind:?}, {formulation}, gravity {gravity}, damping {damping}: the model moved ({scale:e})"
+            );
+                assert!(
+                    max_abs_diff(&u, &u2) <= 1e-12 * scale,
+                    "{kind:?}, {formulation}, gravity {gravity}, \
+                damping {damping}, {name}: |ΔU| = {:e} of {scale:e}",
+                    max_abs_diff(&u, &u2)
                 );
+                let vscale = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
                 assert!(
-                    (two.3 - total2).abs() <= 1e-12 * two.4,
-                    "{name}: {} {total2} of {}",
-                    two.3,
-                    two.4
+                    max_abs_diff(&v, &v2) <= 1e-12 * vscale,
+                    "{kind:?}, {formulation}, gravity {gravity}, \
+                damping {damping}, {name}: |Δv| = {:e} of {vscale:e}",
+                    max_abs_diff(&v, &v2)
                 );
             }
-            let scale = u.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-            assert!(
-                scale > 1e-9,
-                "{formulation}, gravity {gravity}, damping {damping}: the model moved ({scale:e})"
-            );
-            assert!(
-                max_abs_diff(&u, &u2) <= 1e-12 * scale,
-                "{formulation}, gravity {gravity}, \
-                damping {damping}, {name}: |ΔU| = {:e} of {scale:e}",
-                max_abs_diff(&u, &u2)
-            );
-            let vscale = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-            assert!(
-                max_abs_diff(&v, &v2) <= 1e-12 * vscale,
-                "{formulation}, gravity {gravity}, \
-                damping {damping}, {name}: |Δv| = {:e} of {vscale:e}",
-                max_abs_diff(&v, &v2)
-            );
         }
     }
 }

@@ -11,23 +11,10 @@
 //! The split holds for a linear law only.
 //!
 //! The traction on a shared edge is one physical quantity, `+λ` on one side and `−λ` on the
-//! other, so each interface computes it once and hands it to both its elements. The interfaces
-//! are kept in the order of their lower element `a < b`; a sweep in that order has finished
-//! element `e` once it has done the interfaces that start at `e` (those that end at `e` started
-//! earlier). The element's force is then complete and, in a time step, its velocity and
-//! displacement are advanced at once ([`ElementWise`] fuses eq. 15 with the update of
-//! [`crate::step::integrator`]): `U_e` is read by no later interface, and the step moves each
-//! vector once.
-//!
-//! While it sweeps, an element's force is pending only from its first interface to its own
-//! completion, and an interface reaches at most `max(b − a)` elements ahead. The pending forces
-//! are therefore kept in a ring of the next power of two above that reach, which stays in
-//! cache (a 1000 × 1000 grid needs 1024 slots): no global force vector is read or written.
-//! An element takes its pending force from the ring when the sweep reaches it and adds its own
-//! interfaces in registers. The records of a block's inner interfaces lie apart from those to
-//! the ground and to later blocks, which are rare and need no test in the inner loop.
-//! A time step reads the rest of the net force, `−P − f_c`, only at the elements that carry
-//! loads when the integrator can name them (no gravity, no contact).
+//! other, so each interface computes it once and hands it to both its elements, in the sweep
+//! the two evaluators share ([`super::sweep`]: interfaces in the order of their lower element,
+//! each element advanced in a time step as soon as its force is complete, pending forces in a
+//! ring, parallel blocks with the same bits on any thread count).
 //!
 //! Each interface has a [`Record`] of what its traction needs. On a regular mesh most records
 //! are copies of a few, equal up to the round-off of the coordinates; then the interfaces share
@@ -36,22 +23,14 @@
 //! ([`FaceMap`]: 4 × 4 rigid, 10 × 10 hybrid), which the sweep applies in 4-wide lanes with
 //! fewer instructions than the record takes. An irregular mesh keeps its records inline
 //! ([`Inline`]): a map per interface would double the bytes a step reads.
-//!
-//! Parallel sweeps run over fixed blocks of consecutive elements. An interface from one block
-//! into a later one is computed before the sweeps, from the state at `t_n`, and handed to both
-//! blocks. Every element sums its edges in interface order whatever the blocks and the threads,
-//! so the result does not depend on the thread count.
 
+use super::sweep::{Couplings, Face, Lanes, Sweep};
 use super::{Evaluator, FusedStep};
 use crate::input::scene::EvaluatorKind;
 use crate::mesh::geometry::Vec2;
 use crate::model::formulation::{Hybrid, Kinematics, Rigid, Springs};
-use crate::model::mass::{ElementUpdate, Update, WithUpdate};
+use crate::model::mass::Update;
 use crate::model::{Model, GROUND};
-use rayon::prelude::*;
-use std::marker::PhantomData;
-use std::ops::Range;
-use std::sync::Mutex;
 
 /// What an interface's traction needs besides its elements (64 bytes rigid, 72 hybrid).
 #[derive(Debug)]
@@ -74,69 +53,43 @@ impl<K: Kinematics<N>, const N: usize> Clone for Record<K, N> {
 }
 impl<K: Kinematics<N>, const N: usize> Copy for Record<K, N> {}
 
-/// An interface: its lower element `a`, its higher one `b` or [`GROUND`], and its record `R`:
-/// the [`Record`] itself, or its index among records that several interfaces share
-/// ([`Shared`]).
-#[derive(Debug, Clone, Copy)]
-struct Face<R> {
-    a: u32,
-    b: u32,
-    record: R,
-}
-
-/// The interfaces with their records, in the order of the sweep.
-trait Faces<K: Kernel<N>, const N: usize>: Sync {
-    /// What a [`Face`] holds of its record.
-    type Ref: Copy + Sync;
-    /// Whether the sweep asks for the records and `U` ahead of their use ([`PREFETCH_AHEAD`]):
-    /// inline records stream at 72 bytes per interface, shared ones at 12, which the hardware
-    /// prefetchers follow unaided (10⁶-element grid, one thread: 14.1 ns per element-step
-    /// without, 15.5 with, measured before the [`FaceMap`]s, which left the two within the
-    /// noise; `cargo bench --bench step -- grid/rigid/element-wise/1thr` on both builds).
-    const PREFETCH: bool;
-    fn faces(&self) -> &[Face<Self::Ref>];
-    fn record<'a>(&'a self, face: &'a Face<Self::Ref>) -> &'a Record<K, N>;
-    /// Adds the internal forces of `face`, between two elements, to `fa` and `fb`.
-    fn add_internal(
-        &self,
-        lanes: impl Lanes,
-        face: &Face<Self::Ref>,
-        ua: &[f64; N],
-        ub: &[f64; N],
-        fa: &mut [f64; N],
-        fb: &mut [f64; N],
-    );
-}
-
 /// Each interface with its own record (72 bytes rigid, 80 hybrid): an irregular mesh, where
 /// interfaces rarely share one.
-type Inline<K, const N: usize> = Vec<Face<Record<K, N>>>;
+struct Inline<K: Kernel<N>, const N: usize> {
+    faces: Vec<Face<Record<K, N>>>,
+    interior: Interior,
+}
 
-impl<K: Kernel<N>, const N: usize> Faces<K, N> for Inline<K, N> {
+impl<K: Kernel<N>, const N: usize> Couplings<N> for Inline<K, N> {
     type Ref = Record<K, N>;
+    /// Inline records stream at 72 bytes per interface (10⁶-element grid, one thread, before
+    /// records were shared: 15.5 ns per element-step without, 14.1 with).
     const PREFETCH: bool = true;
     #[inline(always)]
     fn faces(&self) -> &[Face<Record<K, N>>] {
-        self
+        &self.faces
     }
     #[inline(always)]
-    fn record<'a>(&'a self, face: &'a Face<Record<K, N>>) -> &'a Record<K, N> {
-        &face.record
-    }
-    #[inline(always)]
-    fn add_internal(
+    fn add_pair(
         &self,
-        lanes: impl Lanes,
+        _: impl Lanes,
         face: &Face<Record<K, N>>,
         ua: &[f64; N],
         ub: &[f64; N],
         fa: &mut [f64; N],
         fb: &mut [f64; N],
     ) {
-        let _ = lanes;
         let [on_a, on_b] = ElementWise::face_forces(&face.record, ua, Some(ub));
         sub(fa, &on_a);
         sub(fb, &on_b);
+    }
+    #[inline(always)]
+    fn add_ground(&self, face: &Face<Record<K, N>>, ua: &[f64; N], fa: &mut [f64; N]) {
+        sub(fa, &ElementWise::face_forces(&face.record, ua, None)[0]);
+    }
+    #[inline(always)]
+    fn add_own(&self, e: usize, ue: &[f64; N], f: &mut [f64; N]) {
+        self.interior.add::<K, N>(e, ue, f);
     }
 }
 
@@ -148,21 +101,20 @@ struct Shared<K: Kernel<N>, const N: usize> {
     records: Vec<Record<K, N>>,
     /// Each record's [`FaceMap`].
     maps: Vec<K::Map>,
+    interior: Interior,
 }
 
-impl<K: Kernel<N>, const N: usize> Faces<K, N> for Shared<K, N> {
+impl<K: Kernel<N>, const N: usize> Couplings<N> for Shared<K, N> {
     type Ref = u32;
+    /// 12 bytes per interface, which the hardware prefetchers follow unaided (measured as
+    /// for [`Inline`], before the [`FaceMap`]s: the two within the noise).
     const PREFETCH: bool = false;
     #[inline(always)]
     fn faces(&self) -> &[Face<u32>] {
         &self.faces
     }
     #[inline(always)]
-    fn record<'a>(&'a self, face: &'a Face<u32>) -> &'a Record<K, N> {
-        &self.records[face.record as usize]
-    }
-    #[inline(always)]
-    fn add_internal(
+    fn add_pair(
         &self,
         lanes: impl Lanes,
         face: &Face<u32>,
@@ -172,6 +124,38 @@ impl<K: Kernel<N>, const N: usize> Faces<K, N> for Shared<K, N> {
         fb: &mut [f64; N],
     ) {
         self.maps[face.record as usize].add_internal(lanes, ua, ub, fa, fb);
+    }
+    #[inline(always)]
+    fn add_ground(&self, face: &Face<u32>, ua: &[f64; N], fa: &mut [f64; N]) {
+        let record = &self.records[face.record as usize];
+        sub(fa, &ElementWise::face_forces(record, ua, None)[0]);
+    }
+    #[inline(always)]
+    fn add_own(&self, e: usize, ue: &[f64; N], f: &mut [f64; N]) {
+        self.interior.add::<K, N>(e, ue, f);
+    }
+}
+
+/// `t A D` per element, acting on the strains `U_e[3..6]`: the interior term of eq. 15 (hybrid
+/// only; empty for rigid).
+struct Interior(Vec<nalgebra::Matrix3<f64>>);
+
+impl Interior {
+    #[inline(always)]
+    fn add<K: Kinematics<N>, const N: usize>(&self, e: usize, ue: &[f64; N], f: &mut [f64; N]) {
+        if K::HAS_INTERIOR {
+            let stress = self.0[e] * nalgebra::Vector3::new(ue[3], ue[4], ue[5]);
+            for j in 0..3 {
+                f[3 + j] += stress[j];
+            }
+        }
+    }
+}
+
+#[inline(always)]
+fn sub<const N: usize>(acc: &mut [f64; N], x: &[f64; N]) {
+    for j in 0..N {
+        acc[j] -= x[j];
     }
 }
 
@@ -266,69 +250,6 @@ impl<const N: usize, const M: usize, const Q: usize> Map<N> for FaceMap<M, Q> {
     }
 }
 
-/// Sums of products in groups of four lanes, `o = Σ_k x_k g[k]` in the order of `k`, with no
-/// fused multiply-add: the same bits on every path.
-pub trait Lanes: Copy {
-    fn combine<const M: usize, const Q: usize>(
-        self,
-        g: &[[[f64; 4]; Q]; M],
-        x: &[f64; M],
-    ) -> [[f64; 4]; Q];
-}
-
-/// [`Lanes`] one number at a time, on any processor.
-#[derive(Clone, Copy)]
-pub struct Plain;
-
-impl Lanes for Plain {
-    #[inline(always)]
-    fn combine<const M: usize, const Q: usize>(
-        self,
-        g: &[[[f64; 4]; Q]; M],
-        x: &[f64; M],
-    ) -> [[f64; 4]; Q] {
-        let mut o = [[0.0; 4]; Q];
-        for q in 0..Q {
-            for l in 0..4 {
-                o[q][l] = g[0][q][l] * x[0];
-            }
-        }
-        for k in 1..M {
-            for q in 0..Q {
-                for l in 0..4 {
-                    o[q][l] += g[k][q][l] * x[k];
-                }
-            }
-        }
-        o
-    }
-}
-
-/// [`Lanes`] in the 256-bit registers of AVX2.
-#[cfg(target_arch = "x86_64")]
-impl Lanes for pulp::x86::V3 {
-    #[inline(always)]
-    fn combine<const M: usize, const Q: usize>(
-        self,
-        g: &[[[f64; 4]; Q]; M],
-        x: &[f64; M],
-    ) -> [[f64; 4]; Q] {
-        let mut o = [[0.0; 4]; Q];
-        let x0 = self.splat_f64x4(x[0]);
-        for q in 0..Q {
-            o[q] = pulp::cast(self.mul_f64x4(pulp::cast(g[0][q]), x0));
-        }
-        for k in 1..M {
-            let xk = self.splat_f64x4(x[k]);
-            for q in 0..Q {
-                let term = self.mul_f64x4(pulp::cast(g[k][q]), xk);
-                o[q] = pulp::cast(self.add_f64x4(pulp::cast(o[q]), term));
-            }
-        }
-        o
-    }
-}
-
 /// How the evaluator stores its interfaces: shared records when at most half the interfaces
 /// have a record of their own.
 enum Store<K: Kernel<N>, const N: usize> {
@@ -374,18 +295,22 @@ impl<K: Kernel<N>, const N: usize> Store<K, N> {
         faces: Vec<Face<u32>>,
         records: &[Record<K, N>],
         keys: &[[i64; 11]],
+        interior: Interior,
         share: bool,
     ) -> Self {
-        let inline = |faces: &[Face<u32>]| {
+        let inline = |faces: &[Face<u32>], interior| {
             let inline = faces.iter().map(|f| Face {
                 a: f.a,
                 b: f.b,
                 record: records[f.record as usize],
             });
-            Store::Inline(inline.collect())
+            Store::Inline(Inline {
+                faces: inline.collect(),
+                interior,
+            })
         };
         if !share || faces.len() < SHARE_FROM {
-            return inline(&faces);
+            return inline(&faces, interior);
         }
         let mut index = std::collections::HashMap::new();
         let mut shared = Vec::new();
@@ -397,7 +322,7 @@ impl<K: Kernel<N>, const N: usize> Store<K, N> {
                 shared.len() as u32 - 1
             });
             if 2 * shared.len() > faces.len() {
-                return inline(&faces);
+                return inline(&faces, interior);
             }
             links.push(Face {
                 a: f.a,
@@ -409,13 +334,15 @@ impl<K: Kernel<N>, const N: usize> Store<K, N> {
             faces: links,
             maps: shared.iter().map(K::Map::new).collect(),
             records: shared,
+            interior,
         })
     }
 
+    /// The bytes of the interfaces and their records.
     fn bytes(&self) -> usize {
         use std::mem::size_of_val;
         match self {
-            Store::Inline(faces) => size_of_val(&faces[..]),
+            Store::Inline(s) => size_of_val(&s.faces[..]),
             Store::Shared(s) => {
                 size_of_val(&s.faces[..]) + size_of_val(&s.records[..]) + size_of_val(&s.maps[..])
             }
@@ -423,49 +350,12 @@ impl<K: Kernel<N>, const N: usize> Store<K, N> {
     }
 }
 
-/// Consecutive elements swept by one task, with the interfaces that start in them.
-#[derive(Debug, Clone)]
-struct Block {
-    elements: Range<usize>,
-    /// The interfaces between two of the block's elements, in interface order.
-    inner: Range<usize>,
-    /// Then, in interface order, those to a later block or to the ground. Of a given element,
-    /// these follow its inner ones in the interface order too (a later `b`, or [`GROUND`]).
-    rest: Range<usize>,
-    /// Interfaces into later blocks, as a range of `ElementWise::crossing`.
-    outgoing: Range<usize>,
-    /// Interfaces from earlier blocks, as a range of `ElementWise::incoming`.
-    incoming: Range<usize>,
-    /// Slots of the block's ring of pending forces, a power of two above its farthest reach
-    /// `max(b − a)`.
-    ring: usize,
-}
-
-/// Elements per block: at least this many, and at most 64 blocks in all (fewer interfaces
-/// cross blocks on large meshes).
-const MIN_BLOCK: usize = 4096;
-const MAX_BLOCKS: usize = 64;
-
-/// How many interfaces ahead of the sweep their records are asked for, and half as many ahead
-/// the `U` of their higher element. The hardware prefetchers stop at every 4 KiB page, which
-/// the stream of inline records crosses every 57 interfaces; 64 interfaces take about 0.5 µs to sweep.
-const PREFETCH_AHEAD: usize = 64;
-
 /// Element-wise evaluation of eq. 15 for the kinematics `K` with `N` DOFs per element.
 pub struct ElementWise<K: Kernel<N>, const N: usize> {
-    /// Block after block: its inner interfaces, then the rest ([`Block`]), each sorted by `(a, b)`.
+    /// Block after block: its inner interfaces, then the rest, each sorted by `(a, b)`.
     faces: Store<K, N>,
-    blocks: Vec<Block>,
-    /// The interfaces whose elements lie in two blocks, in interface order.
-    crossing: Vec<u32>,
-    /// Per block, the interfaces that end in it as `(b, index into crossing)`, ordered by
-    /// `b` and then in interface order.
-    incoming: Vec<(u32, u32)>,
-    /// The crossing interfaces' forces and the blocks' rings, one evaluation at a time.
-    scratch: Mutex<Scratch<N>>,
-    /// `t A D` per element, acting on the strains `U_e[3..6]` (hybrid only; empty for rigid).
-    interior: Vec<nalgebra::Matrix3<f64>>,
-    kinematics: PhantomData<K>,
+    /// The blocks and the interfaces that cross them ([`Sweep`]).
+    sweep: Sweep<N>,
 }
 
 impl<K: Kernel<N>, const N: usize> ElementWise<K, N> {
@@ -520,53 +410,8 @@ impl<K: Kernel<N>, const N: usize> ElementWise<K, N> {
                 record: k as u32,
             })
             .collect();
-        faces.sort_by_key(|f| (f.a, f.b));
-        let n = model.elements.len();
-        let len = MIN_BLOCK.max(n.div_ceil(MAX_BLOCKS));
-        let (mut blocks, mut crossing) = (Vec::new(), Vec::new());
-        for first in (0..n).step_by(len) {
-            let elements = first..(first + len).min(n);
-            let start = |e: usize| faces.partition_point(|f| (f.a as usize) < e);
-            let here = start(elements.start)..start(elements.end);
-            // Inner interfaces first; a stable sort keeps the interface order in both parts.
-            let is_inner = |f: &Face<u32>| f.b != GROUND && (f.b as usize) < elements.end;
-            faces[here.clone()].sort_by_key(|f| !is_inner(f));
-            let inner = here.start + faces[here.clone()].partition_point(is_inner);
-            let reach = faces[here.start..inner]
-                .iter()
-                .map(|f| (f.b - f.a) as usize)
-                .max();
-            let ring = (reach.unwrap_or(0) + 1).next_power_of_two();
-            let before = crossing.len();
-            crossing.extend(
-                (inner..here.end)
-                    .filter(|&k| faces[k].b != GROUND)
-                    .map(|k| k as u32),
-            );
-            let outgoing = before..crossing.len();
-            blocks.push(Block {
-                elements,
-                inner: here.start..inner,
-                rest: inner..here.end,
-                outgoing,
-                incoming: 0..0,
-                ring,
-            });
-        }
-        let mut incoming = Vec::new();
-        for block in &mut blocks {
-            let before = incoming.len();
-            incoming.extend(crossing.iter().enumerate().filter_map(|(c, &k)| {
-                let b = faces[k as usize].b;
-                block
-                    .elements
-                    .contains(&(b as usize))
-                    .then_some((b, c as u32))
-            }));
-            incoming[before..].sort_unstable();
-            block.incoming = before..incoming.len();
-        }
-        let interior = if K::HAS_INTERIOR {
+        let sweep = Sweep::new(model.elements.len(), &mut faces);
+        let interior = Interior(if K::HAS_INTERIOR {
             model
                 .elements
                 .iter()
@@ -574,20 +419,10 @@ impl<K: Kernel<N>, const N: usize> ElementWise<K, N> {
                 .collect()
         } else {
             Vec::new()
-        };
-        let scratch = Mutex::new(Scratch {
-            crossing: vec![[[0.0; N]; 2]; crossing.len()],
-            rings: blocks.iter().map(|b| vec![[0.0; N]; b.ring]).collect(),
-            powers: vec![0.0; blocks.len()],
         });
         ElementWise {
-            faces: Store::new(faces, &records, &keys, share),
-            blocks,
-            crossing,
-            incoming,
-            scratch,
-            interior,
-            kinematics: PhantomData,
+            faces: Store::new(faces, &records, &keys, interior, share),
+            sweep,
         }
     }
 
@@ -612,288 +447,6 @@ impl<K: Kernel<N>, const N: usize> ElementWise<K, N> {
         K::add_edge_odd(&mut out[1], ub, Some(ua), &f.odd, s);
         out
     }
-
-    /// The scratch space, with the crossing interfaces' forces from `u` at `t_n`, computed
-    /// before any block moves.
-    fn crossing_pass(&self, u: &[[f64; N]]) -> std::sync::MutexGuard<'_, Scratch<N>> {
-        fn pass<K: Kernel<N>, const N: usize>(
-            faces: &impl Faces<K, N>,
-            crossing: &[u32],
-            u: &[[f64; N]],
-            out: &mut [[[f64; N]; 2]],
-        ) {
-            out.par_iter_mut()
-                .zip(crossing.par_iter())
-                .with_min_len(1024)
-                .for_each(|(out, &k)| {
-                    let f = &faces.faces()[k as usize];
-                    let (ua, ub) = (&u[f.a as usize], &u[f.b as usize]);
-                    *out = ElementWise::face_forces(faces.record(f), ua, Some(ub));
-                });
-        }
-        let mut scratch = self.scratch.lock().unwrap_or_else(|e| e.into_inner());
-        match &self.faces {
-            Store::Inline(faces) => pass(faces, &self.crossing, u, &mut scratch.crossing),
-            Store::Shared(faces) => pass(faces, &self.crossing, u, &mut scratch.crossing),
-        }
-        scratch
-    }
-
-    /// Eq. 15 over one block: each element's `f_int`, minus the springs' forces plus the
-    /// interior term `t A D ε` of hybrid elements, summed in interface order in the block's
-    /// `ring` (all zero before and after) and handed to `state` as soon as it is complete.
-    /// `crossing` holds the crossing interfaces' forces.
-    ///
-    /// On x86-64 it runs compiled for AVX2 where the processor has it (three-operand
-    /// instructions, and [`FaceMap`]s in 256-bit lanes: fewer of them). The arithmetic is the
-    /// same, with no fused multiply-add, so the forces are the same bits on every processor.
-    #[inline(always)]
-    fn sweep<S: BlockState<N>>(
-        &self,
-        block: &Block,
-        crossing: &[[[f64; N]; 2]],
-        ring: &mut [[f64; N]],
-        state: S,
-    ) {
-        match &self.faces {
-            Store::Inline(faces) => self.sweep_for(faces, block, crossing, ring, state),
-            Store::Shared(faces) => self.sweep_for(faces, block, crossing, ring, state),
-        }
-    }
-
-    /// [`ElementWise::sweep`] over the interfaces stored as `faces`.
-    #[inline(always)]
-    fn sweep_for<F: Faces<K, N>, S: BlockState<N>>(
-        &self,
-        faces: &F,
-        block: &Block,
-        crossing: &[[[f64; N]; 2]],
-        ring: &mut [[f64; N]],
-        state: S,
-    ) {
-        #[cfg(target_arch = "x86_64")]
-        if let Some(simd) = pulp::x86::V3::try_new() {
-            return simd
-                .vectorize(move || self.sweep_in_order(simd, faces, block, crossing, ring, state));
-        }
-        self.sweep_in_order(Plain, faces, block, crossing, ring, state)
-    }
-
-    /// [`ElementWise::sweep`], as compiled for the processor at hand.
-    #[inline(always)]
-    fn sweep_in_order<F: Faces<K, N>, S: BlockState<N>>(
-        &self,
-        lanes: impl Lanes,
-        faces: &F,
-        block: &Block,
-        crossing: &[[[f64; N]; 2]],
-        ring: &mut [[f64; N]],
-        mut state: S,
-    ) {
-        let first = block.elements.start;
-        let mask = ring.len() - 1;
-        let ring = &mut ring[..=mask];
-        let incoming = &self.incoming[block.incoming.clone()];
-        let crossing_out = &crossing[block.outgoing.clone()];
-        let mut out = 0;
-        let inner = &faces.faces()[block.inner.clone()];
-        let rest = &faces.faces()[block.rest.clone()];
-        let (mut k, mut r, mut next_in) = (0, 0, 0);
-        // Where the next interface from an earlier block enters the ring, and the next element
-        // with interfaces to the ground or to a later block: both are rare, and each element
-        // tests them once.
-        let entry = |next_in: usize| {
-            incoming.get(next_in).map_or(usize::MAX, |&(b, _)| {
-                (b as usize - first).saturating_sub(mask)
-            })
-        };
-        let start = |r: usize| rest.get(r).map_or(usize::MAX, |f| f.a as usize);
-        let (mut next_entry, mut next_rest) = (entry(0), start(0));
-        for (i, e) in block.elements.clone().enumerate() {
-            // An interface from an earlier block enters the ring as soon as the ring reaches its
-            // element, before any interface of this block does: interface order.
-            if i >= next_entry {
-                while let Some(&(b, c)) = incoming.get(next_in) {
-                    let j = b as usize - first;
-                    if j > i + mask {
-                        break;
-                    }
-                    sub(&mut ring[j & mask], &crossing[c as usize][1]);
-                    next_in += 1;
-                }
-                next_entry = entry(next_in);
-            }
-            // The forces from earlier elements, then this element's own interfaces.
-            let mut f = std::mem::replace(&mut ring[i & mask], [0.0; N]);
-            let ue = *state.u(i);
-            while let Some(face) = inner.get(k).filter(|face| face.a as usize == e) {
-                if F::PREFETCH {
-                    if let Some(ahead) = inner.get(k + PREFETCH_AHEAD) {
-                        prefetch(ahead);
-                    }
-                    if let Some(ahead) = inner.get(k + PREFETCH_AHEAD / 2) {
-                        prefetch(state.u(ahead.b as usize - first));
-                    }
-                }
-                k += 1;
-                let j = face.b as usize - first;
-                faces.add_internal(lanes, face, &ue, state.u(j), &mut f, &mut ring[j & mask]);
-            }
-            if e == next_rest {
-                while let Some(face) = rest.get(r).filter(|face| face.a as usize == e) {
-                    r += 1;
-                    if face.b == GROUND {
-                        sub(&mut f, &Self::face_forces(faces.record(face), &ue, None)[0]);
-                    } else {
-                        sub(&mut f, &crossing_out[out][0]);
-                        out += 1;
-                    }
-                }
-                next_rest = start(r);
-            }
-            if K::HAS_INTERIOR {
-                let stress = self.interior[e] * nalgebra::Vector3::new(ue[3], ue[4], ue[5]);
-                for j in 0..3 {
-                    f[3 + j] += stress[j];
-                }
-            }
-            state.complete(e, i, &mut f);
-        }
-    }
-}
-
-/// What an evaluation writes besides `U`, `v` and `f`: the crossing interfaces' forces and
-/// one ring of pending forces per block.
-struct Scratch<const N: usize> {
-    crossing: Vec<[[f64; N]; 2]>,
-    rings: Vec<Vec<[f64; N]>>,
-    /// Per block, `Σ v̄ᵀ M_e v̄` of a damped step ([`ElementUpdate::element`]).
-    powers: Vec<f64>,
-}
-
-/// Asks the cache for `x` ahead of its use: a hint, with no effect on any result (a no-op off
-/// x86-64).
-#[inline(always)]
-fn prefetch<T>(x: &T) {
-    #[cfg(target_arch = "x86_64")]
-    safe_arch::prefetch_t0(x);
-}
-
-#[inline(always)]
-fn sub<const N: usize>(acc: &mut [f64; N], x: &[f64; N]) {
-    for j in 0..N {
-        acc[j] -= x[j];
-    }
-}
-
-/// The state a sweep reads `U` from, and what it does with an element whose force is complete.
-trait BlockState<const N: usize> {
-    fn u(&self, i: usize) -> &[f64; N];
-    /// Element `e` (index `i` in the block) has its whole internal force `f`.
-    fn complete(&mut self, e: usize, i: usize, f: &mut [f64; N]);
-}
-
-/// An evaluation: `U` is only read, and each force is written once.
-struct Evaluate<'a, const N: usize> {
-    u: &'a [[f64; N]],
-    f: &'a mut [[f64; N]],
-}
-
-impl<const N: usize> BlockState<N> for Evaluate<'_, N> {
-    #[inline(always)]
-    fn u(&self, i: usize) -> &[f64; N] {
-        &self.u[i]
-    }
-    #[inline(always)]
-    fn complete(&mut self, _: usize, i: usize, f: &mut [f64; N]) {
-        self.f[i] = *f;
-    }
-}
-
-/// A time step: a complete element gets the rest of its net force from `force`, is advanced,
-/// and leaves its part of `force` zero.
-struct Advance<'a, const N: usize, E> {
-    u: &'a mut [[f64; N]],
-    v: &'a mut [[f64; N]],
-    /// The block's part of `−P − f_c`.
-    force: &'a mut [[f64; N]],
-    /// The elements, in order, where `force` may not be zero; `None`: all of them.
-    loaded: Option<&'a [u32]>,
-    /// The block's update ([`Update::resolve`]).
-    update: E,
-    /// The damping's power of the block's elements, summed in order (damped updates only).
-    power: &'a mut f64,
-}
-
-impl<const N: usize, E: ElementUpdate<N>> BlockState<N> for Advance<'_, N, E> {
-    #[inline(always)]
-    fn u(&self, i: usize) -> &[f64; N] {
-        &self.u[i]
-    }
-    #[inline(always)]
-    fn complete(&mut self, e: usize, i: usize, f: &mut [f64; N]) {
-        let external = match &mut self.loaded {
-            None => true,
-            Some([next, rest @ ..]) if *next as usize == e => {
-                self.loaded = Some(rest);
-                true
-            }
-            Some(_) => false,
-        };
-        if external {
-            let p = std::mem::replace(&mut self.force[i], [0.0; N]);
-            for j in 0..N {
-                f[j] += p[j];
-            }
-        }
-        let power = self.update.element(i, f, &mut self.v[i], &mut self.u[i]);
-        if E::DAMPED {
-            *self.power += power;
-        }
-    }
-}
-
-/// A block's time step, waiting for its update to be resolved.
-struct AdvanceBlock<'a, K: Kernel<N>, const N: usize> {
-    evaluator: &'a ElementWise<K, N>,
-    block: &'a Block,
-    crossing: &'a [[[f64; N]; 2]],
-    ring: &'a mut [[f64; N]],
-    u: &'a mut [[f64; N]],
-    v: &'a mut [[f64; N]],
-    force: &'a mut [[f64; N]],
-    loaded: Option<&'a [u32]>,
-    power: &'a mut f64,
-}
-
-impl<K: Kernel<N>, const N: usize> WithUpdate<N> for AdvanceBlock<'_, K, N> {
-    fn run<E: ElementUpdate<N>>(self, update: E) {
-        let AdvanceBlock {
-            evaluator,
-            block,
-            crossing,
-            ring,
-            u,
-            v,
-            force,
-            loaded,
-            power,
-        } = self;
-        *power = 0.0;
-        evaluator.sweep(
-            block,
-            crossing,
-            ring,
-            Advance {
-                u,
-                v,
-                force,
-                loaded,
-                update,
-                power,
-            },
-        );
-    }
 }
 
 impl<K: Kernel<N>, const N: usize> Evaluator for ElementWise<K, N> {
@@ -902,45 +455,17 @@ impl<K: Kernel<N>, const N: usize> Evaluator for ElementWise<K, N> {
     }
 
     fn bytes(&self) -> usize {
-        use std::mem::size_of_val;
-        let crossing_forces = self.crossing.len() * std::mem::size_of::<[[f64; N]; 2]>();
-        let rings: usize = self
-            .blocks
-            .iter()
-            .map(|b| b.ring * std::mem::size_of::<[f64; N]>())
-            .sum();
-        self.faces.bytes()
-            + size_of_val(&self.crossing[..])
-            + size_of_val(&self.incoming[..])
-            + size_of_val(&self.interior[..])
-            + crossing_forces
-            + rings
+        let interior = match &self.faces {
+            Store::Inline(s) => &s.interior,
+            Store::Shared(s) => &s.interior,
+        };
+        self.faces.bytes() + std::mem::size_of_val(&interior.0[..]) + self.sweep.bytes()
     }
 
     fn internal_force(&self, u: &[f64], f: &mut [f64]) {
-        let (u, _) = u.as_chunks::<N>();
-        let (f, _) = f.as_chunks_mut::<N>();
-        let mut scratch = self.crossing_pass(u);
-        let Scratch {
-            crossing, rings, ..
-        } = &mut *scratch;
-        type Parts<'a, const N: usize> = (
-            (&'a Block, &'a mut Vec<[f64; N]>),
-            (&'a [[f64; N]], &'a mut [[f64; N]]),
-        );
-        let work = |((block, ring), (u, f)): Parts<N>| {
-            self.sweep(block, crossing, ring, Evaluate { u, f })
-        };
-        match &self.blocks[..] {
-            [block] => work(((block, &mut rings[0]), (u, f))),
-            blocks => {
-                let len = blocks.first().map_or(1, |b| b.elements.len());
-                blocks
-                    .par_iter()
-                    .zip(rings.par_iter_mut())
-                    .zip(u.par_chunks(len).zip(f.par_chunks_mut(len)))
-                    .for_each(work);
-            }
+        match &self.faces {
+            Store::Inline(faces) => self.sweep.evaluate(faces, u, f),
+            Store::Shared(faces) => self.sweep.evaluate(faces, u, f),
         }
     }
 
@@ -958,64 +483,16 @@ impl<K: Kernel<N>, const N: usize> FusedStep for ElementWise<K, N> {
         loaded: Option<&[u32]>,
         update: &Update,
     ) -> f64 {
-        let (u, _) = u.as_chunks_mut::<N>();
-        let (v, _) = v.as_chunks_mut::<N>();
-        let (force, _) = force.as_chunks_mut::<N>();
-        let mut scratch = self.crossing_pass(u);
-        let Scratch {
-            crossing,
-            rings,
-            powers,
-        } = &mut *scratch;
-        type Parts<'a, const N: usize> = (
-            ((&'a Block, &'a mut Vec<[f64; N]>), &'a mut f64),
-            ((&'a mut [[f64; N]], &'a mut [[f64; N]]), &'a mut [[f64; N]]),
-        );
-        let work = |(((block, ring), power), ((u, v), force)): Parts<N>| {
-            // The loaded elements of this block.
-            let loaded = loaded.map(|l| {
-                let at = |e: usize| l.partition_point(|&x| (x as usize) < e);
-                &l[at(block.elements.start)..at(block.elements.end)]
-            });
-            let ring = &mut ring[..];
-            update.resolve(
-                block.elements.clone(),
-                AdvanceBlock {
-                    evaluator: self,
-                    block,
-                    crossing,
-                    ring,
-                    u,
-                    v,
-                    force,
-                    loaded,
-                    power,
-                },
-            );
-        };
-        match &self.blocks[..] {
-            [block] => work((((block, &mut rings[0]), &mut powers[0]), ((u, v), force))),
-            blocks => {
-                let len = blocks.first().map_or(1, |b| b.elements.len());
-                let vectors = u
-                    .par_chunks_mut(len)
-                    .zip(v.par_chunks_mut(len))
-                    .zip(force.par_chunks_mut(len));
-                blocks
-                    .par_iter()
-                    .zip(rings.par_iter_mut())
-                    .zip(powers.par_iter_mut())
-                    .zip(vectors)
-                    .for_each(work);
-            }
+        match &self.faces {
+            Store::Inline(faces) => self.sweep.advance(faces, u, v, force, loaded, update),
+            Store::Shared(faces) => self.sweep.advance(faces, u, v, force, loaded, update),
         }
-        // In block order: the same sum whatever the thread count.
-        powers.iter().sum()
     }
 }
 
 #[cfg(test)]
 mod tests {
+    use super::super::sweep::Plain;
     use super::*;
     use crate::force::evaluator::Assembled;
     use crate::input::scene::Scene;
@@ -1023,30 +500,10 @@ mod tests {
 
     /// `f_int` swept by the plain build, block after block.
     fn plain_forces<K: Kernel<N>, const N: usize>(ev: &ElementWise<K, N>, u: &[f64]) -> Vec<f64> {
-        let mut f = vec![0.0; u.len()];
-        let (u, _) = u.as_chunks::<N>();
-        let (fc, _) = f.as_chunks_mut::<N>();
-        let mut scratch = ev.crossing_pass(u);
-        let Scratch {
-            crossing, rings, ..
-        } = &mut *scratch;
-        for (block, ring) in ev.blocks.iter().zip(rings.iter_mut()) {
-            let r = block.elements.clone();
-            let state = Evaluate {
-                u: &u[r.clone()],
-                f: &mut fc[r],
-            };
-            match &ev.faces {
-                Store::Inline(faces) => {
-                    ev.sweep_in_order(Plain, faces, block, crossing, ring, state)
-                }
-                Store::Shared(faces) => {
-                    ev.sweep_in_order(Plain, faces, block, crossing, ring, state)
-                }
-            }
+        match &ev.faces {
+            Store::Inline(faces) => ev.sweep.evaluate_plain(faces, u),
+            Store::Shared(faces) => ev.sweep.evaluate_plain(faces, u),
         }
-        drop(scratch);
-        f
     }
 
     /// A scene of one body on `mesh`, held by ground springs on its left edge.
@@ -1081,7 +538,7 @@ mod tests {
     fn the_avx2_sweep_gives_the_plain_bits() {
         fn check<K: Kernel<N>, const N: usize>(model: &Model, shared: bool) {
             let ev = ElementWise::<K, N>::new(model);
-            assert!(ev.blocks.len() >= 2 && !ev.crossing.is_empty());
+            assert!(ev.sweep.blocks.len() >= 2 && !ev.sweep.crossing.is_empty());
             assert_eq!(matches!(ev.faces, Store::Shared(_)), shared);
             let u = displacements(model);
             let mut f = vec![0.0; u.len()];
@@ -1154,7 +611,7 @@ mod tests {
     #[test]
     fn a_face_map_is_its_record() {
         fn check<K: Kernel<N>, const N: usize>(model: &Model) {
-            let Store::Inline(faces) = ElementWise::<K, N>::new(model).faces else {
+            let Store::Inline(Inline { faces, .. }) = ElementWise::<K, N>::new(model).faces else {
                 panic!("a Voronoi mesh's records are shared");
             };
             let u = displacements(model);
@@ -1198,9 +655,10 @@ mod tests {
             "time": {"dt": 1e-9, "steps": 1}}"#;
         let model = Model::build(&Scene::from_json(json).unwrap()).unwrap();
         let ev = ElementWise::<Rigid, 3>::new(&model);
-        assert!(ev.blocks.len() >= 3 && ev.blocks.iter().all(|b| b.ring == 2));
-        let late = ev.blocks.iter().flat_map(|b| {
-            ev.incoming[b.incoming.clone()]
+        let sweep = &ev.sweep;
+        assert!(sweep.blocks.len() >= 3 && sweep.blocks.iter().all(|b| b.ring == 2));
+        let late = sweep.blocks.iter().flat_map(|b| {
+            sweep.incoming[b.incoming.clone()]
                 .iter()
                 .filter(move |&&(e, _)| e as usize - b.elements.start >= b.ring)
         });
@@ -1220,7 +678,7 @@ mod tests {
             .zip(&fe)
             .fold(0.0f64, |m, (a, e)| m.max((a - e).abs()));
         assert!(diff <= 1e-12 * scale, "|Δf| = {diff:e} of {scale:e}");
-        let scratch = ev.scratch.lock().unwrap();
+        let scratch = sweep.scratch.lock().unwrap();
         assert!(
             scratch.rings.iter().flatten().all(|s| *s == [0.0; 3]),
             "a ring was left with a pending force"

@@ -7,8 +7,9 @@
 
 mod assembled;
 mod element_wise;
+mod sweep;
 
-pub use assembled::{interface_stiffness, Assembled, BlockCsr};
+pub use assembled::{assemble, interface_stiffness, Assembled, BlockCsr};
 pub use element_wise::ElementWise;
 
 use crate::input::scene::EvaluatorKind;
@@ -54,8 +55,8 @@ pub trait FusedStep {
 /// The global stiffness `K` of eq. 7 as scalar triplets `(row, col, value)` over all DOFs.
 pub fn stiffness_triplets(model: &Model) -> Vec<(usize, usize, f64)> {
     match model.formulation {
-        Formulation::Rigid => Assembled::<Rigid, 3>::new(model).stiffness.triplets(),
-        Formulation::Hybrid { .. } => Assembled::<Hybrid, 6>::new(model).stiffness.triplets(),
+        Formulation::Rigid => assemble::<Rigid, 3>(model).triplets(),
+        Formulation::Hybrid { .. } => assemble::<Hybrid, 6>(model).triplets(),
     }
 }
 

@@ -1,0 +1,619 @@
+//! The sweep both evaluators evaluate and step with: the internal forces summed over the
+//! couplings of element pairs, each computed once and handed to both its elements, and each
+//! element advanced as soon as its force is complete ([`FusedStep`](super::FusedStep)).
+//!
+//! A coupling is what joins two elements `a < b`: for the element-wise evaluator an interface
+//! and its tractions (eq. 15), for the assembled one the block `K_ab` of the symmetric `K`
+//! (eq. 7), which gives `K_ab U_b` to `a` and `K_abᵀ U_a` to `b`. The couplings are kept in the
+//! order of their lower element; a sweep in that order has finished element `e` once it has done
+//! the couplings that start at `e` (those that end at `e` started earlier). The element's force
+//! is then complete and, in a time step, its velocity and displacement are advanced at once:
+//! `U_e` is read by no later coupling, and the step moves each vector once.
+//!
+//! While it sweeps, an element's force is pending only from its first coupling to its own
+//! completion, and a coupling reaches at most `max(b − a)` elements ahead. The pending forces
+//! are therefore kept in a ring of the next power of two above that reach, which stays in
+//! cache (a 1000 × 1000 grid needs 1024 slots): no global force vector is read or written.
+//! An element takes its pending force from the ring when the sweep reaches it and adds its own
+//! couplings in registers. The couplings inside a block lie apart from those to the ground and
+//! to later blocks, which are rare and need no test in the inner loop. A time step reads the
+//! rest of the net force, `−P − f_c`, only at the elements that carry loads when the integrator
+//! can name them (no gravity, no contact).
+//!
+//! Parallel sweeps run over fixed blocks of consecutive elements. A coupling from one block
+//! into a later one is computed before the sweeps, from the state at `t_n`, and handed to both
+//! blocks. Every element sums its couplings in their order whatever the blocks and the threads,
+//! so the result does not depend on the thread count.
+
+use crate::model::mass::{ElementUpdate, Update, WithUpdate};
+use crate::model::GROUND;
+use rayon::prelude::*;
+use std::ops::Range;
+use std::sync::{Mutex, MutexGuard};
+
+/// A coupling: its lower element `a`, its higher one `b` or [`GROUND`], and what it needs
+/// to give its forces, `R`.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Face<R> {
+    pub(super) a: u32,
+    pub(super) b: u32,
+    pub(super) record: R,
+}
+
+/// The couplings of a model, in the order of the sweep, and how each adds its internal forces
+/// `f_int` to its elements.
+pub(super) trait Couplings<const N: usize>: Sync {
+    /// What a [`Face`] holds of its coupling.
+    type Ref: Copy + Sync;
+    /// Whether the sweep asks for the couplings and `U` ahead of their use ([`PREFETCH_AHEAD`]):
+    /// a large record per coupling crosses a page every few dozen, which the hardware
+    /// prefetchers do not follow.
+    const PREFETCH: bool;
+    fn faces(&self) -> &[Face<Self::Ref>];
+    /// Adds the internal forces of `face`, between two elements, to `fa` and `fb`.
+    fn add_pair(
+        &self,
+        lanes: impl Lanes,
+        face: &Face<Self::Ref>,
+        ua: &[f64; N],
+        ub: &[f64; N],
+        fa: &mut [f64; N],
+        fb: &mut [f64; N],
+    );
+    /// Adds the internal force of `face`, to the ground, to `fa`.
+    fn add_ground(&self, face: &Face<Self::Ref>, ua: &[f64; N], fa: &mut [f64; N]);
+    /// Adds element `e`'s own term to its force `f`, last.
+    fn add_own(&self, e: usize, ue: &[f64; N], f: &mut [f64; N]);
+}
+
+/// Sums of products in groups of four lanes, `o = Σ_k x_k g[k]` in the order of `k`, with no
+/// fused multiply-add: the same bits on every path.
+pub trait Lanes: Copy {
+    fn combine<const M: usize, const Q: usize>(
+        self,
+        g: &[[[f64; 4]; Q]; M],
+        x: &[f64; M],
+    ) -> [[f64; 4]; Q];
+}
+
+/// [`Lanes`] one number at a time, on any processor.
+#[derive(Clone, Copy)]
+pub struct Plain;
+
+impl Lanes for Plain {
+    #[inline(always)]
+    fn combine<const M: usize, const Q: usize>(
+        self,
+        g: &[[[f64; 4]; Q]; M],
+        x: &[f64; M],
+    ) -> [[f64; 4]; Q] {
+        let mut o = [[0.0; 4]; Q];
+        for q in 0..Q {
+            for l in 0..4 {
+                o[q][l] = g[0][q][l] * x[0];
+            }
+        }
+        for k in 1..M {
+            for q in 0..Q {
+                for l in 0..4 {
+                    o[q][l] += g[k][q][l] * x[k];
+                }
+            }
+        }
+        o
+    }
+}
+
+/// [`Lanes`] in the 256-bit registers of AVX2.
+#[cfg(target_arch = "x86_64")]
+impl Lanes for pulp::x86::V3 {
+    #[inline(always)]
+    fn combine<const M: usize, const Q: usize>(
+        self,
+        g: &[[[f64; 4]; Q]; M],
+        x: &[f64; M],
+    ) -> [[f64; 4]; Q] {
+        let mut o = [[0.0; 4]; Q];
+        let x0 = self.splat_f64x4(x[0]);
+        for q in 0..Q {
+            o[q] = pulp::cast(self.mul_f64x4(pulp::cast(g[0][q]), x0));
+        }
+        for k in 1..M {
+            let xk = self.splat_f64x4(x[k]);
+            for q in 0..Q {
+                let term = self.mul_f64x4(pulp::cast(g[k][q]), xk);
+                o[q] = pulp::cast(self.add_f64x4(pulp::cast(o[q]), term));
+            }
+        }
+        o
+    }
+}
+
+/// Consecutive elements swept by one task, with the couplings that start in them.
+#[derive(Debug, Clone)]
+pub(super) struct Block {
+    pub(super) elements: Range<usize>,
+    /// The couplings between two of the block's elements, in coupling order.
+    inner: Range<usize>,
+    /// Then, in coupling order, those to a later block or to the ground. Of a given element,
+    /// these follow its inner ones in the coupling order too (a later `b`, or [`GROUND`]).
+    rest: Range<usize>,
+    /// Couplings into later blocks, as a range of `Sweep::crossing`.
+    outgoing: Range<usize>,
+    /// Couplings from earlier blocks, as a range of `Sweep::incoming`.
+    pub(super) incoming: Range<usize>,
+    /// Slots of the block's ring of pending forces, a power of two above its farthest reach
+    /// `max(b − a)`.
+    pub(super) ring: usize,
+}
+
+/// Elements per block: at least this many, and at most 64 blocks in all (fewer couplings
+/// cross blocks on large meshes).
+const MIN_BLOCK: usize = 4096;
+const MAX_BLOCKS: usize = 64;
+
+/// How many couplings ahead of the sweep their records are asked for, and half as many ahead
+/// the `U` of their higher element. The hardware prefetchers stop at every 4 KiB page, which
+/// a stream of 72-byte records crosses every 57 couplings; 64 couplings take about 0.5 µs to
+/// sweep.
+const PREFETCH_AHEAD: usize = 64;
+
+/// The blocks of a model's sweep, the couplings that cross them, and the scratch space of one
+/// evaluation at a time.
+pub(super) struct Sweep<const N: usize> {
+    pub(super) blocks: Vec<Block>,
+    /// The couplings whose elements lie in two blocks, in coupling order.
+    pub(super) crossing: Vec<u32>,
+    /// Per block, the couplings that end in it as `(b, index into crossing)`, ordered by
+    /// `b` and then in coupling order.
+    pub(super) incoming: Vec<(u32, u32)>,
+    /// The crossing couplings' forces and the blocks' rings.
+    pub(super) scratch: Mutex<Scratch<N>>,
+}
+
+/// What an evaluation writes besides `U`, `v` and `f`: the crossing couplings' forces and
+/// one ring of pending forces per block.
+pub(super) struct Scratch<const N: usize> {
+    crossing: Vec<[[f64; N]; 2]>,
+    pub(super) rings: Vec<Vec<[f64; N]>>,
+    /// Per block, `Σ v̄ᵀ M_e v̄` of a damped step ([`ElementUpdate::element`]).
+    powers: Vec<f64>,
+}
+
+impl<const N: usize> Sweep<N> {
+    /// Orders the couplings of `n` elements for the sweep, each with `a < b` or `b` the
+    /// [`GROUND`]: by `(a, b)`, then in each block those inside it first.
+    pub(super) fn new<R>(n: usize, faces: &mut [Face<R>]) -> Self {
+        faces.sort_by_key(|f| (f.a, f.b));
+        let len = MIN_BLOCK.max(n.div_ceil(MAX_BLOCKS));
+        let (mut blocks, mut crossing) = (Vec::new(), Vec::new());
+        for first in (0..n).step_by(len) {
+            let elements = first..(first + len).min(n);
+            let start = |e: usize| faces.partition_point(|f| (f.a as usize) < e);
+            let here = start(elements.start)..start(elements.end);
+            // Inner couplings first; a stable sort keeps the coupling order in both parts.
+            let is_inner = |f: &Face<R>| f.b != GROUND && (f.b as usize) < elements.end;
+            faces[here.clone()].sort_by_key(|f| !is_inner(f));
+            let inner = here.start + faces[here.clone()].partition_point(is_inner);
+            let reach = faces[here.start..inner]
+                .iter()
+                .map(|f| (f.b - f.a) as usize)
+                .max();
+            let ring = (reach.unwrap_or(0) + 1).next_power_of_two();
+            let before = crossing.len();
+            crossing.extend(
+                (inner..here.end)
+                    .filter(|&k| faces[k].b != GROUND)
+                    .map(|k| k as u32),
+            );
+            blocks.push(Block {
+                elements,
+                inner: here.start..inner,
+                rest: inner..here.end,
+                outgoing: before..crossing.len(),
+                incoming: 0..0,
+                ring,
+            });
+        }
+        let mut incoming = Vec::new();
+        for block in &mut blocks {
+            let before = incoming.len();
+            incoming.extend(crossing.iter().enumerate().filter_map(|(c, &k)| {
+                let b = faces[k as usize].b;
+                block
+                    .elements
+                    .contains(&(b as usize))
+                    .then_some((b, c as u32))
+            }));
+            incoming[before..].sort_unstable();
+            block.incoming = before..incoming.len();
+        }
+        let scratch = Mutex::new(Scratch {
+            crossing: vec![[[0.0; N]; 2]; crossing.len()],
+            rings: blocks.iter().map(|b| vec![[0.0; N]; b.ring]).collect(),
+            powers: vec![0.0; blocks.len()],
+        });
+        Sweep {
+            blocks,
+            crossing,
+            incoming,
+            scratch,
+        }
+    }
+
+    /// The bytes it holds: the crossing couplings and their forces, the rings.
+    pub(super) fn bytes(&self) -> usize {
+        use std::mem::{size_of, size_of_val};
+        let rings: usize = self.blocks.iter().map(|b| b.ring).sum();
+        size_of_val(&self.crossing[..])
+            + size_of_val(&self.incoming[..])
+            + self.crossing.len() * size_of::<[[f64; N]; 2]>()
+            + rings * size_of::<[f64; N]>()
+    }
+
+    /// `f = f_int(u)`, parallel over blocks.
+    pub(super) fn evaluate(&self, couplings: &impl Couplings<N>, u: &[f64], f: &mut [f64]) {
+        let (u, _) = u.as_chunks::<N>();
+        let (f, _) = f.as_chunks_mut::<N>();
+        let mut scratch = self.crossing_pass(couplings, u);
+        let Scratch {
+            crossing, rings, ..
+        } = &mut *scratch;
+        type Parts<'a, const N: usize> = (
+            (&'a Block, &'a mut Vec<[f64; N]>),
+            (&'a [[f64; N]], &'a mut [[f64; N]]),
+        );
+        let work = |((block, ring), (u, f)): Parts<N>| {
+            self.sweep(couplings, block, crossing, ring, Evaluate { u, f })
+        };
+        match &self.blocks[..] {
+            [block] => work(((block, &mut rings[0]), (u, f))),
+            blocks => {
+                let len = blocks.first().map_or(1, |b| b.elements.len());
+                blocks
+                    .par_iter()
+                    .zip(rings.par_iter_mut())
+                    .zip(u.par_chunks(len).zip(f.par_chunks_mut(len)))
+                    .for_each(work);
+            }
+        }
+    }
+
+    /// One explicit step ([`FusedStep::advance`](super::FusedStep::advance)), parallel over
+    /// blocks.
+    pub(super) fn advance(
+        &self,
+        couplings: &impl Couplings<N>,
+        u: &mut [f64],
+        v: &mut [f64],
+        force: &mut [f64],
+        loaded: Option<&[u32]>,
+        update: &Update,
+    ) -> f64 {
+        let (u, _) = u.as_chunks_mut::<N>();
+        let (v, _) = v.as_chunks_mut::<N>();
+        let (force, _) = force.as_chunks_mut::<N>();
+        let mut scratch = self.crossing_pass(couplings, u);
+        let Scratch {
+            crossing,
+            rings,
+            powers,
+        } = &mut *scratch;
+        type Parts<'a, const N: usize> = (
+            ((&'a Block, &'a mut Vec<[f64; N]>), &'a mut f64),
+            ((&'a mut [[f64; N]], &'a mut [[f64; N]]), &'a mut [[f64; N]]),
+        );
+        let work = |(((block, ring), power), ((u, v), force)): Parts<N>| {
+            // The loaded elements of this block.
+            let loaded = loaded.map(|l| {
+                let at = |e: usize| l.partition_point(|&x| (x as usize) < e);
+                &l[at(block.elements.start)..at(block.elements.end)]
+            });
+            let ring = &mut ring[..];
+            update.resolve(
+                block.elements.clone(),
+                AdvanceBlock {
+                    sweep: self,
+                    couplings,
+                    block,
+                    crossing,
+                    ring,
+                    u,
+                    v,
+                    force,
+                    loaded,
+                    power,
+                },
+            );
+        };
+        match &self.blocks[..] {
+            [block] => work((((block, &mut rings[0]), &mut powers[0]), ((u, v), force))),
+            blocks => {
+                let len = blocks.first().map_or(1, |b| b.elements.len());
+                let vectors = u
+                    .par_chunks_mut(len)
+                    .zip(v.par_chunks_mut(len))
+                    .zip(force.par_chunks_mut(len));
+                blocks
+                    .par_iter()
+                    .zip(rings.par_iter_mut())
+                    .zip(powers.par_iter_mut())
+                    .zip(vectors)
+                    .for_each(work);
+            }
+        }
+        // In block order: the same sum whatever the thread count.
+        powers.iter().sum()
+    }
+
+    /// The scratch space, with the crossing couplings' forces from `u` at `t_n`, computed
+    /// before any block moves.
+    fn crossing_pass(
+        &self,
+        couplings: &impl Couplings<N>,
+        u: &[[f64; N]],
+    ) -> MutexGuard<'_, Scratch<N>> {
+        let mut scratch = self.scratch.lock().unwrap_or_else(|e| e.into_inner());
+        scratch
+            .crossing
+            .par_iter_mut()
+            .zip(self.crossing.par_iter())
+            .with_min_len(1024)
+            .for_each(|(out, &k)| {
+                let f = &couplings.faces()[k as usize];
+                let (ua, ub) = (&u[f.a as usize], &u[f.b as usize]);
+                *out = [[0.0; N]; 2];
+                let [fa, fb] = out;
+                couplings.add_pair(Plain, f, ua, ub, fa, fb);
+            });
+        scratch
+    }
+
+    /// The internal forces over one block: each element's `f_int`, summed in coupling order in
+    /// the block's `ring` (all zero before and after), its own term last, and handed to `state`
+    /// as soon as it is complete. `crossing` holds the crossing couplings' forces.
+    ///
+    /// On x86-64 it runs compiled for AVX2 where the processor has it (three-operand
+    /// instructions, and [`Lanes`] of 256 bits: fewer of them). The arithmetic is the same, with
+    /// no fused multiply-add, so the forces are the same bits on every processor.
+    #[inline(always)]
+    fn sweep<C: Couplings<N>, S: BlockState<N>>(
+        &self,
+        couplings: &C,
+        block: &Block,
+        crossing: &[[[f64; N]; 2]],
+        ring: &mut [[f64; N]],
+        state: S,
+    ) {
+        #[cfg(target_arch = "x86_64")]
+        if let Some(simd) = pulp::x86::V3::try_new() {
+            return simd.vectorize(move || {
+                self.sweep_in_order(simd, couplings, block, crossing, ring, state)
+            });
+        }
+        self.sweep_in_order(Plain, couplings, block, crossing, ring, state)
+    }
+
+    /// [`Sweep::sweep`], as compiled for the processor at hand.
+    #[inline(always)]
+    fn sweep_in_order<C: Couplings<N>, S: BlockState<N>>(
+        &self,
+        lanes: impl Lanes,
+        couplings: &C,
+        block: &Block,
+        crossing: &[[[f64; N]; 2]],
+        ring: &mut [[f64; N]],
+        mut state: S,
+    ) {
+        let first = block.elements.start;
+        let mask = ring.len() - 1;
+        let ring = &mut ring[..=mask];
+        let incoming = &self.incoming[block.incoming.clone()];
+        let crossing_out = &crossing[block.outgoing.clone()];
+        let mut out = 0;
+        let inner = &couplings.faces()[block.inner.clone()];
+        let rest = &couplings.faces()[block.rest.clone()];
+        let (mut k, mut r, mut next_in) = (0, 0, 0);
+        // Where the next coupling from an earlier block enters the ring, and the next element
+        // with couplings to the ground or to a later block: both are rare, and each element
+        // tests them once.
+        let entry = |next_in: usize| {
+            incoming.get(next_in).map_or(usize::MAX, |&(b, _)| {
+                (b as usize - first).saturating_sub(mask)
+            })
+        };
+        let start = |r: usize| rest.get(r).map_or(usize::MAX, |f| f.a as usize);
+        let (mut next_entry, mut next_rest) = (entry(0), start(0));
+        for (i, e) in block.elements.clone().enumerate() {
+            // A coupling from an earlier block enters the ring as soon as the ring reaches its
+            // element, before any coupling of this block does: coupling order.
+            if i >= next_entry {
+                while let Some(&(b, c)) = incoming.get(next_in) {
+                    let j = b as usize - first;
+                    if j > i + mask {
+                        break;
+                    }
+                    add(&mut ring[j & mask], &crossing[c as usize][1]);
+                    next_in += 1;
+                }
+                next_entry = entry(next_in);
+            }
+            // The forces from earlier elements, then this element's own couplings.
+            let mut f = std::mem::replace(&mut ring[i & mask], [0.0; N]);
+            let ue = *state.u(i);
+            while let Some(face) = inner.get(k).filter(|face| face.a as usize == e) {
+                if C::PREFETCH {
+                    if let Some(ahead) = inner.get(k + PREFETCH_AHEAD) {
+                        prefetch(ahead);
+                    }
+                    if let Some(ahead) = inner.get(k + PREFETCH_AHEAD / 2) {
+                        prefetch(state.u(ahead.b as usize - first));
+                    }
+                }
+                k += 1;
+                let j = face.b as usize - first;
+                couplings.add_pair(lanes, face, &ue, state.u(j), &mut f, &mut ring[j & mask]);
+            }
+            if e == next_rest {
+                while let Some(face) = rest.get(r).filter(|face| face.a as usize == e) {
+                    r += 1;
+                    if face.b == GROUND {
+                        couplings.add_ground(face, &ue, &mut f);
+                    } else {
+                        add(&mut f, &crossing_out[out][0]);
+                        out += 1;
+                    }
+                }
+                next_rest = start(r);
+            }
+            couplings.add_own(e, &ue, &mut f);
+            state.complete(e, i, &mut f);
+        }
+    }
+
+    /// `f_int(u)` swept by the plain build, block after block (tests: the AVX2 sweep gives its
+    /// bits).
+    #[cfg(test)]
+    pub(super) fn evaluate_plain(&self, couplings: &impl Couplings<N>, u: &[f64]) -> Vec<f64> {
+        let mut f = vec![0.0; u.len()];
+        let (u, _) = u.as_chunks::<N>();
+        let (fc, _) = f.as_chunks_mut::<N>();
+        let mut scratch = self.crossing_pass(couplings, u);
+        let Scratch {
+            crossing, rings, ..
+        } = &mut *scratch;
+        for (block, ring) in self.blocks.iter().zip(rings.iter_mut()) {
+            let r = block.elements.clone();
+            let state = Evaluate {
+                u: &u[r.clone()],
+                f: &mut fc[r],
+            };
+            self.sweep_in_order(Plain, couplings, block, crossing, ring, state);
+        }
+        drop(scratch);
+        f
+    }
+}
+
+/// Asks the cache for `x` ahead of its use: a hint, with no effect on any result (a no-op off
+/// x86-64).
+#[inline(always)]
+fn prefetch<T>(x: &T) {
+    #[cfg(target_arch = "x86_64")]
+    safe_arch::prefetch_t0(x);
+}
+
+#[inline(always)]
+fn add<const N: usize>(acc: &mut [f64; N], x: &[f64; N]) {
+    for j in 0..N {
+        acc[j] += x[j];
+    }
+}
+
+/// The state a sweep reads `U` from, and what it does with an element whose force is complete.
+trait BlockState<const N: usize> {
+    fn u(&self, i: usize) -> &[f64; N];
+    /// Element `e` (index `i` in the block) has its whole internal force `f`.
+    fn complete(&mut self, e: usize, i: usize, f: &mut [f64; N]);
+}
+
+/// An evaluation: `U` is only read, and each force is written once.
+struct Evaluate<'a, const N: usize> {
+    u: &'a [[f64; N]],
+    f: &'a mut [[f64; N]],
+}
+
+impl<const N: usize> BlockState<N> for Evaluate<'_, N> {
+    #[inline(always)]
+    fn u(&self, i: usize) -> &[f64; N] {
+        &self.u[i]
+    }
+    #[inline(always)]
+    fn complete(&mut self, _: usize, i: usize, f: &mut [f64; N]) {
+        self.f[i] = *f;
+    }
+}
+
+/// A time step: a complete element gets the rest of its net force from `force`, is advanced,
+/// and leaves its part of `force` zero.
+struct Advance<'a, const N: usize, E> {
+    u: &'a mut [[f64; N]],
+    v: &'a mut [[f64; N]],
+    /// The block's part of `−P − f_c`.
+    force: &'a mut [[f64; N]],
+    /// The elements, in order, where `force` may not be zero; `None`: all of them.
+    loaded: Option<&'a [u32]>,
+    /// The block's update ([`Update::resolve`]).
+    update: E,
+    /// The damping's power of the block's elements, summed in order (damped updates only).
+    power: &'a mut f64,
+}
+
+impl<const N: usize, E: ElementUpdate<N>> BlockState<N> for Advance<'_, N, E> {
+    #[inline(always)]
+    fn u(&self, i: usize) -> &[f64; N] {
+        &self.u[i]
+    }
+    #[inline(always)]
+    fn complete(&mut self, e: usize, i: usize, f: &mut [f64; N]) {
+        let external = match &mut self.loaded {
+            None => true,
+            Some([next, rest @ ..]) if *next as usize == e => {
+                self.loaded = Some(rest);
+                true
+            }
+            Some(_) => false,
+        };
+        if external {
+            let p = std::mem::replace(&mut self.force[i], [0.0; N]);
+            for j in 0..N {
+                f[j] += p[j];
+            }
+        }
+        let power = self.update.element(i, f, &mut self.v[i], &mut self.u[i]);
+        if E::DAMPED {
+            *self.power += power;
+        }
+    }
+}
+
+/// A block's time step, waiting for its update to be resolved.
+struct AdvanceBlock<'a, C, const N: usize> {
+    sweep: &'a Sweep<N>,
+    couplings: &'a C,
+    block: &'a Block,
+    crossing: &'a [[[f64; N]; 2]],
+    ring: &'a mut [[f64; N]],
+    u: &'a mut [[f64; N]],
+    v: &'a mut [[f64; N]],
+    force: &'a mut [[f64; N]],
+    loaded: Option<&'a [u32]>,
+    power: &'a mut f64,
+}
+
+impl<C: Couplings<N>, const N: usize> WithUpdate<N> for AdvanceBlock<'_, C, N> {
+    fn run<E: ElementUpdate<N>>(self, update: E) {
+        let AdvanceBlock {
+            sweep,
+            couplings,
+            block,
+            crossing,
+            ring,
+            u,
+            v,
+            force,
+            loaded,
+            power,
+        } = self;
+        *power = 0.0;
+        let state = Advance {
+            u,
+            v,
+            force,
+            loaded,
+            update,
+            power,
+        };
+        sweep.sweep(couplings, block, crossing, ring, state);
+    }
+}
