@@ -1,9 +1,9 @@
 //! The assembled evaluator (eqs. 7–13): `K = Σ_s K_<s>` from the interfaces, summed into one
 //! `N × N` block per element pair, and `f_int = K U`.
 //!
-//! `K` is symmetric, so the evaluator keeps each element's diagonal block `K_ee` and, of each
-//! pair `a < b`, the block `K_ab` alone (`K_ba = K_abᵀ`): 4 blocks of 5 per element on a grid
-//! become 3. The product runs in the sweep both evaluators share ([`super::sweep`]): the pair
+//! `K` is symmetric, so the evaluator keeps the upper triangle of each element's diagonal
+//! block `K_ee` and, of each pair `a < b`, the block `K_ab` alone (`K_ba = K_abᵀ`): on a grid,
+//! 5 blocks per element become 2 and a triangle. The product runs in the sweep both evaluators share ([`super::sweep`]): the pair
 //! gives `K_ab U_b` to `a` and `K_abᵀ U_a` to `b`, each element adds `K_ee U_e` last, and a time
 //! step advances each element as soon as its row of `K U` is complete, so that `K` and the
 //! vectors are read once per step and no force vector is written.
@@ -165,24 +165,40 @@ type Block<const N: usize> = [[f64; N]; N];
 pub struct Assembled<K: Kinematics<N>, const N: usize> {
     /// `K_ab` of each pair `a < b` of coupled elements, in the order of the sweep.
     pairs: Vec<Face<Block<N>>>,
-    /// `K_ee` of each element.
-    diagonal: Vec<Block<N>>,
+    /// `K_ee` of each element, its upper triangle row after row ([`Assembled::PACKED`] numbers).
+    diagonal: Vec<f64>,
     sweep: Sweep<N>,
     kinematics: PhantomData<K>,
 }
 
 impl<K: Kinematics<N>, const N: usize> Assembled<K, N> {
+    /// The numbers of a symmetric `N × N` block's upper triangle.
+    const PACKED: usize = N * (N + 1) / 2;
+
+    /// Where entry `(p, q)`, `p ≤ q`, of a block's upper triangle is kept.
+    #[inline(always)]
+    const fn packed(p: usize, q: usize) -> usize {
+        p * N - p * (p + 1) / 2 + q
+    }
+
     /// Assembles `K` ([`assemble`]) and keeps its diagonal and upper blocks.
     pub fn new(model: &Model) -> Self {
         let k = assemble::<K, N>(model);
         let n = k.n_rows();
-        let mut diagonal = vec![[[0.0; N]; N]; n];
+        let mut diagonal = vec![0.0; n * Self::PACKED];
         let mut pairs = Vec::with_capacity(k.blocks.len().saturating_sub(n) / 2);
         for (a, row) in k.row_start.windows(2).enumerate() {
             for j in row[0] as usize..row[1] as usize {
                 let (b, block) = (k.cols[j], k.blocks[j]);
                 match (b as usize).cmp(&a) {
-                    std::cmp::Ordering::Equal => diagonal[a] = block,
+                    std::cmp::Ordering::Equal => {
+                        let packed = &mut diagonal[a * Self::PACKED..][..Self::PACKED];
+                        for p in 0..N {
+                            for q in p..N {
+                                packed[Self::packed(p, q)] = block[p][q];
+                            }
+                        }
+                    }
                     std::cmp::Ordering::Greater => pairs.push(Face {
                         a: a as u32,
                         b,
@@ -246,11 +262,12 @@ impl<K: Kinematics<N>, const N: usize> Couplings<N> for Assembled<K, N> {
     /// `f_e += K_ee U_e`.
     #[inline(always)]
     fn add_own(&self, e: usize, ue: &[f64; N], f: &mut [f64; N]) {
-        let k = &self.diagonal[e];
+        let k = &self.diagonal[e * Self::PACKED..][..Self::PACKED];
+        let at = |p: usize, q: usize| k[Self::packed(p.min(q), p.max(q))];
         for p in 0..N {
-            let mut s = k[p][0] * ue[0];
+            let mut s = at(p, 0) * ue[0];
             for q in 1..N {
-                s += k[p][q] * ue[q];
+                s += at(p, q) * ue[q];
             }
             f[p] += s;
         }
