@@ -3,10 +3,11 @@
 //!
 //! `K` is symmetric, so the evaluator keeps the upper triangle of each element's diagonal
 //! block `K_ee` and, of each pair `a < b`, the block `K_ab` alone (`K_ba = K_abᵀ`): on a grid,
-//! 5 blocks per element become 2 and a triangle. The product runs in the sweep both evaluators share ([`super::sweep`]): the pair
-//! gives `K_ab U_b` to `a` and `K_abᵀ U_a` to `b`, each element adds `K_ee U_e` last, and a time
-//! step advances each element as soon as its row of `K U` is complete, so that `K` and the
-//! vectors are read once per step and no force vector is written.
+//! 5 blocks per element become 2 and a triangle. The product runs in the sweep both evaluators
+//! share ([`super::sweep`]): the pair gives `K_ab U_b` to `a` and `K_abᵀ U_a` to `b`, each
+//! element adds `K_ee U_e` last, and a time step advances each element as soon as its row of
+//! `K U` is complete, so that `K` and the vectors are read once per step and no force vector is
+//! written.
 
 use super::sweep::{Couplings, Face, Lanes, Sweep};
 use super::{Evaluator, FusedStep};
@@ -220,9 +221,10 @@ impl<K: Kinematics<N>, const N: usize> Assembled<K, N> {
 
 impl<K: Kinematics<N>, const N: usize> Couplings<N> for Assembled<K, N> {
     type Ref = Block<N>;
-    /// A rigid pair is 80 bytes, as an element-wise inline record (10⁶-element rigid grid, one
-    /// thread, median of 15 × 30 steps: 17.8 and 18.5 ns per element-step with, 20.3 and 21.2
-    /// without; Voronoi 26.5 against 31.8).
+    /// A rigid pair is 80 bytes (`K_ab` and its two elements), more than an element-wise inline
+    /// record (10⁶-element rigid grid, one thread, full diagonal blocks, median of 15 × 30
+    /// steps: 17.8 and 18.5 ns per element-step with, 20.3 and 21.2 without; Voronoi 26.5
+    /// against 31.8).
     const PREFETCH: bool = true;
     #[inline(always)]
     fn faces(&self) -> &[Face<Block<N>>] {
@@ -314,8 +316,8 @@ mod tests {
     use crate::model::formulation::{Hybrid, Rigid};
 
     /// The diagonal and upper blocks, swept in three blocks of elements, give `K U` of the whole
-    /// compressed rows to round-off, rigid and hybrid; they hold half of the pair blocks; and the
-    /// AVX2 sweep gives the plain bits.
+    /// compressed rows to round-off, rigid and hybrid, and leave the rings zero; they hold half
+    /// of the pair blocks; and the AVX2 sweep gives the plain bits.
     #[test]
     fn the_upper_blocks_give_k_u() {
         fn check<K: Kinematics<N>, const N: usize>(model: &Model) {
@@ -346,6 +348,12 @@ mod tests {
                 .zip(&full)
                 .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
             assert!(diff <= 1e-12 * scale, "|Δf| = {diff:e} of {scale:e}");
+            let scratch = ev.sweep.scratch.lock().unwrap();
+            assert!(
+                scratch.rings.iter().flatten().all(|s| *s == [0.0; N]),
+                "a ring was left with a pending force"
+            );
+            drop(scratch);
             let plain = ev.sweep.evaluate_plain(&ev, &u);
             assert!(
                 f.iter()

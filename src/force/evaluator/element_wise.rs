@@ -62,8 +62,8 @@ struct Inline<K: Kernel<N>, const N: usize> {
 
 impl<K: Kernel<N>, const N: usize> Couplings<N> for Inline<K, N> {
     type Ref = Record<K, N>;
-    /// Inline records stream at 72 bytes per interface (10⁶-element grid, one thread, before
-    /// records were shared: 15.5 ns per element-step without, 14.1 with).
+    /// Inline records stream at 72 bytes per interface and cross a 4 KiB page every 57, where
+    /// the hardware prefetchers stop.
     const PREFETCH: bool = true;
     #[inline(always)]
     fn faces(&self) -> &[Face<Record<K, N>>] {
@@ -106,8 +106,10 @@ struct Shared<K: Kernel<N>, const N: usize> {
 
 impl<K: Kernel<N>, const N: usize> Couplings<N> for Shared<K, N> {
     type Ref = u32;
-    /// 12 bytes per interface, which the hardware prefetchers follow unaided (measured as
-    /// for [`Inline`], before the [`FaceMap`]s: the two within the noise).
+    /// 12 bytes per interface, which the hardware prefetchers follow unaided (10⁶-element grid,
+    /// one thread: 14.1 ns per element-step without, 15.5 with, measured before the
+    /// [`FaceMap`]s, which left the two within the noise; `cargo bench --bench step --
+    /// grid/rigid/element-wise/1thr` on both builds).
     const PREFETCH: bool = false;
     #[inline(always)]
     fn faces(&self) -> &[Face<u32>] {
@@ -494,7 +496,7 @@ impl<K: Kernel<N>, const N: usize> FusedStep for ElementWise<K, N> {
 mod tests {
     use super::super::sweep::Plain;
     use super::*;
-    use crate::force::evaluator::Assembled;
+    use crate::force::evaluator::{stiffness_triplets, Assembled};
     use crate::input::scene::Scene;
     use crate::model::formulation::{Hybrid, Rigid};
 
@@ -644,7 +646,8 @@ mod tests {
 
     /// On a grid of 5000 × 3 cells, in four blocks, an element's upper neighbour lies in the next
     /// block: the rings reach one element, and the interfaces from the earlier block enter them
-    /// during the sweep. The forces still equal `K U` to round-off, and the rings are left zero.
+    /// during the sweep. The forces of both evaluators, which share the sweep, still equal `K U`
+    /// to round-off, and the rings are left zero.
     #[test]
     fn rings_take_late_interfaces_from_earlier_blocks() {
         let json = r#"{"name": "g", "thickness": 1.0, "formulation": {"kind": "rigid"},
@@ -669,15 +672,27 @@ mod tests {
         let u: Vec<f64> = (0..model.n_dofs())
             .map(|i| ((i * 7919) % 1000) as f64 * 1e-6 - 5e-4)
             .collect();
-        let (mut fa, mut fe) = (vec![0.0; u.len()], vec![0.0; u.len()]);
-        Assembled::<Rigid, 3>::new(&model).internal_force(&u, &mut fa);
-        ev.internal_force(&u, &mut fe);
-        let scale = fa.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-        let diff = fa
-            .iter()
-            .zip(&fe)
-            .fold(0.0f64, |m, (a, e)| m.max((a - e).abs()));
-        assert!(diff <= 1e-12 * scale, "|Δf| = {diff:e} of {scale:e}");
+        // `K U` from the scalar triplets of `K`, with no sweep; then both evaluators, whose
+        // sweeps take the same late entries.
+        let mut fk = vec![0.0; u.len()];
+        for (r, c, k) in stiffness_triplets(&model) {
+            fk[r] += k * u[c];
+        }
+        let scale = fk.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        let assembled = Assembled::<Rigid, 3>::new(&model);
+        for other in [&assembled as &dyn Evaluator, &ev] {
+            let mut f = vec![0.0; u.len()];
+            other.internal_force(&u, &mut f);
+            let diff = fk
+                .iter()
+                .zip(&f)
+                .fold(0.0f64, |m, (a, e)| m.max((a - e).abs()));
+            assert!(
+                diff <= 1e-12 * scale,
+                "{:?}: |Δf| = {diff:e} of {scale:e}",
+                other.kind()
+            );
+        }
         let scratch = sweep.scratch.lock().unwrap();
         assert!(
             scratch.rings.iter().flatten().all(|s| *s == [0.0; 3]),
