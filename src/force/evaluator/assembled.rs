@@ -222,9 +222,9 @@ impl<K: Kinematics<N>, const N: usize> Assembled<K, N> {
 impl<K: Kinematics<N>, const N: usize> Couplings<N> for Assembled<K, N> {
     type Ref = Block<N>;
     /// A rigid pair is 80 bytes (`K_ab` and its two elements), more than an element-wise inline
-    /// record (10⁶-element rigid grid, one thread, full diagonal blocks, median of 15 × 30
-    /// steps: 17.8 and 18.5 ns per element-step with, 20.3 and 21.2 without; Voronoi 26.5
-    /// against 31.8).
+    /// record (10⁶-element rigid grid, one thread: 15.9 and 15.7 ns per element-step with,
+    /// 20.8 without; `cargo bench --bench step -- 'grid/rigid/assembled/1thr/1000000$'` on
+    /// both builds, criterion's estimate).
     const PREFETCH: bool = true;
     #[inline(always)]
     fn faces(&self) -> &[Face<Block<N>>] {
