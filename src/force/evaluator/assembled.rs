@@ -230,18 +230,22 @@ impl<K: Kinematics<N>, const N: usize> Couplings<N> for Assembled<K, N> {
     fn faces(&self) -> &[Face<Block<N>>] {
         &self.pairs
     }
+    type Coupling<'a> = &'a Block<N>;
+    #[inline(always)]
+    fn coupling<'a>(&'a self, face: &'a Face<Block<N>>) -> &'a Block<N> {
+        &face.record
+    }
     /// `f_a += K_ab U_b`, `f_b += K_abᵀ U_a`.
     #[inline(always)]
     fn add_pair(
         &self,
         _: impl Lanes,
-        face: &Face<Block<N>>,
+        k: &Block<N>,
         ua: &[f64; N],
         ub: &[f64; N],
         fa: &mut [f64; N],
         fb: &mut [f64; N],
     ) {
-        let k = &face.record;
         for p in 0..N {
             let mut s = k[p][0] * ub[0];
             for q in 1..N {

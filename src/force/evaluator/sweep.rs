@@ -20,6 +20,10 @@
 //! rest of the net force, `−P − f_c`, only at the elements that carry loads when the integrator
 //! can name them (no gravity, no contact).
 //!
+//! On a regular mesh whose couplings share records, consecutive elements often have the same
+//! couplings shifted by one element: a [`Run`]. The sweep steps through a run with the
+//! couplings of its first element, found once, and reads no coupling of the others.
+//!
 //! Parallel sweeps run over fixed blocks of consecutive elements. A coupling from one block
 //! into a later one is computed before the sweeps, from the state at `t_n`, and handed to both
 //! blocks. Every element sums its couplings in their order whatever the blocks and the threads,
@@ -50,11 +54,17 @@ pub(super) trait Couplings<const N: usize>: Sync {
     /// prefetchers do not follow.
     const PREFETCH: bool;
     fn faces(&self) -> &[Face<Self::Ref>];
-    /// Adds the internal forces of `face`, between two elements, to `fa` and `fb`.
+    /// What [`Couplings::add_pair`] reads of a coupling between two elements, found from its
+    /// [`Face`] once (a [`Run`] finds it once for all its elements).
+    type Coupling<'a>: Copy
+    where
+        Self: 'a;
+    fn coupling<'a>(&'a self, face: &'a Face<Self::Ref>) -> Self::Coupling<'a>;
+    /// Adds the internal forces of a coupling between two elements to `fa` and `fb`.
     fn add_pair(
         &self,
         lanes: impl Lanes,
-        face: &Face<Self::Ref>,
+        coupling: Self::Coupling<'_>,
         ua: &[f64; N],
         ub: &[f64; N],
         fa: &mut [f64; N],
@@ -145,7 +155,22 @@ pub(super) struct Block {
     /// Slots of the block's ring of pending forces, a power of two above its farthest reach
     /// `max(b − a)`.
     pub(super) ring: usize,
+    /// Runs of consecutive elements whose couplings repeat ([`Sweep::find_runs`]), in order.
+    runs: Vec<Run>,
 }
+
+/// Consecutive elements of a block, by their index in it, each with couplings equal to the
+/// next one's shifted by one element: the same `b − a` and the same record, `width` of them,
+/// all inside the block. The sweep steps through a run with no test per coupling and no read
+/// of the couplings past the first element's.
+#[derive(Debug, Clone)]
+struct Run {
+    elements: Range<usize>,
+    width: usize,
+}
+
+/// The most couplings an element of a [`Run`] may have.
+const MAX_WIDTH: usize = 4;
 
 /// Elements per block: at least this many, and at most 64 blocks in all (fewer couplings
 /// cross blocks on large meshes).
@@ -213,6 +238,7 @@ impl<const N: usize> Sweep<N> {
                 outgoing: before..crossing.len(),
                 incoming: 0..0,
                 ring,
+                runs: Vec::new(),
             });
         }
         let mut incoming = Vec::new();
@@ -239,6 +265,66 @@ impl<const N: usize> Sweep<N> {
             incoming,
             scratch,
         }
+    }
+
+    /// Finds the [`Run`]s of each block in `faces`, the couplings as [`Sweep::new`] ordered
+    /// them, with records that name shared ones: two couplings repeat when their records are
+    /// equal. Runs of fewer than four elements are left to the element-by-element sweep.
+    pub(super) fn find_runs<R: PartialEq>(&mut self, faces: &[Face<R>]) {
+        for block in &mut self.blocks {
+            let first = block.elements.start;
+            let inner = &faces[block.inner.clone()];
+            let rest = &faces[block.rest.clone()];
+            // Each element's inner couplings, as a range of `inner`.
+            let mut k = 0;
+            let own: Vec<Range<usize>> = block
+                .elements
+                .clone()
+                .map(|e| {
+                    let start = k;
+                    k += inner[k..].partition_point(|f| f.a as usize == e);
+                    start..k
+                })
+                .collect();
+            let repeats = |x: &Face<R>, y: &Face<R>| y.b - y.a == x.b - x.a && y.record == x.record;
+            let fits = |i: usize| {
+                let r = &own[i];
+                let e = (first + i) as u32;
+                (1..=MAX_WIDTH).contains(&r.len())
+                    && rest.binary_search_by_key(&e, |f| f.a).is_err()
+            };
+            let mut i = 0;
+            while i < own.len() {
+                let start = i;
+                if fits(i) {
+                    while i + 1 < own.len()
+                        && fits(i + 1)
+                        && own[i].len() == own[i + 1].len()
+                        && inner[own[i].clone()]
+                            .iter()
+                            .zip(&inner[own[i + 1].clone()])
+                            .all(|(x, y)| repeats(x, y))
+                    {
+                        i += 1;
+                    }
+                }
+                i += 1;
+                if i - start >= 4 {
+                    block.runs.push(Run {
+                        elements: start..i,
+                        width: own[start].len(),
+                    });
+                }
+            }
+        }
+    }
+
+    /// Drops the [`Run`]s, and tells how many elements they held (tests: the runs give the bits
+    /// of the element-by-element sweep).
+    #[cfg(test)]
+    pub(super) fn drop_runs(&mut self) -> usize {
+        let runs = self.blocks.iter_mut().flat_map(|b| b.runs.drain(..));
+        runs.map(|r| r.elements.len()).sum()
     }
 
     /// The bytes it holds: the crossing couplings and their forces, the rings.
@@ -364,7 +450,7 @@ impl<const N: usize> Sweep<N> {
                 let (ua, ub) = (&u[f.a as usize], &u[f.b as usize]);
                 *out = [[0.0; N]; 2];
                 let [fa, fb] = out;
-                couplings.add_pair(Plain, f, ua, ub, fa, fb);
+                couplings.add_pair(Plain, couplings.coupling(f), ua, ub, fa, fb);
             });
         scratch
     }
@@ -387,8 +473,14 @@ impl<const N: usize> Sweep<N> {
     ) {
         #[cfg(target_arch = "x86_64")]
         if let Some(simd) = pulp::x86::V3::try_new() {
-            return simd.vectorize(move || {
-                self.sweep_in_order(simd, couplings, block, crossing, ring, state)
+            return simd.vectorize(InOrder {
+                sweep: self,
+                simd,
+                couplings,
+                block,
+                crossing,
+                ring,
+                state,
             });
         }
         self.sweep_in_order(Plain, couplings, block, crossing, ring, state)
@@ -424,7 +516,16 @@ impl<const N: usize> Sweep<N> {
         };
         let start = |r: usize| rest.get(r).map_or(usize::MAX, |f| f.a as usize);
         let (mut next_entry, mut next_rest) = (entry(0), start(0));
-        for (i, e) in block.elements.clone().enumerate() {
+        // The next run, or what is left of it.
+        let none = Run {
+            elements: usize::MAX..usize::MAX,
+            width: 0,
+        };
+        let mut runs = block.runs.iter();
+        let mut run = runs.next().unwrap_or(&none).clone();
+        let mut i = 0;
+        while i < block.elements.len() {
+            let e = first + i;
             // A coupling from an earlier block enters the ring as soon as the ring reaches its
             // element, before any coupling of this block does: coupling order.
             if i >= next_entry {
@@ -437,6 +538,25 @@ impl<const N: usize> Sweep<N> {
                     next_in += 1;
                 }
                 next_entry = entry(next_in);
+            }
+            // A run, up to the next entry into the ring.
+            if i == run.elements.start {
+                let n = run.elements.end.min(next_entry) - i;
+                let template = &inner[k..k + run.width];
+                let at = (i, &mut *ring, &mut state);
+                match run.width {
+                    1 => Self::run::<C, S, 1>(lanes, couplings, template, first, at, n),
+                    2 => Self::run::<C, S, 2>(lanes, couplings, template, first, at, n),
+                    3 => Self::run::<C, S, 3>(lanes, couplings, template, first, at, n),
+                    _ => Self::run::<C, S, MAX_WIDTH>(lanes, couplings, template, first, at, n),
+                }
+                k += n * run.width;
+                i += n;
+                run.elements.start = i;
+                if run.elements.is_empty() {
+                    run = runs.next().unwrap_or(&none).clone();
+                }
+                continue;
             }
             // The forces from earlier elements, then this element's own couplings.
             let mut f = std::mem::replace(&mut ring[i & mask], [0.0; N]);
@@ -452,7 +572,15 @@ impl<const N: usize> Sweep<N> {
                 }
                 k += 1;
                 let j = face.b as usize - first;
-                couplings.add_pair(lanes, face, &ue, state.u(j), &mut f, &mut ring[j & mask]);
+                let coupling = couplings.coupling(face);
+                couplings.add_pair(
+                    lanes,
+                    coupling,
+                    &ue,
+                    state.u(j),
+                    &mut f,
+                    &mut ring[j & mask],
+                );
             }
             if e == next_rest {
                 while let Some(face) = rest.get(r).filter(|face| face.a as usize == e) {
@@ -468,6 +596,43 @@ impl<const N: usize> Sweep<N> {
             }
             couplings.add_own(e, &ue, &mut f);
             state.complete(e, i, &mut f);
+            i += 1;
+        }
+    }
+
+    /// `n` elements of a [`Run`] from the block's element `i`, whose couplings are those of
+    /// `template` shifted: as the element-by-element sweep, the same arithmetic in the same
+    /// order.
+    #[inline(always)]
+    fn run<C: Couplings<N>, S: BlockState<N>, const W: usize>(
+        lanes: impl Lanes,
+        couplings: &C,
+        template: &[Face<C::Ref>],
+        first: usize,
+        (i, ring, state): (usize, &mut [[f64; N]], &mut S),
+        n: usize,
+    ) {
+        let mask = ring.len() - 1;
+        let ring = &mut ring[..=mask];
+        let template: &[Face<C::Ref>; W] = template.try_into().expect("a run's width");
+        let reach = template.each_ref().map(|f| (f.b - f.a) as usize);
+        let template = template.each_ref().map(|f| couplings.coupling(f));
+        for i in i..i + n {
+            let mut f = std::mem::replace(&mut ring[i & mask], [0.0; N]);
+            let ue = *state.u(i);
+            for (&coupling, reach) in template.iter().zip(reach) {
+                let j = i + reach;
+                couplings.add_pair(
+                    lanes,
+                    coupling,
+                    &ue,
+                    state.u(j),
+                    &mut f,
+                    &mut ring[j & mask],
+                );
+            }
+            couplings.add_own(first + i, &ue, &mut f);
+            state.complete(first + i, i, &mut f);
         }
     }
 
@@ -492,6 +657,39 @@ impl<const N: usize> Sweep<N> {
         }
         drop(scratch);
         f
+    }
+}
+
+/// [`Sweep::sweep_in_order`] as the task that AVX2 code runs: a closure would not be inlined
+/// into it when large (a hybrid sweep), and then calls its vector instructions one by one.
+#[cfg(target_arch = "x86_64")]
+struct InOrder<'a, C, S, const N: usize> {
+    sweep: &'a Sweep<N>,
+    simd: pulp::x86::V3,
+    couplings: &'a C,
+    block: &'a Block,
+    crossing: &'a [[[f64; N]; 2]],
+    ring: &'a mut [[f64; N]],
+    state: S,
+}
+
+#[cfg(target_arch = "x86_64")]
+impl<C: Couplings<N>, S: BlockState<N>, const N: usize> pulp::NullaryFnOnce
+    for InOrder<'_, C, S, N>
+{
+    type Output = ();
+    #[inline(always)]
+    fn call(self) {
+        let InOrder {
+            sweep,
+            simd,
+            couplings,
+            block,
+            crossing,
+            ring,
+            state,
+        } = self;
+        sweep.sweep_in_order(simd, couplings, block, crossing, ring, state)
     }
 }
 
