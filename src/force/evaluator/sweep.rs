@@ -22,7 +22,7 @@
 //!
 //! On a regular mesh whose couplings share records, consecutive elements often have the same
 //! couplings shifted by one element: a [`Run`]. The sweep steps through a run with the
-//! couplings of its first element, found once, and reads no coupling of the others.
+//! couplings of its first element, found once, which are all the couplings of a run it keeps.
 //!
 //! Parallel sweeps run over fixed blocks of consecutive elements. A coupling from one block
 //! into a later one is computed before the sweeps, from the state at `t_n`, and handed to both
@@ -161,8 +161,8 @@ pub(super) struct Block {
 
 /// Consecutive elements of a block, by their index in it, each with couplings equal to the
 /// next one's shifted by one element: the same `b − a` and the same record, `width` of them,
-/// all inside the block. The sweep steps through a run with no test per coupling and no read
-/// of the couplings past the first element's.
+/// all inside the block. The sweep keeps the couplings of its first element only, and steps
+/// through it with no test per coupling.
 #[derive(Debug, Clone)]
 struct Run {
     elements: Range<usize>,
@@ -269,8 +269,12 @@ impl<const N: usize> Sweep<N> {
 
     /// Finds the [`Run`]s of each block in `faces`, the couplings as [`Sweep::new`] ordered
     /// them, with records that name shared ones: two couplings repeat when their records are
-    /// equal. Runs of fewer than four elements are left to the element-by-element sweep.
-    pub(super) fn find_runs<R: PartialEq>(&mut self, faces: &[Face<R>]) {
+    /// equal. Runs of fewer than four elements are left to the element-by-element sweep. Of a
+    /// run, `faces` keeps the couplings of its first element only.
+    pub(super) fn find_runs<R: PartialEq + Copy>(&mut self, faces: &mut Vec<Face<R>>) {
+        let mut kept = Vec::with_capacity(faces.len());
+        // Where the couplings to other blocks move, by their index in `faces`.
+        let mut moved = std::collections::HashMap::new();
         for block in &mut self.blocks {
             let first = block.elements.start;
             let inner = &faces[block.inner.clone()];
@@ -293,9 +297,11 @@ impl<const N: usize> Sweep<N> {
                 (1..=MAX_WIDTH).contains(&r.len())
                     && rest.binary_search_by_key(&e, |f| f.a).is_err()
             };
+            let start = kept.len();
             let mut i = 0;
             while i < own.len() {
-                let start = i;
+                let from = i;
+                kept.extend_from_slice(&inner[own[i].clone()]);
                 if fits(i) {
                     while i + 1 < own.len()
                         && fits(i + 1)
@@ -309,22 +315,51 @@ impl<const N: usize> Sweep<N> {
                     }
                 }
                 i += 1;
-                if i - start >= 4 {
+                if i - from >= 4 {
                     block.runs.push(Run {
-                        elements: start..i,
-                        width: own[start].len(),
+                        elements: from..i,
+                        width: own[from].len(),
                     });
+                } else {
+                    for r in &own[from + 1..i] {
+                        kept.extend_from_slice(&inner[r.clone()]);
+                    }
                 }
             }
+            let end = kept.len();
+            for k in block.rest.clone() {
+                moved.insert(k as u32, kept.len() as u32);
+                kept.push(faces[k]);
+            }
+            (block.inner, block.rest) = (start..end, end..kept.len());
         }
+        for k in &mut self.crossing {
+            *k = moved[k];
+        }
+        *faces = kept;
     }
 
-    /// Drops the [`Run`]s, and tells how many elements they held (tests: the runs give the bits
-    /// of the element-by-element sweep).
+    /// How many elements lie in [`Run`]s, and how many couplings from earlier blocks enter a
+    /// ring while the sweep is inside a run.
     #[cfg(test)]
-    pub(super) fn drop_runs(&mut self) -> usize {
-        let runs = self.blocks.iter_mut().flat_map(|b| b.runs.drain(..));
-        runs.map(|r| r.elements.len()).sum()
+    pub(super) fn run_elements(&self) -> (usize, usize) {
+        let runs = self.blocks.iter().flat_map(|b| &b.runs);
+        let elements = runs.map(|r| r.elements.len()).sum();
+        let entries = self.blocks.iter().map(|b| {
+            let at =
+                |&(e, _): &(u32, u32)| (e as usize - b.elements.start).saturating_sub(b.ring - 1);
+            let inside = |i: usize| {
+                b.runs
+                    .iter()
+                    .any(|r| r.elements.start < i && i < r.elements.end)
+            };
+            self.incoming[b.incoming.clone()]
+                .iter()
+                .map(at)
+                .filter(|&i| inside(i))
+                .count()
+        });
+        (elements, entries.sum())
     }
 
     /// The bytes it holds: the crossing couplings and their forces, the rings.
@@ -550,10 +585,10 @@ impl<const N: usize> Sweep<N> {
                     3 => Self::run::<C, S, 3>(lanes, couplings, template, first, at, n),
                     _ => Self::run::<C, S, MAX_WIDTH>(lanes, couplings, template, first, at, n),
                 }
-                k += n * run.width;
                 i += n;
                 run.elements.start = i;
                 if run.elements.is_empty() {
+                    k += run.width;
                     run = runs.next().unwrap_or(&none).clone();
                 }
                 continue;
