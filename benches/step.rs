@@ -559,7 +559,7 @@ fn render(
         s,
         "the evaluator's data (assembled: the upper triangles of `K`'s diagonal blocks, its \
         upper blocks with their element pairs, 80 bytes a pair rigid; element-wise: its interfaces, of 12 bytes on a grid, \
-        whose few records they share, of 72 rigid and 80 hybrid on a Voronoi mesh; both with \
+        whose few records they share and of whose rows' runs it keeps the first element's, of 72 rigid and 80 hybrid on a Voronoi mesh; both with \
         their rings of pending forces) and `M⁻¹` read, `U` and `v` read and"
     );
     let _ = writeln!(
