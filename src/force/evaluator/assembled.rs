@@ -226,6 +226,8 @@ impl<K: Kinematics<N>, const N: usize> Couplings<N> for Assembled<K, N> {
     /// 20.8 without; `cargo bench --bench step -- 'grid/rigid/assembled/1thr/1000000$'` on
     /// both builds, criterion's estimate).
     const PREFETCH: bool = true;
+    /// Each pair has its own block.
+    const RUNS: bool = false;
     #[inline(always)]
     fn faces(&self) -> &[Face<Block<N>>] {
         &self.pairs

@@ -65,6 +65,8 @@ impl<K: Kernel<N>, const N: usize> Couplings<N> for Inline<K, N> {
     /// Inline records stream at 72 bytes per interface and cross a 4 KiB page every 57, where
     /// the hardware prefetchers stop.
     const PREFETCH: bool = true;
+    /// Each interface has its own record: none repeats.
+    const RUNS: bool = false;
     #[inline(always)]
     fn faces(&self) -> &[Face<Record<K, N>>] {
         &self.faces
@@ -116,6 +118,7 @@ impl<K: Kernel<N>, const N: usize> Couplings<N> for Shared<K, N> {
     /// [`FaceMap`]s, which left the two within the noise; `cargo bench --bench step --
     /// grid/rigid/element-wise/1thr` on both builds).
     const PREFETCH: bool = false;
+    const RUNS: bool = true;
     #[inline(always)]
     fn faces(&self) -> &[Face<u32>] {
         &self.faces

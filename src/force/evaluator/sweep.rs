@@ -53,6 +53,9 @@ pub(super) trait Couplings<const N: usize>: Sync {
     /// a large record per coupling crosses a page every few dozen, which the hardware
     /// prefetchers do not follow.
     const PREFETCH: bool;
+    /// Whether its couplings may form [`Run`]s ([`Sweep::find_runs`]); the sweep of others has
+    /// no code for them.
+    const RUNS: bool;
     fn faces(&self) -> &[Face<Self::Ref>];
     /// What [`Couplings::add_pair`] reads of a coupling between two elements, found from its
     /// [`Face`] once (a [`Run`] finds it once for all its elements).
@@ -575,7 +578,7 @@ impl<const N: usize> Sweep<N> {
                 next_entry = entry(next_in);
             }
             // A run, up to the next entry into the ring.
-            if i == run.elements.start {
+            if C::RUNS && i == run.elements.start {
                 let n = run.elements.end.min(next_entry) - i;
                 let template = &inner[k..k + run.width];
                 let at = (i, &mut *ring, &mut state);
