@@ -18,8 +18,9 @@
 //!
 //! Each interface has a [`Record`] of what its traction needs. On a regular mesh most records
 //! are copies of a few, equal up to the round-off of the coordinates; then the interfaces share
-//! them ([`Shared`], [`share_key`]) and a step reads 12 bytes per interface instead of 72 (80
-//! hybrid). A shared record is then also formed, once, into its interface's linear map
+//! them ([`Shared`], [`share_key`]) and a step reads at most 12 bytes per interface instead of
+//! 72 (80 hybrid): none for those that a run of repeating interfaces leaves out
+//! ([`super::sweep`]). A shared record is then also formed, once, into its interface's linear map
 //! ([`FaceMap`]: 4 × 4 rigid, 10 × 10 hybrid), which the sweep applies in 4-wide lanes with
 //! fewer instructions than the record takes. An irregular mesh keeps its records inline
 //! ([`Inline`]): a map per interface would double the bytes a step reads.
@@ -102,7 +103,8 @@ impl<K: Kernel<N>, const N: usize> Couplings<N> for Inline<K, N> {
 
 /// Interfaces of 12 bytes that name one of few records: a regular mesh, whose interfaces are
 /// copies of a handful (a grid's inner ones are of two kinds). The records stay in cache and a
-/// step reads 12 bytes per interface instead of 72 (80 hybrid).
+/// step reads 12 bytes per interface instead of 72 (80 hybrid), of the interfaces that the
+/// sweep's runs keep.
 struct Shared<K: Kernel<N>, const N: usize> {
     faces: Vec<Face<u32>>,
     records: Vec<Record<K, N>>,
@@ -280,8 +282,8 @@ enum Store<K: Kernel<N>, const N: usize> {
 /// grid), so its copies of one cell differ in their last bits; one of them stands for all.
 /// A part that lies near a rounding step falls on either side of it from copy to copy, so
 /// [`Store::new`] also takes a key one unit from a kept record's key, in each part, for that
-/// record: a grid's inner interfaces then name two records, not six at random, and repeat
-/// along its rows ([`super::sweep`]'s runs).
+/// record: the inner interfaces of the grids in the tests and the bench then name two records,
+/// not six at random, and repeat along their rows ([`super::sweep`]'s runs).
 fn share_key(da: Vec2, db: Vec2, g: Vec2, normal: Vec2, length: f64, k: [f64; 2]) -> [i64; 11] {
     const UNIT: f64 = (1u64 << 40) as f64;
     let q = |x: f64, scale: f64| (x / scale * UNIT).round() as i64;
@@ -387,7 +389,8 @@ impl<K: Kernel<N>, const N: usize> Store<K, N> {
 
 /// Element-wise evaluation of eq. 15 for the kinematics `K` with `N` DOFs per element.
 pub struct ElementWise<K: Kernel<N>, const N: usize> {
-    /// Block after block: its inner interfaces, then the rest, each sorted by `(a, b)`.
+    /// Block after block: its inner interfaces, then the rest, each sorted by `(a, b)`; of a
+    /// run of repeating interfaces, those of its first element only ([`Sweep::find_runs`]).
     faces: Store<K, N>,
     /// The blocks and the interfaces that cross them ([`Sweep`]).
     sweep: Sweep<N>,
@@ -595,7 +598,7 @@ mod tests {
     }
 
     /// The interfaces of a grid, off the origin so that its geometry carries round-off, share
-    /// three records: the step reads 12 bytes per interface. The forces are those of each
+    /// three records: the step reads at most 12 bytes per interface. The forces are those of each
     /// interface's own record to 1e-12 of their scale, rigid and hybrid, and the same bits on 1
     /// and 2 threads.
     #[test]
@@ -608,7 +611,8 @@ mod tests {
             let Store::Shared(records) = &shared.faces else {
                 panic!("the grid's records are not shared");
             };
-            // The two kinds of inner interfaces and the ground springs, whatever the round-off.
+            // The two kinds of inner interfaces and the ground springs, despite the round-off of
+            // the coordinates.
             assert!(
                 records.records.len() == 3,
                 "{} records",

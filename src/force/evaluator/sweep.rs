@@ -146,7 +146,8 @@ impl Lanes for pulp::x86::V3 {
 #[derive(Debug, Clone)]
 pub(super) struct Block {
     pub(super) elements: Range<usize>,
-    /// The couplings between two of the block's elements, in coupling order.
+    /// The couplings between two of the block's elements, in coupling order; of a [`Run`],
+    /// those of its first element only.
     inner: Range<usize>,
     /// Then, in coupling order, those to a later block or to the ground. Of a given element,
     /// these follow its inner ones in the coupling order too (a later `b`, or [`GROUND`]).
@@ -275,6 +276,10 @@ impl<const N: usize> Sweep<N> {
     /// equal. Runs of fewer than four elements are left to the element-by-element sweep. Of a
     /// run, `faces` keeps the couplings of its first element only.
     pub(super) fn find_runs<R: PartialEq + Copy>(&mut self, faces: &mut Vec<Face<R>>) {
+        debug_assert!(
+            self.blocks.iter().all(|b| b.runs.is_empty()),
+            "runs found twice"
+        );
         let mut kept = Vec::with_capacity(faces.len());
         // Where the couplings to other blocks move, by their index in `faces`.
         let mut moved = std::collections::HashMap::new();
@@ -365,11 +370,12 @@ impl<const N: usize> Sweep<N> {
         (elements, entries.sum())
     }
 
-    /// The bytes it holds: the crossing couplings and their forces, the rings.
+    /// The bytes it holds: the crossing couplings and their forces, the rings, the runs.
     pub(super) fn bytes(&self) -> usize {
         use std::mem::{size_of, size_of_val};
         let rings: usize = self.blocks.iter().map(|b| b.ring).sum();
-        size_of_val(&self.crossing[..])
+        let runs: usize = self.blocks.iter().map(|b| size_of_val(&b.runs[..])).sum();
+        runs + size_of_val(&self.crossing[..])
             + size_of_val(&self.incoming[..])
             + self.crossing.len() * size_of::<[[f64; N]; 2]>()
             + rings * size_of::<[f64; N]>()
@@ -546,7 +552,7 @@ impl<const N: usize> Sweep<N> {
         let (mut k, mut r, mut next_in) = (0, 0, 0);
         // Where the next coupling from an earlier block enters the ring, and the next element
         // with couplings to the ground or to a later block: both are rare, and each element
-        // tests them once.
+        // outside a run tests them once (a run has neither).
         let entry = |next_in: usize| {
             incoming.get(next_in).map_or(usize::MAX, |&(b, _)| {
                 (b as usize - first).saturating_sub(mask)
@@ -851,5 +857,118 @@ impl<C: Couplings<N>, const N: usize> WithUpdate<N> for AdvanceBlock<'_, C, N> {
             power,
         };
         sweep.sweep(couplings, block, crossing, ring, state);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Springs of stiffness `1 + 0.37 k` on both DOFs between two elements, `k` the record;
+    /// springs to the ground; an own term that depends on the element.
+    struct Springs(Vec<Face<u32>>);
+
+    impl Couplings<2> for Springs {
+        type Ref = u32;
+        const PREFETCH: bool = false;
+        const RUNS: bool = true;
+        fn faces(&self) -> &[Face<u32>] {
+            &self.0
+        }
+        type Coupling<'a> = u32;
+        fn coupling<'a>(&'a self, face: &'a Face<u32>) -> u32 {
+            face.record
+        }
+        fn add_pair(
+            &self,
+            _: impl Lanes,
+            k: u32,
+            ua: &[f64; 2],
+            ub: &[f64; 2],
+            fa: &mut [f64; 2],
+            fb: &mut [f64; 2],
+        ) {
+            for j in 0..2 {
+                let t = (1.0 + 0.37 * k as f64) * (ub[j] - ua[j]);
+                fa[j] -= t;
+                fb[j] += t;
+            }
+        }
+        fn add_ground(&self, face: &Face<u32>, ua: &[f64; 2], fa: &mut [f64; 2]) {
+            for j in 0..2 {
+                fa[j] += (1.0 + face.record as f64) * ua[j];
+            }
+        }
+        fn add_own(&self, e: usize, ue: &[f64; 2], f: &mut [f64; 2]) {
+            f[0] += 1e-3 * e as f64 * ue[1];
+        }
+    }
+
+    /// Stretches of elements whose couplings repeat, of widths 0 to 5, next to stretches of
+    /// the same reaches with another record, with couplings to the ground now and then, over
+    /// three blocks: runs are found for widths 1 to 4 and never span a change of record, and
+    /// the sweep through them gives the bits of the element-by-element sweep.
+    #[test]
+    fn runs_of_every_width_give_the_bits_of_each_element() {
+        let n = 10_000;
+        let mut faces = Vec::new();
+        // Element `e` lies in stretch `e / 37`, which fixes its width, its reaches and its
+        // record; neighbouring stretches of the same width differ in their record only.
+        let stretch = |e: usize| {
+            let s = e / 37;
+            (s / 2 % 6, [1, 3, 8, 61, 200], (s % 2) as u32)
+        };
+        for e in 0..n {
+            let (width, reaches, record) = stretch(e);
+            for &r in &reaches[..width] {
+                if e + r < n {
+                    let (a, b) = (e as u32, (e + r) as u32);
+                    faces.push(Face { a, b, record });
+                }
+            }
+            if e % 101 == 0 {
+                let (a, b, record) = (e as u32, GROUND, 2);
+                faces.push(Face { a, b, record });
+            }
+        }
+        let mut each_faces = faces.clone();
+        let each = Sweep::<2>::new(n, &mut each_faces);
+        let mut run_faces = faces;
+        let mut runs = Sweep::<2>::new(n, &mut run_faces);
+        runs.find_runs(&mut run_faces);
+        assert!(runs.blocks.len() >= 3 && !runs.crossing.is_empty());
+        // Widths 0 to 4 in runs keep the couplings of one element in 37; width 5 keeps all.
+        assert!(
+            2 * run_faces.len() < each_faces.len(),
+            "the runs keep few couplings"
+        );
+        for width in 1..=MAX_WIDTH {
+            let found = runs.blocks.iter().flat_map(|b| &b.runs);
+            assert!(
+                found.filter(|r| r.width == width).count() > 10,
+                "width {width}"
+            );
+        }
+        for block in &runs.blocks {
+            for run in &block.runs {
+                let es = run.elements.clone().map(|i| block.elements.start + i);
+                let (first, last) = (es.clone().min().unwrap(), es.max().unwrap());
+                assert_eq!(stretch(first), stretch(last), "a run spans two stretches");
+            }
+        }
+        let u: Vec<f64> = (0..2 * n)
+            .map(|i| ((i * 7919) % 1000) as f64 * 1e-3)
+            .collect();
+        let (mut f_each, mut f_runs) = (vec![0.0; 2 * n], vec![0.0; 2 * n]);
+        each.evaluate(&Springs(each_faces), &u, &mut f_each);
+        runs.evaluate(&Springs(run_faces), &u, &mut f_runs);
+        assert!(f_each.iter().any(|&f| f != 0.0));
+        assert!(
+            f_each
+                .iter()
+                .zip(&f_runs)
+                .all(|(a, b)| a.to_bits() == b.to_bits()),
+            "runs give other bits"
+        );
     }
 }
