@@ -1,7 +1,8 @@
 //! Time per explicit step (evaluator plus the central-difference update) of both evaluators,
 //! rigid and hybrid, on square grids and Voronoi meshes of 10³ … 10⁶ elements, on 1 and 2
 //! threads, as ns per element-step; each figure beside its memory-bound limit: the bytes a step
-//! must move divided by the bandwidth of a triad kernel measured in the same harness. Also the
+//! must move divided by the bandwidth of a triad kernel measured in the same harness, before
+//! each mesh and size. Also the
 //! model build time of 10⁶ Voronoi elements, `ω_max` of 3 × 10⁶ DOFs and the bytes per element.
 //! In the same run, the peer: the explicit loop a user of a sparse library writes (`f = K u`
 //! by faer's CSR product on one thread, then `v += Δt M⁻¹ (P − f)`, `u += Δt v`) on the same
@@ -91,14 +92,16 @@ fn pool(threads: usize) -> rayon::ThreadPool {
 }
 
 /// `a = b + s c` over arrays far larger than the caches; returns bytes moved per second
-/// (three arrays of 8-byte values, as STREAM counts them).
-fn triad(c: &mut Criterion, threads: usize) -> f64 {
+/// (three arrays of 8-byte values, as STREAM counts them). Measured again before each mesh
+/// and size (`at`), so that a step's memory bound comes from the bandwidth of the minutes in
+/// which it runs: on a shared machine the bandwidth drifts within a run.
+fn triad(c: &mut Criterion, threads: usize, at: &str) -> f64 {
     use rayon::prelude::*;
     let n = 1 << 25;
     let (mut a, b, cc) = (vec![0.0f64; n], vec![1.0f64; n], vec![2.0f64; n]);
     let samples = RefCell::new(Vec::new());
     let pool = pool(threads);
-    c.bench_function(&format!("triad/{threads}thr"), |bench| {
+    c.bench_function(&format!("triad/{threads}thr/{at}"), |bench| {
         bench.iter_custom(|iters| {
             let e = pool.install(|| {
                 let t0 = Instant::now();
@@ -146,11 +149,13 @@ struct Peer {
     /// each) and row starts, `u` read, `f` written, then `f`, `P`, `M⁻¹` read and `v`, `u`
     /// read and written.
     bytes: f64,
+    /// `bytes` over the one-thread triad bandwidth measured before it (ns per element-step).
+    bound_ns: f64,
 }
 
 /// The explicit loop of a sparse-library user on `model`: `K` in compressed rows (faer),
 /// `f = K u` on one thread, then one fused pass `v += Δt M⁻¹ (P − f)`, `u += Δt v`.
-fn peer(c: &mut Criterion, mesh: &'static str, model: &Model, mass: &Mass) -> Peer {
+fn peer(c: &mut Criterion, mesh: &'static str, model: &Model, mass: &Mass, bandwidth: f64) -> Peer {
     use faer::sparse::{SparseColMat, Triplet};
     let n = model.n_dofs();
     let triplets: Vec<Triplet<usize, usize, f64>> = evaluator::stiffness_triplets(model)
@@ -206,6 +211,7 @@ fn peer(c: &mut Criterion, mesh: &'static str, model: &Model, mass: &Mass) -> Pe
         ns,
         spread: (q1, q3),
         bytes,
+        bound_ns: bytes / bandwidth * 1e9,
     }
 }
 
@@ -307,12 +313,14 @@ fn main() {
     } else {
         None
     };
-    let bandwidth: Vec<f64> = THREADS.iter().map(|&t| triad(&mut c, t)).collect();
+    let mut bandwidths = Vec::new();
     let mut rows = Vec::new();
     let mut peers = Vec::new();
     let mut builds = Vec::new();
     for mesh in ["grid", "voronoi"] {
         for n in SIZES.into_iter().filter(|&n| n <= max) {
+            let bandwidth = THREADS.map(|t| triad(&mut c, t, &format!("{mesh}/{n}")));
+            bandwidths.push(bandwidth);
             for (fname, fjson) in FORMULATIONS {
                 let t0 = Instant::now();
                 let model = Model::build(&scene(&mesh_json(mesh, n), fjson))
@@ -325,7 +333,7 @@ fn main() {
                 ));
                 let (mass, loads) = (Mass::new(&model), Loads::new(&model));
                 if fname == "rigid" {
-                    peers.push(peer(&mut c, mesh, &model, &mass));
+                    peers.push(peer(&mut c, mesh, &model, &mass, bandwidth[0]));
                 }
                 let nd = model.formulation.ndof();
                 let inv_bytes = if mass.is_diagonal() {
@@ -405,8 +413,8 @@ fn main() {
     };
     let extras = extras(rss_per_element, working_set);
     let path = run_path();
-    let mut summary = render(&bandwidth, &rows, &builds, &extras);
-    summary.push_str(&render_user(&rows, &peers, &path, bandwidth[0]));
+    let mut summary = render(&bandwidths, &rows, &builds, &extras);
+    summary.push_str(&render_user(&rows, &peers, &path));
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/benches/summary.md");
     // The section that `cargo bench --bench failure` writes stays.
     let old = std::fs::read_to_string(path).unwrap_or_default();
@@ -525,7 +533,7 @@ fn machine() -> String {
 }
 
 fn render(
-    bandwidth: &[f64],
+    bandwidths: &[[f64; 2]],
     rows: &[Row],
     builds: &[(&str, &str, usize, f64)],
     x: &Extras,
@@ -537,12 +545,20 @@ fn render(
         (about 10 minutes). Machine: {}.\n",
         machine()
     );
+    let range = |t: usize| {
+        let gb: Vec<f64> = bandwidths.iter().map(|b| b[t] / 1e9).collect();
+        let (med, lo, hi) = median_range(&gb);
+        format!("{} ({}–{})", fmt(med, 1), fmt(lo, 1), fmt(hi, 1))
+    };
     let _ = writeln!(
         s,
-        "Triad bandwidth `a = b + s c` (3 × 8 bytes per entry): {} GB/s on 1 \
-        thread, {} GB/s on 2.\n",
-        fmt(bandwidth[0] / 1e9, 1),
-        fmt(bandwidth[1] / 1e9, 1)
+        "Triad bandwidth `a = b + s c` (3 × 8 bytes per entry), measured again before each \
+        mesh and size, whose steps' limits it sets (the bandwidth of a shared machine drifts \
+        within a run): median {} GB/s on 1 thread, {} GB/s on 2, the lowest and highest of \
+        the {} measurements in brackets.\n",
+        range(0),
+        range(1),
+        bandwidths.len()
     );
     let _ = writeln!(
         s,
@@ -569,7 +585,8 @@ fn render(
     );
     let _ = writeln!(
         s,
-        "triad bandwidth, and *× limit* how far the step is from that memory bound.\n"
+        "the triad bandwidth measured before its mesh and size, and *× limit* how far the \
+        step is from that memory bound.\n"
     );
     let _ = writeln!(
         s,
@@ -720,7 +737,7 @@ fn fmt(x: f64, digits: usize) -> String {
 }
 
 /// The sections of issue 22: the peer, the goals on 10⁶ elements, the run path and the setup.
-fn render_user(rows: &[Row], peers: &[Peer], r: &RunPath, bandwidth: f64) -> String {
+fn render_user(rows: &[Row], peers: &[Peer], r: &RunPath) -> String {
     let mut s = String::new();
     let row = |mesh: &str, formulation: &str, ev: &str, n: usize, thr: usize| {
         rows.iter().find(|r| {
@@ -741,7 +758,7 @@ fn render_user(rows: &[Row], peers: &[Peer], r: &RunPath, bandwidth: f64) -> Str
         threads against the peer on one. *Bytes* is what a peer's step must move per element \
         (`K`'s values and column indices, 8 bytes each, its row starts, `u` read, `f` written, \
         then `f`, `P`, `M⁻¹` read and `v`, `u` read and written), and *× limit* its time over \
-        bytes / the one-thread triad bandwidth: the peer's own distance from its memory \
+        bytes / the one-thread triad bandwidth measured before it: the peer's own distance from its memory \
         bound. The ratio of the two bytes columns bounds how much faster than the peer a \
         step at its own memory bound can be.\n"
     );
@@ -764,7 +781,7 @@ fn render_user(rows: &[Row], peers: &[Peer], r: &RunPath, bandwidth: f64) -> Str
             fmt(p.ns, 1),
             fmt(p.spread.0, 1),
             fmt(p.spread.1, 1),
-            fmt(p.ns / (p.bytes / bandwidth * 1e9), 2),
+            fmt(p.ns / p.bound_ns, 2),
             times(p, "element-wise", 1),
             times(p, "element-wise", 2),
             times(p, "assembled", 1),
