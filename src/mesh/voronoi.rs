@@ -132,8 +132,8 @@ fn weld(body: &str, origin: Vec2, size: Vec2, cells: &Cells) -> Result<Mesh> {
         for &p in cell {
             let (kx, ky) = key(p);
             // A point near a rounding boundary may have its twin in a neighbouring bucket;
-            // most twins are in their own.
-            let found = [
+            // most twins are in their own. A bucket's vertex is the twin only if it is near.
+            const BUCKETS: [(i64, i64); 9] = [
                 (0, 0),
                 (-1, -1),
                 (-1, 0),
@@ -142,11 +142,12 @@ fn weld(body: &str, origin: Vec2, size: Vec2, cells: &Cells) -> Result<Mesh> {
                 (0, 1),
                 (1, -1),
                 (1, 0),
-            ]
-            .into_iter()
-            .chain([(1, 1)])
-            .find_map(|(dx, dy)| index.get(&(kx + dx, ky + dy)).copied())
-            .filter(|&i| (vertices[i as usize] - p).norm() <= tol);
+                (1, 1),
+            ];
+            let found = BUCKETS.into_iter().find_map(|(dx, dy)| {
+                let i = *index.get(&(kx + dx, ky + dy))?;
+                ((vertices[i as usize] - p).norm() <= tol).then_some(i)
+            });
             let id = found.unwrap_or_else(|| {
                 vertices.push(p);
                 index.insert((kx, ky), vertices.len() as u32 - 1);
