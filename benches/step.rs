@@ -294,7 +294,8 @@ fn run_path() -> RunPath {
 fn median_range(x: &[f64]) -> (f64, f64, f64) {
     let mut s = x.to_vec();
     s.sort_by(f64::total_cmp);
-    (s[s.len() / 2], s[0], s[s.len() - 1])
+    let n = s.len();
+    (0.5 * (s[(n - 1) / 2] + s[n / 2]), s[0], s[n - 1])
 }
 
 fn main() {
@@ -320,7 +321,7 @@ fn main() {
     for mesh in ["grid", "voronoi"] {
         for n in SIZES.into_iter().filter(|&n| n <= max) {
             let bandwidth = THREADS.map(|t| triad(&mut c, t, &format!("{mesh}/{n}")));
-            bandwidths.push(bandwidth);
+            bandwidths.push((mesh, n, bandwidth));
             for (fname, fjson) in FORMULATIONS {
                 let t0 = Instant::now();
                 let model = Model::build(&scene(&mesh_json(mesh, n), fjson))
@@ -533,7 +534,7 @@ fn machine() -> String {
 }
 
 fn render(
-    bandwidths: &[[f64; 2]],
+    bandwidths: &[(&str, usize, [f64; 2])],
     rows: &[Row],
     builds: &[(&str, &str, usize, f64)],
     x: &Extras,
@@ -546,7 +547,7 @@ fn render(
         machine()
     );
     let range = |t: usize| {
-        let gb: Vec<f64> = bandwidths.iter().map(|b| b[t] / 1e9).collect();
+        let gb: Vec<f64> = bandwidths.iter().map(|b| b.2[t] / 1e9).collect();
         let (med, lo, hi) = median_range(&gb);
         format!("{} ({}–{})", fmt(med, 1), fmt(lo, 1), fmt(hi, 1))
     };
@@ -560,6 +561,19 @@ fn render(
         range(1),
         bandwidths.len()
     );
+    let _ = writeln!(
+        s,
+        "| mesh | elements asked | triad, 1 thr GB/s | 2 thr GB/s |\n|---|---:|---:|---:|"
+    );
+    for (mesh, n, b) in bandwidths {
+        let _ = writeln!(
+            s,
+            "| {mesh} | {n} | {} | {} |",
+            fmt(b[0] / 1e9, 1),
+            fmt(b[1] / 1e9, 1)
+        );
+    }
+    s.push('\n');
     let _ = writeln!(
         s,
         "Each time is the median of the criterion samples ({}), in ns per \
