@@ -97,6 +97,7 @@ pub mod analysis;
 pub mod error;
 pub mod force;
 pub mod input;
+pub mod lanes;
 pub mod mesh;
 pub mod model;
 pub mod output;

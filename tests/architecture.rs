@@ -10,7 +10,7 @@ const STAGES: [&str; 7] = [
     "input", "mesh", "model", "force", "step", "output", "analysis",
 ];
 /// Modules every stage may use.
-const SHARED: [&str; 2] = ["error", "parallel"];
+const SHARED: [&str; 3] = ["error", "lanes", "parallel"];
 
 fn sources(dir: &Path, out: &mut Vec<PathBuf>) {
     for entry in std::fs::read_dir(dir).unwrap() {

@@ -3,6 +3,7 @@
 //! Fixed DOFs get a zero row in `M⁻¹`, so they never move; the explicit step stays
 //! element-local.
 
+use crate::lanes::Lanes;
 use crate::model::Model;
 use crate::parallel::{for_each_chunk_pair, CHUNK};
 use std::ops::Range;
@@ -86,12 +87,54 @@ pub trait ElementUpdate<const N: usize> {
     /// Returns `v̄ᵀ M_i v̄` with `v̄` the mean of the old and new `v_i` when damped (the damping's
     /// work of the step is `α Δt` times its sum), else 0.
     fn element(&self, i: usize, f: &[f64; N], v: &mut [f64; N], u: &mut [f64; N]) -> f64;
+
+    /// [`ElementUpdate::element`] for the run's elements `i..i + 4`, with their powers.
+    #[inline(always)]
+    fn elements(
+        &self,
+        lanes: impl Lanes,
+        i: usize,
+        f: &[[f64; N]; 4],
+        v: &mut [[f64; N]; 4],
+        u: &mut [[f64; N]; 4],
+    ) -> [f64; 4] {
+        let _ = lanes;
+        one_by_one(self, i, f, v, u)
+    }
+}
+
+/// [`ElementUpdate::elements`] one element after the other.
+#[inline(always)]
+fn one_by_one<const N: usize>(
+    update: &(impl ElementUpdate<N> + ?Sized),
+    i: usize,
+    f: &[[f64; N]; 4],
+    v: &mut [[f64; N]; 4],
+    u: &mut [[f64; N]; 4],
+) -> [f64; 4] {
+    std::array::from_fn(|l| update.element(i + l, &f[l], &mut v[l], &mut u[l]))
 }
 
 /// An element's `M_e⁻¹` (or `M_e`): its diagonal (lumped) or its row-major block.
 trait ElementInverse<const N: usize> {
     /// `aᵀ B a` for this block `B`.
     fn quadratic(&self, a: &[f64; N]) -> f64;
+    /// The undamped [`ElementInverse::velocity`] of four elements, if these blocks have a
+    /// form for it (`false`: `v` is untouched).
+    #[inline(always)]
+    fn velocity_of_four(
+        lanes: impl Lanes,
+        blocks: &[Self; 4],
+        v: &mut [[f64; N]; 4],
+        f: &[[f64; N]; 4],
+        dt: f64,
+    ) -> bool
+    where
+        Self: Sized,
+    {
+        let _ = (lanes, blocks, v, f, dt);
+        false
+    }
     /// `v ← (c₁ v − Δt M_e⁻¹ f) c₂`; undamped, `c₁ = c₂ = 1` are left out, which changes no bit.
     fn velocity<const DAMPED: bool>(
         &self,
@@ -116,6 +159,23 @@ impl<const N: usize> ElementInverse<N> for [f64; N] {
         damping: (f64, f64),
     ) {
         lumped_velocity::<DAMPED>(v, f, self, dt, damping)
+    }
+    /// `v − Δt w f` of [`lumped_velocity`], four numbers at a time.
+    #[inline(always)]
+    fn velocity_of_four(
+        lanes: impl Lanes,
+        blocks: &[Self; 4],
+        v: &mut [[f64; N]; 4],
+        f: &[[f64; N]; 4],
+        dt: f64,
+    ) -> bool {
+        let (v, _) = v.as_flattened_mut().as_chunks_mut::<4>();
+        let (w, _) = blocks.as_flattened().as_chunks::<4>();
+        let (f, _) = f.as_flattened().as_chunks::<4>();
+        for ((v, w), f) in v.iter_mut().zip(w).zip(f) {
+            *v = lanes.sub(*v, lanes.mul(lanes.mul([dt; 4], *w), *f));
+        }
+        true
     }
 }
 
@@ -167,6 +227,28 @@ impl<B: ElementInverse<N>, const N: usize, const DAMPED: bool> ElementUpdate<N>
         };
         *v = vi;
         power
+    }
+
+    /// Lumped and undamped, four numbers at a time; else element by element.
+    #[inline(always)]
+    fn elements(
+        &self,
+        lanes: impl Lanes,
+        i: usize,
+        f: &[[f64; N]; 4],
+        v: &mut [[f64; N]; 4],
+        u: &mut [[f64; N]; 4],
+    ) -> [f64; 4] {
+        let inv: &[B; 4] = self.inv[i..i + 4].try_into().expect("four elements");
+        if DAMPED || !B::velocity_of_four(lanes, inv, v, f, self.dt) {
+            return one_by_one(self, i, f, v, u);
+        }
+        let (u, _) = u.as_flattened_mut().as_chunks_mut::<4>();
+        let (v, _) = v.as_flattened().as_chunks::<4>();
+        for (u, v) in u.iter_mut().zip(v) {
+            *u = lanes.add(*u, lanes.mul([self.dt; 4], *v));
+        }
+        [0.0; 4]
     }
 }
 

@@ -9,9 +9,10 @@
 //! `K U` is complete, so that `K` and the vectors are read once per step and no force vector is
 //! written.
 
-use super::sweep::{Couplings, Face, Lanes, Sweep};
+use super::sweep::{Couplings, Face, Sweep};
 use super::{Evaluator, FusedStep};
 use crate::input::scene::EvaluatorKind;
+use crate::lanes::Lanes;
 use crate::model::formulation::Kinematics;
 use crate::model::law::InterfaceLaw;
 use crate::model::mass::Update;
@@ -228,6 +229,7 @@ impl<K: Kinematics<N>, const N: usize> Couplings<N> for Assembled<K, N> {
     const PREFETCH: bool = true;
     /// Each pair has its own block.
     const RUNS: bool = false;
+    const WIDE: bool = false;
     #[inline(always)]
     fn faces(&self) -> &[Face<Block<N>>] {
         &self.pairs

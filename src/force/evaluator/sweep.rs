@@ -23,12 +23,16 @@
 //! On a regular mesh whose couplings share records, consecutive elements often have the same
 //! couplings shifted by one element: a [`Run`]. The sweep steps through a run with the
 //! couplings of its first element, found once, which are all the couplings of a run it keeps.
+//! Where the first of them reaches the next element and the others far enough ([`in_lanes`]),
+//! and the couplings can ([`Couplings::WIDE`]), it goes four elements at a time, one in each
+//! lane of a [`Wide`]: the same operations in the same order, four at once.
 //!
 //! Parallel sweeps run over fixed blocks of consecutive elements. A coupling from one block
 //! into a later one is computed before the sweeps, from the state at `t_n`, and handed to both
 //! blocks. Every element sums its couplings in their order whatever the blocks and the threads,
 //! so the result does not depend on the thread count.
 
+use crate::lanes::{lane, set_lane, Lanes, Plain, Wide};
 use crate::model::mass::{ElementUpdate, Update, WithUpdate};
 use crate::model::GROUND;
 use rayon::prelude::*;
@@ -73,73 +77,54 @@ pub(super) trait Couplings<const N: usize>: Sync {
         fa: &mut [f64; N],
         fb: &mut [f64; N],
     );
+    /// [`Couplings::add_pair`] for the four pairs `(a + l, b + l)`, `l = 0..4`, of one
+    /// coupling in lanes: the arithmetic of the four calls in their order, which a coupling
+    /// may do four lanes at a time.
+    #[inline(always)]
+    fn add_pairs(
+        &self,
+        lanes: impl Lanes,
+        coupling: Self::Coupling<'_>,
+        ua: &Wide<N>,
+        ub: &Wide<N>,
+        fa: &mut Wide<N>,
+        mut fb: Higher<'_, N>,
+    ) {
+        for l in 0..4 {
+            let mut on_a = lane(fa, l);
+            let mut on_b = match &fb {
+                Higher::Apart(fb) => fb[l],
+                Higher::Next(_) if l < 3 => lane(fa, l + 1),
+                Higher::Next(last) => **last,
+            };
+            let (a, b) = (lane(ua, l), lane(ub, l));
+            self.add_pair(lanes, coupling, &a, &b, &mut on_a, &mut on_b);
+            set_lane(fa, l, &on_a);
+            match &mut fb {
+                Higher::Apart(fb) => fb[l] = on_b,
+                Higher::Next(_) if l < 3 => set_lane(fa, l + 1, &on_b),
+                Higher::Next(last) => **last = on_b,
+            }
+        }
+    }
     /// Adds the internal force of `face`, to the ground, to `fa`.
     fn add_ground(&self, face: &Face<Self::Ref>, ua: &[f64; N], fa: &mut [f64; N]);
+    /// Whether a [`Run`] goes four elements at a time in lanes where it can
+    /// ([`Couplings::add_pairs`]); else one at a time.
+    const WIDE: bool;
+    /// Whether [`Couplings::add_own`] adds anything.
+    const OWN: bool = true;
     /// Adds element `e`'s own term to its force `f`, last.
     fn add_own(&self, e: usize, ue: &[f64; N], f: &mut [f64; N]);
 }
 
-/// Sums of products in groups of four lanes, `o = Σ_k x_k g[k]` in the order of `k`, with no
-/// fused multiply-add: the same bits on every path.
-pub trait Lanes: Copy {
-    fn combine<const M: usize, const Q: usize>(
-        self,
-        g: &[[[f64; 4]; Q]; M],
-        x: &[f64; M],
-    ) -> [[f64; 4]; Q];
-}
-
-/// [`Lanes`] one number at a time, on any processor.
-#[derive(Clone, Copy)]
-pub struct Plain;
-
-impl Lanes for Plain {
-    #[inline(always)]
-    fn combine<const M: usize, const Q: usize>(
-        self,
-        g: &[[[f64; 4]; Q]; M],
-        x: &[f64; M],
-    ) -> [[f64; 4]; Q] {
-        let mut o = [[0.0; 4]; Q];
-        for q in 0..Q {
-            for l in 0..4 {
-                o[q][l] = g[0][q][l] * x[0];
-            }
-        }
-        for k in 1..M {
-            for q in 0..Q {
-                for l in 0..4 {
-                    o[q][l] += g[k][q][l] * x[k];
-                }
-            }
-        }
-        o
-    }
-}
-
-/// [`Lanes`] in the 256-bit registers of AVX2.
-#[cfg(target_arch = "x86_64")]
-impl Lanes for pulp::x86::V3 {
-    #[inline(always)]
-    fn combine<const M: usize, const Q: usize>(
-        self,
-        g: &[[[f64; 4]; Q]; M],
-        x: &[f64; M],
-    ) -> [[f64; 4]; Q] {
-        let mut o = [[0.0; 4]; Q];
-        let x0 = self.splat_f64x4(x[0]);
-        for q in 0..Q {
-            o[q] = pulp::cast(self.mul_f64x4(pulp::cast(g[0][q]), x0));
-        }
-        for k in 1..M {
-            let xk = self.splat_f64x4(x[k]);
-            for q in 0..Q {
-                let term = self.mul_f64x4(pulp::cast(g[k][q]), xk);
-                o[q] = pulp::cast(self.add_f64x4(pulp::cast(o[q]), term));
-            }
-        }
-        o
-    }
+/// Where [`Couplings::add_pairs`] puts the forces on the pairs' higher elements.
+pub enum Higher<'a, const N: usize> {
+    /// Four elements of their own, not in lanes.
+    Apart(&'a mut [[f64; N]; 4]),
+    /// Each pair's `b` is the next pair's `a`: the forces on lanes 0–2 go to lanes 1–3 of `fa`,
+    /// before the next pair adds its own; that on lane 3 goes here.
+    Next(&'a mut [f64; N]),
 }
 
 /// Consecutive elements swept by one task, with the couplings that start in them.
@@ -166,11 +151,31 @@ pub(super) struct Block {
 /// Consecutive elements of a block, by their index in it, each with couplings equal to the
 /// next one's shifted by one element: the same `b − a` and the same record, `width` of them,
 /// all inside the block. The sweep keeps the couplings of its first element only, and steps
-/// through it with no test per coupling.
+/// through it with no test per coupling, four elements at a time in lanes if `lanes`
+/// ([`in_lanes`]).
 #[derive(Debug, Clone)]
 struct Run {
     elements: Range<usize>,
     width: usize,
+    lanes: bool,
+}
+
+/// Whether a [`Run`] whose couplings reach `reach` elements ahead, in increasing order, may
+/// go four elements at a time in a ring of `ring` slots: its first coupling reaches the next
+/// element (a grid's row), the others at least five elements and four apart, and all within
+/// the ring with room for four. Then a coupling of four elements adds to no slot of the same
+/// four (but the next's, [`Higher::Next`]), and no slot gets forces from two of their
+/// couplings, so the four may add their forces coupling by coupling in lanes
+/// ([`Couplings::add_pairs`]) in the order of the element-by-element sweep.
+fn in_lanes(reach: &[usize], ring: usize) -> bool {
+    match reach {
+        [1, second, ..] => {
+            *second > 4
+                && reach[1..].windows(2).all(|r| r[1] >= r[0] + 4)
+                && reach[reach.len() - 1] + 4 <= ring
+        }
+        _ => false,
+    }
 }
 
 /// The most couplings an element of a [`Run`] may have.
@@ -324,9 +329,14 @@ impl<const N: usize> Sweep<N> {
                 }
                 i += 1;
                 if i - from >= 4 {
+                    let reach: Vec<usize> = inner[own[from].clone()]
+                        .iter()
+                        .map(|f| (f.b - f.a) as usize)
+                        .collect();
                     block.runs.push(Run {
                         elements: from..i,
                         width: own[from].len(),
+                        lanes: in_lanes(&reach, block.ring),
                     });
                 } else {
                     for r in &own[from + 1..i] {
@@ -347,12 +357,13 @@ impl<const N: usize> Sweep<N> {
         *faces = kept;
     }
 
-    /// How many elements lie in [`Run`]s, and how many couplings from earlier blocks enter a
-    /// ring while the sweep is inside a run.
+    /// How many elements lie in [`Run`]s, how many in runs that may go in lanes, and how many
+    /// couplings from earlier blocks enter a ring while the sweep is inside a run.
     #[cfg(test)]
-    pub(super) fn run_elements(&self) -> (usize, usize) {
+    pub(super) fn run_elements(&self) -> (usize, usize, usize) {
         let runs = self.blocks.iter().flat_map(|b| &b.runs);
-        let elements = runs.map(|r| r.elements.len()).sum();
+        let elements = runs.clone().map(|r| r.elements.len()).sum();
+        let in_lanes = runs.filter(|r| r.lanes).map(|r| r.elements.len()).sum();
         let entries = self.blocks.iter().map(|b| {
             let at =
                 |&(e, _): &(u32, u32)| (e as usize - b.elements.start).saturating_sub(b.ring - 1);
@@ -367,7 +378,7 @@ impl<const N: usize> Sweep<N> {
                 .filter(|&i| inside(i))
                 .count()
         });
-        (elements, entries.sum())
+        (elements, in_lanes, entries.sum())
     }
 
     /// The bytes it holds: the crossing couplings and their forces, the rings, the runs.
@@ -564,6 +575,7 @@ impl<const N: usize> Sweep<N> {
         let none = Run {
             elements: usize::MAX..usize::MAX,
             width: 0,
+            lanes: false,
         };
         let mut runs = block.runs.iter();
         let mut run = runs.next().unwrap_or(&none).clone();
@@ -588,11 +600,12 @@ impl<const N: usize> Sweep<N> {
                 let n = run.elements.end.min(next_entry) - i;
                 let template = &inner[k..k + run.width];
                 let at = (i, &mut *ring, &mut state);
+                let lanes_of = (lanes, C::WIDE && run.lanes);
                 match run.width {
-                    1 => Self::run::<C, S, 1>(lanes, couplings, template, first, at, n),
-                    2 => Self::run::<C, S, 2>(lanes, couplings, template, first, at, n),
-                    3 => Self::run::<C, S, 3>(lanes, couplings, template, first, at, n),
-                    _ => Self::run::<C, S, MAX_WIDTH>(lanes, couplings, template, first, at, n),
+                    1 => Self::run::<C, S, 1>(lanes_of, couplings, template, first, at, n),
+                    2 => Self::run::<C, S, 2>(lanes_of, couplings, template, first, at, n),
+                    3 => Self::run::<C, S, 3>(lanes_of, couplings, template, first, at, n),
+                    _ => Self::run::<C, S, MAX_WIDTH>(lanes_of, couplings, template, first, at, n),
                 }
                 i += n;
                 run.elements.start = i;
@@ -646,10 +659,10 @@ impl<const N: usize> Sweep<N> {
 
     /// `n` elements of a [`Run`] from the block's element `i`, whose couplings are those of
     /// `template` shifted: as the element-by-element sweep, the same arithmetic in the same
-    /// order.
+    /// order, four elements at a time if `wide` ([`in_lanes`]).
     #[inline(always)]
     fn run<C: Couplings<N>, S: BlockState<N>, const W: usize>(
-        lanes: impl Lanes,
+        (lanes, wide): (impl Lanes, bool),
         couplings: &C,
         template: &[Face<C::Ref>],
         first: usize,
@@ -661,7 +674,21 @@ impl<const N: usize> Sweep<N> {
         let template: &[Face<C::Ref>; W] = template.try_into().expect("a run's width");
         let reach = template.each_ref().map(|f| (f.b - f.a) as usize);
         let template = template.each_ref().map(|f| couplings.coupling(f));
-        for i in i..i + n {
+        let (end, mut i) = (i + n, i);
+        if wide {
+            let n = (end - i) / 4;
+            Self::groups(
+                lanes,
+                couplings,
+                &template,
+                &reach,
+                first,
+                (i, ring, state),
+                n,
+            );
+            i += 4 * n;
+        }
+        for i in i..end {
             let mut f = std::mem::replace(&mut ring[i & mask], [0.0; N]);
             let ue = *state.u(i);
             for (&coupling, reach) in template.iter().zip(reach) {
@@ -678,6 +705,65 @@ impl<const N: usize> Sweep<N> {
             couplings.add_own(first + i, &ue, &mut f);
             state.complete(first + i, i, &mut f);
         }
+    }
+
+    /// `n` times four elements of a run from the block's element `i`, in lanes
+    /// ([`Couplings::add_pairs`]): the first coupling reaches the next element, the others
+    /// apart ([`Sweep::run`]). The next four's `U` and the force their first element gets from
+    /// the last of these four stay in registers.
+    #[inline(always)]
+    fn groups<C: Couplings<N>, S: BlockState<N>, const W: usize>(
+        lanes: impl Lanes,
+        couplings: &C,
+        template: &[C::Coupling<'_>; W],
+        reach: &[usize; W],
+        first: usize,
+        (i, ring, state): (usize, &mut [[f64; N]], &mut S),
+        n: usize,
+    ) {
+        let mask = ring.len() - 1;
+        let mut ua = lanes.wide(state.u4(i));
+        let mut last = std::mem::replace(&mut ring[i & mask], [0.0; N]);
+        for i in (i..i + 4 * n).step_by(4) {
+            let mut fa = lanes.wide(&slots(ring, i));
+            set_lane(&mut fa, 0, &last);
+            put_slots(ring, i, &[[0.0; N]; 4]);
+            last = std::mem::replace(&mut ring[(i + 4) & mask], [0.0; N]);
+            let un = lanes.wide(state.u4(i + 4));
+            let ub = lanes.shift(&ua, &un);
+            couplings.add_pairs(
+                lanes,
+                template[0],
+                &ua,
+                &ub,
+                &mut fa,
+                Higher::Next(&mut last),
+            );
+            for k in 1..W {
+                let j = i + reach[k];
+                let ub = lanes.wide(state.u4(j));
+                let mut fb = slots(ring, j);
+                couplings.add_pairs(
+                    lanes,
+                    template[k],
+                    &ua,
+                    &ub,
+                    &mut fa,
+                    Higher::Apart(&mut fb),
+                );
+                put_slots(ring, j, &fb);
+            }
+            if C::OWN {
+                for l in 0..4 {
+                    let mut f = lane(&fa, l);
+                    couplings.add_own(first + i + l, &lane(&ua, l), &mut f);
+                    set_lane(&mut fa, l, &f);
+                }
+            }
+            state.complete_wide(lanes, first + i, i, &fa);
+            ua = un;
+        }
+        ring[(i + 4 * n) & mask] = last;
     }
 
     /// `f_int(u)` swept by the plain build, block after block (tests: the AVX2 sweep gives its
@@ -745,6 +831,26 @@ fn prefetch<T>(x: &T) {
     safe_arch::prefetch_t0(x);
 }
 
+/// Ring slots `s..s + 4`.
+#[inline(always)]
+fn slots<const N: usize>(ring: &[[f64; N]], s: usize) -> [[f64; N]; 4] {
+    let (mask, s) = (ring.len() - 1, s & (ring.len() - 1));
+    match ring.get(s..s + 4) {
+        Some(four) => four.try_into().expect("four slots"),
+        None => std::array::from_fn(|l| ring[(s + l) & mask]),
+    }
+}
+
+/// Sets ring slots `s..s + 4`.
+#[inline(always)]
+fn put_slots<const N: usize>(ring: &mut [[f64; N]], s: usize, x: &[[f64; N]; 4]) {
+    let (mask, s) = (ring.len() - 1, s & (ring.len() - 1));
+    match ring.get_mut(s..s + 4) {
+        Some(four) => four.copy_from_slice(x),
+        None => (0..4).for_each(|l| ring[(s + l) & mask] = x[l]),
+    }
+}
+
 #[inline(always)]
 fn add<const N: usize>(acc: &mut [f64; N], x: &[f64; N]) {
     for j in 0..N {
@@ -755,8 +861,18 @@ fn add<const N: usize>(acc: &mut [f64; N], x: &[f64; N]) {
 /// The state a sweep reads `U` from, and what it does with an element whose force is complete.
 trait BlockState<const N: usize> {
     fn u(&self, i: usize) -> &[f64; N];
+    /// Elements `i..i + 4`.
+    fn u4(&self, i: usize) -> &[[f64; N]; 4];
     /// Element `e` (index `i` in the block) has its whole internal force `f`.
     fn complete(&mut self, e: usize, i: usize, f: &mut [f64; N]);
+    /// Elements `e..e + 4` (`i..i + 4` in the block) have their whole internal forces `f`, in
+    /// lanes: as four calls of [`BlockState::complete`] in order.
+    #[inline(always)]
+    fn complete_wide(&mut self, lanes: impl Lanes, e: usize, i: usize, f: &Wide<N>) {
+        for (l, mut f) in lanes.narrow(f).into_iter().enumerate() {
+            self.complete(e + l, i + l, &mut f);
+        }
+    }
 }
 
 /// An evaluation: `U` is only read, and each force is written once.
@@ -771,6 +887,10 @@ impl<const N: usize> BlockState<N> for Evaluate<'_, N> {
         &self.u[i]
     }
     #[inline(always)]
+    fn u4(&self, i: usize) -> &[[f64; N]; 4] {
+        self.u[i..i + 4].try_into().expect("four elements")
+    }
+    #[inline(always)]
     fn complete(&mut self, _: usize, i: usize, f: &mut [f64; N]) {
         self.f[i] = *f;
     }
@@ -783,8 +903,8 @@ struct Advance<'a, const N: usize, E> {
     v: &'a mut [[f64; N]],
     /// The block's part of `−P − f_c`.
     force: &'a mut [[f64; N]],
-    /// The elements, in order, where `force` may not be zero; `None`: all of them.
-    loaded: Option<&'a [u32]>,
+    /// The elements where `force` may not be zero.
+    loaded: Loaded<'a>,
     /// The block's update ([`Update::resolve`]).
     update: E,
     /// The damping's power of the block's elements, summed in order (damped updates only).
@@ -797,16 +917,12 @@ impl<const N: usize, E: ElementUpdate<N>> BlockState<N> for Advance<'_, N, E> {
         &self.u[i]
     }
     #[inline(always)]
+    fn u4(&self, i: usize) -> &[[f64; N]; 4] {
+        self.u[i..i + 4].try_into().expect("four elements")
+    }
+    #[inline(always)]
     fn complete(&mut self, e: usize, i: usize, f: &mut [f64; N]) {
-        let external = match &mut self.loaded {
-            None => true,
-            Some([next, rest @ ..]) if *next as usize == e => {
-                self.loaded = Some(rest);
-                true
-            }
-            Some(_) => false,
-        };
-        if external {
+        if self.loaded.take(e) {
             let p = std::mem::replace(&mut self.force[i], [0.0; N]);
             for j in 0..N {
                 f[j] += p[j];
@@ -816,6 +932,69 @@ impl<const N: usize, E: ElementUpdate<N>> BlockState<N> for Advance<'_, N, E> {
         if E::DAMPED {
             *self.power += power;
         }
+    }
+
+    /// Four at once unless one of them is loaded.
+    #[inline(always)]
+    fn complete_wide(&mut self, lanes: impl Lanes, e: usize, i: usize, f: &Wide<N>) {
+        let f = lanes.narrow(f);
+        if self.loaded.any_before(e + 4) {
+            for (l, mut f) in f.into_iter().enumerate() {
+                self.complete(e + l, i + l, &mut f);
+            }
+            return;
+        }
+        let v: &mut [[f64; N]; 4] = (&mut self.v[i..i + 4]).try_into().expect("four elements");
+        let u: &mut [[f64; N]; 4] = (&mut self.u[i..i + 4]).try_into().expect("four elements");
+        let powers = self.update.elements(lanes, i, &f, v, u);
+        if E::DAMPED {
+            for p in powers {
+                *self.power += p;
+            }
+        }
+    }
+}
+
+/// The elements of a block, in order, where `−P − f_c` may not be zero, for each element to
+/// ask in turn with one comparison: most are not loaded.
+struct Loaded<'a> {
+    /// The next of them, or `usize::MAX`.
+    next: usize,
+    rest: &'a [u32],
+    /// Any element may be loaded (`next` is then `usize::MAX`).
+    every: bool,
+}
+
+impl<'a> Loaded<'a> {
+    /// `None`: every element.
+    fn new(loaded: Option<&'a [u32]>) -> Self {
+        let rest = loaded.unwrap_or(&[]);
+        Loaded {
+            next: Self::first(rest),
+            rest,
+            every: loaded.is_none(),
+        }
+    }
+
+    fn first(rest: &[u32]) -> usize {
+        rest.first().map_or(usize::MAX, |&x| x as usize)
+    }
+
+    /// Whether an element before `e` may be loaded (none asked for yet).
+    #[inline(always)]
+    fn any_before(&self, e: usize) -> bool {
+        self.every || self.next < e
+    }
+
+    /// Whether element `e` may be loaded; `e` grows from call to call.
+    #[inline(always)]
+    fn take(&mut self, e: usize) -> bool {
+        if e == self.next {
+            self.rest = self.rest.split_first().map_or(&[], |(_, rest)| rest);
+            self.next = Self::first(self.rest);
+            return true;
+        }
+        self.every
     }
 }
 
@@ -852,7 +1031,7 @@ impl<C: Couplings<N>, const N: usize> WithUpdate<N> for AdvanceBlock<'_, C, N> {
             u,
             v,
             force,
-            loaded,
+            loaded: Loaded::new(loaded),
             update,
             power,
         };
@@ -872,6 +1051,7 @@ mod tests {
         type Ref = u32;
         const PREFETCH: bool = false;
         const RUNS: bool = true;
+        const WIDE: bool = true;
         fn faces(&self) -> &[Face<u32>] {
             &self.0
         }
@@ -906,17 +1086,23 @@ mod tests {
 
     /// Stretches of elements whose couplings repeat, of widths 0 to 5, next to stretches of
     /// the same reaches with another record, with couplings to the ground now and then, over
-    /// three blocks: runs are found for widths 1 to 4 and never span a change of record, and
-    /// the sweep through them gives the bits of the element-by-element sweep.
+    /// three blocks: runs are found for widths 1 to 4, some of them in lanes, and never span a
+    /// change of record, and the sweep through them gives the bits of the element-by-element
+    /// sweep.
     #[test]
     fn runs_of_every_width_give_the_bits_of_each_element() {
         let n = 10_000;
         let mut faces = Vec::new();
         // Element `e` lies in stretch `e / 37`, which fixes its width, its reaches and its
         // record; neighbouring stretches of the same width differ in their record only.
+        // Reaches that may go in lanes (`in_lanes`) in every other group of 12 stretches.
         let stretch = |e: usize| {
             let s = e / 37;
-            (s / 2 % 6, [1, 3, 8, 61, 200], (s % 2) as u32)
+            let reaches = match s / 12 % 2 {
+                0 => [1, 3, 8, 61, 200],
+                _ => [1, 8, 61, 200, 3],
+            };
+            (s / 2 % 6, reaches, (s % 2) as u32)
         };
         for e in 0..n {
             let (width, reaches, record) = stretch(e);
@@ -944,10 +1130,14 @@ mod tests {
         );
         for width in 1..=MAX_WIDTH {
             let found = runs.blocks.iter().flat_map(|b| &b.runs);
-            assert!(
-                found.filter(|r| r.width == width).count() > 10,
-                "width {width}"
-            );
+            let (wide, one_by_one) = found
+                .filter(|r| r.width == width)
+                .fold((0, 0), |(w, o), r| {
+                    (w + r.lanes as usize, o + !r.lanes as usize)
+                });
+            assert!(wide + one_by_one > 10, "width {width}");
+            assert!(width == 1 || wide > 5, "width {width} in lanes: {wide}");
+            assert!(one_by_one > 5, "width {width} one by one: {one_by_one}");
         }
         for block in &runs.blocks {
             for run in &block.runs {

@@ -1,0 +1,289 @@
+//! Arithmetic in groups of four lanes of `f64`, in the 256-bit registers of AVX2 where the
+//! processor has them ([`pulp::x86::V3`]) and one number at a time elsewhere ([`Plain`]), with
+//! the same bits on both: no fused multiply-add, and sums in the same order.
+//!
+//! Two layouts: the outputs of one interface in lanes ([`Lanes::combine`]), and four
+//! consecutive elements in lanes, one group per DOF ([`Wide`], [`Lanes::combine_wide`]), which
+//! the sweep uses where elements repeat their neighbours' interfaces.
+
+/// Four consecutive elements in lanes: `w[j][l]` is DOF `j` of the `l`-th.
+pub type Wide<const N: usize> = [[f64; 4]; N];
+
+/// The DOFs of lane `l`.
+#[inline(always)]
+pub fn lane<const N: usize>(w: &Wide<N>, l: usize) -> [f64; N] {
+    std::array::from_fn(|j| w[j][l])
+}
+
+/// Sets the DOFs of lane `l`.
+#[inline(always)]
+pub fn set_lane<const N: usize>(w: &mut Wide<N>, l: usize, x: &[f64; N]) {
+    for j in 0..N {
+        w[j][l] = x[j];
+    }
+}
+
+/// Sums of products in groups of four lanes, `o = Σ_k x_k g[k]` in the order of `k`, with no
+/// fused multiply-add: the same bits on every path.
+pub trait Lanes: Copy {
+    /// `o = Σ_k x_k g[k]`, the outputs in `Q` groups of four lanes.
+    fn combine<const M: usize, const Q: usize>(
+        self,
+        g: &[[[f64; 4]; Q]; M],
+        x: &[f64; M],
+    ) -> [[f64; 4]; Q];
+
+    /// The same sums for four inputs at once, input `k` of lane `l` being `x[k][l]`, and each
+    /// entry `g[k][m]` of the map in four lanes: `o[m] = Σ_k g[k][m] x[k]`.
+    #[inline(always)]
+    fn combine_wide<const M: usize>(self, g: &[Wide<M>; M], x: &Wide<M>) -> Wide<M> {
+        let mut o: Wide<M> = std::array::from_fn(|m| self.mul(g[0][m], x[0]));
+        for k in 1..M {
+            for m in 0..M {
+                o[m] = self.add(o[m], self.mul(g[k][m], x[k]));
+            }
+        }
+        o
+    }
+
+    /// `a + b`, lane by lane.
+    #[inline(always)]
+    fn add(self, a: [f64; 4], b: [f64; 4]) -> [f64; 4] {
+        std::array::from_fn(|l| a[l] + b[l])
+    }
+
+    /// `a − b`, lane by lane.
+    #[inline(always)]
+    fn sub(self, a: [f64; 4], b: [f64; 4]) -> [f64; 4] {
+        std::array::from_fn(|l| a[l] - b[l])
+    }
+
+    /// `−a`, lane by lane.
+    #[inline(always)]
+    fn neg(self, a: [f64; 4]) -> [f64; 4] {
+        a.map(|a| -a)
+    }
+
+    /// `a b`, lane by lane.
+    #[inline(always)]
+    fn mul(self, a: [f64; 4], b: [f64; 4]) -> [f64; 4] {
+        std::array::from_fn(|l| a[l] * b[l])
+    }
+
+    /// `f` with lane `l + 1` plus lane `l` of `o`, `l = 0..3` (`MINUS`: minus); lane 0 kept.
+    #[inline(always)]
+    fn add_next<const MINUS: bool>(self, f: [f64; 4], o: [f64; 4]) -> [f64; 4] {
+        std::array::from_fn(|l| match l {
+            0 => f[0],
+            _ if MINUS => f[l] - o[l - 1],
+            _ => f[l] + o[l - 1],
+        })
+    }
+
+    /// Four elements' DOFs in lanes.
+    #[inline(always)]
+    fn wide<const N: usize>(self, x: &[[f64; N]; 4]) -> Wide<N> {
+        std::array::from_fn(|j| std::array::from_fn(|l| x[l][j]))
+    }
+
+    /// The four elements after those of `a`, whose next four are `n`: lanes 1–3 of `a`, then
+    /// lane 0 of `n`.
+    #[inline(always)]
+    fn shift<const N: usize>(self, a: &Wide<N>, n: &Wide<N>) -> Wide<N> {
+        std::array::from_fn(|j| [a[j][1], a[j][2], a[j][3], n[j][0]])
+    }
+
+    /// Four elements' DOFs from lanes: [`Lanes::wide`] undone.
+    #[inline(always)]
+    fn narrow<const N: usize>(self, w: &Wide<N>) -> [[f64; N]; 4] {
+        std::array::from_fn(|l| lane(w, l))
+    }
+}
+
+/// [`Lanes`] one number at a time, on any processor.
+#[derive(Clone, Copy)]
+pub struct Plain;
+
+impl Lanes for Plain {
+    #[inline(always)]
+    fn combine<const M: usize, const Q: usize>(
+        self,
+        g: &[[[f64; 4]; Q]; M],
+        x: &[f64; M],
+    ) -> [[f64; 4]; Q] {
+        let mut o = [[0.0; 4]; Q];
+        for q in 0..Q {
+            for l in 0..4 {
+                o[q][l] = g[0][q][l] * x[0];
+            }
+        }
+        for k in 1..M {
+            for q in 0..Q {
+                for l in 0..4 {
+                    o[q][l] += g[k][q][l] * x[k];
+                }
+            }
+        }
+        o
+    }
+}
+
+/// [`Lanes`] in the 256-bit registers of AVX2.
+#[cfg(target_arch = "x86_64")]
+impl Lanes for pulp::x86::V3 {
+    #[inline(always)]
+    fn combine<const M: usize, const Q: usize>(
+        self,
+        g: &[[[f64; 4]; Q]; M],
+        x: &[f64; M],
+    ) -> [[f64; 4]; Q] {
+        let mut o = [[0.0; 4]; Q];
+        let x0 = self.splat_f64x4(x[0]);
+        for q in 0..Q {
+            o[q] = pulp::cast(self.mul_f64x4(pulp::cast(g[0][q]), x0));
+        }
+        for k in 1..M {
+            let xk = self.splat_f64x4(x[k]);
+            for q in 0..Q {
+                let term = self.mul_f64x4(pulp::cast(g[k][q]), xk);
+                o[q] = pulp::cast(self.add_f64x4(pulp::cast(o[q]), term));
+            }
+        }
+        o
+    }
+
+    #[inline(always)]
+    fn add(self, a: [f64; 4], b: [f64; 4]) -> [f64; 4] {
+        pulp::cast(self.add_f64x4(pulp::cast(a), pulp::cast(b)))
+    }
+
+    #[inline(always)]
+    fn sub(self, a: [f64; 4], b: [f64; 4]) -> [f64; 4] {
+        pulp::cast(self.sub_f64x4(pulp::cast(a), pulp::cast(b)))
+    }
+
+    #[inline(always)]
+    fn mul(self, a: [f64; 4], b: [f64; 4]) -> [f64; 4] {
+        pulp::cast(self.mul_f64x4(pulp::cast(a), pulp::cast(b)))
+    }
+
+    /// Lanes 0–2 of `o` moved up one, added in all four lanes, lane 0 taken back from `f`.
+    #[inline(always)]
+    fn add_next<const MINUS: bool>(self, f: [f64; 4], o: [f64; 4]) -> [f64; 4] {
+        let up = self
+            .avx2
+            ._mm256_permute4x64_pd::<0b10_01_00_00>(pulp::cast(o));
+        let sum = match MINUS {
+            true => self.avx._mm256_sub_pd(pulp::cast(f), up),
+            false => self.avx._mm256_add_pd(pulp::cast(f), up),
+        };
+        pulp::cast(self.avx._mm256_blend_pd::<0b0001>(sum, pulp::cast(f)))
+    }
+
+    /// Three DOFs: the 12 numbers in three registers, regrouped by two blends or swaps of
+    /// halves and three shuffles.
+    #[inline(always)]
+    fn wide<const N: usize>(self, x: &[[f64; N]; 4]) -> Wide<N> {
+        use std::arch::x86_64::__m256d;
+        if N != 3 {
+            return std::array::from_fn(|j| std::array::from_fn(|l| x[l][j]));
+        }
+        let x = x.as_flattened();
+        let load =
+            |k: usize| -> __m256d { pulp::cast(<[f64; 4]>::try_from(&x[k..k + 4]).unwrap()) };
+        let (a0, a1, a2) = (load(0), load(4), load(8));
+        let avx = self.avx;
+        // The pairs (x0 y0 | x2 y2), (θ0 x1 | θ2 x3), (y1 θ1 | y3 θ3).
+        let u = avx._mm256_blend_pd::<0b1100>(a0, a1);
+        let v = avx._mm256_permute2f128_pd::<0x21>(a0, a2);
+        let w = avx._mm256_blend_pd::<0b1100>(a1, a2);
+        let dofs = [
+            avx._mm256_shuffle_pd::<0b1010>(u, v),
+            avx._mm256_shuffle_pd::<0b0101>(u, w),
+            avx._mm256_shuffle_pd::<0b1010>(v, w),
+        ];
+        std::array::from_fn(|j| pulp::cast(dofs[j]))
+    }
+
+    #[inline(always)]
+    fn narrow<const N: usize>(self, w: &Wide<N>) -> [[f64; N]; 4] {
+        use std::arch::x86_64::__m256d;
+        if N != 3 {
+            return std::array::from_fn(|l| lane(w, l));
+        }
+        let dof = |j: usize| -> __m256d { pulp::cast(w[j]) };
+        let (x, y, t) = (dof(0), dof(1), dof(2));
+        let avx = self.avx;
+        let u = avx._mm256_shuffle_pd::<0b0000>(x, y);
+        let v = avx._mm256_shuffle_pd::<0b1010>(t, x);
+        let w = avx._mm256_shuffle_pd::<0b1111>(y, t);
+        let parts: [[f64; 4]; 3] = [
+            pulp::cast(avx._mm256_permute2f128_pd::<0x20>(u, v)),
+            pulp::cast(avx._mm256_blend_pd::<0b1100>(w, u)),
+            pulp::cast(avx._mm256_permute2f128_pd::<0x31>(v, w)),
+        ];
+        let flat = parts.as_flattened();
+        std::array::from_fn(|l| std::array::from_fn(|j| flat[N * l + j]))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Numbers of all signs and scales, zeros of both signs among them.
+    fn numbers<const K: usize>(seed: usize) -> [f64; K] {
+        std::array::from_fn(|k| match (k + seed) % 7 {
+            0 => 0.0,
+            1 => -0.0,
+            i => (i as f64 - 3.5) * 10f64.powi(((k * 31 + seed) % 9) as i32 - 4) / 3.0,
+        })
+    }
+
+    /// Three DOFs of four elements go into lanes and back unchanged, and the lanes are those
+    /// of the plain build; the arithmetic of AVX2 in lanes has the plain build's bits,
+    /// [`Lanes::combine_wide`] those of [`Lanes::combine`] lane by lane.
+    #[test]
+    fn the_lanes_of_avx2_are_the_plain_bits() {
+        fn check(lanes: impl Lanes) {
+            let bits = |w: &[f64]| w.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            for seed in 0..20 {
+                let x: [[f64; 3]; 4] = std::array::from_fn(|l| numbers(seed + 3 * l));
+                let w = lanes.wide(&x);
+                assert_eq!(bits(w.as_flattened()), bits(Plain.wide(&x).as_flattened()));
+                assert_eq!(w[1][2], x[2][1]);
+                assert_eq!(
+                    bits(lanes.narrow(&w).as_flattened()),
+                    bits(x.as_flattened())
+                );
+                let (a, b) = (numbers::<4>(seed), numbers::<4>(seed + 5));
+                for (fast, plain) in [
+                    (lanes.add(a, b), Plain.add(a, b)),
+                    (lanes.sub(a, b), Plain.sub(a, b)),
+                    (lanes.mul(a, b), Plain.mul(a, b)),
+                    (lanes.neg(a), Plain.neg(a)),
+                    (lanes.add_next::<false>(a, b), Plain.add_next::<false>(a, b)),
+                    (lanes.add_next::<true>(a, b), Plain.add_next::<true>(a, b)),
+                ] {
+                    assert_eq!(bits(&fast), bits(&plain));
+                }
+                assert_eq!(Plain.add_next::<true>(a, b)[2], a[2] - b[1]);
+                // A 4 × 4 map, columns `g[k]`, applied to four inputs at once and one by one.
+                let g: [[[f64; 4]; 1]; 4] = std::array::from_fn(|k| [numbers(seed + 11 * k)]);
+                let spread: [Wide<4>; 4] =
+                    std::array::from_fn(|k| std::array::from_fn(|m| [g[k][0][m]; 4]));
+                let inputs: Wide<4> = std::array::from_fn(|k| numbers(seed + 7 * k + 1));
+                let o = lanes.combine_wide(&spread, &inputs);
+                for l in 0..4 {
+                    let one = lanes.combine(&g, &lane(&inputs, l));
+                    assert_eq!(bits(&lane(&o, l)), bits(&one[0]));
+                }
+            }
+        }
+        check(Plain);
+        #[cfg(target_arch = "x86_64")]
+        if let Some(simd) = pulp::x86::V3::try_new() {
+            check(simd);
+        }
+    }
+}
