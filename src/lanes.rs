@@ -33,14 +33,20 @@ pub trait Lanes: Copy {
         x: &[f64; M],
     ) -> [[f64; 4]; Q];
 
-    /// The same sums for four inputs at once, input `k` of lane `l` being `x[k][l]`, and each
-    /// entry `g[k][m]` of the map in four lanes: `o[m] = Σ_k g[k][m] x[k]`.
+    /// The same sums for four inputs at once, input `k` of lane `l` being `x[k][l]`:
+    /// `o[m] = Σ_k g[k][m] x[k]`, with `g[k][m]` output `m` of column `k` of
+    /// [`Lanes::combine`] (lane `m % 4` of group `m / 4`) in all four lanes.
     #[inline(always)]
-    fn combine_wide<const M: usize>(self, g: &[Wide<M>; M], x: &Wide<M>) -> Wide<M> {
-        let mut o: Wide<M> = std::array::from_fn(|m| self.mul(g[0][m], x[0]));
+    fn combine_wide<const M: usize, const Q: usize>(
+        self,
+        g: &[[[f64; 4]; Q]; M],
+        x: &Wide<M>,
+    ) -> Wide<M> {
+        let g = |k: usize, m: usize| [g[k][m / 4][m % 4]; 4];
+        let mut o: Wide<M> = std::array::from_fn(|m| self.mul(g(0, m), x[0]));
         for k in 1..M {
             for m in 0..M {
-                o[m] = self.add(o[m], self.mul(g[k][m], x[k]));
+                o[m] = self.add(o[m], self.mul(g(k, m), x[k]));
             }
         }
         o
@@ -86,8 +92,8 @@ pub trait Lanes: Copy {
         std::array::from_fn(|j| std::array::from_fn(|l| x[l][j]))
     }
 
-    /// The four elements after those of `a`, whose next four are `n`: lanes 1–3 of `a`, then
-    /// lane 0 of `n`.
+    /// Each element's successor, for the four elements `a` followed by the four `n`: lanes 1–3
+    /// of `a`, then lane 0 of `n`.
     #[inline(always)]
     fn shift<const N: usize>(self, a: &Wide<N>, n: &Wide<N>) -> Wide<N> {
         std::array::from_fn(|j| [a[j][1], a[j][2], a[j][3], n[j][0]])
@@ -180,13 +186,13 @@ impl Lanes for pulp::x86::V3 {
         pulp::cast(self.avx._mm256_blend_pd::<0b0001>(sum, pulp::cast(f)))
     }
 
-    /// Three DOFs: the 12 numbers in three registers, regrouped by two blends or swaps of
-    /// halves and three shuffles.
+    /// Three DOFs: the 12 numbers in three registers, regrouped by two blends and a swap of
+    /// halves, then three shuffles.
     #[inline(always)]
     fn wide<const N: usize>(self, x: &[[f64; N]; 4]) -> Wide<N> {
         use std::arch::x86_64::__m256d;
         if N != 3 {
-            return std::array::from_fn(|j| std::array::from_fn(|l| x[l][j]));
+            return Plain.wide(x);
         }
         let x = x.as_flattened();
         let load =
@@ -209,18 +215,18 @@ impl Lanes for pulp::x86::V3 {
     fn narrow<const N: usize>(self, w: &Wide<N>) -> [[f64; N]; 4] {
         use std::arch::x86_64::__m256d;
         if N != 3 {
-            return std::array::from_fn(|l| lane(w, l));
+            return Plain.narrow(w);
         }
         let dof = |j: usize| -> __m256d { pulp::cast(w[j]) };
         let (x, y, t) = (dof(0), dof(1), dof(2));
         let avx = self.avx;
-        let u = avx._mm256_shuffle_pd::<0b0000>(x, y);
-        let v = avx._mm256_shuffle_pd::<0b1010>(t, x);
-        let w = avx._mm256_shuffle_pd::<0b1111>(y, t);
+        let p0 = avx._mm256_shuffle_pd::<0b0000>(x, y);
+        let p1 = avx._mm256_shuffle_pd::<0b1010>(t, x);
+        let p2 = avx._mm256_shuffle_pd::<0b1111>(y, t);
         let parts: [[f64; 4]; 3] = [
-            pulp::cast(avx._mm256_permute2f128_pd::<0x20>(u, v)),
-            pulp::cast(avx._mm256_blend_pd::<0b1100>(w, u)),
-            pulp::cast(avx._mm256_permute2f128_pd::<0x31>(v, w)),
+            pulp::cast(avx._mm256_permute2f128_pd::<0x20>(p0, p1)),
+            pulp::cast(avx._mm256_blend_pd::<0b1100>(p2, p0)),
+            pulp::cast(avx._mm256_permute2f128_pd::<0x31>(p1, p2)),
         ];
         let flat = parts.as_flattened();
         std::array::from_fn(|l| std::array::from_fn(|j| flat[N * l + j]))
@@ -270,10 +276,8 @@ mod tests {
                 assert_eq!(Plain.add_next::<true>(a, b)[2], a[2] - b[1]);
                 // A 4 × 4 map, columns `g[k]`, applied to four inputs at once and one by one.
                 let g: [[[f64; 4]; 1]; 4] = std::array::from_fn(|k| [numbers(seed + 11 * k)]);
-                let spread: [Wide<4>; 4] =
-                    std::array::from_fn(|k| std::array::from_fn(|m| [g[k][0][m]; 4]));
                 let inputs: Wide<4> = std::array::from_fn(|k| numbers(seed + 7 * k + 1));
-                let o = lanes.combine_wide(&spread, &inputs);
+                let o = lanes.combine_wide(&g, &inputs);
                 for l in 0..4 {
                     let one = lanes.combine(&g, &lane(&inputs, l));
                     assert_eq!(bits(&lane(&o, l)), bits(&one[0]));

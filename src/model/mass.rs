@@ -89,7 +89,6 @@ pub trait ElementUpdate<const N: usize> {
     fn element(&self, i: usize, f: &[f64; N], v: &mut [f64; N], u: &mut [f64; N]) -> f64;
 
     /// [`ElementUpdate::element`] for the run's elements `i..i + 4`, with their powers.
-    #[inline(always)]
     fn elements(
         &self,
         lanes: impl Lanes,
@@ -97,22 +96,7 @@ pub trait ElementUpdate<const N: usize> {
         f: &[[f64; N]; 4],
         v: &mut [[f64; N]; 4],
         u: &mut [[f64; N]; 4],
-    ) -> [f64; 4] {
-        let _ = lanes;
-        one_by_one(self, i, f, v, u)
-    }
-}
-
-/// [`ElementUpdate::elements`] one element after the other.
-#[inline(always)]
-fn one_by_one<const N: usize>(
-    update: &(impl ElementUpdate<N> + ?Sized),
-    i: usize,
-    f: &[[f64; N]; 4],
-    v: &mut [[f64; N]; 4],
-    u: &mut [[f64; N]; 4],
-) -> [f64; 4] {
-    std::array::from_fn(|l| update.element(i + l, &f[l], &mut v[l], &mut u[l]))
+    ) -> [f64; 4];
 }
 
 /// An element's `M_e⁻¹` (or `M_e`): its diagonal (lumped) or its row-major block.
@@ -241,7 +225,7 @@ impl<B: ElementInverse<N>, const N: usize, const DAMPED: bool> ElementUpdate<N>
     ) -> [f64; 4] {
         let inv: &[B; 4] = self.inv[i..i + 4].try_into().expect("four elements");
         if DAMPED || !B::velocity_of_four(lanes, inv, v, f, self.dt) {
-            return one_by_one(self, i, f, v, u);
+            return std::array::from_fn(|l| self.element(i + l, &f[l], &mut v[l], &mut u[l]));
         }
         let (u, _) = u.as_flattened_mut().as_chunks_mut::<4>();
         let (v, _) = v.as_flattened().as_chunks::<4>();

@@ -199,8 +199,8 @@ pub trait Kernel<const N: usize>: Kinematics<N> + Sized {
     type Map: Map<N>;
     /// Whether runs of its interfaces go four elements at a time in lanes
     /// ([`Couplings::add_pairs`]): worth it for the 4 × 4 rigid map, not for the hybrid 10 × 10
-    /// (10⁶-element grid, one thread: rigid 8.7 → 8.1 ns per element-step, hybrid 38–40 →
-    /// 46 ns).
+    /// (10⁶-element grid, one thread, `step_only` timed in turns: rigid 9.1–9.4 → 8.5–8.8 ns
+    /// per element-step; hybrid 38–40 → 46 ns with it set).
     const WIDE: bool = false;
     /// The generalised forces that an interface with record `f` puts on its sides `a` and `b`
     /// (`ub = None` on ground): [`gauss_forces`], unless `K` has a cheaper form of it.
@@ -270,12 +270,7 @@ impl Kernel<6> for Hybrid {
 /// formed once per shared record. Applied, it is `M` products of `4Q` lanes and no shuffles
 /// (rigid: 4 × 4; `Q` groups of four lanes hold the outputs, the last padded with zeros).
 #[derive(Debug, Clone, Copy)]
-pub struct FaceMap<const M: usize, const Q: usize> {
-    columns: [[[f64; 4]; Q]; M],
-    /// Each entry of the map in four lanes, for four interfaces at once
-    /// ([`Lanes::combine_wide`]).
-    wide: [Wide<M>; M],
-}
+pub struct FaceMap<const M: usize, const Q: usize>([[[f64; 4]; Q]; M]);
 
 /// [`FaceMap`] for `N` DOFs per element.
 pub trait Map<const N: usize>: Copy + Send + Sync {
@@ -305,7 +300,7 @@ pub trait Map<const N: usize>: Copy + Send + Sync {
 impl<const N: usize, const M: usize, const Q: usize> Map<N> for FaceMap<M, Q> {
     fn new<K: Kernel<N>>(record: &Record<K, N>) -> Self {
         debug_assert!(M == 2 * N - 2 && M <= 4 * Q, "{M} inputs, {Q} lane groups");
-        let columns = std::array::from_fn(|k| {
+        FaceMap(std::array::from_fn(|k| {
             // The unit input `k`: a translation of `b`, or another DOF of `a`, or of `b`.
             let (mut ua, mut ub) = ([0.0; N], [0.0; N]);
             match k {
@@ -319,9 +314,7 @@ impl<const N: usize, const M: usize, const Q: usize> Map<N> for FaceMap<M, Q> {
             lanes[..N].copy_from_slice(&on_a);
             lanes[N..M].copy_from_slice(&on_b[2..]);
             column
-        });
-        let wide = std::array::from_fn(|k| std::array::from_fn(|m| [columns[k][m / 4][m % 4]; 4]));
-        FaceMap { columns, wide }
+        }))
     }
 
     #[inline(always)]
@@ -338,7 +331,7 @@ impl<const N: usize, const M: usize, const Q: usize> Map<N> for FaceMap<M, Q> {
             _ if k < N => ua[k],
             _ => ub[k + 2 - N],
         });
-        let o = lanes.combine(&self.columns, &x);
+        let o = lanes.combine(&self.0, &x);
         let o = o.as_flattened();
         // The sweep accumulates `f_int`, the negated forces the springs put on the elements.
         for j in 0..N {
@@ -365,7 +358,7 @@ impl<const N: usize, const M: usize, const Q: usize> Map<N> for FaceMap<M, Q> {
             _ if k < N => ua[k],
             _ => ub[k + 2 - N],
         });
-        let o = lanes.combine_wide(&self.wide, &x);
+        let o = lanes.combine_wide(&self.0, &x);
         // As `add_internal`: DOF `j` of `b` gets `+o[j]` or `−o[N + j − 2]`.
         match fb {
             Higher::Apart(fb) => {
@@ -759,7 +752,7 @@ mod tests {
     }
 
     /// On a grid of four blocks, most elements lie in runs of repeating interfaces, which the
-    /// sweep steps through without reading them, four elements at a time in lanes (rigid); on a
+    /// sweep steps through without reading them, four elements at a time in lanes if rigid; on a
     /// strip whose vertical interfaces cross blocks, the top row's runs are entered by those
     /// interfaces midway. The forces and the steps (with loads at some elements, so that some
     /// fours are advanced one by one, damped and not) are the bits of the element-by-element
@@ -771,7 +764,7 @@ mod tests {
             let runs = ElementWise::<K, N>::new(model);
             let each = ElementWise::<K, N>::build(model, true, false);
             let n = model.elements.len();
-            let (in_runs, in_lanes, entries) = runs.sweep.run_elements();
+            let (in_runs, in_lanes, entries, _) = runs.sweep.run_elements();
             assert!(
                 runs.sweep.blocks.len() >= 4,
                 "{} blocks",
@@ -781,11 +774,13 @@ mod tests {
                 in_runs as f64 >= share * n as f64,
                 "{in_runs} of {n} elements in runs"
             );
-            // The strip's runs reach one element only: its ring is too short for lanes.
+            // The strip's runs are of width 1 (its vertical interfaces cross blocks): not in
+            // lanes. The grid's are, but only rigid ones go in lanes (`Kernel::WIDE`).
             assert!(
                 (in_lanes as f64 >= share * n as f64) == (share > 0.5),
-                "{in_lanes} of {n} elements in runs in lanes"
+                "{in_lanes} of {n} elements in runs that may go in lanes"
             );
+            assert_eq!(K::WIDE, N == 3, "rigid runs go in lanes, hybrid ones not");
             assert!(
                 share > 0.5 || entries > 0,
                 "no coupling enters a ring inside a run"

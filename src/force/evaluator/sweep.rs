@@ -358,27 +358,27 @@ impl<const N: usize> Sweep<N> {
     }
 
     /// How many elements lie in [`Run`]s, how many in runs that may go in lanes, and how many
-    /// couplings from earlier blocks enter a ring while the sweep is inside a run.
+    /// couplings from earlier blocks enter a ring while the sweep is inside a run, and inside a
+    /// run in lanes.
     #[cfg(test)]
-    pub(super) fn run_elements(&self) -> (usize, usize, usize) {
+    pub(super) fn run_elements(&self) -> (usize, usize, usize, usize) {
         let runs = self.blocks.iter().flat_map(|b| &b.runs);
         let elements = runs.clone().map(|r| r.elements.len()).sum();
         let in_lanes = runs.filter(|r| r.lanes).map(|r| r.elements.len()).sum();
-        let entries = self.blocks.iter().map(|b| {
+        let (mut entries, mut entries_in_lanes) = (0, 0);
+        for b in &self.blocks {
             let at =
                 |&(e, _): &(u32, u32)| (e as usize - b.elements.start).saturating_sub(b.ring - 1);
-            let inside = |i: usize| {
-                b.runs
+            for i in self.incoming[b.incoming.clone()].iter().map(at) {
+                let run = b
+                    .runs
                     .iter()
-                    .any(|r| r.elements.start < i && i < r.elements.end)
-            };
-            self.incoming[b.incoming.clone()]
-                .iter()
-                .map(at)
-                .filter(|&i| inside(i))
-                .count()
-        });
-        (elements, in_lanes, entries.sum())
+                    .find(|r| r.elements.start < i && i < r.elements.end);
+                entries += run.is_some() as usize;
+                entries_in_lanes += run.is_some_and(|r| r.lanes) as usize;
+            }
+        }
+        (elements, in_lanes, entries, entries_in_lanes)
     }
 
     /// The bytes it holds: the crossing couplings and their forces, the rings, the runs.
@@ -709,7 +709,7 @@ impl<const N: usize> Sweep<N> {
 
     /// `n` times four elements of a run from the block's element `i`, in lanes
     /// ([`Couplings::add_pairs`]): the first coupling reaches the next element, the others
-    /// apart ([`Sweep::run`]). The next four's `U` and the force their first element gets from
+    /// apart ([`in_lanes`]). The next four's `U` and the force their first element gets from
     /// the last of these four stay in registers.
     #[inline(always)]
     fn groups<C: Couplings<N>, S: BlockState<N>, const W: usize>(
@@ -980,7 +980,7 @@ impl<'a> Loaded<'a> {
         rest.first().map_or(usize::MAX, |&x| x as usize)
     }
 
-    /// Whether an element before `e` may be loaded (none asked for yet).
+    /// Whether an element before `e` may be loaded, of those not asked for yet.
     #[inline(always)]
     fn any_before(&self, e: usize) -> bool {
         self.every || self.next < e
@@ -1084,11 +1084,31 @@ mod tests {
         }
     }
 
+    /// Runs go in lanes when their first coupling reaches the next element and the others
+    /// five or more, four apart, within the ring with four slots to spare: at the edges, and
+    /// one step past them.
+    #[test]
+    fn a_run_goes_in_lanes_when_its_reaches_leave_room() {
+        for (reach, ring, lanes) in [
+            (&[1, 5][..], 16, true),
+            (&[1, 4], 16, false),
+            (&[1, 12], 16, true),
+            (&[1, 13], 16, false),
+            (&[1, 5, 9], 16, true),
+            (&[1, 5, 8], 16, false),
+            (&[1, 5, 9, 13, 17], 32, true),
+            (&[2, 8], 16, false),
+            (&[1], 16, false),
+        ] {
+            assert_eq!(in_lanes(reach, ring), lanes, "{reach:?} in {ring} slots");
+        }
+    }
+
     /// Stretches of elements whose couplings repeat, of widths 0 to 5, next to stretches of
     /// the same reaches with another record, with couplings to the ground now and then, over
-    /// three blocks: runs are found for widths 1 to 4, some of them in lanes, and never span a
-    /// change of record, and the sweep through them gives the bits of the element-by-element
-    /// sweep.
+    /// three blocks, and couplings from one block into the next that enter its ring inside
+    /// runs: runs are found for widths 1 to 4, some of them in lanes, and never span a change of
+    /// record, and the sweep through them gives the bits of the element-by-element sweep.
     #[test]
     fn runs_of_every_width_give_the_bits_of_each_element() {
         let n = 10_000;
@@ -1116,6 +1136,11 @@ mod tests {
                 let (a, b, record) = (e as u32, GROUND, 2);
                 faces.push(Face { a, b, record });
             }
+            // Into the next block, past its ring: these enter it midway, in its runs.
+            if (e + 600) / 4096 > e / 4096 && e % 13 == 0 && e + 600 < n {
+                let (a, b, record) = (e as u32, (e + 600) as u32, 3);
+                faces.push(Face { a, b, record });
+            }
         }
         let mut each_faces = faces.clone();
         let each = Sweep::<2>::new(n, &mut each_faces);
@@ -1123,6 +1148,11 @@ mod tests {
         let mut runs = Sweep::<2>::new(n, &mut run_faces);
         runs.find_runs(&mut run_faces);
         assert!(runs.blocks.len() >= 3 && !runs.crossing.is_empty());
+        let (_, _, entries, in_lanes) = runs.run_elements();
+        assert!(
+            in_lanes > 5,
+            "{entries} entries in runs, {in_lanes} in runs in lanes"
+        );
         // Widths 0 to 4 in runs keep the couplings of one element in 37; width 5 keeps all.
         assert!(
             2 * run_faces.len() < each_faces.len(),
