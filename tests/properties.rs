@@ -19,6 +19,17 @@ fn config() -> ProptestConfig {
     }
 }
 
+/// A case the property below found: a Voronoi vertex 5.6e-6 m from the bottom side of a
+/// 4.3 × 6.8 m rectangle, which the weld used to take for the clipped points there, pulling
+/// the side in by as much.
+#[test]
+fn a_voronoi_vertex_near_a_side_keeps_the_rectangle() {
+    let size = Vec2::new(4.300362600714516, 6.798656690613665);
+    let mesh = voronoi("b", Vec2::new(0.0, 0.0), size, 15, 12731460188093093101, 1).unwrap();
+    assert_eq!(mesh.n_cells(), 15);
+    assert_conforming(&mesh, size);
+}
+
 /// The laws of a conforming mesh of the rectangle `lo .. lo + size`: every cell counter-clockwise
 /// with positive area, the areas summing to the rectangle's, each shared edge run once each way
 /// by its two cells, and the boundary edges' length the rectangle's perimeter.

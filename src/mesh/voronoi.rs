@@ -110,6 +110,20 @@ fn clipped_cells(body: &str, origin: Vec2, size: Vec2, sites: &[Vec2]) -> Result
     }
 }
 
+/// `x` moved onto the side `lo` or `lo + len` of the rectangle when it lies within `tol` of it
+/// but off it by more than round-off. A Voronoi vertex that near a side would otherwise be
+/// welded to the clipped points there and pull the side in: `tests/properties.rs` found one
+/// 5.6e-6 m inside a 4.3 × 6.8 m rectangle, and the cells lost 5.7e-6 m² of its area. Points
+/// on a side to round-off stay as they are.
+fn onto_side(x: f64, lo: f64, len: f64, tol: f64) -> f64 {
+    let near = |side: f64| (1e-6 * tol..=tol).contains(&(x - side).abs());
+    match (near(lo), near(lo + len)) {
+        (true, _) => lo,
+        (_, true) => lo + len,
+        _ => x,
+    }
+}
+
 /// Merges coincident vertices (within 1e-6 of the rectangle's size) so that neighbouring cells
 /// share vertex indices, drops the zero-length edges that merging leaves, and orients every
 /// cell counter-clockwise. voronoice clips each cell on its own, and where a Voronoi vertex
@@ -132,6 +146,10 @@ fn weld(body: &str, origin: Vec2, size: Vec2, cells: &Cells) -> Result<Mesh> {
     for cell in cells.iter() {
         let mut ids: Vec<u32> = Vec::with_capacity(cell.len());
         for &p in cell {
+            let p = Vec2::new(
+                onto_side(p.x, origin.x, size.x, tol),
+                onto_side(p.y, origin.y, size.y, tol),
+            );
             let (kx, ky) = key(p);
             // A point near a rounding boundary may have its twin in a neighbouring bucket;
             // most twins are in their own. A bucket's vertex is the twin only if it is near.
