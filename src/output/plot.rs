@@ -198,7 +198,11 @@ pub fn read_csv(path: &Path) -> Result<Vec<Column>> {
 /// and 1e4, else scientific.
 fn tick(x: f64) -> String {
     if x == 0.0 || (1e-3..1e4).contains(&x.abs()) {
-        let decimals = (5 - x.abs().log10().floor() as i32).max(0) as usize;
+        // Zero has no magnitude: `log10` would be −∞, and `5 − i32::MIN` overflow.
+        let decimals = match x {
+            0.0 => 0,
+            _ => (5 - x.abs().log10().floor() as i32).max(0) as usize,
+        };
         let s = format!("{x:.decimals$}");
         if s.contains('.') {
             s.trim_end_matches('0').trim_end_matches('.').to_string()
