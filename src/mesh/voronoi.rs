@@ -97,7 +97,8 @@ fn clipped_cells(body: &str, origin: Vec2, size: Vec2, sites: &[Vec2]) -> Result
         return Err(Error::mesh(
             body,
             0,
-            "some Voronoi sites fell outside the rectangle",
+            "some Voronoi sites are missing from the diagram (sites outside the rectangle, \
+             coincident, or nearly on one line in an extreme rectangle)",
         ));
     }
     let v = diagram.vertices();
