@@ -3,8 +3,9 @@
 //! the same bits on both: no fused multiply-add, and sums in the same order.
 //!
 //! Two layouts: the outputs of one interface in lanes ([`Lanes::combine`]), and four
-//! consecutive elements in lanes, one group per DOF ([`Wide`], [`Lanes::combine_wide`]), which
-//! the sweep uses where elements repeat their neighbours' interfaces.
+//! consecutive elements in lanes, one group per DOF ([`Wide`], [`Lanes::combine_spread`]), which
+//! the sweep uses where elements repeat their neighbours' interfaces, and in which whole vectors
+//! may be stored ([`grouped`]).
 
 /// Four consecutive elements in lanes: `w[j][l]` is DOF `j` of the `l`-th.
 pub type Wide<const N: usize> = [[f64; 4]; N];
@@ -23,6 +24,84 @@ pub fn set_lane<const N: usize>(w: &mut Wide<N>, l: usize, x: &[f64; N]) {
     }
 }
 
+/// Vectors of DOFs (`U`, `v`, a lumped `M⁻¹`) stored in groups of four elements: group `g` is
+/// the [`Wide`] of elements `4g..4g + 4`, so that a sweep in lanes loads four elements' DOF
+/// with no transpose. The last group is padded with zeros.
+pub mod grouped {
+    use super::Wide;
+    use rayon::prelude::*;
+
+    /// Groups per parallel task of [`group`] and [`ungroup`].
+    const TASK: usize = 4096;
+
+    /// Where DOF `d` of a vector with `nd` DOFs per element lies in its grouped form:
+    /// DOF `j` of element `e` at `4 nd (e / 4) + 4 j + e % 4`.
+    #[inline(always)]
+    pub fn index(nd: usize, d: usize) -> usize {
+        let (e, j) = (d / nd, d % nd);
+        4 * nd * (e / 4) + 4 * j + e % 4
+    }
+
+    /// The length of the grouped form of `dofs` DOFs, `nd` per element.
+    pub fn len(nd: usize, dofs: usize) -> usize {
+        (dofs / nd).div_ceil(4) * 4 * nd
+    }
+
+    /// `out ← x` grouped, `nd` DOFs per element (3 or 6).
+    pub fn group(nd: usize, x: &[f64], out: &mut [f64]) {
+        match nd {
+            3 => to_groups::<3>(x, out),
+            _ => to_groups::<6>(x, out),
+        }
+    }
+
+    /// `out ← x` from its grouped form: [`group`] undone.
+    pub fn ungroup(nd: usize, x: &[f64], out: &mut [f64]) {
+        match nd {
+            3 => from_groups::<3>(x, out),
+            _ => from_groups::<6>(x, out),
+        }
+    }
+
+    fn to_groups<const N: usize>(x: &[f64], g: &mut [f64]) {
+        let (g, _) = g.as_chunks_mut::<4>();
+        let (g, _) = g.as_chunks_mut::<N>();
+        g.par_chunks_mut(TASK)
+            .zip(x.par_chunks(TASK * 4 * N))
+            .for_each(|(g, x)| {
+                for (g, x) in g.iter_mut().zip(x.chunks(4 * N)) {
+                    for (l, x) in x.chunks(N).enumerate() {
+                        for j in 0..N {
+                            g[j][l] = x[j];
+                        }
+                    }
+                }
+            });
+    }
+
+    fn from_groups<const N: usize>(g: &[f64], x: &mut [f64]) {
+        let (g, _) = g.as_chunks::<4>();
+        let (g, _) = g.as_chunks::<N>();
+        g.par_chunks(TASK)
+            .zip(x.par_chunks_mut(TASK * 4 * N))
+            .for_each(|(g, x): (&[Wide<N>], &mut [f64])| {
+                for (g, x) in g.iter().zip(x.chunks_mut(4 * N)) {
+                    for (l, x) in x.chunks_mut(N).enumerate() {
+                        for j in 0..N {
+                            x[j] = g[j][l];
+                        }
+                    }
+                }
+            });
+    }
+}
+
+/// The columns `g` of [`Lanes::combine`] with each output `m` of column `k` in all four lanes,
+/// for [`Lanes::combine_spread`].
+pub fn spread<const M: usize, const Q: usize>(g: &[[[f64; 4]; Q]; M]) -> [[[f64; 4]; M]; M] {
+    std::array::from_fn(|k| std::array::from_fn(|m| [g[k][m / 4][m % 4]; 4]))
+}
+
 /// Sums of products in groups of four lanes, `o = Σ_k x_k g[k]` in the order of `k`, with no
 /// fused multiply-add: the same bits on every path.
 pub trait Lanes: Copy {
@@ -35,18 +114,14 @@ pub trait Lanes: Copy {
 
     /// The same sums for four inputs at once, input `k` of lane `l` being `x[k][l]`:
     /// `o[m] = Σ_k g[k][m] x[k]`, with `g[k][m]` output `m` of column `k` of
-    /// [`Lanes::combine`] (lane `m % 4` of group `m / 4`) in all four lanes.
+    /// [`Lanes::combine`] in all four lanes ([`spread`]): each product takes it from memory as
+    /// it is.
     #[inline(always)]
-    fn combine_wide<const M: usize, const Q: usize>(
-        self,
-        g: &[[[f64; 4]; Q]; M],
-        x: &Wide<M>,
-    ) -> Wide<M> {
-        let g = |k: usize, m: usize| [g[k][m / 4][m % 4]; 4];
-        let mut o: Wide<M> = std::array::from_fn(|m| self.mul(g(0, m), x[0]));
+    fn combine_spread<const M: usize>(self, g: &[[[f64; 4]; M]; M], x: &Wide<M>) -> Wide<M> {
+        let mut o: Wide<M> = std::array::from_fn(|m| self.mul(g[0][m], x[0]));
         for k in 1..M {
             for m in 0..M {
-                o[m] = self.add(o[m], self.mul(g(k, m), x[k]));
+                o[m] = self.add(o[m], self.mul(g[k][m], x[k]));
             }
         }
         o
@@ -76,14 +151,14 @@ pub trait Lanes: Copy {
         std::array::from_fn(|l| a[l] * b[l])
     }
 
-    /// `f` with lane `l + 1` plus lane `l` of `o`, `l = 0..3` (`MINUS`: minus); lane 0 kept.
+    /// `f` plus `o` moved up one lane, lane 0 plus lane 0 of `carry`; `carry` then holds `o`
+    /// moved up one lane, its lane 3 in lane 0, for the next four elements.
     #[inline(always)]
-    fn add_next<const MINUS: bool>(self, f: [f64; 4], o: [f64; 4]) -> [f64; 4] {
-        std::array::from_fn(|l| match l {
-            0 => f[0],
-            _ if MINUS => f[l] - o[l - 1],
-            _ => f[l] + o[l - 1],
-        })
+    fn add_carried(self, f: [f64; 4], o: [f64; 4], carry: &mut [f64; 4]) -> [f64; 4] {
+        let up = [o[3], o[0], o[1], o[2]];
+        let sum = std::array::from_fn(|l| f[l] + if l == 0 { carry[0] } else { up[l] });
+        *carry = up;
+        sum
     }
 
     /// Four elements' DOFs in lanes.
@@ -173,17 +248,15 @@ impl Lanes for pulp::x86::V3 {
         pulp::cast(self.mul_f64x4(pulp::cast(a), pulp::cast(b)))
     }
 
-    /// Lanes 0–2 of `o` moved up one, added in all four lanes, lane 0 taken back from `f`.
+    /// `o` moved up one lane by one permutation, its lane 0 taken from `carry` by one blend.
     #[inline(always)]
-    fn add_next<const MINUS: bool>(self, f: [f64; 4], o: [f64; 4]) -> [f64; 4] {
+    fn add_carried(self, f: [f64; 4], o: [f64; 4], carry: &mut [f64; 4]) -> [f64; 4] {
         let up = self
             .avx2
-            ._mm256_permute4x64_pd::<0b10_01_00_00>(pulp::cast(o));
-        let sum = match MINUS {
-            true => self.avx._mm256_sub_pd(pulp::cast(f), up),
-            false => self.avx._mm256_add_pd(pulp::cast(f), up),
-        };
-        pulp::cast(self.avx._mm256_blend_pd::<0b0001>(sum, pulp::cast(f)))
+            ._mm256_permute4x64_pd::<0b10_01_00_11>(pulp::cast(o));
+        let moved = self.avx._mm256_blend_pd::<0b0001>(up, pulp::cast(*carry));
+        *carry = pulp::cast(up);
+        pulp::cast(self.avx._mm256_add_pd(pulp::cast(f), moved))
     }
 
     /// Three DOFs: the 12 numbers in three registers, regrouped by two blends and a swap of
@@ -248,7 +321,7 @@ mod tests {
 
     /// Three DOFs of four elements go into lanes and back unchanged, and the lanes are those
     /// of the plain build; the arithmetic of AVX2 in lanes has the plain build's bits,
-    /// [`Lanes::combine_wide`] those of [`Lanes::combine`] lane by lane.
+    /// [`Lanes::combine_spread`] those of [`Lanes::combine`] lane by lane.
     #[test]
     fn the_lanes_of_avx2_are_the_plain_bits() {
         fn check(lanes: impl Lanes) {
@@ -268,16 +341,23 @@ mod tests {
                     (lanes.sub(a, b), Plain.sub(a, b)),
                     (lanes.mul(a, b), Plain.mul(a, b)),
                     (lanes.neg(a), Plain.neg(a)),
-                    (lanes.add_next::<false>(a, b), Plain.add_next::<false>(a, b)),
-                    (lanes.add_next::<true>(a, b), Plain.add_next::<true>(a, b)),
                 ] {
                     assert_eq!(bits(&fast), bits(&plain));
                 }
-                assert_eq!(Plain.add_next::<true>(a, b)[2], a[2] - b[1]);
+                let (c, d) = (numbers::<4>(seed + 2), numbers::<4>(seed + 9));
+                let (mut fast_carry, mut plain_carry) = (d, d);
+                assert_eq!(
+                    bits(&lanes.add_carried(a, c, &mut fast_carry)),
+                    bits(&Plain.add_carried(a, c, &mut plain_carry))
+                );
+                assert_eq!(bits(&fast_carry), bits(&plain_carry));
+                let sum = Plain.add_carried(a, b, &mut plain_carry);
+                assert_eq!((sum[0], sum[2]), (a[0] + c[3], a[2] + b[1]));
+                assert_eq!(plain_carry, [b[3], b[0], b[1], b[2]]);
                 // A 4 × 4 map, columns `g[k]`, applied to four inputs at once and one by one.
                 let g: [[[f64; 4]; 1]; 4] = std::array::from_fn(|k| [numbers(seed + 11 * k)]);
                 let inputs: Wide<4> = std::array::from_fn(|k| numbers(seed + 7 * k + 1));
-                let o = lanes.combine_wide(&g, &inputs);
+                let o = lanes.combine_spread(&spread(&g), &inputs);
                 for l in 0..4 {
                     let one = lanes.combine(&g, &lane(&inputs, l));
                     assert_eq!(bits(&lane(&o, l)), bits(&one[0]));

@@ -125,11 +125,12 @@ impl Loads {
 
     /// Work of the applied loads over a step from `t` to `t + dt` with displacement increment
     /// `dt · v` (trapezoidal rule in time, exact for loads linear in time).
-    pub fn work_increment(&self, t: f64, dt: f64, v: &[f64]) -> f64 {
+    /// `v(d)` is the velocity of DOF `d`.
+    pub fn work_increment(&self, t: f64, dt: f64, v: impl Fn(usize) -> f64) -> f64 {
         self.entries
             .iter()
             .map(|&(d, val, a)| {
-                0.5 * (self.factor(a, t) + self.factor(a, t + dt)) * val * dt * v[d]
+                0.5 * (self.factor(a, t) + self.factor(a, t + dt)) * val * dt * v(d)
             })
             .sum()
     }

@@ -492,6 +492,14 @@ impl Mass {
         self.apply_range(0, x, y, true, false)
     }
 
+    /// The diagonal of a lumped `M⁻¹` (zero on fixed DOFs); `None` for blocks.
+    pub fn lumped_inverse(&self) -> Option<&[f64]> {
+        match self {
+            Mass::Diagonal { inv, .. } => Some(inv),
+            Mass::Blocks { .. } => None,
+        }
+    }
+
     /// DOFs per element.
     pub fn nd(&self) -> usize {
         match self {

@@ -28,7 +28,7 @@
 use super::sweep::{Couplings, Face, Higher, Sweep};
 use super::{Evaluator, FusedStep};
 use crate::input::scene::EvaluatorKind;
-use crate::lanes::{Lanes, Wide};
+use crate::lanes::{spread, Lanes, Wide};
 use crate::mesh::geometry::Vec2;
 use crate::model::formulation::{Hybrid, Kinematics, Rigid, Springs};
 use crate::model::mass::Update;
@@ -269,8 +269,10 @@ impl Kernel<6> for Hybrid {
 /// forces of [`Kernel::face_forces`] for that unit input, so the map is that function,
 /// formed once per shared record. Applied, it is `M` products of `4Q` lanes and no shuffles
 /// (rigid: 4 × 4; `Q` groups of four lanes hold the outputs, the last padded with zeros).
+/// Applied to four interfaces in lanes, its entries are read spread over four lanes
+/// ([`spread`]: 512 bytes rigid, 3.2 kB hybrid, per shared record).
 #[derive(Debug, Clone, Copy)]
-pub struct FaceMap<const M: usize, const Q: usize>([[[f64; 4]; Q]; M]);
+pub struct FaceMap<const M: usize, const Q: usize>([[[f64; 4]; Q]; M], [[[f64; 4]; M]; M]);
 
 /// [`FaceMap`] for `N` DOFs per element.
 pub trait Map<const N: usize>: Copy + Send + Sync {
@@ -300,7 +302,7 @@ pub trait Map<const N: usize>: Copy + Send + Sync {
 impl<const N: usize, const M: usize, const Q: usize> Map<N> for FaceMap<M, Q> {
     fn new<K: Kernel<N>>(record: &Record<K, N>) -> Self {
         debug_assert!(M == 2 * N - 2 && M <= 4 * Q, "{M} inputs, {Q} lane groups");
-        FaceMap(std::array::from_fn(|k| {
+        let columns: [[[f64; 4]; Q]; M] = std::array::from_fn(|k| {
             // The unit input `k`: a translation of `b`, or another DOF of `a`, or of `b`.
             let (mut ua, mut ub) = ([0.0; N], [0.0; N]);
             match k {
@@ -314,7 +316,8 @@ impl<const N: usize, const M: usize, const Q: usize> Map<N> for FaceMap<M, Q> {
             lanes[..N].copy_from_slice(&on_a);
             lanes[N..M].copy_from_slice(&on_b[2..]);
             column
-        }))
+        });
+        FaceMap(columns, spread(&columns))
     }
 
     #[inline(always)]
@@ -358,15 +361,15 @@ impl<const N: usize, const M: usize, const Q: usize> Map<N> for FaceMap<M, Q> {
             _ if k < N => ua[k],
             _ => ub[k + 2 - N],
         });
-        let o = lanes.combine_wide(&self.0, &x);
+        let o = lanes.combine_spread(&self.1, &x);
+        // `x − o` is `x + (−o)` to the bit.
+        let on_b: Wide<N> = std::array::from_fn(|j| match j {
+            0 | 1 => o[j],
+            _ => lanes.neg(o[N + j - 2]),
+        });
         // As `add_internal`: DOF `j` of `b` gets `+o[j]` or `−o[N + j − 2]`.
         match fb {
             Higher::Apart(fb) => {
-                // `x − o` is `x + (−o)` to the bit.
-                let on_b: Wide<N> = std::array::from_fn(|j| match j {
-                    0 | 1 => o[j],
-                    _ => lanes.neg(o[N + j - 2]),
-                });
                 let on_b = lanes.narrow(&on_b);
                 let (fb, _) = fb.as_flattened_mut().as_chunks_mut::<4>();
                 let (on_b, _) = on_b.as_flattened().as_chunks::<4>();
@@ -374,16 +377,16 @@ impl<const N: usize, const M: usize, const Q: usize> Map<N> for FaceMap<M, Q> {
                     *fb = lanes.add(*fb, *on_b);
                 }
             }
-            // Lanes 1–3 get the force of the pair before them first, as in the pairs' order.
-            Higher::Next(last) => {
+            Higher::ApartWide(fb) => {
                 for j in 0..N {
-                    (fa[j], last[j]) = match j {
-                        0 | 1 => (lanes.add_next::<false>(fa[j], o[j]), last[j] + o[j][3]),
-                        _ => {
-                            let o = o[N + j - 2];
-                            (lanes.add_next::<true>(fa[j], o), last[j] - o[3])
-                        }
-                    };
+                    fb[j] = lanes.add(fb[j], on_b[j]);
+                }
+            }
+            // Lanes 1–3 get the force of the pair before them first, as in the pairs' order;
+            // lane 0 that of the last pair of the four before.
+            Higher::Next(carry) => {
+                for j in 0..N {
+                    fa[j] = lanes.add_carried(fa[j], on_b[j], &mut carry[j]);
                 }
             }
         }
@@ -630,6 +633,29 @@ impl<K: Kernel<N>, const N: usize> FusedStep for ElementWise<K, N> {
         match &self.faces {
             Store::Inline(faces) => self.sweep.advance(faces, u, v, force, loaded, update),
             Store::Shared(faces) => self.sweep.advance(faces, u, v, force, loaded, update),
+        }
+    }
+
+    fn groups(&self) -> bool {
+        matches!(self.faces, Store::Shared(_)) && K::WIDE && self.sweep.in_lanes()
+    }
+
+    fn advance_grouped(
+        &self,
+        u: &mut [f64],
+        v: &mut [f64],
+        inv: &[f64],
+        force: &mut [f64],
+        loaded: &[u32],
+        dt: f64,
+    ) {
+        match &self.faces {
+            Store::Inline(faces) => self
+                .sweep
+                .advance_grouped(faces, u, v, inv, force, loaded, dt),
+            Store::Shared(faces) => self
+                .sweep
+                .advance_grouped(faces, u, v, inv, force, loaded, dt),
         }
     }
 }
@@ -915,7 +941,8 @@ mod tests {
     }
 
     /// On a grid of 5000 × 3 cells, in four blocks, an element's upper neighbour lies in the next
-    /// block: the rings reach one element, and the interfaces from the earlier block enter them
+    /// block: the rings reach one element (of four slots, the fewest), and the interfaces from
+    /// the earlier block enter them
     /// during the sweep. The forces of both evaluators, which share the sweep, still equal `K U`
     /// to round-off, and the rings are left zero.
     #[test]
@@ -929,7 +956,7 @@ mod tests {
         let model = Model::build(&Scene::from_json(json).unwrap()).unwrap();
         let ev = ElementWise::<Rigid, 3>::new(&model);
         let sweep = &ev.sweep;
-        assert!(sweep.blocks.len() >= 3 && sweep.blocks.iter().all(|b| b.ring == 2));
+        assert!(sweep.blocks.len() >= 3 && sweep.blocks.iter().all(|b| b.ring == 4));
         let late = sweep.blocks.iter().flat_map(|b| {
             sweep.incoming[b.incoming.clone()]
                 .iter()

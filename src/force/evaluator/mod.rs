@@ -50,6 +50,26 @@ pub trait FusedStep {
         loaded: Option<&[u32]>,
         update: &Update,
     ) -> f64;
+
+    /// Whether [`FusedStep::advance_grouped`] is faster than [`FusedStep::advance`]: the sweep
+    /// goes four elements at a time in lanes.
+    fn groups(&self) -> bool {
+        false
+    }
+
+    /// [`FusedStep::advance`] undamped, with the lumped `M⁻¹` (its diagonal `inv`), on `U`, `v`
+    /// and `inv` stored in groups of four elements ([`crate::lanes::grouped`]); `force` as
+    /// there, and `loaded` named. The same bits as [`FusedStep::advance`].
+    #[allow(clippy::too_many_arguments)]
+    fn advance_grouped(
+        &self,
+        u: &mut [f64],
+        v: &mut [f64],
+        inv: &[f64],
+        force: &mut [f64],
+        loaded: &[u32],
+        dt: f64,
+    );
 }
 
 /// The global stiffness `K` of eq. 7 as scalar triplets `(row, col, value)` over all DOFs.

@@ -27,6 +27,12 @@
 //! and the couplings can ([`Couplings::WIDE`]), it goes four elements at a time, one in each
 //! lane of a [`Wide`]: the same operations in the same order, four at once.
 //!
+//! An undamped step with a lumped `M⁻¹` may also run on `U`, `v` and `M⁻¹` stored in groups of
+//! four elements ([`crate::lanes::grouped`], [`Sweep::advance_grouped`]), and its ring too: four
+//! elements that start a group then load, update and store their DOFs in lanes as they are,
+//! where the element-by-element layout needs a transpose each way. Its runs go in lanes only
+//! where their couplings meet whole groups (rows a multiple of four elements long on a grid).
+//!
 //! Parallel sweeps run over fixed blocks of consecutive elements. A coupling from one block
 //! into a later one is computed before the sweeps, from the state at `t_n`, and handed to both
 //! blocks. Every element sums its couplings in their order whatever the blocks and the threads,
@@ -90,20 +96,28 @@ pub(super) trait Couplings<const N: usize>: Sync {
         fa: &mut Wide<N>,
         mut fb: Higher<'_, N>,
     ) {
+        if let Higher::Next(carry) = &fb {
+            for j in 0..N {
+                fa[j][0] += carry[j][0];
+            }
+        }
         for l in 0..4 {
             let mut on_a = lane(fa, l);
             let mut on_b = match &fb {
                 Higher::Apart(fb) => fb[l],
+                Higher::ApartWide(fb) => lane(fb, l),
                 Higher::Next(_) if l < 3 => lane(fa, l + 1),
-                Higher::Next(last) => **last,
+                // What the last pair gives its `b`, alone: `−0 + x` is `x`.
+                Higher::Next(_) => [-0.0; N],
             };
             let (a, b) = (lane(ua, l), lane(ub, l));
             self.add_pair(lanes, coupling, &a, &b, &mut on_a, &mut on_b);
             set_lane(fa, l, &on_a);
             match &mut fb {
                 Higher::Apart(fb) => fb[l] = on_b,
+                Higher::ApartWide(fb) => set_lane(fb, l, &on_b),
                 Higher::Next(_) if l < 3 => set_lane(fa, l + 1, &on_b),
-                Higher::Next(last) => **last = on_b,
+                Higher::Next(carry) => set_lane(carry, 0, &on_b),
             }
         }
     }
@@ -122,9 +136,14 @@ pub(super) trait Couplings<const N: usize>: Sync {
 pub enum Higher<'a, const N: usize> {
     /// Four elements of their own, not in lanes.
     Apart(&'a mut [[f64; N]; 4]),
+    /// Four elements of their own, in lanes (a ring in groups, [`BlockState::GROUPED`]).
+    ApartWide(&'a mut Wide<N>),
     /// Each pair's `b` is the next pair's `a`: the forces on lanes 0–2 go to lanes 1–3 of `fa`,
-    /// before the next pair adds its own; that on lane 3 goes here.
-    Next(&'a mut [f64; N]),
+    /// before the next pair adds its own. Lane 0 of `fa` first gets lane 0 of this carry, what
+    /// the last pair of the four before gave it; that on lane 3 goes to lane 0 of the carry.
+    /// Each DOF of a higher element gets one addition, so that its force alone, added later,
+    /// is the same sum: `p + x` after `p` is `p + (−0 + x)` to the bit.
+    Next(&'a mut Wide<N>),
 }
 
 /// Consecutive elements swept by one task, with the couplings that start in them.
@@ -142,7 +161,7 @@ pub(super) struct Block {
     /// Couplings from earlier blocks, as a range of `Sweep::incoming`.
     pub(super) incoming: Range<usize>,
     /// Slots of the block's ring of pending forces, a power of two above its farthest reach
-    /// `max(b − a)`.
+    /// `max(b − a)`, and at least four (a ring in groups of four, [`BlockState::GROUPED`]).
     pub(super) ring: usize,
     /// Runs of consecutive elements whose couplings repeat ([`Sweep::find_runs`]), in order.
     runs: Vec<Run>,
@@ -158,6 +177,10 @@ struct Run {
     elements: Range<usize>,
     width: usize,
     lanes: bool,
+    /// Whether its couplings but the first reach a multiple of four elements: in lanes, they
+    /// then meet whole groups of a grouped step ([`BlockState::GROUPED`]), which goes in
+    /// lanes only then.
+    aligned: bool,
 }
 
 /// Whether a [`Run`] whose couplings reach `reach` elements ahead, in increasing order, may
@@ -219,7 +242,7 @@ impl<const N: usize> Sweep<N> {
     /// [`GROUND`]: by `(a, b)`, then in each block those inside it first.
     pub(super) fn new<R>(n: usize, faces: &mut [Face<R>]) -> Self {
         faces.sort_by_key(|f| (f.a, f.b));
-        let len = MIN_BLOCK.max(n.div_ceil(MAX_BLOCKS));
+        let len = MIN_BLOCK.max(n.div_ceil(MAX_BLOCKS)).next_multiple_of(4);
         let (mut blocks, mut crossing) = (Vec::new(), Vec::new());
         for first in (0..n).step_by(len) {
             let elements = first..(first + len).min(n);
@@ -233,7 +256,7 @@ impl<const N: usize> Sweep<N> {
                 .iter()
                 .map(|f| (f.b - f.a) as usize)
                 .max();
-            let ring = (reach.unwrap_or(0) + 1).next_power_of_two();
+            let ring = (reach.unwrap_or(0) + 1).next_power_of_two().max(4);
             let before = crossing.len();
             crossing.extend(
                 (inner..here.end)
@@ -337,6 +360,7 @@ impl<const N: usize> Sweep<N> {
                         elements: from..i,
                         width: own[from].len(),
                         lanes: in_lanes(&reach, block.ring),
+                        aligned: reach[1..].iter().all(|r| r.is_multiple_of(4)),
                     });
                 } else {
                     for r in &own[from + 1..i] {
@@ -381,6 +405,14 @@ impl<const N: usize> Sweep<N> {
         (elements, in_lanes, entries, entries_in_lanes)
     }
 
+    /// Whether some of its runs go four elements at a time in lanes in a grouped step.
+    pub(super) fn in_lanes(&self) -> bool {
+        self.blocks
+            .iter()
+            .flat_map(|b| &b.runs)
+            .any(|r| r.lanes && r.aligned)
+    }
+
     /// The bytes it holds: the crossing couplings and their forces, the rings, the runs.
     pub(super) fn bytes(&self) -> usize {
         use std::mem::{size_of, size_of_val};
@@ -396,7 +428,7 @@ impl<const N: usize> Sweep<N> {
     pub(super) fn evaluate(&self, couplings: &impl Couplings<N>, u: &[f64], f: &mut [f64]) {
         let (u, _) = u.as_chunks::<N>();
         let (f, _) = f.as_chunks_mut::<N>();
-        let mut scratch = self.crossing_pass(couplings, u);
+        let mut scratch = self.crossing_pass(couplings, |e| u[e]);
         let Scratch {
             crossing, rings, ..
         } = &mut *scratch;
@@ -434,7 +466,7 @@ impl<const N: usize> Sweep<N> {
         let (u, _) = u.as_chunks_mut::<N>();
         let (v, _) = v.as_chunks_mut::<N>();
         let (force, _) = force.as_chunks_mut::<N>();
-        let mut scratch = self.crossing_pass(couplings, u);
+        let mut scratch = self.crossing_pass(couplings, |e| u[e]);
         let Scratch {
             crossing,
             rings,
@@ -487,12 +519,74 @@ impl<const N: usize> Sweep<N> {
         powers.iter().sum()
     }
 
+    /// One undamped explicit step with a lumped `M⁻¹`, on `U`, `v` and `M⁻¹` in groups of
+    /// four elements ([`crate::lanes::grouped`]; `force` and `loaded` as in
+    /// [`Sweep::advance`]), parallel over blocks.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn advance_grouped(
+        &self,
+        couplings: &impl Couplings<N>,
+        u: &mut [f64],
+        v: &mut [f64],
+        inv: &[f64],
+        force: &mut [f64],
+        loaded: &[u32],
+        dt: f64,
+    ) {
+        fn groups<const N: usize>(x: &mut [f64]) -> &mut [Wide<N>] {
+            x.as_chunks_mut::<4>().0.as_chunks_mut::<N>().0
+        }
+        let (u, v) = (groups::<N>(u), groups::<N>(v));
+        let inv: &[Wide<N>] = inv.as_chunks::<4>().0.as_chunks::<N>().0;
+        let (force, _) = force.as_chunks_mut::<N>();
+        let mut scratch = self.crossing_pass(couplings, |e| lane(&u[e / 4], e % 4));
+        let Scratch {
+            crossing, rings, ..
+        } = &mut *scratch;
+        type Parts<'a, const N: usize> = (
+            (&'a Block, &'a mut Vec<[f64; N]>),
+            (
+                ((&'a mut [Wide<N>], &'a mut [Wide<N>]), &'a [Wide<N>]),
+                &'a mut [[f64; N]],
+            ),
+        );
+        let work = |((block, ring), (((u, v), inv), force)): Parts<N>| {
+            let at = |e: usize| loaded.partition_point(|&x| (x as usize) < e);
+            let loaded = &loaded[at(block.elements.start)..at(block.elements.end)];
+            let state = AdvanceGrouped {
+                u,
+                v,
+                inv,
+                force,
+                loaded: Loaded::new(Some(loaded)),
+                dt,
+            };
+            self.sweep(couplings, block, crossing, ring, state);
+        };
+        match &self.blocks[..] {
+            [block] => work(((block, &mut rings[0]), (((u, v), inv), force))),
+            blocks => {
+                let len = blocks.first().map_or(1, |b| b.elements.len());
+                let vectors = u
+                    .par_chunks_mut(len / 4)
+                    .zip(v.par_chunks_mut(len / 4))
+                    .zip(inv.par_chunks(len / 4))
+                    .zip(force.par_chunks_mut(len));
+                blocks
+                    .par_iter()
+                    .zip(rings.par_iter_mut())
+                    .zip(vectors)
+                    .for_each(work);
+            }
+        }
+    }
+
     /// The scratch space, with the crossing couplings' forces from `u` at `t_n`, computed
     /// before any block moves.
     fn crossing_pass(
         &self,
         couplings: &impl Couplings<N>,
-        u: &[[f64; N]],
+        u: impl Fn(usize) -> [f64; N] + Sync,
     ) -> MutexGuard<'_, Scratch<N>> {
         let mut scratch = self.scratch.lock().unwrap_or_else(|e| e.into_inner());
         scratch
@@ -502,10 +596,10 @@ impl<const N: usize> Sweep<N> {
             .with_min_len(1024)
             .for_each(|(out, &k)| {
                 let f = &couplings.faces()[k as usize];
-                let (ua, ub) = (&u[f.a as usize], &u[f.b as usize]);
+                let (ua, ub) = (u(f.a as usize), u(f.b as usize));
                 *out = [[0.0; N]; 2];
                 let [fa, fb] = out;
-                couplings.add_pair(Plain, couplings.coupling(f), ua, ub, fa, fb);
+                couplings.add_pair(Plain, couplings.coupling(f), &ua, &ub, fa, fb);
             });
         scratch
     }
@@ -576,6 +670,7 @@ impl<const N: usize> Sweep<N> {
             elements: usize::MAX..usize::MAX,
             width: 0,
             lanes: false,
+            aligned: false,
         };
         let mut runs = block.runs.iter();
         let mut run = runs.next().unwrap_or(&none).clone();
@@ -590,7 +685,9 @@ impl<const N: usize> Sweep<N> {
                     if j > i + mask {
                         break;
                     }
-                    add(&mut ring[j & mask], &crossing[c as usize][1]);
+                    let mut x = slot(ring, j & mask, S::GROUPED);
+                    add(&mut x, &crossing[c as usize][1]);
+                    set_slot(ring, j & mask, S::GROUPED, &x);
                     next_in += 1;
                 }
                 next_entry = entry(next_in);
@@ -600,7 +697,7 @@ impl<const N: usize> Sweep<N> {
                 let n = run.elements.end.min(next_entry) - i;
                 let template = &inner[k..k + run.width];
                 let at = (i, &mut *ring, &mut state);
-                let lanes_of = (lanes, C::WIDE && run.lanes);
+                let lanes_of = (lanes, C::WIDE && run.lanes && (run.aligned || !S::GROUPED));
                 match run.width {
                     1 => Self::run::<C, S, 1>(lanes_of, couplings, template, first, at, n),
                     2 => Self::run::<C, S, 2>(lanes_of, couplings, template, first, at, n),
@@ -616,7 +713,7 @@ impl<const N: usize> Sweep<N> {
                 continue;
             }
             // The forces from earlier elements, then this element's own couplings.
-            let mut f = std::mem::replace(&mut ring[i & mask], [0.0; N]);
+            let mut f = take_slot(ring, i & mask, S::GROUPED);
             let ue = *state.u(i);
             while let Some(face) = inner.get(k).filter(|face| face.a as usize == e) {
                 if C::PREFETCH {
@@ -624,20 +721,20 @@ impl<const N: usize> Sweep<N> {
                         prefetch(ahead);
                     }
                     if let Some(ahead) = inner.get(k + PREFETCH_AHEAD / 2) {
-                        prefetch(state.u(ahead.b as usize - first));
+                        state.prefetch_u(ahead.b as usize - first);
                     }
                 }
                 k += 1;
                 let j = face.b as usize - first;
                 let coupling = couplings.coupling(face);
-                couplings.add_pair(
-                    lanes,
-                    coupling,
-                    &ue,
-                    state.u(j),
-                    &mut f,
-                    &mut ring[j & mask],
-                );
+                if S::GROUPED {
+                    let mut fb = slot(ring, j & mask, true);
+                    couplings.add_pair(lanes, coupling, &ue, &state.u(j), &mut f, &mut fb);
+                    set_slot(ring, j & mask, true, &fb);
+                } else {
+                    let fb = &mut ring[j & mask];
+                    couplings.add_pair(lanes, coupling, &ue, &state.u(j), &mut f, fb);
+                }
             }
             if e == next_rest {
                 while let Some(face) = rest.get(r).filter(|face| face.a as usize == e) {
@@ -676,6 +773,16 @@ impl<const N: usize> Sweep<N> {
         let template = template.each_ref().map(|f| couplings.coupling(f));
         let (end, mut i) = (i + n, i);
         if wide {
+            // Grouped, the lanes start at a group's first element.
+            let lead = if S::GROUPED {
+                i.next_multiple_of(4).min(end)
+            } else {
+                i
+            };
+            for i in i..lead {
+                Self::element(lanes, couplings, &template, &reach, first, (i, ring, state));
+            }
+            i = lead;
             let n = (end - i) / 4;
             Self::groups(
                 lanes,
@@ -689,22 +796,32 @@ impl<const N: usize> Sweep<N> {
             i += 4 * n;
         }
         for i in i..end {
-            let mut f = std::mem::replace(&mut ring[i & mask], [0.0; N]);
-            let ue = *state.u(i);
-            for (&coupling, reach) in template.iter().zip(reach) {
-                let j = i + reach;
-                couplings.add_pair(
-                    lanes,
-                    coupling,
-                    &ue,
-                    state.u(j),
-                    &mut f,
-                    &mut ring[j & mask],
-                );
-            }
-            couplings.add_own(first + i, &ue, &mut f);
-            state.complete(first + i, i, &mut f);
+            Self::element(lanes, couplings, &template, &reach, first, (i, ring, state));
         }
+    }
+
+    /// The block's element `i` of a [`Run`] whose couplings are `template` reaching `reach`
+    /// elements ahead.
+    #[inline(always)]
+    fn element<C: Couplings<N>, S: BlockState<N>, const W: usize>(
+        lanes: impl Lanes,
+        couplings: &C,
+        template: &[C::Coupling<'_>; W],
+        reach: &[usize; W],
+        first: usize,
+        (i, ring, state): (usize, &mut [[f64; N]], &mut S),
+    ) {
+        let mask = ring.len() - 1;
+        let mut f = take_slot(ring, i & mask, S::GROUPED);
+        let ue = *state.u(i);
+        for (&coupling, reach) in template.iter().zip(reach) {
+            let j = (i + reach) & mask;
+            let mut fb = slot(ring, j, S::GROUPED);
+            couplings.add_pair(lanes, coupling, &ue, &state.u(i + reach), &mut f, &mut fb);
+            set_slot(ring, j, S::GROUPED, &fb);
+        }
+        couplings.add_own(first + i, &ue, &mut f);
+        state.complete(first + i, i, &mut f);
     }
 
     /// `n` times four elements of a run from the block's element `i`, in lanes
@@ -722,14 +839,18 @@ impl<const N: usize> Sweep<N> {
         n: usize,
     ) {
         let mask = ring.len() - 1;
-        let mut ua = lanes.wide(state.u4(i));
-        let mut last = std::mem::replace(&mut ring[i & mask], [0.0; N]);
+        let mut ua = state.wide(lanes, i);
+        // Nothing from the four before: `x + (−0)` is `x`.
+        let mut carry = [[-0.0; 4]; N];
         for i in (i..i + 4 * n).step_by(4) {
-            let mut fa = lanes.wide(&slots(ring, i));
-            set_lane(&mut fa, 0, &last);
-            put_slots(ring, i, &[[0.0; N]; 4]);
-            last = std::mem::replace(&mut ring[(i + 4) & mask], [0.0; N]);
-            let un = lanes.wide(state.u4(i + 4));
+            let mut fa = if S::GROUPED {
+                std::mem::replace(&mut ring_groups(ring)[(i & mask) / 4], [[0.0; 4]; N])
+            } else {
+                let fa = lanes.wide(&slots(ring, i));
+                put_slots(ring, i, &[[0.0; N]; 4]);
+                fa
+            };
+            let un = state.wide(lanes, i + 4);
             let ub = lanes.shift(&ua, &un);
             couplings.add_pairs(
                 lanes,
@@ -737,21 +858,21 @@ impl<const N: usize> Sweep<N> {
                 &ua,
                 &ub,
                 &mut fa,
-                Higher::Next(&mut last),
+                Higher::Next(&mut carry),
             );
             for k in 1..W {
                 let j = i + reach[k];
-                let ub = lanes.wide(state.u4(j));
-                let mut fb = slots(ring, j);
-                couplings.add_pairs(
-                    lanes,
-                    template[k],
-                    &ua,
-                    &ub,
-                    &mut fa,
-                    Higher::Apart(&mut fb),
-                );
-                put_slots(ring, j, &fb);
+                let ub = state.wide(lanes, j);
+                if S::GROUPED {
+                    let fb = &mut ring_groups(ring)[(j & mask) / 4];
+                    let fb = Higher::ApartWide(fb);
+                    couplings.add_pairs(lanes, template[k], &ua, &ub, &mut fa, fb);
+                } else {
+                    let mut fb = slots(ring, j);
+                    let apart = Higher::Apart(&mut fb);
+                    couplings.add_pairs(lanes, template[k], &ua, &ub, &mut fa, apart);
+                    put_slots(ring, j, &fb);
+                }
             }
             if C::OWN {
                 for l in 0..4 {
@@ -763,7 +884,13 @@ impl<const N: usize> Sweep<N> {
             state.complete_wide(lanes, first + i, i, &fa);
             ua = un;
         }
-        ring[(i + 4 * n) & mask] = last;
+        // The element after the groups: its pending force, then the last pair's.
+        let s = (i + 4 * n) & mask;
+        let mut after = slot(ring, s, S::GROUPED);
+        for j in 0..N {
+            after[j] += carry[j][0];
+        }
+        set_slot(ring, s, S::GROUPED, &after);
     }
 
     /// `f_int(u)` swept by the plain build, block after block (tests: the AVX2 sweep gives its
@@ -773,7 +900,7 @@ impl<const N: usize> Sweep<N> {
         let mut f = vec![0.0; u.len()];
         let (u, _) = u.as_chunks::<N>();
         let (fc, _) = f.as_chunks_mut::<N>();
-        let mut scratch = self.crossing_pass(couplings, u);
+        let mut scratch = self.crossing_pass(couplings, |e| u[e]);
         let Scratch {
             crossing, rings, ..
         } = &mut *scratch;
@@ -831,6 +958,43 @@ fn prefetch<T>(x: &T) {
     safe_arch::prefetch_t0(x);
 }
 
+/// The ring's slots in groups of four, as `U` in a grouped step ([`BlockState::GROUPED`]);
+/// a ring has a multiple of four slots.
+#[inline(always)]
+fn ring_groups<const N: usize>(ring: &mut [[f64; N]]) -> &mut [Wide<N>] {
+    ring.as_flattened_mut()
+        .as_chunks_mut::<4>()
+        .0
+        .as_chunks_mut::<N>()
+        .0
+}
+
+/// Ring slot `s`, of a ring in groups if `grouped`.
+#[inline(always)]
+fn slot<const N: usize>(ring: &mut [[f64; N]], s: usize, grouped: bool) -> [f64; N] {
+    match grouped {
+        true => lane(&ring_groups(ring)[s / 4], s % 4),
+        false => ring[s],
+    }
+}
+
+/// Sets ring slot `s`, of a ring in groups if `grouped`.
+#[inline(always)]
+fn set_slot<const N: usize>(ring: &mut [[f64; N]], s: usize, grouped: bool, x: &[f64; N]) {
+    match grouped {
+        true => set_lane(&mut ring_groups(ring)[s / 4], s % 4, x),
+        false => ring[s] = *x,
+    }
+}
+
+/// Ring slot `s`, left zero.
+#[inline(always)]
+fn take_slot<const N: usize>(ring: &mut [[f64; N]], s: usize, grouped: bool) -> [f64; N] {
+    let x = slot(ring, s, grouped);
+    set_slot(ring, s, grouped, &[0.0; N]);
+    x
+}
+
 /// Ring slots `s..s + 4`.
 #[inline(always)]
 fn slots<const N: usize>(ring: &[[f64; N]], s: usize) -> [[f64; N]; 4] {
@@ -860,9 +1024,18 @@ fn add<const N: usize>(acc: &mut [f64; N], x: &[f64; N]) {
 
 /// The state a sweep reads `U` from, and what it does with an element whose force is complete.
 trait BlockState<const N: usize> {
-    fn u(&self, i: usize) -> &[f64; N];
-    /// Elements `i..i + 4`.
-    fn u4(&self, i: usize) -> &[[f64; N]; 4];
+    /// Whether `U` is stored in groups of four elements ([`crate::lanes::grouped`]): a
+    /// [`Run`] then goes in lanes from a group's first element.
+    const GROUPED: bool = false;
+    /// Element `i`'s `U`: a reference where the state holds the element's DOFs together.
+    type U<'s>: std::ops::Deref<Target = [f64; N]>
+    where
+        Self: 's;
+    fn u(&self, i: usize) -> Self::U<'_>;
+    /// Asks the cache for element `i`'s `U` ([`prefetch`]).
+    fn prefetch_u(&self, i: usize);
+    /// Elements `i..i + 4` in lanes.
+    fn wide(&self, lanes: impl Lanes, i: usize) -> Wide<N>;
     /// Element `e` (index `i` in the block) has its whole internal force `f`.
     fn complete(&mut self, e: usize, i: usize, f: &mut [f64; N]);
     /// Elements `e..e + 4` (`i..i + 4` in the block) have their whole internal forces `f`, in
@@ -882,13 +1055,21 @@ struct Evaluate<'a, const N: usize> {
 }
 
 impl<const N: usize> BlockState<N> for Evaluate<'_, N> {
+    type U<'s>
+        = &'s [f64; N]
+    where
+        Self: 's;
     #[inline(always)]
     fn u(&self, i: usize) -> &[f64; N] {
         &self.u[i]
     }
     #[inline(always)]
-    fn u4(&self, i: usize) -> &[[f64; N]; 4] {
-        self.u[i..i + 4].try_into().expect("four elements")
+    fn prefetch_u(&self, i: usize) {
+        prefetch(&self.u[i]);
+    }
+    #[inline(always)]
+    fn wide(&self, lanes: impl Lanes, i: usize) -> Wide<N> {
+        lanes.wide(self.u[i..i + 4].try_into().expect("four elements"))
     }
     #[inline(always)]
     fn complete(&mut self, _: usize, i: usize, f: &mut [f64; N]) {
@@ -912,13 +1093,21 @@ struct Advance<'a, const N: usize, E> {
 }
 
 impl<const N: usize, E: ElementUpdate<N>> BlockState<N> for Advance<'_, N, E> {
+    type U<'s>
+        = &'s [f64; N]
+    where
+        Self: 's;
     #[inline(always)]
     fn u(&self, i: usize) -> &[f64; N] {
         &self.u[i]
     }
     #[inline(always)]
-    fn u4(&self, i: usize) -> &[[f64; N]; 4] {
-        self.u[i..i + 4].try_into().expect("four elements")
+    fn prefetch_u(&self, i: usize) {
+        prefetch(&self.u[i]);
+    }
+    #[inline(always)]
+    fn wide(&self, lanes: impl Lanes, i: usize) -> Wide<N> {
+        lanes.wide(self.u[i..i + 4].try_into().expect("four elements"))
     }
     #[inline(always)]
     fn complete(&mut self, e: usize, i: usize, f: &mut [f64; N]) {
@@ -951,6 +1140,85 @@ impl<const N: usize, E: ElementUpdate<N>> BlockState<N> for Advance<'_, N, E> {
             for p in powers {
                 *self.power += p;
             }
+        }
+    }
+}
+
+/// An element's DOFs taken out of their lanes ([`AdvanceGrouped::u`]).
+struct Lane<const N: usize>([f64; N]);
+
+impl<const N: usize> std::ops::Deref for Lane<N> {
+    type Target = [f64; N];
+    #[inline(always)]
+    fn deref(&self) -> &[f64; N] {
+        &self.0
+    }
+}
+
+/// A time step as [`Advance`], lumped and undamped, on `U`, `v` and `M⁻¹` in groups of four
+/// elements ([`crate::lanes::grouped`]): the block starts a group, and four elements that
+/// start one are advanced in lanes with no transpose, by the arithmetic of
+/// [`ElementUpdate::elements`].
+struct AdvanceGrouped<'a, const N: usize> {
+    u: &'a mut [Wide<N>],
+    v: &'a mut [Wide<N>],
+    inv: &'a [Wide<N>],
+    /// The block's part of `−P`, element by element.
+    force: &'a mut [[f64; N]],
+    loaded: Loaded<'a>,
+    dt: f64,
+}
+
+impl<const N: usize> BlockState<N> for AdvanceGrouped<'_, N> {
+    const GROUPED: bool = true;
+    type U<'s>
+        = Lane<N>
+    where
+        Self: 's;
+    #[inline(always)]
+    fn u(&self, i: usize) -> Lane<N> {
+        Lane(lane(&self.u[i / 4], i % 4))
+    }
+    #[inline(always)]
+    fn prefetch_u(&self, i: usize) {
+        prefetch(&self.u[i / 4]);
+    }
+    /// Only from a group's first element ([`Run`]'s `aligned`).
+    #[inline(always)]
+    fn wide(&self, _: impl Lanes, i: usize) -> Wide<N> {
+        debug_assert!(i.is_multiple_of(4), "four elements from a group's first");
+        self.u[i / 4]
+    }
+    /// [`Advance::complete`] of a lumped, undamped update, in the element's lanes.
+    #[inline(always)]
+    fn complete(&mut self, e: usize, i: usize, f: &mut [f64; N]) {
+        if self.loaded.take(e) {
+            let p = std::mem::replace(&mut self.force[i], [0.0; N]);
+            for j in 0..N {
+                f[j] += p[j];
+            }
+        }
+        let (g, l) = (i / 4, i % 4);
+        let (u, v, w) = (&mut self.u[g], &mut self.v[g], &self.inv[g]);
+        for j in 0..N {
+            v[j][l] -= self.dt * w[j][l] * f[j];
+            u[j][l] += self.dt * v[j][l];
+        }
+    }
+    #[inline(always)]
+    fn complete_wide(&mut self, lanes: impl Lanes, e: usize, i: usize, f: &Wide<N>) {
+        if !i.is_multiple_of(4) || self.loaded.any_before(e + 4) {
+            for (l, mut f) in lanes.narrow(f).into_iter().enumerate() {
+                self.complete(e + l, i + l, &mut f);
+            }
+            return;
+        }
+        let g = i / 4;
+        let (u, v, w) = (&mut self.u[g], &mut self.v[g], &self.inv[g]);
+        let dt = [self.dt; 4];
+        for j in 0..N {
+            v[j] = lanes.sub(v[j], lanes.mul(lanes.mul(dt, w[j]), f[j]));
+            u[j] = lanes.add(u[j], lanes.mul(dt, v[j]));
         }
     }
 }
