@@ -367,7 +367,7 @@ fn main() {
                     // a stretch and back at its end: a run does it once per check, so a sample
                     // is at least a check's stretch (`CHECK_EVERY` steps), not the few steps
                     // the time allows the others.
-                    let grouped = ne >= LARGE && ev.fused().is_some_and(|f| f.groups());
+                    let grouped = ne >= LARGE && ev.fused().and_then(|f| f.grouped()).is_some();
                     for (ti, &threads) in THREADS.iter().enumerate() {
                         let samples = RefCell::new(Vec::new());
                         let pool = pool(threads);
@@ -476,7 +476,7 @@ fn memory() -> (f64, f64) {
     drop(integrator);
     // u, v, force, scratch and the guard's last good u and v; M⁻¹ (lumped: 8 B per DOF); and
     // u, v and M⁻¹ in groups of four elements where the step goes in lanes.
-    let groups = if ev.fused().is_some_and(|f| f.groups()) {
+    let groups = if ev.fused().and_then(|f| f.grouped()).is_some() {
         3
     } else {
         0

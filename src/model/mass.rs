@@ -103,20 +103,21 @@ pub trait ElementUpdate<const N: usize> {
 trait ElementInverse<const N: usize> {
     /// `aᵀ B a` for this block `B`.
     fn quadratic(&self, a: &[f64; N]) -> f64;
-    /// The undamped [`ElementInverse::velocity`] of four elements, if these blocks have a
-    /// form for it (`false`: `v` is untouched).
+    /// The undamped update of four elements, `v` then `u`, if these blocks have a form for it
+    /// (`false`: `v` and `u` are untouched).
     #[inline(always)]
-    fn velocity_of_four(
+    fn update_of_four(
         lanes: impl Lanes,
         blocks: &[Self; 4],
-        v: &mut [[f64; N]; 4],
         f: &[[f64; N]; 4],
+        v: &mut [[f64; N]; 4],
+        u: &mut [[f64; N]; 4],
         dt: f64,
     ) -> bool
     where
         Self: Sized,
     {
-        let _ = (lanes, blocks, v, f, dt);
+        let _ = (lanes, blocks, f, v, u, dt);
         false
     }
     /// `v ← (c₁ v − Δt M_e⁻¹ f) c₂`; undamped, `c₁ = c₂ = 1` are left out, which changes no bit.
@@ -144,21 +145,21 @@ impl<const N: usize> ElementInverse<N> for [f64; N] {
     ) {
         lumped_velocity::<DAMPED>(v, f, self, dt, damping)
     }
-    /// `v − Δt w f` of [`lumped_velocity`], four numbers at a time.
+    /// [`lumped_update`] of the four elements' numbers as they lie.
     #[inline(always)]
-    fn velocity_of_four(
+    fn update_of_four(
         lanes: impl Lanes,
         blocks: &[Self; 4],
-        v: &mut [[f64; N]; 4],
         f: &[[f64; N]; 4],
+        v: &mut [[f64; N]; 4],
+        u: &mut [[f64; N]; 4],
         dt: f64,
     ) -> bool {
-        let (v, _) = v.as_flattened_mut().as_chunks_mut::<4>();
-        let (w, _) = blocks.as_flattened().as_chunks::<4>();
         let (f, _) = f.as_flattened().as_chunks::<4>();
-        for ((v, w), f) in v.iter_mut().zip(w).zip(f) {
-            *v = lanes.sub(*v, lanes.mul(lanes.mul([dt; 4], *w), *f));
-        }
+        let (w, _) = blocks.as_flattened().as_chunks::<4>();
+        let (v, _) = v.as_flattened_mut().as_chunks_mut::<4>();
+        let (u, _) = u.as_flattened_mut().as_chunks_mut::<4>();
+        lumped_update(lanes, dt, f, w, v, u);
         true
     }
 }
@@ -224,15 +225,28 @@ impl<B: ElementInverse<N>, const N: usize, const DAMPED: bool> ElementUpdate<N>
         u: &mut [[f64; N]; 4],
     ) -> [f64; 4] {
         let inv: &[B; 4] = self.inv[i..i + 4].try_into().expect("four elements");
-        if DAMPED || !B::velocity_of_four(lanes, inv, v, f, self.dt) {
+        if DAMPED || !B::update_of_four(lanes, inv, f, v, u, self.dt) {
             return std::array::from_fn(|l| self.element(i + l, &f[l], &mut v[l], &mut u[l]));
         }
-        let (u, _) = u.as_flattened_mut().as_chunks_mut::<4>();
-        let (v, _) = v.as_flattened().as_chunks::<4>();
-        for (u, v) in u.iter_mut().zip(v) {
-            *u = lanes.add(*u, lanes.mul([self.dt; 4], *v));
-        }
         [0.0; 4]
+    }
+}
+
+/// The undamped lumped update `v ← v − Δt w f`, then `u ← u + Δt v`, four numbers at a time,
+/// whatever DOFs the lanes hold: four elements' DOFs one after the other, or the same DOF of
+/// four elements (a step on the state in groups, [`crate::lanes::grouped`]).
+#[inline(always)]
+pub fn lumped_update(
+    lanes: impl Lanes,
+    dt: f64,
+    f: &[[f64; 4]],
+    w: &[[f64; 4]],
+    v: &mut [[f64; 4]],
+    u: &mut [[f64; 4]],
+) {
+    for (((v, u), w), f) in v.iter_mut().zip(u).zip(w).zip(f) {
+        *v = lanes.sub(*v, lanes.mul(lanes.mul([dt; 4], *w), *f));
+        *u = lanes.add(*u, lanes.mul([dt; 4], *v));
     }
 }
 

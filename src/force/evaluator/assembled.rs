@@ -315,19 +315,6 @@ impl<K: Kinematics<N>, const N: usize> FusedStep for Assembled<K, N> {
     ) -> f64 {
         self.sweep.advance(self, u, v, force, loaded, update)
     }
-
-    fn advance_grouped(
-        &self,
-        u: &mut [f64],
-        v: &mut [f64],
-        inv: &[f64],
-        force: &mut [f64],
-        loaded: &[u32],
-        dt: f64,
-    ) {
-        self.sweep
-            .advance_grouped(self, u, v, inv, force, loaded, dt)
-    }
 }
 
 #[cfg(test)]

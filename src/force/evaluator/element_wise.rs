@@ -26,7 +26,7 @@
 //! ([`Inline`]): a map per interface would double the bytes a step reads.
 
 use super::sweep::{Couplings, Face, Higher, Sweep};
-use super::{Evaluator, FusedStep};
+use super::{Evaluator, FusedStep, GroupedStep};
 use crate::input::scene::EvaluatorKind;
 use crate::lanes::{spread, Lanes, Wide};
 use crate::mesh::geometry::Vec2;
@@ -636,10 +636,13 @@ impl<K: Kernel<N>, const N: usize> FusedStep for ElementWise<K, N> {
         }
     }
 
-    fn groups(&self) -> bool {
-        matches!(self.faces, Store::Shared(_)) && K::WIDE && self.sweep.in_lanes()
+    fn grouped(&self) -> Option<&dyn GroupedStep> {
+        let lanes = matches!(self.faces, Store::Shared(_)) && K::WIDE && self.sweep.in_lanes();
+        lanes.then_some(self)
     }
+}
 
+impl<K: Kernel<N>, const N: usize> GroupedStep for ElementWise<K, N> {
     fn advance_grouped(
         &self,
         u: &mut [f64],

@@ -51,15 +51,17 @@ pub trait FusedStep {
         update: &Update,
     ) -> f64;
 
-    /// Whether [`FusedStep::advance_grouped`] is faster than [`FusedStep::advance`]: the sweep
-    /// goes four elements at a time in lanes.
-    fn groups(&self) -> bool {
-        false
+    /// The same step on the state stored in groups of four elements, where that is faster:
+    /// the sweep goes four elements at a time in lanes.
+    fn grouped(&self) -> Option<&dyn GroupedStep> {
+        None
     }
+}
 
-    /// [`FusedStep::advance`] undamped, with the lumped `M⁻¹` (its diagonal `inv`), on `U`, `v`
-    /// and `inv` stored in groups of four elements ([`crate::lanes::grouped`]); `force` as
-    /// there, and `loaded` named. The same bits as [`FusedStep::advance`].
+/// [`FusedStep::advance`] undamped with a lumped `M⁻¹`, on `U`, `v` and the diagonal `inv` of
+/// `M⁻¹` stored in groups of four elements ([`crate::lanes::grouped`]).
+pub trait GroupedStep {
+    /// One step, `force` as in [`FusedStep::advance`] and `loaded` named: the same bits.
     #[allow(clippy::too_many_arguments)]
     fn advance_grouped(
         &self,

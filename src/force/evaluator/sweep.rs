@@ -12,7 +12,8 @@
 //!
 //! While it sweeps, an element's force is pending only from its first coupling to its own
 //! completion, and a coupling reaches at most `max(b − a)` elements ahead. The pending forces
-//! are therefore kept in a ring of the next power of two above that reach, which stays in
+//! are therefore kept in a ring of the next power of two above that reach (four slots at
+//! least), which stays in
 //! cache (a 1000 × 1000 grid needs 1024 slots): no global force vector is read or written.
 //! An element takes its pending force from the ring when the sweep reaches it and adds its own
 //! couplings in registers. The couplings inside a block lie apart from those to the ground and
@@ -39,7 +40,7 @@
 //! so the result does not depend on the thread count.
 
 use crate::lanes::{lane, set_lane, Lanes, Plain, Wide};
-use crate::model::mass::{ElementUpdate, Update, WithUpdate};
+use crate::model::mass::{lumped_update, ElementUpdate, Update, WithUpdate};
 use crate::model::GROUND;
 use rayon::prelude::*;
 use std::ops::Range;
@@ -784,15 +785,10 @@ impl<const N: usize> Sweep<N> {
             }
             i = lead;
             let n = (end - i) / 4;
-            Self::groups(
-                lanes,
-                couplings,
-                &template,
-                &reach,
-                first,
-                (i, ring, state),
-                n,
-            );
+            if n > 0 {
+                let at = (i, &mut *ring, &mut *state);
+                Self::groups(lanes, couplings, &template, &reach, first, at, n);
+            }
             i += 4 * n;
         }
         for i in i..end {
@@ -1205,9 +1201,11 @@ impl<const N: usize> BlockState<N> for AdvanceGrouped<'_, N> {
             u[j][l] += self.dt * v[j][l];
         }
     }
+    /// Only from a group's first element ([`Run`]'s `aligned`).
     #[inline(always)]
     fn complete_wide(&mut self, lanes: impl Lanes, e: usize, i: usize, f: &Wide<N>) {
-        if !i.is_multiple_of(4) || self.loaded.any_before(e + 4) {
+        debug_assert!(i.is_multiple_of(4), "four elements from a group's first");
+        if self.loaded.any_before(e + 4) {
             for (l, mut f) in lanes.narrow(f).into_iter().enumerate() {
                 self.complete(e + l, i + l, &mut f);
             }
@@ -1215,11 +1213,7 @@ impl<const N: usize> BlockState<N> for AdvanceGrouped<'_, N> {
         }
         let g = i / 4;
         let (u, v, w) = (&mut self.u[g], &mut self.v[g], &self.inv[g]);
-        let dt = [self.dt; 4];
-        for j in 0..N {
-            v[j] = lanes.sub(v[j], lanes.mul(lanes.mul(dt, w[j]), f[j]));
-            u[j] = lanes.add(u[j], lanes.mul(dt, v[j]));
-        }
+        lumped_update(lanes, self.dt, f, w, v, u);
     }
 }
 
