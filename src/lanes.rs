@@ -63,10 +63,22 @@ pub mod grouped {
         }
     }
 
+    /// A flat grouped vector (`N` DOFs per element) as its groups, one [`Wide`] per four
+    /// elements; a tail short of a whole group is left out.
+    #[inline(always)]
+    pub fn as_groups<const N: usize>(x: &[f64]) -> &[Wide<N>] {
+        x.as_chunks::<4>().0.as_chunks::<N>().0
+    }
+
+    /// [`as_groups`], mutable.
+    #[inline(always)]
+    pub fn as_groups_mut<const N: usize>(x: &mut [f64]) -> &mut [Wide<N>] {
+        x.as_chunks_mut::<4>().0.as_chunks_mut::<N>().0
+    }
+
     fn to_groups<const N: usize>(x: &[f64], g: &mut [f64]) {
-        let (g, _) = g.as_chunks_mut::<4>();
-        let (g, _) = g.as_chunks_mut::<N>();
-        g.par_chunks_mut(TASK)
+        as_groups_mut::<N>(g)
+            .par_chunks_mut(TASK)
             .zip(x.par_chunks(TASK * 4 * N))
             .for_each(|(g, x)| {
                 for (g, x) in g.iter_mut().zip(x.chunks(4 * N)) {
@@ -80,9 +92,8 @@ pub mod grouped {
     }
 
     fn from_groups<const N: usize>(g: &[f64], x: &mut [f64]) {
-        let (g, _) = g.as_chunks::<4>();
-        let (g, _) = g.as_chunks::<N>();
-        g.par_chunks(TASK)
+        as_groups::<N>(g)
+            .par_chunks(TASK)
             .zip(x.par_chunks_mut(TASK * 4 * N))
             .for_each(|(g, x): (&[Wide<N>], &mut [f64])| {
                 for (g, x) in g.iter().zip(x.chunks_mut(4 * N)) {

@@ -39,6 +39,7 @@
 //! blocks. Every element sums its couplings in their order whatever the blocks and the threads,
 //! so the result does not depend on the thread count.
 
+use crate::lanes::grouped::{as_groups, as_groups_mut};
 use crate::lanes::{lane, set_lane, Lanes, Plain, Wide};
 use crate::model::mass::{lumped_update, ElementUpdate, Update, WithUpdate};
 use crate::model::GROUND;
@@ -534,11 +535,8 @@ impl<const N: usize> Sweep<N> {
         loaded: &[u32],
         dt: f64,
     ) {
-        fn groups<const N: usize>(x: &mut [f64]) -> &mut [Wide<N>] {
-            x.as_chunks_mut::<4>().0.as_chunks_mut::<N>().0
-        }
-        let (u, v) = (groups::<N>(u), groups::<N>(v));
-        let inv: &[Wide<N>] = inv.as_chunks::<4>().0.as_chunks::<N>().0;
+        let (u, v) = (as_groups_mut::<N>(u), as_groups_mut::<N>(v));
+        let inv = as_groups::<N>(inv);
         let (force, _) = force.as_chunks_mut::<N>();
         let mut scratch = self.crossing_pass(couplings, |e| lane(&u[e / 4], e % 4));
         let Scratch {
@@ -958,11 +956,7 @@ fn prefetch<T>(x: &T) {
 /// a ring has a multiple of four slots.
 #[inline(always)]
 fn ring_groups<const N: usize>(ring: &mut [[f64; N]]) -> &mut [Wide<N>] {
-    ring.as_flattened_mut()
-        .as_chunks_mut::<4>()
-        .0
-        .as_chunks_mut::<N>()
-        .0
+    as_groups_mut(ring.as_flattened_mut())
 }
 
 /// Ring slot `s`, of a ring in groups if `grouped`.
