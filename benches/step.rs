@@ -2,8 +2,8 @@
 //! rigid and hybrid, on square grids and Voronoi meshes of 10³ … 10⁶ elements, on 1 and 2
 //! threads, as ns per element-step; each figure beside its distance from its memory bound: the
 //! bytes a step must move divided by the bandwidth of a triad kernel run on the same threads
-//! just before and just after each sample, so that a burst of load from elsewhere on a shared
-//! machine falls on both sides of the ratio. Also the
+//! just before and just after each case, so that the load from elsewhere on a shared machine,
+//! which comes and goes within a run, is the same on both sides of the ratio. Also the
 //! model build time of 10⁶ Voronoi elements, `ω_max` of 3 × 10⁶ DOFs and the bytes per element.
 //! In the same run, the peer: the explicit loop a user of a sparse library writes (`f = K u`
 //! by faer's CSR product on one thread, then `v += Δt M⁻¹ (P − f)`, `u += Δt v`) on the same
@@ -107,6 +107,16 @@ impl Triad {
         }
     }
 
+    /// `case` (its warm-up and samples) between three passes on `pool` just before and three
+    /// just after it, and the bandwidth of the median pass (bytes/s): the bandwidth of the
+    /// seconds in which the case ran.
+    fn around(&mut self, pool: &rayon::ThreadPool, case: impl FnOnce()) -> f64 {
+        let mut t: Vec<f64> = (0..3).map(|_| pool.install(|| self.pass())).collect();
+        case();
+        t.extend((0..3).map(|_| pool.install(|| self.pass())));
+        (3 * 8 * self.a.len()) as f64 / quartiles(t)[1]
+    }
+
     /// The seconds of one pass, on the threads of the calling pool.
     fn pass(&mut self) -> f64 {
         use rayon::prelude::*;
@@ -124,67 +134,45 @@ impl Triad {
         std::hint::black_box(&self.a);
         t
     }
-
-    /// Bytes per second of a pass that took `seconds`.
-    fn bandwidth(&self, seconds: f64) -> f64 {
-        (3 * 8 * self.a.len()) as f64 / seconds
-    }
 }
 
-/// One sample of a case: `iters` calls of `step` in `pool`, between two triad passes on the
-/// same threads. Records the seconds per call and the bandwidth of the two passes; returns the
-/// steps' time alone, for criterion.
-fn paired(
+/// Times one iteration of a case's samples: `iters` calls of `step` in `pool`, recorded in
+/// `samples` as seconds per call.
+fn timed(
     pool: &rayon::ThreadPool,
-    triad: &mut Triad,
-    samples: &RefCell<Vec<[f64; 2]>>,
+    samples: &RefCell<Vec<f64>>,
     iters: u64,
-    mut step: impl FnMut(u64) + Send,
+    step: impl FnOnce(u64) + Send,
 ) -> Duration {
-    let before = pool.install(|| triad.pass());
     let e = pool.install(|| {
         let t0 = Instant::now();
         step(iters);
         t0.elapsed()
     });
-    let after = pool.install(|| triad.pass());
-    let bandwidth = triad.bandwidth(0.5 * (before + after));
-    samples
-        .borrow_mut()
-        .push([e.as_secs_f64() / iters as f64, bandwidth]);
+    samples.borrow_mut().push(e.as_secs_f64() / iters as f64);
     e
 }
 
 /// What the last `keep` samples of a case say (its warm-up comes first), for `ne` elements and
-/// `bytes` per element-step.
+/// `bytes` per element-step, with the `bandwidth` of the triad passes around it.
 struct Measured {
     /// First quartile, median and third quartile of the time (ns per element-step).
     ns: [f64; 3],
-    /// The median and the highest bandwidth of the triad passes beside the samples (bytes/s).
     bandwidth: f64,
-    peak: f64,
-    /// Quartiles of each sample's time over its memory bound, `bytes` over the bandwidth of the
-    /// triad passes beside it.
+    /// The same quartiles over the memory bound, `bytes / bandwidth`.
     ratio: [f64; 3],
 }
 
 impl Measured {
-    fn of(samples: &RefCell<Vec<[f64; 2]>>, keep: usize, ne: usize, bytes: f64) -> Self {
+    fn of(samples: &RefCell<Vec<f64>>, keep: usize, ne: usize, bytes: f64, bandwidth: f64) -> Self {
         let s = samples.borrow();
         let last = &s[s.len().saturating_sub(keep)..];
-        let ns = quartiles(last.iter().map(|x| x[0] / ne as f64 * 1e9).collect());
-        let bandwidth = quartiles(last.iter().map(|x| x[1]).collect())[1];
-        let peak = last.iter().map(|x| x[1]).fold(f64::NAN, f64::max);
-        let ratio = quartiles(
-            last.iter()
-                .map(|x| x[0] / ne as f64 / (bytes / x[1]))
-                .collect(),
-        );
+        let ns = quartiles(last.iter().map(|t| t / ne as f64 * 1e9).collect());
+        let bound_ns = bytes / bandwidth * 1e9;
         Measured {
             ns,
             bandwidth,
-            peak,
-            ratio,
+            ratio: ns.map(|t| t / bound_ns),
         }
     }
 }
@@ -244,26 +232,28 @@ fn peer(
         group.sampling_mode(SamplingMode::Flat);
     }
     let one = pool(1);
-    group.bench_function(format!("{mesh}/rigid/faer-csr/1thr/{ne}"), |b| {
-        b.iter_custom(|iters| {
-            paired(&one, triad, &samples, iters, |iters| {
-                for _ in 0..iters {
-                    // K is symmetric: its columns are its rows, and the transposed view is CSR.
-                    faer::sparse::linalg::matmul::sparse_dense_matmul(
-                        faer::ColMut::from_slice_mut(&mut f).as_mat_mut(),
-                        faer::Accum::Replace,
-                        k.as_ref().transpose(),
-                        faer::ColRef::from_slice(&u).as_mat(),
-                        1.0,
-                        faer::Par::Seq,
-                    );
-                    for i in 0..n {
-                        v[i] += dt * minv[i] * (p[i] - f[i]);
-                        u[i] += dt * v[i];
+    let bandwidth = triad.around(&one, || {
+        group.bench_function(format!("{mesh}/rigid/faer-csr/1thr/{ne}"), |b| {
+            b.iter_custom(|iters| {
+                timed(&one, &samples, iters, |iters| {
+                    for _ in 0..iters {
+                        // K is symmetric: its columns are its rows, and the transposed view is CSR.
+                        faer::sparse::linalg::matmul::sparse_dense_matmul(
+                            faer::ColMut::from_slice_mut(&mut f).as_mat_mut(),
+                            faer::Accum::Replace,
+                            k.as_ref().transpose(),
+                            faer::ColRef::from_slice(&u).as_mat(),
+                            1.0,
+                            faer::Par::Seq,
+                        );
+                        for i in 0..n {
+                            v[i] += dt * minv[i] * (p[i] - f[i]);
+                            u[i] += dt * v[i];
+                        }
                     }
-                }
+                })
             })
-        })
+        });
     });
     group.finish();
     std::hint::black_box(&u);
@@ -271,7 +261,7 @@ fn peer(
         mesh,
         elements: ne,
         bytes,
-        m: Measured::of(&samples, sample_size, ne, bytes),
+        m: Measured::of(&samples, sample_size, ne, bytes, bandwidth),
     }
 }
 
@@ -438,16 +428,18 @@ fn main() {
                             let stretch = step * (sample_size as u32) * (CHECK_EVERY as u32 + 10);
                             group.measurement_time(time.max(stretch));
                         }
-                        group.bench_function(
-                            format!("{mesh}/{fname}/{}/{threads}thr/{ne}", kind.name()),
-                            |b| {
-                                b.iter_custom(|iters| {
-                                    paired(&pool, &mut triad, &samples, iters, |iters| {
-                                        integrator.step_only(iters)
+                        let bandwidth = triad.around(&pool, || {
+                            group.bench_function(
+                                format!("{mesh}/{fname}/{}/{threads}thr/{ne}", kind.name()),
+                                |b| {
+                                    b.iter_custom(|iters| {
+                                        timed(&pool, &samples, iters, |iters| {
+                                            integrator.step_only(iters)
+                                        })
                                     })
-                                })
-                            },
-                        );
+                                },
+                            );
+                        });
                         rows.push(Row {
                             mesh,
                             formulation: fname,
@@ -456,7 +448,7 @@ fn main() {
                             threads,
                             samples: sample_size,
                             bytes,
-                            m: Measured::of(&samples, sample_size, ne, bytes),
+                            m: Measured::of(&samples, sample_size, ne, bytes, bandwidth),
                         });
                     }
                     group.finish();
@@ -626,12 +618,12 @@ fn render(
     };
     let _ = writeln!(
         s,
-        "Triad bandwidth `a = b + s c` (3 × 8 bytes per entry, over 3 × 128 MiB), one pass just \
-        before and one just after each sample of each case, on the case's threads: a step's \
-        memory bound comes from the bandwidth of the same seconds, for the load from elsewhere \
-        on a shared machine comes and goes within a run. The median bandwidth beside each mesh \
-        and size's cases: overall median {} GB/s on 1 thread, {} GB/s on 2, the lowest and \
-        highest of the {} in brackets.\n",
+        "Triad bandwidth `a = b + s c` (3 × 8 bytes per entry, over 3 × 128 MiB), the median of \
+        three passes just before and three just after each case (its warm-up and samples), on \
+        the case's threads: a step's memory bound comes from the bandwidth of the seconds in \
+        which it ran, for the load from elsewhere on a shared machine comes and goes within a \
+        run. The median of the bandwidths around each mesh and size's cases: overall median {} \
+        GB/s on 1 thread, {} GB/s on 2, the lowest and highest of the {} in brackets.\n",
         range(0),
         range(1),
         bandwidths.len()
@@ -674,8 +666,7 @@ fn render(
     );
     let _ = writeln!(
         s,
-        "the bandwidth of the triad passes beside a sample; *× limit* is the median over the samples \
-        of each sample's time over its own limit: how far the \
+        "the bandwidth of the triad passes around its case, and *× limit* the time over its limit: how far the \
         step is from that memory bound.\n"
     );
     let _ = writeln!(
@@ -850,7 +841,7 @@ fn render_user(rows: &[Row], peers: &[Peer], r: &RunPath) -> String {
         threads against the peer on one. *Bytes* is what a peer's step must move per element \
         (`K`'s values and column indices, 8 bytes each, its row starts, `u` read, `f` written, \
         then `f`, `P`, `M⁻¹` read and `v`, `u` read and written), and *× limit* its time over \
-        bytes / the bandwidth of the one-thread triad passes beside each sample (median over the samples): the peer's own distance from its memory \
+        bytes / the bandwidth of the one-thread triad passes around it: the peer's own distance from its memory \
         bound. The ratio of the two bytes columns bounds how much faster than the peer a \
         step at its own memory bound can be.\n"
     );
@@ -933,7 +924,7 @@ fn render_user(rows: &[Row], peers: &[Peer], r: &RunPath) -> String {
             let best = rows
                 .iter()
                 .filter(|r| r.threads == thr)
-                .fold(f64::NAN, |b, r| b.max(r.m.peak));
+                .fold(f64::NAN, |b, r| b.max(r.m.bandwidth));
             let strict = r.map_or(f64::NAN, |r| r.m.ns[1] * 1e-9 / (r.bytes / best));
             goal(
                 format!("{mesh}, {formulation}, element-wise, {thr} thr: within {want}× the memory bound"),
@@ -989,11 +980,11 @@ fn render_user(rows: &[Row], peers: &[Peer], r: &RunPath) -> String {
     );
     let _ = writeln!(
         s,
-        "\nA ratio to the memory bound is judged at the bandwidth of the same seconds: the median \
-        over the samples of each one's time over bytes / the bandwidth of the triad passes beside \
-        it, quartiles in brackets. Beside it, the median time against the best bandwidth of the \
-        passes beside any sample on as many threads in the run: nearer what the step would read on a \
-        machine of its own. A step that is not held by the memory keeps its time when others' \
+        "\nA ratio to the memory bound is judged at the bandwidth of the seconds in which the step \
+        ran: its median time over bytes / the bandwidth of the triad passes around its case, the \
+        quartiles' in brackets. Beside it, the median time against the best bandwidth around any \
+        case on as many threads in the run: nearer what the step would read on a machine of its \
+        own. A step that is not held by the memory keeps its time when others' \
         traffic lowers the bandwidth, so the two figures part most for it.\n\
         \nThe run path: {} rounds, interleaved, each of {} steps of the 10⁶-element rigid grid \
         (element-wise, all threads): the inner loop (`step_only`, {} ns per element-step, median) \
