@@ -19,6 +19,11 @@
 //! brick whose corner entered a neighbour's face beside that neighbour's corner had its side
 //! edge pushed as if 10 mm deep (paper_notes C10).
 //!
+//! A body whose interfaces can fail (`Model::fragments`) is one contact body until one of its
+//! interfaces is released; from then on its elements touch each other, but only through
+//! released faces: an edge between two elements is a source, and its face presses, once its
+//! interface is released, and two elements still bonded never see each other.
+//!
 //! Between two bodies both take the role of the source, each with half the spring, so that two
 //! flat faces pressed together carry `k_n` of eq. 12 once, whichever body comes first.
 //!
@@ -33,15 +38,15 @@ use crate::mesh::geometry::Vec2;
 use crate::model::law::InterfaceLaw;
 use crate::model::{Model, GROUND};
 use rayon::prelude::*;
-use std::collections::HashSet;
+use std::collections::{HashMap, HashSet};
 
 /// A region that boundary edges can enter: an element with an edge on its body's boundary (a
-/// convex polygon) or the strip below a ground segment.
+/// convex polygon; in a body that fragments, every element) or the strip below a ground segment.
 #[derive(Debug, Clone, Copy, serde::Serialize, serde::Deserialize)]
 struct Target {
     /// The element, or [`GROUND`].
     element: u32,
-    /// The body, or [`NONE`] for the ground.
+    /// The model's body, or [`NONE`] for the ground.
     body: u32,
     /// Its corners are `corners[first..first + count]`, counter-clockwise; face `k` runs from
     /// corner `k` to corner `k + 1`, and is `faces[first + k]`.
@@ -56,8 +61,15 @@ struct Face {
     compliance: [f64; 2],
     /// Whether it is a surface (on the body's boundary, a ground segment or a free end of one,
     /// any face of an element of a body that fragments) or only bounds the target (shared with
-    /// another element, a joint between segments).
+    /// another element, a joint between segments). The surfaces partition the target by depth.
     surface: bool,
+    /// In a body that fragments, the interface of a face shared with another element, else
+    /// [`NONE`]: such a face carries contact tractions only once its interface is released
+    /// (it is *exposed*). Against sources of its own body it partitions the target as a
+    /// surface from the start, so that a source edge entering the element across it, at a
+    /// corner, is pressed by no face of the element; against other bodies it only bounds the
+    /// target until released, as a face shared in a body that does not fragment does.
+    interface: u32,
 }
 
 /// A boundary edge of a body as the source of contact: its end points are two corners of its
@@ -65,10 +77,13 @@ struct Face {
 #[derive(Debug, Clone, Copy, serde::Serialize, serde::Deserialize)]
 struct Source {
     element: u32,
-    /// Its body, or in a body that fragments, `bodies +` its element (`Overlap::apart`).
+    /// The model's body.
     body: u32,
     ends: [u32; 2],
     compliance: [f64; 2],
+    /// In a body that fragments, the interface of an edge shared with another element, else
+    /// [`NONE`]: such an edge is a source only once its interface is released.
+    interface: u32,
 }
 
 /// A piece of a source edge inside one face's part of a target, live this step.
@@ -122,14 +137,21 @@ pub(super) struct Overlap {
     fresh: bool,
     /// The fragments changed: the neighbour list must be rebuilt.
     stale: bool,
-    /// The bodies of the model: a contact body from this on is a fragment.
-    bodies: u32,
+    /// Per body of the model, whether it fragments (`Model::fragments`) and whether one of
+    /// its interfaces has been released: until then it is one contact body, as a body that
+    /// does not fragment is, and its elements are not tested against each other at all.
+    fragments: Vec<bool>,
+    cracked: Vec<bool>,
+    /// Per body of the model, its first interface (ascending): the body of an interface.
+    first_interface: Vec<u32>,
     /// In the bodies that fragment, the elements that share an edge with each element, sorted,
     /// with the interface of that edge: `neighbours[neighbour_start[e]..neighbour_start[e + 1]]`.
     neighbour_start: Vec<u32>,
     neighbours: Vec<(u32, u32)>,
     /// Per interface of the model, whether it is released (bodies that fragment only).
     released: Vec<bool>,
+    /// Per target, whether a face of it carries tractions now (at the last rebuild).
+    open: Vec<bool>,
 }
 
 /// Candidates per block of the narrow phase (a rayon task).
@@ -154,6 +176,8 @@ struct Block {
     /// Where the last step's pieces reach this block's keys.
     cursor: usize,
     forces: Vec<(u32, [f64; 6])>,
+    /// The forces of pieces born across a released interface (`Overlap::piece`), again.
+    born: Vec<(u32, [f64; 6])>,
     /// The force on the source element of the last pieces, still open to the next ones.
     pending: Option<(u32, [f64; 6])>,
     pieces: Vec<Piece>,
@@ -193,6 +217,7 @@ impl Block {
     /// edge rarely lies in more than two faces' parts of one target) and their forces.
     fn clear(&mut self, candidates: usize) {
         self.forces.clear();
+        self.born.clear();
         self.pieces.clear();
         self.forces.reserve(8 * candidates);
         self.pieces.reserve(2 * candidates);
@@ -227,6 +252,8 @@ struct FaceNow {
     spring: [f64; 2],
     root: f64,
     surface: bool,
+    /// Whether it carries tractions: a surface whose interface, if it has one, is released.
+    exposed: bool,
 }
 
 impl Overlap {
@@ -240,11 +267,22 @@ impl Overlap {
             let mesh = &body.mesh;
             let on_boundary: HashSet<(u32, u32)> =
                 mesh.boundary.iter().map(|e| (e.cell, e.v1)).collect();
-            // In a body that fragments every element is a contact body of its own: a target
-            // whose faces are all surfaces, each edge a source. Elements still bonded by their
-            // interface do not touch (`Overlap::apart`); the others do, from the start, so that
-            // no overlap can build up unseen before an interface is released.
+            // In a body that fragments every element is a target whose faces are all surfaces,
+            // and each edge a source; an edge between two elements is a source, and its face
+            // carries tractions, only once its interface is released (`Overlap::apart`).
             let fragments = model.fragments(bi);
+            let shared: HashMap<(u32, u32), u32> = if fragments {
+                mesh.shared
+                    .iter()
+                    .enumerate()
+                    .flat_map(|(j, e)| {
+                        let i = (body.first_interface + j) as u32;
+                        [((e.a, e.v1), i), ((e.b, e.v2), i)]
+                    })
+                    .collect()
+            } else {
+                HashMap::new()
+            };
             let mut cells: Vec<u32> = if fragments {
                 (0..mesh.n_cells() as u32).collect()
             } else {
@@ -254,11 +292,6 @@ impl Overlap {
             cells.dedup();
             for c in cells {
                 let element = body.first_element + c as usize;
-                let contact_body = if fragments {
-                    (model.bodies.len() + element) as u32
-                } else {
-                    bi as u32
-                };
                 let centroid = model.elements[element].props.centroid;
                 let cell = mesh.cell(c as usize);
                 let first = offsets.len() as u32;
@@ -271,24 +304,27 @@ impl Overlap {
                     let h = (p1 - centroid).dot(&n).abs();
                     let compliance = [h / body.moduli[0], h / body.moduli[1]];
                     let surface = fragments || on_boundary.contains(&(c, v));
+                    let interface = shared.get(&(c, v)).copied().unwrap_or(NONE);
                     offsets.push(p1 - centroid);
                     faces.push(Face {
                         compliance,
                         surface,
+                        interface,
                     });
                     if surface {
                         let ends = [first + k as u32, first + ((k + 1) % cell.len()) as u32];
                         sources.push(Source {
                             element: element as u32,
-                            body: contact_body,
+                            body: bi as u32,
                             ends,
                             compliance,
+                            interface,
                         });
                     }
                 }
                 targets.push(Target {
                     element: element as u32,
-                    body: contact_body,
+                    body: bi as u32,
                     first,
                     count: cell.len() as u32,
                 });
@@ -345,18 +381,22 @@ impl Overlap {
                 Face {
                     compliance: [0.0; 2],
                     surface: true,
+                    interface: NONE,
                 },
                 Face {
                     compliance: [0.0; 2],
                     surface: free_from,
+                    interface: NONE,
                 },
                 Face {
                     compliance: [0.0; 2],
                     surface: false,
+                    interface: NONE,
                 },
                 Face {
                     compliance: [0.0; 2],
                     surface: free_to,
+                    interface: NONE,
                 },
             ]);
             targets.push(Target {
@@ -401,7 +441,15 @@ impl Overlap {
             friction,
             fresh: true,
             stale: false,
-            bodies: model.bodies.len() as u32,
+            fragments: (0..model.bodies.len())
+                .map(|b| model.fragments(b))
+                .collect(),
+            cracked: vec![false; model.bodies.len()],
+            first_interface: model
+                .bodies
+                .iter()
+                .map(|b| b.first_interface as u32)
+                .collect(),
             released: if neighbours.is_empty() {
                 Vec::new()
             } else {
@@ -409,6 +457,7 @@ impl Overlap {
             },
             neighbour_start,
             neighbours,
+            open: Vec::new(),
         };
         overlap.reserve();
         overlap.place_lines(true);
@@ -421,6 +470,7 @@ impl Overlap {
         let n = self.sources.len();
         self.buckets.reserve(self.targets.len());
         self.candidates.reserve_exact(8 * n);
+        self.open.reserve_exact(self.targets.len());
         self.pieces.reserve_exact(4 * n);
         self.next.reserve_exact(4 * n);
     }
@@ -495,6 +545,9 @@ impl Overlap {
             for (e, q) in &block.forces {
                 ledger.add(*e as usize, &q[..nd]);
             }
+            for (e, q) in &block.born {
+                ledger.unworked(*e as usize, &q[..nd]);
+            }
             self.next.extend_from_slice(&block.pieces);
             self.ground += block.ground;
             energy += block.energy;
@@ -508,21 +561,32 @@ impl Overlap {
 
     /// Interfaces handed over to contact: `released[k]` tells whether interface
     /// `interfaces[k]` (an index in `Model::interfaces`) is; the two elements of a released
-    /// interface touch from now on. Nothing to do when no body fragments. The neighbour list is
-    /// rebuilt at the next evaluation.
+    /// interface touch from now on, through the faces of that interface. Nothing to do when no
+    /// body fragments. The neighbour list is rebuilt at the next evaluation.
     pub fn release(&mut self, interfaces: &[u32], released: &[bool]) {
         if self.released.is_empty() {
             return;
         }
         for (&i, &r) in interfaces.iter().zip(released) {
             self.released[i as usize] = r;
+            if r {
+                let body = self.first_interface.partition_point(|&f| f <= i) - 1;
+                self.cracked[body] = true;
+            }
         }
         self.stale = true;
     }
 
-    /// Whether source `s` and target `t` may not touch: the same element, the same body, or two
-    /// elements still bonded by their interface (the interface keeps them apart; elements that
-    /// share a corner, or whose interface is released, do touch).
+    /// Whether a source edge or a face with this interface carries contact now: it has none (a
+    /// boundary, the ground) or it is released.
+    fn exposed(&self, interface: u32) -> bool {
+        interface == NONE || self.released[interface as usize]
+    }
+
+    /// Whether source `s` and target `t` may not touch: the same element, the same body unless
+    /// it fragments and has a released interface, or two elements still bonded by their
+    /// interface (the interface keeps them apart; elements that share a corner, or whose
+    /// interface is released, do touch).
     fn apart(&self, s: &Source, t: &Target) -> bool {
         if t.element == s.element {
             return true;
@@ -530,7 +594,8 @@ impl Overlap {
         if t.body != s.body {
             return false;
         }
-        if s.body < self.bodies {
+        let body = s.body as usize;
+        if !(self.fragments[body] && self.cracked[body]) {
             return true;
         }
         let e = s.element as usize;
@@ -629,14 +694,24 @@ impl Overlap {
         let targets = &self.targets;
         self.buckets
             .fill(&grid, targets.len(), |k| boxes(&targets[k]));
+        // A target none of whose faces carries tractions is entered by no source.
+        self.open.clear();
+        for t in &self.targets {
+            let faces = &self.faces[t.first as usize..(t.first + t.count) as usize];
+            let open = faces.iter().any(|f| f.surface && self.exposed(f.interface));
+            self.open.push(open);
+        }
         self.candidates.clear();
         for (si, s) in self.sources.iter().enumerate() {
+            if !self.exposed(s.interface) {
+                continue;
+            }
             let [a, b] = s.ends.map(|i| self.corners[i as usize]);
             let (slo, shi) = (a.inf(&b) - widen, a.sup(&b) + widen);
             for k in grid.touching(slo, shi) {
                 for &t in self.buckets.bucket(k) {
                     let target = &self.targets[t as usize];
-                    if self.apart(s, target) {
+                    if !self.open[t as usize] || self.apart(s, target) {
                         continue;
                     }
                     if boxes_meet(boxes(target), (slo, shi)) {
@@ -699,9 +774,14 @@ impl Overlap {
         // The springs of the interface law on the moduli of eq. 12 with both sides'
         // compliances, on each surface face.
         let half = if tgt.element == GROUND { 1.0 } else { 0.5 };
+        // A source of another body sees a target of a body that fragments as it sees one of a
+        // body that does not: its exposed faces are its surfaces. Within a body that fragments,
+        // every face partitions the target, and only the exposed ones press.
+        let within = src.body == tgt.body;
         for (k, f) in now.iter_mut().enumerate() {
             let face = &self.faces[tgt.first as usize + k];
-            f.surface = face.surface;
+            f.exposed = face.surface && self.exposed(face.interface);
+            f.surface = if within { face.surface } else { f.exposed };
             if face.surface {
                 let moduli = [0, 1].map(|c| self.factor / (src.compliance[c] + face.compliance[c]));
                 f.spring = at.law.springs(moduli).map(|k| half * k);
@@ -710,7 +790,7 @@ impl Overlap {
         }
         let length = (q2 - q1).norm();
         for i in 0..m {
-            if !now[i].surface {
+            if !now[i].exposed {
                 continue;
             }
             let ri = now[i].root;
@@ -785,10 +865,16 @@ impl Overlap {
         let last = &self.pieces[block.cursor..];
         let ahead = last.iter().take_while(|p| (p.source, p.face) < key).count();
         block.cursor += ahead;
-        let mut slip = match self.pieces.get(block.cursor) {
-            Some(p) if (p.source, p.face) == key => p.slip,
-            _ => 0.0,
-        };
+        let last = self
+            .pieces
+            .get(block.cursor)
+            .filter(|p| (p.source, p.face) == key);
+        let mut slip = last.map_or(0.0, |p| p.slip);
+        // A piece that appears across a released interface (the hand-over of a broken
+        // interface whose elements still overlap) appears with its whole force: it did no work
+        // over the step that led here, where the ledger's trapezoid rule would count half.
+        let born = last.is_none()
+            && (src.interface != NONE || self.faces[face as usize].interface != NONE);
         if mean > 0.0 && !self.fresh {
             let centre = (d[0] * gauss[0] + d[1] * gauss[1]) / (d[0] + d[1]);
             let x = q1 + centre * (q2 - q1);
@@ -840,6 +926,12 @@ impl Overlap {
         block.add_source(src.element, &on_source);
         if tgt.element != GROUND {
             block.forces.push((tgt.element, on_target));
+        }
+        if born {
+            block.born.push((src.element, on_source));
+            if tgt.element != GROUND {
+                block.born.push((tgt.element, on_target));
+            }
         }
     }
 }

@@ -64,6 +64,21 @@ impl Ledger {
         }
     }
 
+    /// Takes `q`, part of `f_c` on element `e` now, as a force that appeared at this state: it
+    /// did no work over the step that led here (`f_c^{n−1} −= q`).
+    pub fn unworked(&mut self, e: usize, q: &[f64]) {
+        if self.mark[e] & 2 == 0 {
+            self.mark[e] |= 2;
+            self.touched_before.push(e as u32);
+        }
+        for (a, q) in self.before[e * self.nd..(e + 1) * self.nd]
+            .iter_mut()
+            .zip(q)
+        {
+            *a -= q;
+        }
+    }
+
     /// `f_c` on element `e` (zero where no contact acts).
     pub fn on(&self, e: usize) -> &[f64] {
         &self.now[e * self.nd..(e + 1) * self.nd]
