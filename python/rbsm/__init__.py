@@ -34,6 +34,7 @@ __all__ = [
     "SceneError",
     "OutputError",
     "Interrupted",
+    "SweepFailed",
     "RunResult",
     "StaticResult",
     "EigenResult",
@@ -407,4 +408,4 @@ def schema() -> Dict[str, Any]:
     return schema
 
 
-from .study import sweep  # noqa: E402  (the study uses the names above)
+from .study import SweepFailed, sweep  # noqa: E402  (the study uses the names above)
