@@ -23,7 +23,8 @@ pub enum Error {
         /// What is wrong with it.
         message: String,
     },
-    /// The scene could not be parsed as JSON of the expected shape.
+    /// The scene is not JSON, or not a JSON object (a key at fault in well-formed JSON is a
+    /// [`Error::Scene`] at its path).
     #[error("scene {path}: {message}")]
     Parse {
         /// The scene file (or `<string>`).

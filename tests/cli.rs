@@ -67,11 +67,13 @@ fn every_command_answers_json_with_json() {
     std::fs::write(&bad, r#"{"name": "x", "thickness": -1}"#).unwrap();
     let (code, v) = json(&["check", bad.to_str().unwrap()]);
     assert_eq!(code, Some(1));
-    assert_eq!(v["error"]["kind"], "parse");
-    assert!(v["error"]["message"]
-        .as_str()
-        .unwrap()
-        .contains("missing field"));
+    // A missing key is a scene error whose key is the path it should have (issue 40).
+    assert_eq!(v["error"]["kind"], "scene");
+    let key = v["error"]["key"].as_str().unwrap();
+    assert_eq!(
+        v["error"]["message"].as_str().unwrap(),
+        format!("missing field `{key}`")
+    );
     let (code, v) = json(&["check", "/no/such/scene.json"]);
     assert_eq!(
         (

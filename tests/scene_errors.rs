@@ -48,6 +48,71 @@ fn unknown_keys_are_named_with_their_path() {
     expect(&with(|v| v["time"]["tend"] = 3.into()), &["time", "tend"]);
 }
 
+/// A key at fault in well-formed JSON (unknown, missing, of the wrong type, inside a kind's
+/// variant) is a scene error whose key is its JSON path, and its message places it by that path
+/// alone (issue 40: `rbsm check --json` and Python's `SceneError.key` gave the file or `<json>`,
+/// and a scene built from a Python dict was placed at "line 1 column 376" of text nobody saw).
+/// Malformed JSON stays a parse error placed by line and column.
+#[test]
+fn keys_at_fault_are_named_by_their_json_path() {
+    type Edit = fn(&mut Value);
+    let cases: [(Edit, &str); 6] = [
+        (
+            |v| v["materials"]["m"]["youngs"] = 3.into(),
+            "materials.m.youngs",
+        ),
+        (
+            |v| v["bodies"][0]["mesh"]["cels"] = 3.into(),
+            "bodies[0].mesh.cels",
+        ),
+        (
+            |v| v["bodies"][0]["mesh"]["cells"] = "many".into(),
+            "bodies[0].mesh.cells",
+        ),
+        (
+            |v| {
+                v.as_object_mut()
+                    .unwrap()
+                    .remove("time")
+                    .map(|_| ())
+                    .unwrap()
+            },
+            "time",
+        ),
+        (
+            |v| v["formulation"] = serde_json::json!({"kind": "hybrid"}),
+            "formulation.penalty",
+        ),
+        (
+            |v| {
+                v["materials"]["m"]["interface"] = serde_json::json!({"kind": "mohr-coulomb",
+                "tensile_strength": 1e6, "cohesion": 2e6, "friction_angle": 30, "fracture_energy": 1})
+            },
+            "materials.m.interface.fracture_energy",
+        ),
+    ];
+    let dir = tempfile::tempdir().unwrap();
+    for (edit, key) in cases {
+        let mut v = base();
+        edit(&mut v);
+        let file = dir.path().join("scene.json");
+        std::fs::write(&file, serde_json::to_string_pretty(&v).unwrap()).unwrap();
+        for result in [Scene::from_json(&v.to_string()), Scene::from_file(&file)] {
+            match result {
+                Err(e @ rbsm::error::Error::Scene { .. }) => {
+                    let (kind, field, message) = e.parts();
+                    assert_eq!((kind, field.as_str()), ("scene", key), "{message}");
+                    assert!(!message.contains(" line "), "{key}: {message}");
+                }
+                other => panic!("{key}: {other:?}"),
+            }
+        }
+    }
+    let e = Scene::from_json("{\"name\": \"x\", \"thickness\": }").unwrap_err();
+    assert_eq!(e.parts().0, "parse");
+    assert!(e.to_string().contains("line 1 column 28"), "{e}");
+}
+
 /// A kind without keys of its own refuses any (serde's internally tagged unit variants would
 /// drop them: `{"kind": "rigid", "penalty": 100}` ran rigid without a word).
 #[test]

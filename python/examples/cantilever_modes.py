@@ -112,11 +112,16 @@ fig.savefig(OUT / "cantilever_dt_crit.png", dpi=120)
 
 # %% [markdown]
 # A run of the scene with a step above the limit stops by itself, keeping the last state
-# that passed its guard:
+# that passed its guard, and raises `rbsm.DivergedError`, which carries that run
+# (`on_diverge="warn"` would return it with a warning instead):
 
 # %%
-above = rbsm.run(scene, dt_factor=1.02, steps=3000, exact_dt_crit=True)
-print(above.status, "-", above.summary["reason"])
+try:
+    rbsm.run(scene, dt_factor=1.02, steps=3000, exact_dt_crit=True)
+    raise AssertionError("the run at 1.02 Δt_crit did not diverge")
+except rbsm.DivergedError as e:
+    above = e.result
+    print(f"diverged at step {e.step}, t = {e.t:.4e} s: {e.reason}")
 assert above.status == "diverged"
 
 # %% [markdown]

@@ -18,6 +18,8 @@ from __future__ import annotations
 
 import json
 import os
+import re
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple, Union
@@ -34,7 +36,11 @@ __all__ = [
     "SceneError",
     "OutputError",
     "Interrupted",
+    "DivergedError",
+    "DivergedWarning",
+    "SweepFailed",
     "RunResult",
+    "InterfaceLines",
     "StaticResult",
     "EigenResult",
     "StabilityResult",
@@ -56,8 +62,10 @@ class Scene:
     """A scene, read and validated as ``rbsm check`` reads it (the schema is ``docs/scene.md``).
 
     ``Scene(x)`` takes a file path, a ``dict`` or a JSON string (one that starts with ``{``).
-    A bad scene raises :class:`SceneError` with ``key`` naming the scene key at fault and the
-    message the command line prints. Relative mesh paths (gmsh files) start at the scene file's
+    A bad scene raises :class:`SceneError` with ``key`` the JSON path of the key at fault
+    (``materials.concrete.interface.tensile_strenght``) and the message the command line
+    prints; a scene file that cannot be read raises it too, with ``kind`` ``io`` and ``key``
+    the file. Relative mesh paths (gmsh files) start at the scene file's
     folder, or at ``base_dir`` for a dict or a string (default: the current folder).
     """
 
@@ -148,6 +156,41 @@ def _opt(p: Optional[PathLike]) -> Optional[str]:
 
 
 @dataclass
+class InterfaceLines:
+    """The interfaces that can fail, as arrays in the order of ``final_state.json``'s
+    ``interfaces`` (the crack frames' lines), for drawing cracks with matplotlib::
+
+        from matplotlib.collections import LineCollection
+        lines = r.interface_lines
+        ax.add_collection(LineCollection(lines.ends[lines.status >= lines.BROKEN], color="red"))
+    """
+
+    ELASTIC = 0
+    YIELDING = 1
+    BROKEN = 2
+    RELEASED = 3
+    #: The names of the ``status`` codes, by code.
+    STATUS = ("elastic", "yielding", "broken", "released")
+
+    index: np.ndarray
+    """Each line's interface among the model's interfaces, ``(n,)``."""
+    ends: np.ndarray
+    """The two ends of each interface's edge at the end of the run, ``(n, 2, 2)`` (m): each end
+    midway between where its two elements put it, with their finite rotations (as
+    ``cracks/step_*.vtu``)."""
+    reference_ends: np.ndarray
+    """The same ends before any motion, ``(n, 2, 2)`` (m)."""
+    status: np.ndarray
+    """``0`` elastic, ``1`` yielding, ``2`` broken, ``3`` released to contact, ``(n,)``."""
+    opening: np.ndarray
+    """Mean plastic opening (m), ``(n,)``."""
+    slip: np.ndarray
+    """Mean plastic slip (m), ``(n,)``."""
+    dissipated: np.ndarray
+    """Work of the strength and of friction on each interface (J), ``(n,)``."""
+
+
+@dataclass
 class RunResult:
     """What ``rbsm run`` ends with: ``summary.json`` as a dict, the history as one numpy
     array per column of ``history.csv``, and the final state."""
@@ -169,11 +212,21 @@ class RunResult:
     interfaces: Optional[List[Dict[str, Any]]] = None
     """The failing interfaces' state at the end (status, opening, slip, dissipated); ``None``
     when no interface can fail."""
+    interface_lines: Optional[InterfaceLines] = None
+    """The same interfaces as arrays, with their end points (for drawing cracks); ``None``
+    when no interface can fail."""
 
     @property
     def status(self) -> str:
         """``ok``, ``diverged`` or ``interrupted``."""
         return str(self.summary["status"])
+
+    @property
+    def reason(self) -> Optional[str]:
+        """Why the run stopped early, with the step and the time (``summary["reason"]``);
+        ``None`` for a run that took every step."""
+        reason = self.summary.get("reason")
+        return None if reason is None else str(reason)
 
     def to_pandas(self) -> Any:
         """The history as a pandas DataFrame (pandas must be installed)."""
@@ -194,6 +247,31 @@ class Interrupted(KeyboardInterrupt):
         self.result = result
 
 
+class DivergedError(RuntimeError):
+    """A run that went unstable: the guard stopped it at ``step`` (time ``t``, s) for
+    ``reason`` (what it saw: energy growth or a NaN). ``result`` holds the run up to the last
+    state that passed the guard, with ``result.reason`` the summary's (step, time and reason in
+    one line); with ``out``, its files are written, as the command line's exit code 3 leaves
+    them."""
+
+    def __init__(self, result: RunResult) -> None:
+        self.result = result
+        stopped = result.reason or "diverged"
+        m = _STOPPED.match(stopped)
+        self.step: int = int(m.group(1)) if m else int(result.summary["steps"])
+        self.t: float = float(m.group(2)) if m else result.t
+        self.reason: str = stopped[m.end():] if m else stopped
+        super().__init__(f"the run diverged at {stopped}")
+
+
+class DivergedWarning(RuntimeWarning):
+    """Issued instead of :class:`DivergedError` by ``run(..., on_diverge="warn")``."""
+
+
+#: How the summary's ``reason`` names where a run stopped.
+_STOPPED = re.compile(r"step (\d+), t = (\S+) s: ", re.DOTALL)
+
+
 def run(
     scene: SceneLike,
     *,
@@ -205,13 +283,18 @@ def run(
     exact_dt_crit: bool = False,
     resume: bool = False,
     threads: Optional[int] = None,
+    on_diverge: str = "raise",
 ) -> RunResult:
     """``rbsm run``: explicit central difference over the scene. The options are the command
     line's (``--evaluator``, ``--dt``, ``--dt-factor``, ``--steps``, ``--exact-dt-crit``,
     ``--resume``, ``--threads``). Writes ``summary.json``, ``history.csv``,
     ``final_state.json`` and the frames the scene asks for into ``out`` only when it is given;
-    ``resume=True`` goes on from the checkpoint in ``out``. A run that diverges returns with
-    status ``diverged`` (see ``summary["reason"]``); Ctrl-C raises :class:`Interrupted`."""
+    ``resume=True`` goes on from the checkpoint in ``out``. A run that diverges raises
+    :class:`DivergedError` (with the step, the time, the reason and the run up to there);
+    with ``on_diverge="warn"`` it issues a :class:`DivergedWarning` and returns with status
+    ``diverged`` and its ``reason``. Ctrl-C raises :class:`Interrupted`."""
+    if on_diverge not in ("raise", "warn"):
+        raise ValueError(f"on_diverge: give \"raise\" or \"warn\", not {on_diverge!r}")
     s = _scene(scene)
     d = _rbsm.run(
         *s._source(),
@@ -234,9 +317,16 @@ def run(
         centroids=d["centroids"],
         dofs=list(d["dofs"]),
         interfaces=None if d["interfaces"] is None else json.loads(d["interfaces"]),
+        interface_lines=None
+        if d["interface_lines"] is None
+        else InterfaceLines(**d["interface_lines"]),
     )
     if d["interrupted"]:
         raise Interrupted(result)
+    if result.status == "diverged":
+        if on_diverge == "raise":
+            raise DivergedError(result)
+        warnings.warn(f"the run diverged at {result.reason}", DivergedWarning, stacklevel=2)
     return result
 
 
@@ -407,4 +497,4 @@ def schema() -> Dict[str, Any]:
     return schema
 
 
-from .study import sweep  # noqa: E402  (the study uses the names above)
+from .study import SweepFailed, sweep  # noqa: E402  (the study uses the names above)

@@ -28,6 +28,30 @@ Settings = List[Tuple[str, str]]
 #: How often a point is tried again after its worker died before it is reported as failed.
 RETRIES = 2
 
+#: Why a point failed when its local worker process kept dying.
+DIED = "its worker process died {} times"
+
+
+class SweepFailed(RuntimeError):
+    """Every point of a sweep failed: nothing was measured, so there is no table to return.
+    ``failures`` lists each point's settings and why it failed, in sweep order."""
+
+    def __init__(self, failures: List[Tuple[Settings, str]], local: bool) -> None:
+        self.failures = failures
+        settings, why = failures[0]
+        shown = ", ".join(f"{k}={v}" for k, v in settings)
+        message = (
+            f"every point of the sweep failed ({len(failures)} of {len(failures)}); "
+            f"the first ({shown}): {why}"
+        )
+        if local and all(w.startswith(DIED.split("{")[0]) for _, w in failures):
+            message += (
+                ". Local workers are spawned processes that import the main script: a script "
+                "that calls rbsm.sweep at its top level needs `if __name__ == \"__main__\":` "
+                "around that code, or its workers die as they start"
+            )
+        super().__init__(message)
+
 
 def _failed(payload: Dict[str, Any], why: str) -> Dict[str, Any]:
     """The result of a point that failed: its settings and why."""
@@ -144,7 +168,7 @@ def _run_local(
         for p in broken:
             tries[id(p)] += 1
             if tries[id(p)] > RETRIES:
-                done(_failed(p, f"its worker process died {tries[id(p)]} times"))
+                done(_failed(p, DIED.format(tries[id(p)])))
             else:
                 left.append(p)
 
@@ -209,7 +233,8 @@ def sweep(
     - ``store``: a file where each finished point is kept; calling again with the same store
       runs only the points not done yet.
     - A point that fails (a refused setting, a worker that died) is reported with status
-      ``failed: <why>``, not lost; the others are scored without it.
+      ``failed: <why>``, not lost; the others are scored without it. When every point fails
+      there is nothing to score: :class:`SweepFailed` is raised, naming the first failure.
     - The table is a pandas DataFrame when pandas is installed (``as_frame=False``: a list of
       dicts, each with the ``reference`` and ``error_definition``); a DataFrame names them in
       its ``attrs``.
@@ -255,6 +280,12 @@ def sweep(
             "executor: give None (local processes), a dask distributed.Client or a "
             f"concurrent.futures.Executor, not {type(executor).__name__}"
         )
+    ordered = [results[_key(settings)] for settings, _ in combos]
+    if ordered and all(r["measured"] is None for r in ordered):
+        failures = [
+            ([(str(k), str(v)) for k, v in r["settings"]], str(r["failure"])) for r in ordered
+        ]
+        raise SweepFailed(failures, local=executor is None)
     return _table(s, combos, results, as_frame)
 
 

@@ -26,21 +26,51 @@ create_exception!(
     _rbsm,
     SceneError,
     PyValueError,
-    "A scene (or an option) that rbsm refuses: `kind` is `scene`, `mesh` or `parse`, `key` the \
-     scene key (or the mesh's body and cell, or the file) at fault, `message` what is allowed."
+    "A scene (or an option) that rbsm refuses: `kind` is `scene` (`key`: the JSON path of the key \
+     at fault, or the option), `mesh` (`key`: the body and cell), `parse` (`key`: the file, or \
+     `<json>`: not JSON) or `io` (`key`: an input file, the scene's or a mesh's, that cannot be \
+     read); `message` says what is wrong and what is allowed."
 );
 create_exception!(
     _rbsm,
     OutputError,
     PyOSError,
-    "A file rbsm could not read or write: `key` is the file, `message` what the system said."
+    "An output file or folder rbsm could not write (or a checkpoint it could not read back): \
+     `key` is the file, `message` what the system said."
 );
 
-/// The library's error as a Python exception carrying `kind`, `key` and `message`.
+/// The library's error as a Python exception carrying `kind`, `key` and `message`: a
+/// `SceneError`, or an `OutputError` for a file that could not be written.
 fn py_error(e: rbsm::error::Error) -> PyErr {
-    let text = e.to_string();
-    let (kind, key, message) = e.parts();
-    let err = if kind == "io" {
+    raise_failed(Failed::from(e))
+}
+
+/// An error of the library, and whether it arose reading the input (the scene and the mesh
+/// files it names), where a file that cannot be read is the scene's fault, not the output's.
+struct Failed {
+    error: rbsm::error::Error,
+    input: bool,
+}
+
+impl From<rbsm::error::Error> for Failed {
+    fn from(error: rbsm::error::Error) -> Self {
+        Failed {
+            error,
+            input: false,
+        }
+    }
+}
+
+/// An error while reading the input.
+fn input(error: rbsm::error::Error) -> Failed {
+    Failed { error, input: true }
+}
+
+/// The Python exception of `f`: `SceneError`, or `OutputError` for an I/O error past the input.
+fn raise_failed(f: Failed) -> PyErr {
+    let text = f.error.to_string();
+    let (kind, key, message) = f.error.parts();
+    let err = if kind == "io" && !f.input {
         OutputError::new_err(text)
     } else {
         SceneError::new_err(text)
@@ -82,7 +112,7 @@ fn scene(
             ))
         }
     }
-    .map_err(py_error)
+    .map_err(|e| raise_failed(input(e)))
 }
 
 fn evaluator(name: Option<String>) -> PyResult<Option<EvaluatorKind>> {
@@ -219,17 +249,22 @@ fn run_py<'py>(
         keep_history: true,
     };
     let (outcome, signal) = detached(py, threads, Some(&stop), || {
-        let setup = Setup::new(&scene, &overrides)?;
+        let setup = Setup::new(&scene, &overrides).map_err(input)?;
         let outcome = run::simulate(&setup, &params, out.as_deref(), &mut Silent)?;
-        Ok::<_, rbsm::error::Error>((setup, outcome))
+        Ok::<_, Failed>((setup, outcome))
     })?;
     let (setup, o) = match outcome {
         Ok(r) => r,
         // A signal during the setup: the setup finished, and its error (if any) comes second.
-        Err(e) => return Err(signal.unwrap_or_else(|| py_error(e))),
+        Err(e) => return Err(signal.unwrap_or_else(|| raise_failed(e))),
     };
     let ndof = setup.model.formulation.ndof();
     let d = PyDict::new(py);
+    let lines = match &o.interfaces {
+        Some(list) => interface_lines(py, &setup.model, &o.u, list)?.into_any(),
+        None => py.None().into_bound(py),
+    };
+    d.set_item("interface_lines", lines)?;
     d.set_item("summary", json(&o.summary))?;
     d.set_item("columns", &o.columns)?;
     d.set_item("history", matrix(py, o.history, o.columns.len())?)?;
@@ -240,6 +275,47 @@ fn run_py<'py>(
     d.set_item("dofs", setup.model.formulation.dof_names().to_vec())?;
     d.set_item("interfaces", o.interfaces.as_ref().map(json))?;
     d.set_item("interrupted", signal.is_some())?;
+    Ok(d)
+}
+
+/// The failing interfaces `list` (in the order of `final_state.json`) as arrays: `index` (among
+/// the model's interfaces), `ends` `(n, 2, 2)`, the two ends of each edge where the
+/// displacements `u` put it (as the crack frames draw it: each end midway between where its two
+/// elements put it, with their finite rotations), `reference_ends` likewise before any motion,
+/// `status` (the crack frames' codes: 0 elastic, 1 yielding, 2 broken, 3 released), `opening`,
+/// `slip` (m) and `dissipated` (J).
+fn interface_lines<'py>(
+    py: Python<'py>,
+    model: &rbsm::model::Model,
+    u: &[f64],
+    list: &[rbsm::force::failure::InterfaceFailure],
+) -> PyResult<Bound<'py, PyDict>> {
+    use rbsm::output::vtk::{interface_edge, status_code, Placement};
+    let n = list.len();
+    let (mut ends, mut reference) = (Vec::with_capacity(4 * n), Vec::with_capacity(4 * n));
+    for f in list {
+        let i = &model.interfaces[f.interface];
+        for p in interface_edge(model, u, i, Placement::Current) {
+            ends.extend([p.x, p.y]);
+        }
+        reference.extend([i.p1.x, i.p1.y, i.p2.x, i.p2.y]);
+    }
+    let column = |value: fn(&rbsm::force::failure::InterfaceFailure) -> f64| {
+        PyArray1::from_vec(py, list.iter().map(value).collect())
+    };
+    let d = PyDict::new(py);
+    let index: Vec<u64> = list.iter().map(|f| f.interface as u64).collect();
+    d.set_item("index", PyArray1::from_vec(py, index))?;
+    d.set_item("ends", PyArray1::from_vec(py, ends).reshape([n, 2, 2])?)?;
+    d.set_item(
+        "reference_ends",
+        PyArray1::from_vec(py, reference).reshape([n, 2, 2])?,
+    )?;
+    let status: Vec<i32> = list.iter().map(|f| status_code(f.status)).collect();
+    d.set_item("status", PyArray1::from_vec(py, status))?;
+    d.set_item("opening", column(|f| f.opening))?;
+    d.set_item("slip", column(|f| f.slip))?;
+    d.set_item("dissipated", column(|f| f.dissipated))?;
     Ok(d)
 }
 
@@ -256,15 +332,15 @@ fn static_py<'py>(
 ) -> PyResult<Bound<'py, PyDict>> {
     let scene = scene(path, text, base_dir)?;
     let (result, signal) = detached(py, threads, None, || {
-        let setup = Setup::new(&scene, &Overrides::default())?;
+        let setup = Setup::new(&scene, &Overrides::default()).map_err(input)?;
         let report = statics::analyse(&setup)?;
         if let Some(dir) = &out {
             statics::write(dir, &setup, &report)?;
         }
-        Ok::<_, rbsm::error::Error>((setup, report))
+        Ok::<_, Failed>((setup, report))
     })?;
     raise(signal)?;
-    let (setup, mut report) = result.map_err(py_error)?;
+    let (setup, mut report) = result.map_err(raise_failed)?;
     let ndof = setup.model.formulation.ndof();
     let d = PyDict::new(py);
     d.set_item("report", json(&report))?;
@@ -319,7 +395,7 @@ fn eigen_py<'py>(
     let scene = scene(path, text, base_dir)?;
     let params = eigen::EigenParams { modes, method };
     let (result, signal) = detached(py, threads, None, || {
-        let setup = Setup::new(&scene, &exact())?;
+        let setup = Setup::new(&scene, &exact()).map_err(input)?;
         let report = eigen::analyse(&setup, &params)?;
         let files = eigen::Files {
             out: out.as_deref(),
@@ -327,10 +403,10 @@ fn eigen_py<'py>(
             svg: svg.as_deref(),
         };
         files.write(&setup, &report)?;
-        Ok::<_, rbsm::error::Error>((setup, report))
+        Ok::<_, Failed>((setup, report))
     })?;
     raise(signal)?;
-    let (setup, report) = result.map_err(py_error)?;
+    let (setup, report) = result.map_err(raise_failed)?;
     let (ne, ndof) = (setup.model.elements.len(), setup.model.formulation.ndof());
     let k = report.modes.shapes.len();
     let shapes: Vec<f64> = report.modes.shapes.iter().flatten().copied().collect();
@@ -364,15 +440,15 @@ fn stability_py<'py>(
     let scene = scene(path, text, base_dir)?;
     let params = stability::StabilityParams { fractions, steps };
     let (result, signal) = detached(py, threads, None, || {
-        let setup = Setup::new(&scene, &exact())?;
+        let setup = Setup::new(&scene, &exact()).map_err(input)?;
         let report = stability::analyse(&setup, &params)?;
         if let Some(dir) = &out {
             stability::write_fraction_histories(dir, &report.fractions)?;
         }
-        Ok::<_, rbsm::error::Error>(report)
+        Ok::<_, Failed>(report)
     })?;
     raise(signal)?;
-    let report = result.map_err(py_error)?;
+    let report = result.map_err(raise_failed)?;
     let d = PyDict::new(py);
     d.set_item("report", json(&report))?;
     let histories = report
@@ -406,11 +482,12 @@ fn check_py(
         exact_dt_crit: true,
         ..Default::default()
     };
+    // `check` reads the input and writes nothing: every error is the input's.
     let (result, signal) = detached(py, threads, None, || {
         check::check(&Setup::new(&scene, &overrides)?)
     })?;
     raise(signal)?;
-    Ok(json(&result.map_err(py_error)?))
+    Ok(json(&result.map_err(|e| raise_failed(input(e)))?))
 }
 
 /// The settings of a sweep point as `(key, value)` pairs of `rbsm tradeoff --sweep`.
@@ -445,11 +522,12 @@ fn study_point(
 ) -> PyResult<String> {
     let scene = scene(path, text, base_dir)?;
     let settings = self::settings(settings)?;
+    // A point writes no file: every error is the input's.
     let (result, signal) = detached(py, threads, None, || {
         tradeoff::Study::new(&scene)?.point(settings)
     })?;
     raise(signal)?;
-    Ok(json(&result.map_err(py_error)?))
+    Ok(json(&result.map_err(|e| raise_failed(input(e)))?))
 }
 
 /// The report of a study's points (each as [`study_point`] returned it): errors against the
@@ -488,7 +566,7 @@ fn polygons<'py>(
     scale: f64,
 ) -> PyResult<(Bound<'py, PyAny>, Vec<usize>)> {
     let scene = scene(path, text, base_dir)?;
-    let model = rbsm::model::Model::build(&scene).map_err(py_error)?;
+    let model = rbsm::model::Model::build(&scene).map_err(|e| raise_failed(input(e)))?;
     let ndof = model.formulation.ndof();
     if let Some(u) = &u {
         if u.len() != model.elements.len() * ndof {

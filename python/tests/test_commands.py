@@ -237,3 +237,125 @@ def test_type_stubs_let_a_checker_find_a_wrong_call(tmp_path):
     assert code == 0, out
     out, _, code = mypy.run([str(bad), "--ignore-missing-imports"])
     assert code == 1 and '"steps"' in out and "[arg-type]" in out and "[assignment]" in out, out
+
+
+def misspelt_key(scenes):
+    """The tension bar with `tensile_strength` misspelt, as the issue's user wrote it."""
+    scene = json.loads((scenes / "tension_bar.json").read_text())
+    law = scene["materials"]["concrete"]["interface"]
+    law["tensile_strenght"] = law.pop("tensile_strength")
+    return scene
+
+
+def test_a_key_at_fault_is_named_by_its_json_path_from_a_dict_a_string_and_a_file(
+    cli, scenes, tmp_path
+):
+    scene = misspelt_key(scenes)
+    path = tmp_path / "bad.json"
+    path.write_text(json.dumps(scene, indent=2))
+    code, out = cli_json(cli, "check", path)
+    assert code == 1
+    key = "materials.concrete.interface.tensile_strenght"
+    for source in (scene, json.dumps(scene), path):
+        with pytest.raises(rbsm.SceneError) as err:
+            rbsm.Scene(source)
+        e = err.value
+        assert (e.kind, e.key) == ("scene", key), source
+        assert (e.kind, e.key, e.message) == (
+            out["error"]["kind"],
+            out["error"]["key"],
+            out["error"]["message"],
+        )
+        # Named by its path, not by a line and column of text the user never saw (a dict).
+        assert "line" not in str(e) and "`tensile_strength`" in e.message, str(e)
+    # A key missing inside a kind is named by the path it should have.
+    scene = json.loads((scenes / "cantilever.json").read_text())
+    scene["formulation"] = {"kind": "hybrid"}
+    with pytest.raises(rbsm.SceneError) as err:
+        rbsm.Scene(scene)
+    assert err.value.key == "formulation.penalty"
+
+
+def test_an_input_file_that_cannot_be_read_is_a_scene_error(scenes, tmp_path):
+    missing = tmp_path / "nope.json"
+    with pytest.raises(rbsm.SceneError) as err:
+        rbsm.Scene(missing)
+    e = err.value
+    assert not isinstance(e, rbsm.OutputError)
+    assert (e.kind, e.key) == ("io", str(missing)) and "No such file" in e.message
+    for call in (rbsm.run, rbsm.check, rbsm.eigen):
+        with pytest.raises(rbsm.SceneError) as err:
+            call(missing)
+        assert (err.value.kind, err.value.key) == ("io", str(missing))
+
+
+def test_a_run_that_diverges_raises_with_its_step_time_and_reason(cli, scenes, tmp_path):
+    scene = scenes / "cantilever.json"
+    # 1e-4 s is about 25 times the cantilever's Δt_crit.
+    code, _ = cli_json(cli, "run", scene, "--dt", "1e-4", "--steps", "400", "--out", tmp_path / "cli")
+    assert code == 3
+    summary = json.loads((tmp_path / "cli" / "summary.json").read_text())
+    with pytest.raises(rbsm.DivergedError) as err:
+        rbsm.run(scene, dt=1e-4, steps=400, out=tmp_path / "py")
+    e = err.value
+    assert e.result.status == "diverged" and e.result.reason == summary["reason"]
+    assert summary["reason"] in str(e) and "energy" in e.reason
+    assert summary["reason"].startswith(f"step {e.step}, t = ")
+    assert summary["reason"].endswith(f" s: {e.reason}")
+    assert 0 < e.step <= 400 and e.t == pytest.approx(e.step * 1e-4, rel=1e-12)
+    assert np.all(np.isfinite(e.result.U))
+    # Its files are written, as the command line's.
+    assert json.loads((tmp_path / "py" / "summary.json").read_text())["reason"] == e.result.reason
+    # Asked to warn, it returns the run with its reason.
+    with pytest.warns(rbsm.DivergedWarning, match="diverged"):
+        r = rbsm.run(scene, dt=1e-4, steps=400, on_diverge="warn")
+    assert r.status == "diverged" and r.reason == e.result.reason
+    assert rbsm.run(scene, steps=100).reason is None
+    with pytest.raises(ValueError, match="on_diverge"):
+        rbsm.run(scene, steps=10, on_diverge="ignore")
+
+
+def read_vtu_lines(path):
+    """The points of a crack frame and its `interface` and `interface_status` cell data (VTK
+    XML, binary: base64 with a UInt64 byte count before each array)."""
+    import base64
+    import xml.etree.ElementTree as ET
+
+    arrays = {}
+    root = ET.parse(path).getroot()
+    assert root.get("header_type") == "UInt64", root.attrib
+    for a in root.iter("DataArray"):
+        assert a.get("format") == "binary", a.attrib
+        raw = base64.b64decode(a.text.strip())
+        dtype = {"Float64": "<f8", "Int32": "<i4", "Int64": "<i8", "UInt64": "<u8", "UInt8": "u1"}[a.get("type")]
+        arrays[a.get("Name") or "Points"] = np.frombuffer(raw[8:], dtype=dtype)
+    return arrays
+
+
+def test_interface_lines_are_the_crack_frames_lines(scenes, tmp_path):
+    scene = json.loads((scenes / "tension_bar.json").read_text())
+    scene["output"]["vtk"] = True
+    r = rbsm.run(scene, out=tmp_path)
+    lines = r.interface_lines
+    n = len(r.interfaces)
+    assert n > 0 and lines.ends.shape == (n, 2, 2) and lines.reference_ends.shape == (n, 2, 2)
+    assert list(lines.index) == [i["interface"] for i in r.interfaces]
+    assert [lines.STATUS[c] for c in lines.status] == [i["status"] for i in r.interfaces]
+    for name in ("opening", "slip", "dissipated"):
+        assert list(getattr(lines, name)) == [i[name] for i in r.interfaces], name
+    # The bar cracked through: broken interfaces, counted as the summary counts them.
+    failure = r.summary["failure"]
+    assert (lines.status == lines.BROKEN).sum() == failure["broken"] > 0, failure
+    assert (lines.status == lines.RELEASED).sum() == failure["released"]
+    # The ends are where the last crack frame draws them.
+    frames = sorted((tmp_path / "cracks").glob("step_*.vtu"))
+    vtu = read_vtu_lines(frames[-1])
+    points = vtu["Points"].reshape(-1, 3)[:, :2]
+    assert np.array_equal(vtu["interface"], lines.index)
+    assert np.array_equal(vtu["interface_status"], lines.status)
+    assert np.allclose(points.reshape(n, 2, 2), lines.ends, rtol=0, atol=1e-15)
+    # Pulled along x: the cracks opened, so their ends moved away from the reference.
+    moved = np.abs(lines.ends - lines.reference_ends).max()
+    assert 0 < moved < 0.01
+    # A scene whose interfaces cannot fail has none.
+    assert rbsm.run(scenes / "cantilever.json", steps=10).interface_lines is None

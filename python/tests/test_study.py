@@ -6,6 +6,7 @@ import multiprocessing
 import os
 import signal
 import subprocess
+import sys
 
 import numpy as np
 import pandas as pd
@@ -145,3 +146,33 @@ def test_a_killed_dask_worker_loses_no_point(column, cluster):
     # The nanny started a new worker in place of the killed one.
     cluster.wait_for_workers(2, timeout=60)
     assert set(cluster.run(os.getpid).values()) != set(before.values())
+
+
+def test_a_sweep_whose_every_point_fails_raises_with_the_first_reason(column):
+    # A penalty of 1e300 or more makes ω⁴ overflow: the setup refuses it on the worker.
+    with pytest.raises(rbsm.SweepFailed) as err:
+        rbsm.sweep(column, {"penalty": [1e300, 1e301]}, workers=2)
+    e = err.value
+    assert isinstance(e, RuntimeError) and len(e.failures) == 2
+    assert [s for s, _ in e.failures] == [[("penalty", "1e+300")], [("penalty", "1e+301")]]
+    assert all(why.startswith("SceneError") for _, why in e.failures)
+    assert "every point of the sweep failed (2 of 2)" in str(e)
+    assert "penalty=1e+300" in str(e) and e.failures[0][1] in str(e)
+    assert "__main__" not in str(e)
+
+
+def test_a_script_without_the_main_guard_fails_loudly(scenes, tmp_path):
+    # Its spawned workers import it and die as they start: the sweep raises and says why.
+    script = tmp_path / "unguarded.py"
+    script.write_text(
+        "import rbsm\n"
+        f"scene = rbsm.Scene({str(scenes / 'column_step.json')!r})\n"
+        "rbsm.sweep(scene, {'dt_factor': [0.5]}, workers=1)\n"
+    )
+    out = subprocess.run(
+        [sys.executable, str(script)], capture_output=True, text=True, timeout=600, cwd=tmp_path
+    )
+    assert out.returncode == 1, out.stderr[-2000:]
+    last = out.stderr.strip().splitlines()[-1]
+    assert last.startswith("rbsm.study.SweepFailed: every point of the sweep failed"), last
+    assert "its worker process died 3 times" in last and 'if __name__ == "__main__":' in last

@@ -1150,20 +1150,50 @@ impl Scene {
         let de = &mut serde_json::Deserializer::from_str(text);
         let mut scene: Scene = serde_path_to_error::deserialize(de).map_err(|e| {
             let mut path = e.path().to_string();
-            let mut inner = e.into_inner().to_string();
+            let inner = e.into_inner();
+            // Where serde_json placed the error, which it appends to its message.
+            let located = format!(" at line {} column {}", inner.line(), inner.column());
+            let data = inner.classify() == serde_json::error::Category::Data;
+            let mut message = inner.to_string();
+            if data {
+                // Well-formed JSON with a wrong value, key or type is named by its key path
+                // (below), which also holds for a scene built in memory (a Python dict) whose
+                // text nobody has seen: the line and column go.
+                if let Some(m) = message.strip_suffix(&located) {
+                    message = m.to_string();
+                }
+            }
             // A variant's own path (see `variant`) continues the outer one.
-            if let Some((sub, rest)) = inner.strip_prefix('`').and_then(|r| r.split_once("`: ")) {
+            if let Some((sub, rest)) = message.strip_prefix('`').and_then(|r| r.split_once("`: ")) {
                 path = if path == "." {
                     sub.to_string()
                 } else {
                     format!("{path}.{sub}")
                 };
-                inner = rest.to_string();
+                message = rest.to_string();
+            }
+            if data {
+                // A missing key is named by the path it should have.
+                if let Some(key) = message
+                    .strip_prefix("missing field `")
+                    .and_then(|r| r.strip_suffix('`'))
+                {
+                    path = if path == "." {
+                        key.to_string()
+                    } else {
+                        format!("{path}.{key}")
+                    };
+                }
+                if path != "." {
+                    return Error::scene(path, message);
+                }
+                // Not an object at all: placed by line and column.
+                message.push_str(&located);
             }
             let message = if path == "." {
-                inner
+                message
             } else {
-                format!("at `{path}`: {inner}")
+                format!("at `{path}`: {message}")
             };
             Error::parse("<json>", message)
         })?;
