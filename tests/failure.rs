@@ -580,3 +580,43 @@ fn a_body_that_can_fragment_touches_others_as_one_body_until_it_cracks() {
         }
     }
 }
+
+/// A moving clamp's peak reaction in the summary is the largest over every step, not over the
+/// history's rows: it does not change with `output.every`, and no row exceeds it.
+#[test]
+fn the_peak_reaction_does_not_depend_on_the_output_rows() {
+    let peak = |every: u64| {
+        let mut scene = bundled("tension_bar.json");
+        scene["output"]["every"] = json!(every);
+        let s = setup(&scene, EvaluatorKind::ElementWise);
+        let out = rbsm::analysis::run::simulate(
+            &s,
+            &Default::default(),
+            None,
+            &mut rbsm::analysis::run::Silent,
+        )
+        .unwrap();
+        let column = out
+            .columns
+            .iter()
+            .position(|c| c == "bar_s1_force")
+            .unwrap();
+        let rows = out
+            .history
+            .chunks(out.columns.len())
+            .map(|r| r[column])
+            .fold(f64::NEG_INFINITY, f64::max);
+        let clamp = &out.summary.clamps[0];
+        (clamp.peak_force, clamp.displacement_at_peak, rows)
+    };
+    let (a, b) = (peak(200), peak(500));
+    assert_eq!(
+        (a.0.to_bits(), a.1.to_bits()),
+        (b.0.to_bits(), b.1.to_bits())
+    );
+    assert!(a.0 >= a.2 && b.0 >= b.2, "{a:?} {b:?}");
+    assert!(
+        a.0 > b.2,
+        "the rows of every 500 steps miss the peak: {a:?} {b:?}"
+    );
+}

@@ -83,6 +83,9 @@ pub struct Snapshot<'a> {
     pub v: &'a [f64],
     /// Each moving clamp's reaction along its velocity (N): what it pushes the body with.
     pub reactions: &'a [f64],
+    /// Each moving clamp's largest reaction so far, over every step (not only the recorded
+    /// ones), and the time it was reached: `[R (N), t (s)]`.
+    pub peaks: &'a [[f64; 2]],
     /// The state of the failing interfaces, when the model has any.
     pub failure: Option<&'a FailureState>,
 }
@@ -151,6 +154,8 @@ pub struct CentralDifference<'a> {
     prescribed: &'a [Prescribed],
     clamp_mass: Vec<Vec<f64>>,
     reactions: Vec<f64>,
+    /// Each moving clamp's largest reaction over every step so far and its time `[R, t]`.
+    peaks: Vec<[f64; 2]>,
     /// The state in groups of four elements, for a fused step that goes in lanes
     /// ([`GroupedStep`]): the steps between two checks run on it.
     groups: Option<Groups>,
@@ -219,6 +224,7 @@ pub struct State {
     contact: Option<Contact>,
     failure: Option<FailureState>,
     ledger: EnergyLedger,
+    peaks: Vec<[f64; 2]>,
 }
 
 impl State {
@@ -295,6 +301,7 @@ impl<'a> CentralDifference<'a> {
             prescribed: &[],
             clamp_mass: Vec::new(),
             reactions: Vec::new(),
+            peaks: Vec::new(),
             groups: None,
         };
         if s.contact.is_none() {
@@ -353,6 +360,7 @@ impl<'a> CentralDifference<'a> {
             })
             .collect();
         self.reactions = vec![0.0; model.prescribed.len()];
+        self.peaks = vec![[f64::NEG_INFINITY, 0.0]; model.prescribed.len()];
         self.place_clamps();
         self
     }
@@ -398,6 +406,9 @@ impl<'a> CentralDifference<'a> {
                 self.v[d] = p.velocity[c] * rate;
             }
             self.reactions[k] = along;
+            if along > self.peaks[k][0] {
+                self.peaks[k] = [along, self.t];
+            }
         }
         self.ledger.external_work += behind + ahead;
         self.ledger.clamp_ahead = ahead;
@@ -530,6 +541,7 @@ impl<'a> CentralDifference<'a> {
             contact: self.contact.clone(),
             failure: self.failure.as_ref().map(|(_, s)| s.clone()),
             ledger: self.ledger,
+            peaks: self.peaks.clone(),
         }
     }
 
@@ -555,6 +567,9 @@ impl<'a> CentralDifference<'a> {
         if state.contact.is_some() != self.contact.is_some() {
             return Err("one of the two has contact and the other not".into());
         }
+        if state.peaks.len() != self.peaks.len() {
+            return Err("the moving clamps differ".into());
+        }
         if state.failure.as_ref().map(|s| s.points.len())
             != self.failure.as_ref().map(|(_, s)| s.points.len())
         {
@@ -572,6 +587,7 @@ impl<'a> CentralDifference<'a> {
             *s = saved;
         }
         self.ledger = state.ledger;
+        self.peaks = state.peaks;
         self.force_clear = false;
         self.pending = true;
         Ok(())
@@ -666,6 +682,7 @@ impl<'a> CentralDifference<'a> {
                         u: &self.u,
                         v: &self.scratch,
                         reactions: &self.reactions,
+                        peaks: &self.peaks,
                         failure: self.failure.as_ref().map(|(_, s)| s),
                     },
                     &energy,

@@ -236,7 +236,7 @@ pub fn simulate(
             .is_some_and(|f| f.load(std::sync::atomic::Ordering::Relaxed))
     };
     let mut last = None;
-    // Each moving clamp's peak reaction and its displacement there.
+    // Each moving clamp's peak reaction over every step and its displacement there.
     let mut peaks = vec![(f64::NEG_INFINITY, 0.0); model.prescribed.len()];
     let start = Instant::now();
     // In chunks that end at the checkpoints; a chunk's end is recorded only when it is a
@@ -258,13 +258,10 @@ pub fn simulate(
                 last = Some(*e);
                 rotation = rotation.max(crate::model::checks::largest_rotation(model, s.u, true));
                 history.write(s, e)?;
-                for ((peak, at), (c, r)) in peaks
-                    .iter_mut()
-                    .zip(model.prescribed.iter().zip(s.reactions))
+                for ((peak, at), (c, &[r, t])) in
+                    peaks.iter_mut().zip(model.prescribed.iter().zip(s.peaks))
                 {
-                    if *r > *peak {
-                        (*peak, *at) = (*r, c.velocity.norm() * c.travel(s.t));
-                    }
+                    (*peak, *at) = (r, c.velocity.norm() * c.travel(t));
                 }
                 if let Some(v) = vtk.as_mut() {
                     v.write(model, s)?;
