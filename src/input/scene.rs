@@ -1150,6 +1150,7 @@ impl Scene {
         let de = &mut serde_json::Deserializer::from_str(text);
         let mut scene: Scene = serde_path_to_error::deserialize(de).map_err(|e| {
             let mut path = e.path().to_string();
+            let data = e.inner().classify() == serde_json::error::Category::Data;
             let mut inner = e.into_inner().to_string();
             // A variant's own path (see `variant`) continues the outer one.
             if let Some((sub, rest)) = inner.strip_prefix('`').and_then(|r| r.split_once("`: ")) {
@@ -1159,6 +1160,11 @@ impl Scene {
                     format!("{path}.{sub}")
                 };
                 inner = rest.to_string();
+            }
+            // A value of the wrong shape at a known path (an unknown or misspelt key, a wrong
+            // type) is an error of that key, which it names; malformed JSON is the file's.
+            if data && path != "." {
+                return Error::scene(path, inner);
             }
             let message = if path == "." {
                 inner
