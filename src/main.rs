@@ -104,7 +104,8 @@ enum Command {
     },
     /// Validate a scene without running it and print what it would model: elements,
     /// interfaces, DOFs, supports, loads, contact, Δt_crit, the time step and the memory.
-    /// Exit code 0 only for a valid scene.
+    /// Exit code 0 for a valid scene, 1 for an invalid one, 4 for a valid scene whose time
+    /// step is above Δt_crit (a run would diverge).
     Check {
         /// The scene file (JSON; see docs/scene.md).
         scene: PathBuf,
@@ -366,7 +367,11 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
                 exact_dt_crit: true,
                 ..Default::default()
             };
-            print(cli.json, &check::check(&setup(scene, overrides)?)?)?;
+            let report = check::check(&setup(scene, overrides)?)?;
+            print(cli.json, &report)?;
+            if report.unstable {
+                return Ok(ExitCode::from(check::UNSTABLE_EXIT));
+            }
         }
         Command::Draw { scene, out, state } => {
             let model = rbsm::model::Model::build(&Scene::from_file(scene)?)?;

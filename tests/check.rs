@@ -88,3 +88,26 @@ fn a_bad_scene_is_refused_with_its_field() {
     assert_eq!(code, 1);
     assert!(stderr.contains("materials.concrete.E"), "{stderr}");
 }
+
+/// A valid scene whose time step is above `Δt_crit` is described, and exits 4 (issue 40 item
+/// 3): a run of it would diverge. Just below the limit it exits 0.
+#[test]
+fn a_time_step_above_the_limit_exits_with_its_own_code() {
+    let (code, stdout, stderr) = check(&["examples/scenes/cantilever.json", "--json"]);
+    assert_eq!(code, 0, "{stderr}");
+    let r: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+    assert_eq!(r["unstable"], false);
+    let crit = r["dt_crit"].as_f64().unwrap();
+    for (factor, expected) in [(0.99, 0), (1.01, 4), (89.0, 4)] {
+        let dt = format!("{:e}", factor * crit);
+        let (code, stdout, stderr) =
+            check(&["examples/scenes/cantilever.json", "--dt", &dt, "--json"]);
+        assert_eq!(code, expected, "dt = {factor} Δt_crit: {stderr}");
+        let r: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+        assert_eq!(r["unstable"], expected != 0);
+    }
+    let dt = format!("{:e}", 89.0 * crit);
+    let (code, stdout, _) = check(&["examples/scenes/cantilever.json", "--dt", &dt]);
+    assert_eq!(code, 4);
+    assert!(stdout.contains("would diverge"), "{stdout}");
+}

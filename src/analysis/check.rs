@@ -46,6 +46,9 @@ pub struct CheckReport {
     pub dt_ratio: f64,
     /// Steps a run would take.
     pub steps: u64,
+    /// Whether a run at `dt` would diverge: `dt` above `Δt_crit` (or above `2/ω_floor`, the
+    /// proven upper bound of `Δt_crit`); `rbsm check` then exits with [`UNSTABLE_EXIT`].
+    pub unstable: bool,
     /// Bytes a run holds for stepping: the evaluator's data, `M` and `M⁻¹`, and the
     /// integrator's vectors (`U`, `v`, force, averaged velocity, and the guard's `U`, `v`).
     pub memory_bytes: usize,
@@ -67,6 +70,11 @@ pub struct ContactCheck {
     /// Vertex–edge pairs in contact at the start.
     pub pairs_in_contact_at_start: usize,
 }
+
+/// The exit code of `rbsm check` for a valid scene whose run would diverge
+/// ([`CheckReport::unstable`]); 1 is bad input, 2 a usage error, 3 a diverged run, 130 an
+/// interrupted one.
+pub const UNSTABLE_EXIT: u8 = 4;
 
 /// Checks everything a run of the setup would build (mesh, model, probes, `Δt_crit`, the time
 /// step; the setup has built the rest) without stepping.
@@ -116,6 +124,7 @@ pub fn check(p: &Setup) -> Result<CheckReport> {
         dt: p.dt,
         dt_ratio: p.dt / p.dt_crit(),
         steps: p.steps,
+        unstable: p.dt > p.dt_crit() || p.dt > p.limit.dt_ceiling(),
         memory_bytes: p.evaluator.bytes() + mass_bytes + 6 * 8 * m.n_dofs(),
         warnings: p.warnings(),
     })
@@ -167,6 +176,11 @@ impl Report for CheckReport {
         );
         for w in &r.warnings {
             t += &format!("\n  warning: {w}");
+        }
+        if r.unstable {
+            t += &format!(
+                "\n  unstable: a run at this dt would diverge (exit code {UNSTABLE_EXIT})"
+            );
         }
         t
     }
