@@ -161,7 +161,11 @@ enum Command {
     },
     /// Draw the histories a run left in DIR as SVG beside them: energies.svg and probes.svg
     /// from history.csv (rbsm run), stability.svg from fraction_F.csv (rbsm stability --out).
-    Plot { dir: PathBuf },
+    Plot {
+        /// The folder a run (`rbsm run --out`) or a stability analysis (`rbsm stability --out`)
+        /// wrote into.
+        dir: PathBuf,
+    },
     /// Exact Δt_crit, cheap bounds, the empirical limit and runs at fractions of Δt_crit.
     Stability {
         /// The scene file (JSON; see docs/scene.md).
@@ -190,7 +194,8 @@ enum Command {
         out: Option<PathBuf>,
     },
     /// Print the JSON Schema of scene files on standard output (docs/scene.md describes every
-    /// key); an editor given it checks and completes scenes.
+    /// key); an editor given it checks and completes scenes. It is JSON already: `--json` is
+    /// refused.
     Schema,
 }
 
@@ -255,6 +260,15 @@ fn interrupt_flag() -> rbsm::error::Result<std::sync::Arc<std::sync::atomic::Ato
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    if cli.json && matches!(cli.command, Command::Schema) {
+        use clap::CommandFactory;
+        Cli::command()
+            .error(
+                clap::error::ErrorKind::ArgumentConflict,
+                "`--json` does not apply to `schema`: the schema is JSON already",
+            )
+            .exit();
+    }
     if let Some(n) = cli.threads {
         if let Err(e) = rayon::ThreadPoolBuilder::new()
             .num_threads(n)

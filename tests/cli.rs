@@ -208,3 +208,30 @@ fn an_unknown_key_is_the_key_of_its_error() {
         (Some(1), Some("parse"), bad.to_str())
     );
 }
+
+/// `plot`'s folder is described in its help, and `schema`, whose output is JSON already,
+/// refuses `--json` as a usage error (exit 2) instead of ignoring it (issue 40 item 4).
+#[test]
+fn plot_describes_its_folder_and_schema_refuses_json() {
+    let help = Command::new(RBSM)
+        .args(["plot", "--help"])
+        .output()
+        .unwrap();
+    let text = String::from_utf8(help.stdout).unwrap();
+    let line = text
+        .lines()
+        .find(|l| l.trim_start().starts_with("<DIR>"))
+        .unwrap_or_else(|| panic!("no <DIR> line: {text}"));
+    assert!(line.contains("rbsm run --out"), "{line}");
+    let out = Command::new(RBSM)
+        .args(["schema", "--json"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(out.stdout.is_empty());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("`--json` does not apply to `schema`"));
+    let out = Command::new(RBSM).arg("schema").output().unwrap();
+    assert_eq!(out.status.code(), Some(0));
+    let schema: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert!(schema["properties"]["bodies"].is_object());
+}
