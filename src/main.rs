@@ -470,9 +470,9 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
                 done += 1;
                 if !cli.quiet {
                     tell(&format!(
-                        "[{done}/{total}] {}: {} steps in {:.3} s, {}",
+                        "[{done}/{total}] {}: {} in {:.3} s, {}",
                         tradeoff::describe(&p.settings),
-                        p.steps,
+                        rbsm::output::count(p.steps as usize, "step", "steps"),
                         p.wall_s,
                         p.status
                     ));

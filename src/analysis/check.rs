@@ -4,6 +4,7 @@
 use crate::analysis::setup::Setup;
 use crate::analysis::Report;
 use crate::error::Result;
+use crate::output::count;
 use serde::Serialize;
 
 /// `rbsm check --json`: what a run of the scene would model, without running it.
@@ -19,7 +20,7 @@ pub struct CheckReport {
     pub bodies: usize,
     /// Number of elements.
     pub elements: usize,
-    /// Interfaces between two elements, and ground springs (supports).
+    /// Interfaces between two elements (ground springs apart).
     pub interfaces: usize,
     /// Boundary edges tied to ground by springs.
     pub ground_springs: usize,
@@ -99,11 +100,7 @@ pub fn check(p: &Setup) -> Result<CheckReport> {
             pairs_in_contact_at_start: c.live(),
         }
     });
-    let ground_springs = m
-        .interfaces
-        .iter()
-        .filter(|i| i.b == crate::model::GROUND)
-        .count();
+    let ground_springs = m.ground_springs();
     let mass_bytes = 8 * p.mass.triplets().len() * if p.mass.is_diagonal() { 2 } else { 4 };
     Ok(CheckReport {
         scene: m.name.clone(),
@@ -136,28 +133,33 @@ impl Report for CheckReport {
         let mut t = format!("{}: valid\n", r.scene);
         t += &format!(
             "  {}, {} ({} formulation, {} evaluator)\n",
-            crate::output::count(r.bodies, "body", "bodies"),
-            crate::output::count(r.elements, "element", "elements"),
+            count(r.bodies, "body", "bodies"),
+            count(r.elements, "element", "elements"),
             r.formulation,
             r.evaluator
         );
         t += &format!(
-            "  {} between elements, {}; {} DOFs, {} fixed\n",
-            crate::output::count(r.interfaces, "interface", "interfaces"),
-            crate::output::count(r.ground_springs, "ground spring", "ground springs"),
-            r.dofs,
+            "  {} between elements, {}; {}, {} fixed\n",
+            count(r.interfaces, "interface", "interfaces"),
+            count(r.ground_springs, "ground spring", "ground springs"),
+            count(r.dofs, "DOF", "DOFs"),
             r.fixed_dofs
         );
         t += &format!(
-            "  {} point loads; gravity ({}, {}) m/s²\n",
-            r.loads, r.gravity[0], r.gravity[1]
+            "  {}; gravity ({}, {}) m/s²\n",
+            count(r.loads, "point load", "point loads"),
+            r.gravity[0],
+            r.gravity[1]
         );
         t += &match &r.contact {
             None => "  contact: none declared (no contact search)\n".to_string(),
             Some(c) => format!(
-                "  contact: {}, {} vertices against {} edges; at the start {} pairs tested, {} in \
-                    contact\n",
-                c.model, c.vertices, c.edges, c.pairs_tested_at_start, c.pairs_in_contact_at_start
+                "  contact: {}, {} against {}; at the start {} tested, {} in contact\n",
+                c.model,
+                count(c.vertices, "vertex", "vertices"),
+                count(c.edges, "edge", "edges"),
+                count(c.pairs_tested_at_start as usize, "pair", "pairs"),
+                c.pairs_in_contact_at_start
             ),
         };
         t += &format!(
@@ -167,8 +169,10 @@ impl Report for CheckReport {
             r.dt_safe / r.dt_crit
         );
         t += &format!(
-            "  dt = {:.6e} s = {:.4} Δt_crit, {} steps\n",
-            r.dt, r.dt_ratio, r.steps
+            "  dt = {:.6e} s = {:.4} Δt_crit, {}\n",
+            r.dt,
+            r.dt_ratio,
+            count(r.steps as usize, "step", "steps")
         );
         t += &format!(
             "  memory for stepping: {}",

@@ -216,6 +216,12 @@ impl Model {
                 .get(body.first_interface)
                 .is_some_and(Option::is_some)
     }
+
+    /// Number of ground springs: the interfaces tied to ground (`b == GROUND`). The others
+    /// are the interfaces between elements.
+    pub fn ground_springs(&self) -> usize {
+        self.interfaces.iter().filter(|i| i.b == GROUND).count()
+    }
 }
 
 /// The numerators of eq. 12, `k_n = E_n / (h_a + h_b)`, `k_s = E_s / (h_a + h_b)`:

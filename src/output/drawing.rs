@@ -255,9 +255,10 @@ pub fn model_svg(model: &Model) -> String {
     ];
     let key: Vec<&str> = key.iter().filter(|k| k.0).map(|k| k.1).collect();
     let caption = format!(
-        "{}: {} elements, {pairs} interfaces; {}",
+        "{}: {}, {}; {}",
         model.name,
-        model.elements.len(),
+        crate::output::count(model.elements.len(), "element", "elements"),
+        crate::output::count(pairs, "interface", "interfaces"),
         key.join(", ")
     );
     cv.text(cv.margin, 20.0, 13.0, &caption);

@@ -25,8 +25,11 @@ pub struct Summary {
     pub evaluator: String,
     /// Number of elements.
     pub elements: usize,
-    /// Number of interfaces (ground springs included).
+    /// Number of interfaces between elements (as `rbsm check` and the run's information line
+    /// count them).
     pub interfaces: usize,
+    /// Number of ground springs (interfaces tied to ground by a support).
+    pub ground_springs: usize,
     /// Free DOFs (fixed ones excluded).
     pub dofs: usize,
     /// Time step (s).
@@ -623,7 +626,8 @@ pub fn write_probe_rows(
     crate::output::write_atomic(&dir.join("probes.csv"), text.as_bytes())
 }
 
-/// `1 body`, `2 bodies`.
+/// `1 body`, `2 bodies`, `0 bodies`: the one way every report and information line counts
+/// things.
 pub fn count(n: usize, one: &str, many: &str) -> String {
     format!("{n} {}", if n == 1 { one } else { many })
 }
