@@ -449,3 +449,50 @@ fn free_rigid_modes_are_two_translations_and_a_rotation() {
         other => panic!("{other:?}"),
     }
 }
+
+/// A run of `rbsm stability` that diverges gives the reason (what the guard saw, and the
+/// step), and no energy drift, which says nothing of a diverged run (issue 40 item 5).
+#[test]
+fn a_diverged_stability_run_gives_its_reason() {
+    use rbsm::analysis::Report;
+    let setup = rbsm::analysis::setup::Setup::new(
+        &Scene::from_json(&common::scene_json(
+            r#"{"kind": "grid", "origin": [0, 0], "size": [1, 1], "cells": [6, 6]}"#,
+            r#"[{"edge": "bottom", "kind": "ground-spring"}]"#,
+        ))
+        .unwrap(),
+        &Default::default(),
+    )
+    .unwrap();
+    let ok = rbsm::analysis::stability::run_at_fraction(&setup, 0.5, 500);
+    assert_eq!((ok.status.as_str(), ok.reason.as_deref()), ("ok", None));
+    assert!(ok.max_relative_drift.unwrap() < 1e-6);
+    let report = rbsm::analysis::stability::analyse(
+        &setup,
+        &rbsm::analysis::stability::StabilityParams {
+            fractions: vec![0.5, 1.2],
+            steps: 500,
+        },
+    )
+    .unwrap();
+    let bad = &report.fractions[1];
+    assert_eq!(bad.status, "diverged");
+    assert!(bad.steps < 500 && bad.max_relative_drift.is_none());
+    let reason = bad.reason.as_deref().unwrap();
+    assert!(
+        reason.starts_with("at step")
+            && (reason.contains("energy growth") || reason.contains("NaN")),
+        "{reason}"
+    );
+    let text = report.text();
+    let line = text.lines().find(|l| l.contains("run at 1.200")).unwrap();
+    assert!(
+        line.contains("diverged at step") && line.contains(reason) && !line.contains("drift"),
+        "{line}"
+    );
+    let line = text.lines().find(|l| l.contains("run at 0.500")).unwrap();
+    assert!(line.contains("ok, 500 steps, energy drift"), "{line}");
+    let json = serde_json::to_value(&report).unwrap();
+    assert!(json["fractions"][1]["max_relative_drift"].is_null());
+    assert_eq!(json["fractions"][1]["reason"], reason);
+}
