@@ -1418,6 +1418,13 @@ impl Scene {
             }
         }
         let own = columns.len();
+        // Each column's position, for a search per probe that does not grow with the probes.
+        let mut index: std::collections::HashMap<String, usize> = columns
+            .iter()
+            .enumerate()
+            .rev()
+            .map(|(i, c)| (c.clone(), i))
+            .collect();
         for (k, p) in self.output.probes.iter().enumerate() {
             match (p.element, p.at) {
                 (Some(_), None) => {}
@@ -1444,7 +1451,7 @@ impl Scene {
                     ),
                 ));
             }
-            if let Some(i) = columns.iter().position(|c| *c == column) {
+            if let Some(&i) = index.get(&column) {
                 let what = if i < own {
                     "one of the history's own columns".to_string()
                 } else {
@@ -1455,7 +1462,7 @@ impl Scene {
                     format!("`{column}` is {what}: every column needs its own name"),
                 ));
             }
-            columns.push(column);
+            index.insert(column, own + k);
         }
         for (i, b) in self.bodies.iter().enumerate() {
             bounded_name(&format!("bodies[{i}].name"), &b.name)?;
