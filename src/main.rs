@@ -397,7 +397,7 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
                     rbsm::output::drawing::state_svg(&model, &state)
                 }
             };
-            std::fs::write(out, svg).map_err(|e| rbsm::error::Error::io(out, e))?;
+            rbsm::output::write_atomic(out, svg.as_bytes())?;
             print(
                 cli.json,
                 &Written {

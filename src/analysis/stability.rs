@@ -278,7 +278,7 @@ pub fn write_fraction_histories(
         for (t, e, stored) in &r.history {
             text.push_str(&format!("{t:e},{e:e},{stored:e}\n"));
         }
-        std::fs::write(&path, text).map_err(|e| crate::error::Error::io(&path, e))?;
+        crate::output::write_atomic(&path, text.as_bytes())?;
     }
     Ok(())
 }

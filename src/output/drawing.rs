@@ -400,8 +400,7 @@ pub fn write_mode_shapes(
             omega / (2.0 * std::f64::consts::PI)
         );
         let path = dir.join(format!("mode_{:03}.svg", k + 1));
-        std::fs::write(&path, displaced_svg(model, shape, &caption))
-            .map_err(|e| Error::io(&path, e))?;
+        crate::output::write_atomic(&path, displaced_svg(model, shape, &caption).as_bytes())?;
     }
     Ok(())
 }
