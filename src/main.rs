@@ -104,7 +104,8 @@ enum Command {
     },
     /// Validate a scene without running it and print what it would model: elements,
     /// interfaces, DOFs, supports, loads, contact, Δt_crit, the time step and the memory.
-    /// Exit code 0 only for a valid scene.
+    /// Exit code 0 for a valid scene, 1 for an invalid one, 4 for a valid scene whose time
+    /// step is above Δt_crit (a run would diverge).
     Check {
         /// The scene file (JSON; see docs/scene.md).
         scene: PathBuf,
@@ -160,7 +161,11 @@ enum Command {
     },
     /// Draw the histories a run left in DIR as SVG beside them: energies.svg and probes.svg
     /// from history.csv (rbsm run), stability.svg from fraction_F.csv (rbsm stability --out).
-    Plot { dir: PathBuf },
+    Plot {
+        /// The folder a run (`rbsm run --out`) or a stability analysis (`rbsm stability --out`)
+        /// wrote into.
+        dir: PathBuf,
+    },
     /// Exact Δt_crit, cheap bounds, the empirical limit and runs at fractions of Δt_crit.
     Stability {
         /// The scene file (JSON; see docs/scene.md).
@@ -189,7 +194,8 @@ enum Command {
         out: Option<PathBuf>,
     },
     /// Print the JSON Schema of scene files on standard output (docs/scene.md describes every
-    /// key); an editor given it checks and completes scenes.
+    /// key); an editor given it checks and completes scenes. It is JSON already: `--json` is
+    /// refused.
     Schema,
 }
 
@@ -254,6 +260,15 @@ fn interrupt_flag() -> rbsm::error::Result<std::sync::Arc<std::sync::atomic::Ato
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    if cli.json && matches!(cli.command, Command::Schema) {
+        use clap::CommandFactory;
+        Cli::command()
+            .error(
+                clap::error::ErrorKind::ArgumentConflict,
+                "`--json` does not apply to `schema`: the schema is JSON already",
+            )
+            .exit();
+    }
     if let Some(n) = cli.threads {
         if let Err(e) = rayon::ThreadPoolBuilder::new()
             .num_threads(n)
@@ -366,7 +381,11 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
                 exact_dt_crit: true,
                 ..Default::default()
             };
-            print(cli.json, &check::check(&setup(scene, overrides)?)?)?;
+            let report = check::check(&setup(scene, overrides)?)?;
+            print(cli.json, &report)?;
+            if report.unstable {
+                return Ok(ExitCode::from(check::UNSTABLE_EXIT));
+            }
         }
         Command::Draw { scene, out, state } => {
             let model = rbsm::model::Model::build(&Scene::from_file(scene)?)?;
@@ -378,7 +397,7 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
                     rbsm::output::drawing::state_svg(&model, &state)
                 }
             };
-            std::fs::write(out, svg).map_err(|e| rbsm::error::Error::io(out, e))?;
+            rbsm::output::write_atomic(out, svg.as_bytes())?;
             print(
                 cli.json,
                 &Written {
@@ -451,9 +470,9 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
                 done += 1;
                 if !cli.quiet {
                     tell(&format!(
-                        "[{done}/{total}] {}: {} steps in {:.3} s, {}",
+                        "[{done}/{total}] {}: {} in {:.3} s, {}",
                         tradeoff::describe(&p.settings),
-                        p.steps,
+                        rbsm::output::count(p.steps as usize, "step", "steps"),
                         p.wall_s,
                         p.status
                     ));

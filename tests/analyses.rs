@@ -234,10 +234,7 @@ fn mechanism_names_the_free_modes() {
         .err()
         .unwrap()
         .to_string();
-    assert!(
-        err.contains("3 free rigid modes") && err.contains("rotate about"),
-        "{err}"
-    );
+    assert!(err.contains("3 free rigid modes"), "{err}");
     // A clamp of `u` and `v` only on the left side leaves no rotation free (several elements).
     let clamp = r#"[{"edge": "left", "kind": "clamp", "dofs": ["u", "v"]}]"#;
     assert!(statics::solve(&common::model(common::RECT, clamp)).is_ok());
@@ -393,4 +390,109 @@ fn the_proven_bracket_holds_the_exact_critical_step_on_every_bundled_scene() {
         seen += 1;
     }
     assert!(seen >= 10, "{seen} scenes");
+}
+
+/// The free rigid modes are named as translations and a rotation (issue 40 item 5): a free
+/// body's are the translations along x and y and the rotation about its centroid, not three
+/// mixtures of them (each "can rotate about" some point); a body held at one element rotates
+/// about that element's centroid, and one held there in `v` only also translates along x.
+#[test]
+fn free_rigid_modes_are_two_translations_and_a_rotation() {
+    use rbsm::analysis::rigid_modes::{free_modes, Motion};
+    use rbsm::mesh::geometry::Vec2;
+    let modes = |model: &Model| {
+        let ev = evaluator::build(model, EvaluatorKind::Assembled);
+        free_modes(model, ev.as_ref())
+            .into_iter()
+            .map(|m| m.motion)
+            .collect::<Vec<_>>()
+    };
+    let near = |a: Vec2, b: Vec2| (a - b).norm() < 1e-9;
+    let free = common::model(common::VORONOI, "[]");
+    let area: f64 = free.elements.iter().map(|e| e.props.area).sum();
+    let centroid = free
+        .elements
+        .iter()
+        .map(|e| e.props.area * e.props.centroid)
+        .sum::<Vec2>()
+        / area;
+    match &modes(&free)[..] {
+        [Motion::Translation(x), Motion::Translation(y), Motion::Rotation(p)] => assert!(
+            near(*x, Vec2::new(1.0, 0.0)) && near(*y, Vec2::new(0.0, 1.0)) && near(*p, centroid),
+            "{x} {y} {p} (centroid {centroid})"
+        ),
+        other => panic!("{other:?}"),
+    }
+    let text = statics::solve(&free).err().unwrap().to_string();
+    assert_eq!(text.matches("can rotate about").count(), 1, "{text}");
+    assert_eq!(text.matches("can translate along").count(), 2, "{text}");
+    // One row of three blocks held at the first: it turns about that block's centroid.
+    let held = |dofs: &str| {
+        column(
+            3,
+            0.1,
+            &format!(r#"[{{"edge": "left", "kind": "clamp", "dofs": {dofs}}}]"#),
+        )
+    };
+    let pinned = held(r#"["u", "v"]"#);
+    let first = pinned.elements[0].props.centroid;
+    match &modes(&pinned)[..] {
+        [Motion::Rotation(p)] => assert!(near(*p, first), "{p} against {first}"),
+        other => panic!("{other:?}"),
+    }
+    // Held in `v` only: it also slides along x, and the rotation orthogonal to that slide is
+    // about the block's centroid still.
+    match &modes(&held(r#"["v"]"#))[..] {
+        [Motion::Translation(x), Motion::Rotation(p)] => {
+            assert!(near(*x, Vec2::new(1.0, 0.0)) && near(*p, first), "{x} {p}")
+        }
+        other => panic!("{other:?}"),
+    }
+}
+
+/// A run of `rbsm stability` that diverges gives the reason (what the guard saw, and the
+/// step), and no energy drift, which says nothing of a diverged run (issue 40 item 5).
+#[test]
+fn a_diverged_stability_run_gives_its_reason() {
+    use rbsm::analysis::Report;
+    let setup = rbsm::analysis::setup::Setup::new(
+        &Scene::from_json(&common::scene_json(
+            r#"{"kind": "grid", "origin": [0, 0], "size": [1, 1], "cells": [6, 6]}"#,
+            r#"[{"edge": "bottom", "kind": "ground-spring"}]"#,
+        ))
+        .unwrap(),
+        &Default::default(),
+    )
+    .unwrap();
+    let ok = rbsm::analysis::stability::run_at_fraction(&setup, 0.5, 500);
+    assert_eq!((ok.status.as_str(), ok.reason.as_deref()), ("ok", None));
+    assert!(ok.max_relative_drift.unwrap() < 1e-6);
+    let report = rbsm::analysis::stability::analyse(
+        &setup,
+        &rbsm::analysis::stability::StabilityParams {
+            fractions: vec![0.5, 1.2],
+            steps: 500,
+        },
+    )
+    .unwrap();
+    let bad = &report.fractions[1];
+    assert_eq!(bad.status, "diverged");
+    assert!(bad.steps < 500 && bad.max_relative_drift.is_none());
+    let reason = bad.reason.as_deref().unwrap();
+    assert!(
+        reason.starts_with("at step")
+            && (reason.contains("energy growth") || reason.contains("NaN")),
+        "{reason}"
+    );
+    let text = report.text();
+    let line = text.lines().find(|l| l.contains("run at 1.200")).unwrap();
+    assert!(
+        line.contains("diverged at step") && line.contains(reason) && !line.contains("drift"),
+        "{line}"
+    );
+    let line = text.lines().find(|l| l.contains("run at 0.500")).unwrap();
+    assert!(line.contains("ok, 500 steps, energy drift"), "{line}");
+    let json = serde_json::to_value(&report).unwrap();
+    assert!(json["fractions"][1]["max_relative_drift"].is_null());
+    assert_eq!(json["fractions"][1]["reason"], reason);
 }

@@ -88,3 +88,102 @@ fn a_bad_scene_is_refused_with_its_field() {
     assert_eq!(code, 1);
     assert!(stderr.contains("materials.concrete.E"), "{stderr}");
 }
+
+/// A valid scene whose time step is above `Δt_crit` is described, and exits 4 (issue 40 item
+/// 3): a run of it would diverge. Just below the limit it exits 0.
+#[test]
+fn a_time_step_above_the_limit_exits_with_its_own_code() {
+    let (code, stdout, stderr) = check(&["examples/scenes/cantilever.json", "--json"]);
+    assert_eq!(code, 0, "{stderr}");
+    let r: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+    assert_eq!(r["unstable"], false);
+    let crit = r["dt_crit"].as_f64().unwrap();
+    for (factor, expected) in [(0.99, 0), (1.01, 4), (89.0, 4)] {
+        let dt = format!("{:e}", factor * crit);
+        let (code, stdout, stderr) =
+            check(&["examples/scenes/cantilever.json", "--dt", &dt, "--json"]);
+        assert_eq!(code, expected, "dt = {factor} Δt_crit: {stderr}");
+        let r: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+        assert_eq!(r["unstable"], expected != 0);
+    }
+    let dt = format!("{:e}", 89.0 * crit);
+    let (code, stdout, _) = check(&["examples/scenes/cantilever.json", "--dt", &dt]);
+    assert_eq!(code, 4);
+    assert!(stdout.contains("would diverge"), "{stdout}");
+}
+
+/// Counts of one are singular in every line that counts things (issue 40 item 5), and the run's
+/// `summary.json` counts interfaces as `check` and the run's information line do: between
+/// elements, with the ground springs apart.
+#[test]
+fn counts_agree_and_one_is_singular() {
+    let dir = tempfile::tempdir().unwrap();
+    let one = dir.path().join("one.json");
+    std::fs::write(
+        &one,
+        r#"{"name": "one", "thickness": 0.1, "formulation": {"kind": "rigid"},
+            "materials": {"m": {"E": 1e9, "nu": 0.2, "rho": 1000}},
+            "bodies": [{"name": "b", "material": "m",
+                "mesh": {"kind": "grid", "origin": [0, 0], "size": [1, 1], "cells": [1, 1]},
+                "supports": [{"edge": "left", "kind": "ground-spring"}],
+                "loads": [{"kind": "force", "element": 0, "value": [1, 0, 0]}]}],
+            "time": {"dt_factor": 0.5, "steps": 1}}"#,
+    )
+    .unwrap();
+    let (code, stdout, stderr) = check(&[one.to_str().unwrap()]);
+    assert_eq!(code, 0, "{stderr}");
+    for part in [
+        "1 body, 1 element (",
+        "0 interfaces between elements, 1 ground spring; 3 DOFs",
+        "1 point load;",
+        ", 1 step\n",
+    ] {
+        assert!(stdout.contains(part), "`{part}` not in {stdout}");
+    }
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_rbsm"))
+        .args(["run", one.to_str().unwrap(), "--threads", "1", "--out"])
+        .arg(dir.path().join("run"))
+        .output()
+        .unwrap();
+    let (stdout, stderr) = (
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr),
+    );
+    assert!(
+        stderr.contains(
+            "one: 1 element, 0 interfaces between elements and 1 ground spring, 3 free DOFs \
+             (rigid formulation, assembled evaluator, 1 thread)"
+        ) && stderr.contains(", 1 step\n"),
+        "{stderr}"
+    );
+    assert!(stdout.contains("one: ok, 1 step "), "{stdout}");
+    // The gmsh cantilever: 1192 interfaces between elements and 8 ground springs, in the
+    // check, the run's line and summary.json alike.
+    let scene = "examples/scenes/cantilever_gmsh.json";
+    let (code, stdout, _) = check(&[scene, "--json"]);
+    assert_eq!(code, 0);
+    let r: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_rbsm"))
+        .args(["run", scene, "--steps", "1", "--out"])
+        .arg(dir.path().join("gmsh"))
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(0));
+    let summary: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.path().join("gmsh/summary.json")).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(
+        (&summary["interfaces"], &summary["ground_springs"]),
+        (&r["interfaces"], &r["ground_springs"])
+    );
+    let line = format!(
+        "{} interfaces between elements and {} ground springs",
+        r["interfaces"], r["ground_springs"]
+    );
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains(&line),
+        "{line}"
+    );
+}

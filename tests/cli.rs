@@ -165,3 +165,75 @@ fn static_and_eigen_write_their_outputs() {
     assert_eq!(probes.lines().count(), 4);
     assert!(probes.starts_with("mode,frequency_hz,tip_v (m)\n1,"));
 }
+
+/// An unknown key is reported by its JSON path, as the key at fault, not by the file (issue 40
+/// item 3); malformed JSON is still the file's.
+#[test]
+fn an_unknown_key_is_the_key_of_its_error() {
+    let tmp = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(scene("tension_bar")).unwrap();
+    let mut v: Value = serde_json::from_str(&text).unwrap();
+    let interface = &mut v["materials"]["concrete"]["interface"];
+    assert!(interface.is_object(), "the scene changed");
+    interface["tensile_strenght"] = 3.0e6.into();
+    let bad = tmp.path().join("bad.json");
+    std::fs::write(&bad, v.to_string()).unwrap();
+    let (code, v) = json(&["check", bad.to_str().unwrap()]);
+    assert_eq!(code, Some(1));
+    assert_eq!(
+        v["error"]["key"], "materials.concrete.interface.tensile_strenght",
+        "{v}"
+    );
+    assert_eq!(v["error"]["kind"], "scene");
+    assert!(v["error"]["message"]
+        .as_str()
+        .unwrap()
+        .contains("unknown field `tensile_strenght`"));
+    // A value of the wrong type inside a body, likewise.
+    let mut v: Value = serde_json::from_str(&text).unwrap();
+    v["bodies"][0]["mesh"]["sites"] = "many".into();
+    std::fs::write(&bad, v.to_string()).unwrap();
+    let (code, v) = json(&["check", bad.to_str().unwrap()]);
+    assert_eq!(
+        (code, v["error"]["key"].as_str()),
+        (Some(1), Some("bodies[0].mesh.sites"))
+    );
+    // Malformed JSON has no key path: the file is at fault.
+    std::fs::write(&bad, r#"{"name": "#).unwrap();
+    let (code, v) = json(&["check", bad.to_str().unwrap()]);
+    assert_eq!(
+        (
+            code,
+            v["error"]["kind"].as_str(),
+            v["error"]["key"].as_str()
+        ),
+        (Some(1), Some("parse"), bad.to_str())
+    );
+}
+
+/// `plot`'s folder is described in its help, and `schema`, whose output is JSON already,
+/// refuses `--json` as a usage error (exit 2) instead of ignoring it (issue 40 item 4).
+#[test]
+fn plot_describes_its_folder_and_schema_refuses_json() {
+    let help = Command::new(RBSM)
+        .args(["plot", "--help"])
+        .output()
+        .unwrap();
+    let text = String::from_utf8(help.stdout).unwrap();
+    let line = text
+        .lines()
+        .find(|l| l.trim_start().starts_with("<DIR>"))
+        .unwrap_or_else(|| panic!("no <DIR> line: {text}"));
+    assert!(line.contains("rbsm run --out"), "{line}");
+    let out = Command::new(RBSM)
+        .args(["schema", "--json"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(out.stdout.is_empty());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("`--json` does not apply to `schema`"));
+    let out = Command::new(RBSM).arg("schema").output().unwrap();
+    assert_eq!(out.status.code(), Some(0));
+    let schema: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert!(schema["properties"]["bodies"].is_object());
+}

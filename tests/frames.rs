@@ -444,3 +444,105 @@ fn crack_frames_resume_byte_for_byte_and_go_with_the_next_run() {
         0
     );
 }
+
+/// A run writes no file through a symbolic link (issue 40 item 7): a link in the output folder
+/// is replaced by the file, its target left untouched, for `history.csv` (written row by row),
+/// the temporary names files are written under, the collection and the frames, and for the
+/// history a resumed run cuts back and goes on with.
+#[cfg(unix)]
+#[test]
+fn a_run_writes_through_no_link() {
+    use rbsm::analysis::run::{self, Monitor, RunParams};
+    use std::sync::atomic::{AtomicBool, Ordering};
+    use std::sync::Arc;
+    let mut v = bundled("cantilever");
+    v["time"] = serde_json::json!({"dt_factor": 0.5, "steps": 600});
+    v["output"]["every"] = 20.into();
+    v["output"]["vtk"] = true.into();
+    v["output"]["checkpoint_every"] = 100.into();
+    let scene = Scene::from_json(&v.to_string()).unwrap();
+    let setup = Setup::new(&scene, &Overrides::default()).unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    let (out, targets) = (tmp.path().join("out"), tmp.path().join("targets"));
+    std::fs::create_dir_all(out.join("vtk")).unwrap();
+    std::fs::create_dir_all(&targets).unwrap();
+    let names = [
+        "history.csv",
+        ".part-history.csv",
+        ".part-series.pvd",
+        "vtk/.part-step_000000000.vtu",
+        "vtk/step_000000000.vtu",
+        ".part-summary.json",
+    ];
+    let plant = |name: &str| {
+        let target = targets.join(name.replace('/', "_"));
+        std::fs::write(&target, "precious").unwrap();
+        let link = out.join(name);
+        let _ = std::fs::remove_file(&link);
+        std::os::unix::fs::symlink(&target, &link).unwrap();
+        target
+    };
+    let planted: Vec<_> = names.iter().map(|n| plant(n)).collect();
+    // Stopped by its interrupt flag after its checkpoint at step 300.
+    struct StopAt(u64, Arc<AtomicBool>);
+    impl Monitor for StopAt {
+        fn info(&mut self, _: &str) {}
+        fn progress(&mut self, step: u64, _: u64) {
+            if step >= self.0 {
+                self.1.store(true, Ordering::SeqCst);
+            }
+        }
+    }
+    let flag = Arc::new(AtomicBool::new(false));
+    let params = |resume| RunParams {
+        resume,
+        interrupt: Some(flag.clone()),
+        keep_history: false,
+    };
+    let first = run::run(&setup, &params(false), &out, &mut StopAt(330, flag.clone())).unwrap();
+    assert_eq!(first.status, "interrupted");
+    for (name, target) in names.iter().zip(&planted) {
+        assert_eq!(
+            std::fs::read_to_string(target).unwrap(),
+            "precious",
+            "{name}"
+        );
+    }
+    let history = out.join("history.csv");
+    assert!(std::fs::symlink_metadata(&history).unwrap().is_file());
+    // The history becomes a link to a copy of itself; the resumed run replaces the link.
+    let copy = targets.join("history_copy.csv");
+    std::fs::copy(&history, &copy).unwrap();
+    let before = std::fs::read(&copy).unwrap();
+    std::fs::remove_file(&history).unwrap();
+    std::os::unix::fs::symlink(&copy, &history).unwrap();
+    flag.store(false, Ordering::SeqCst);
+    let end = run::run(
+        &setup,
+        &params(true),
+        &out,
+        &mut StopAt(u64::MAX, flag.clone()),
+    )
+    .unwrap();
+    assert_eq!(end.status, "ok");
+    assert_eq!(
+        std::fs::read(&copy).unwrap(),
+        before,
+        "the link's target was written"
+    );
+    assert!(std::fs::symlink_metadata(&history).unwrap().is_file());
+    // And the history is that of a run never stopped.
+    let whole = tmp.path().join("whole");
+    flag.store(false, Ordering::SeqCst);
+    run::run(
+        &setup,
+        &params(false),
+        &whole,
+        &mut StopAt(u64::MAX, flag.clone()),
+    )
+    .unwrap();
+    assert_eq!(
+        std::fs::read(&history).unwrap(),
+        std::fs::read(whole.join("history.csv")).unwrap()
+    );
+}

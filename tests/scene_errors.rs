@@ -399,15 +399,138 @@ fn pointer<'v>(v: &'v mut Value, path: &[Value]) -> &'v mut Value {
     })
 }
 
-/// A file that never ends is refused after the largest scene size, not read into memory.
+/// A file that never ends, a FIFO or a file past the largest scene size is refused by what
+/// its metadata says, before anything is read (issue 40 item 7): a FIFO without a writer would
+/// block the reader, and a 1 GiB file was read whole before its refusal.
 #[cfg(unix)]
 #[test]
-fn an_endless_file_is_not_a_scene() {
+fn a_device_a_fifo_or_a_huge_file_is_not_a_scene() {
     let e = Scene::from_file("/dev/zero").unwrap_err().to_string();
     assert!(
-        e.contains("/dev/zero") && e.contains("larger than 256 MiB"),
+        e.contains("/dev/zero") && e.contains("not a regular file (a device)"),
         "{e}"
     );
+    let dir = tempfile::tempdir().unwrap();
+    let fifo = dir.path().join("scene.json");
+    let made = std::process::Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .unwrap();
+    assert!(made.success());
+    let e = Scene::from_file(&fifo).unwrap_err().to_string();
+    assert!(e.contains("not a regular file (a FIFO)"), "{e}");
+    // A sparse file: its size is known without reading it, and the message gives it.
+    let big = dir.path().join("big.json");
+    std::fs::File::create(&big)
+        .unwrap()
+        .set_len(1 << 30)
+        .unwrap();
+    let e = Scene::from_file(&big).unwrap_err().to_string();
+    assert!(e.contains("1073741824 bytes, larger than 256 MiB"), "{e}");
+    // A gmsh mesh that is a FIFO or a device is named as such, not as a missing file.
+    for path in [fifo.to_str().unwrap(), "/dev/zero"] {
+        let e = with(|v| {
+            v["bodies"][0]["mesh"] = serde_json::json!({"kind": "gmsh", "path": path});
+        });
+        expect(&e, &["bodies[0].mesh.path", "is not a regular file"]);
+    }
+}
+
+/// A softening law whose slope `f_t²/(2 G_f)` overflows (or whose exhausting opening
+/// `2 G_f/f_t` underflows) is refused naming its keys (issue 40 item 7); it used to break every
+/// interface at the first step with NaN energies.
+#[test]
+fn a_softening_slope_that_overflows_is_refused() {
+    let softening = |f_t: f64, g_f: f64, c: f64, g_s: f64| {
+        with(|v| {
+            v["materials"]["m"]["interface"] = serde_json::json!({"kind": "softening",
+                "tensile_strength": f_t, "cohesion": c, "friction_angle": 30,
+                "fracture_energy": g_f, "fracture_energy_shear": g_s});
+        })
+    };
+    for (f_t, g_f) in [(1e308, 2.3e-308), (1e300, 1e-300), (1e160, 1.0)] {
+        let e = softening(f_t, g_f, 1e6, 100.0);
+        expect(
+            &e,
+            &[
+                "materials.m.interface.fracture_energy`",
+                "`tensile_strength`",
+                "softening slope",
+            ],
+        );
+    }
+    let e = softening(3e6, 100.0, 1e300, 1e-300);
+    expect(
+        &e,
+        &["materials.m.interface.fracture_energy_shear`", "`cohesion`"],
+    );
+    // The least energy it names passes.
+    let e = softening(1e160, 1.0, 1e6, 100.0);
+    let least: f64 = e
+        .split("must be ≥ ")
+        .nth(1)
+        .and_then(|r| r.split(' ').next())
+        .unwrap()
+        .parse()
+        .unwrap();
+    let mut v = base();
+    v["materials"]["m"]["interface"] = serde_json::json!({"kind": "softening",
+        "tensile_strength": 1e160, "cohesion": 1e6, "friction_angle": 30,
+        "fracture_energy": least, "fracture_energy_shear": 100.0});
+    Scene::from_json(&v.to_string()).unwrap();
+}
+
+/// Two bodies of one name, or a body named as a copy of an array, are refused naming the
+/// second (issue 40 item 7): `history.csv` had a clamp's columns twice.
+#[test]
+fn duplicate_body_names_are_refused() {
+    let e = with(|v| {
+        let body = v["bodies"][0].clone();
+        v["bodies"].as_array_mut().unwrap().push(body);
+        v["bodies"][1]["mesh"]["origin"] = serde_json::json!([5.0, 0.0]);
+    });
+    expect(
+        &e,
+        &["`bodies[1].name`", "`b` is the name of `bodies[0]` too"],
+    );
+    let e = with(|v| {
+        let mut body = v["bodies"][0].clone();
+        body["name"] = "b[1,0]".into();
+        body["mesh"]["origin"] = serde_json::json!([5.0, 0.0]);
+        v["bodies"][0]["array"] = serde_json::json!({"count": [2, 1], "pitch": [2.0, 0.0]});
+        v["bodies"].as_array_mut().unwrap().push(body);
+    });
+    expect(&e, &["`bodies[1].name`", "a copy of `bodies[0]`"]);
+    // Outside the array's counts the name is free.
+    let mut v = base();
+    let mut body = v["bodies"][0].clone();
+    body["name"] = "b[2,0]".into();
+    body["mesh"]["origin"] = serde_json::json!([9.0, 0.0]);
+    v["bodies"][0]["array"] = serde_json::json!({"count": [2, 1], "pitch": [2.0, 0.0]});
+    v["bodies"].as_array_mut().unwrap().push(body);
+    Scene::from_json(&v.to_string()).unwrap();
+}
+
+/// Names of the scene, its bodies and its probes are at most 256 characters (issue 40 item 7):
+/// a probe name of 10⁶ characters was accepted.
+#[test]
+fn names_are_bounded() {
+    let at_most = format!("at most {} characters", rbsm::input::scene::MAX_NAME);
+    let long = "x".repeat(1_000_000);
+    let e = with(|v| v["name"] = long.clone().into());
+    expect(&e, &["`name`", &at_most, "got 1000000"]);
+    let e = with(|v| v["bodies"][0]["name"] = long.clone().into());
+    expect(&e, &["`bodies[0].name`", &at_most]);
+    let e = with(|v| {
+        v["output"]["probes"] =
+            serde_json::json!([{"name": long.clone(), "element": 0, "dof": "u"}])
+    });
+    expect(&e, &["`output.probes[0].name`", &at_most]);
+    // 256 characters pass, also counted as characters, not bytes.
+    let mut v = base();
+    v["name"] = "é".repeat(rbsm::input::scene::MAX_NAME).into();
+    v["bodies"][0]["name"] = "b".repeat(rbsm::input::scene::MAX_NAME).into();
+    Scene::from_json(&v.to_string()).unwrap();
 }
 
 /// `array` copies a body on a pattern, each copy a body of its own; bad counts name the key.

@@ -711,8 +711,11 @@ fn critical_time_step(r: &mut Report) {
     for f in [0.9, 0.99, 1.01] {
         let run = stability::run_at_fraction(&grid16, f, 2000);
         r.line(&format!(
-            "| {f} | {} (step {}) | {:.3e} |",
-            run.status, run.steps, run.max_relative_drift
+            "| {f} | {} (step {}) | {} |",
+            run.status,
+            run.steps,
+            run.max_relative_drift
+                .map_or("— (diverged)".into(), |d| format!("{d:.3e}"))
         ));
         r.bound(
             &format!("run at {f} Δt_crit: diverged (1) when > 1"),

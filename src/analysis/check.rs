@@ -4,6 +4,7 @@
 use crate::analysis::setup::Setup;
 use crate::analysis::Report;
 use crate::error::Result;
+use crate::output::count;
 use serde::Serialize;
 
 /// `rbsm check --json`: what a run of the scene would model, without running it.
@@ -19,7 +20,7 @@ pub struct CheckReport {
     pub bodies: usize,
     /// Number of elements.
     pub elements: usize,
-    /// Interfaces between two elements, and ground springs (supports).
+    /// Interfaces between two elements (ground springs apart).
     pub interfaces: usize,
     /// Boundary edges tied to ground by springs.
     pub ground_springs: usize,
@@ -46,6 +47,9 @@ pub struct CheckReport {
     pub dt_ratio: f64,
     /// Steps a run would take.
     pub steps: u64,
+    /// Whether a run at `dt` would diverge: `dt` above `Δt_crit` (or above `2/ω_floor`, the
+    /// proven upper bound of `Δt_crit`); `rbsm check` then exits with [`UNSTABLE_EXIT`].
+    pub unstable: bool,
     /// Bytes a run holds for stepping: the evaluator's data, `M` and `M⁻¹`, and the
     /// integrator's vectors (`U`, `v`, force, averaged velocity, and the guard's `U`, `v`).
     pub memory_bytes: usize,
@@ -67,6 +71,11 @@ pub struct ContactCheck {
     /// Vertex–edge pairs in contact at the start.
     pub pairs_in_contact_at_start: usize,
 }
+
+/// The exit code of `rbsm check` for a valid scene whose run would diverge
+/// ([`CheckReport::unstable`]); 1 is bad input, 2 a usage error, 3 a diverged run, 130 an
+/// interrupted one.
+pub const UNSTABLE_EXIT: u8 = 4;
 
 /// Checks everything a run of the setup would build (mesh, model, probes, `Δt_crit`, the time
 /// step; the setup has built the rest) without stepping.
@@ -91,11 +100,7 @@ pub fn check(p: &Setup) -> Result<CheckReport> {
             pairs_in_contact_at_start: c.live(),
         }
     });
-    let ground_springs = m
-        .interfaces
-        .iter()
-        .filter(|i| i.b == crate::model::GROUND)
-        .count();
+    let ground_springs = m.ground_springs();
     let mass_bytes = 8 * p.mass.triplets().len() * if p.mass.is_diagonal() { 2 } else { 4 };
     Ok(CheckReport {
         scene: m.name.clone(),
@@ -116,6 +121,7 @@ pub fn check(p: &Setup) -> Result<CheckReport> {
         dt: p.dt,
         dt_ratio: p.dt / p.dt_crit(),
         steps: p.steps,
+        unstable: p.dt > p.dt_crit() || p.dt > p.limit.dt_ceiling(),
         memory_bytes: p.evaluator.bytes() + mass_bytes + 6 * 8 * m.n_dofs(),
         warnings: p.warnings(),
     })
@@ -127,28 +133,33 @@ impl Report for CheckReport {
         let mut t = format!("{}: valid\n", r.scene);
         t += &format!(
             "  {}, {} ({} formulation, {} evaluator)\n",
-            crate::output::count(r.bodies, "body", "bodies"),
-            crate::output::count(r.elements, "element", "elements"),
+            count(r.bodies, "body", "bodies"),
+            count(r.elements, "element", "elements"),
             r.formulation,
             r.evaluator
         );
         t += &format!(
-            "  {} between elements, {}; {} DOFs, {} fixed\n",
-            crate::output::count(r.interfaces, "interface", "interfaces"),
-            crate::output::count(r.ground_springs, "ground spring", "ground springs"),
-            r.dofs,
+            "  {} between elements, {}; {}, {} fixed\n",
+            count(r.interfaces, "interface", "interfaces"),
+            count(r.ground_springs, "ground spring", "ground springs"),
+            count(r.dofs, "DOF", "DOFs"),
             r.fixed_dofs
         );
         t += &format!(
-            "  {} point loads; gravity ({}, {}) m/s²\n",
-            r.loads, r.gravity[0], r.gravity[1]
+            "  {}; gravity ({}, {}) m/s²\n",
+            count(r.loads, "point load", "point loads"),
+            r.gravity[0],
+            r.gravity[1]
         );
         t += &match &r.contact {
             None => "  contact: none declared (no contact search)\n".to_string(),
             Some(c) => format!(
-                "  contact: {}, {} vertices against {} edges; at the start {} pairs tested, {} in \
-                    contact\n",
-                c.model, c.vertices, c.edges, c.pairs_tested_at_start, c.pairs_in_contact_at_start
+                "  contact: {}, {} against {}; at the start {} tested, {} in contact\n",
+                c.model,
+                count(c.vertices, "vertex", "vertices"),
+                count(c.edges, "edge", "edges"),
+                count(c.pairs_tested_at_start as usize, "pair", "pairs"),
+                c.pairs_in_contact_at_start
             ),
         };
         t += &format!(
@@ -158,8 +169,10 @@ impl Report for CheckReport {
             r.dt_safe / r.dt_crit
         );
         t += &format!(
-            "  dt = {:.6e} s = {:.4} Δt_crit, {} steps\n",
-            r.dt, r.dt_ratio, r.steps
+            "  dt = {:.6e} s = {:.4} Δt_crit, {}\n",
+            r.dt,
+            r.dt_ratio,
+            count(r.steps as usize, "step", "steps")
         );
         t += &format!(
             "  memory for stepping: {}",
@@ -167,6 +180,11 @@ impl Report for CheckReport {
         );
         for w in &r.warnings {
             t += &format!("\n  warning: {w}");
+        }
+        if r.unstable {
+            t += &format!(
+                "\n  unstable: a run at this dt would diverge (exit code {UNSTABLE_EXIT})"
+            );
         }
         t
     }

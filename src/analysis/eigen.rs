@@ -361,8 +361,11 @@ pub fn analyse(setup: &Setup, params: &EigenParams) -> Result<EigenReport> {
 impl Report for EigenReport {
     fn text(&self) -> String {
         let mut t = format!(
-            "{} free DOFs ({} solver); ω_max = {:.6e} rad/s, Δt_crit = {:.6e} s\n",
-            self.dofs, self.method, self.omega_max, self.dt_crit
+            "{} ({} solver); ω_max = {:.6e} rad/s, Δt_crit = {:.6e} s\n",
+            crate::output::count(self.dofs, "free DOF", "free DOFs"),
+            self.method,
+            self.omega_max,
+            self.dt_crit
         );
         for (i, f) in self.frequencies_hz.iter().enumerate() {
             t.push_str(&format!("  mode {:>3}: {:.6e} Hz\n", i + 1, f));

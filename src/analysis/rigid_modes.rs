@@ -143,13 +143,15 @@ pub fn free_modes(model: &Model, evaluator: &dyn Evaluator) -> Vec<FreeMode> {
             0.5 * (gram[i][j] + gram[j][i]) / scale.max(f64::MIN_POSITIVE)
         });
         let (values, vectors) = symmetric_eigen(z.transpose() * &gmat * &z);
-        for j in 0..basis.len() {
-            if values[j].abs() > 1e-10 {
-                continue;
-            }
-            let w = &z * vectors.column(j);
+        let free: Vec<[f64; 3]> = (0..basis.len())
+            .filter(|&j| values[j].abs() <= 1e-10)
+            .map(|j| {
+                let w = &z * vectors.column(j);
+                [w[0], w[1], w[2]]
+            })
+            .collect();
+        for w in named_basis(&free) {
             let theta = w[2] / size;
-            let what = describe(model, g);
             let motion = if theta.abs() < 1e-8 * (w[0].hypot(w[1])) {
                 let d = Vec2::new(w[0], w[1]).normalize();
                 Motion::Translation(if d.x < -1e-12 || (d.x.abs() <= 1e-12 && d.y < 0.0) {
@@ -160,9 +162,51 @@ pub fn free_modes(model: &Model, evaluator: &dyn Evaluator) -> Vec<FreeMode> {
             } else {
                 Motion::Rotation(Vec2::new(c.x - w[1] / theta, c.y + w[0] / theta))
             };
-            out.push(FreeMode { what, motion });
+            out.push(FreeMode {
+                what: describe(model, g),
+                motion,
+            });
         }
     }
+    out
+}
+
+/// An orthonormal basis of the free rigid motions spanned by the orthonormal `free` (in the
+/// coordinates `[t_x, t_y, θ·size]` about the group's centroid) that names them: its
+/// translations first (along x and y when both are free), then the one motion orthogonal to
+/// them, a rotation (about the centroid when the translations are both free). The eigenvectors
+/// of a degenerate energy are an arbitrary basis of the same space, each mixing translation
+/// and rotation.
+fn named_basis(free: &[[f64; 3]]) -> Vec<[f64; 3]> {
+    // The rotation parts `r`: the free motions `Σ a_j free_j` with `r · a = 0` translate.
+    let r: Vec<f64> = free.iter().map(|w| w[2]).collect();
+    let norm = r.iter().map(|x| x * x).sum::<f64>().sqrt();
+    if norm < 1e-8 {
+        // Pure translations (the null space is orthonormal, so at most two of them).
+        return match free.len() {
+            2 => vec![[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+            _ => free.to_vec(),
+        };
+    }
+    let combine = |a: &[f64]| -> [f64; 3] {
+        let mut w = [0.0; 3];
+        for (x, f) in a.iter().zip(free) {
+            for i in 0..3 {
+                w[i] += x * f[i];
+            }
+        }
+        w
+    };
+    // The rotation: the free motion along `r`, orthogonal to every translation.
+    let rotation = combine(&r.iter().map(|x| x / norm).collect::<Vec<_>>());
+    let mut out = match free.len() {
+        // Two translations: the whole plane of them.
+        3 => vec![[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+        // One: the free motion orthogonal to `r`.
+        2 => vec![combine(&[-r[1] / norm, r[0] / norm])],
+        _ => Vec::new(),
+    };
+    out.push(rotation);
     out
 }
 

@@ -234,18 +234,19 @@ fn check_finite(scene: &Scene, omega: f64) -> Result<()> {
 /// model's DOFs: what [`Setup::probes`] gives, without the rest of the setup.
 pub fn probes(scene: &Scene, model: &Model) -> Result<Vec<Probe>> {
     let nd = model.formulation.ndof();
+    let elements = model.probe_elements(&scene.output.probes)?;
     scene
         .output
         .probes
         .iter()
+        .zip(elements)
         .enumerate()
-        .map(|(k, pr)| {
+        .map(|(k, (pr, element))| {
             let d = dof_index(
                 &pr.dof,
                 model.formulation,
                 &format!("output.probes[{k}].dof"),
             )?;
-            let element = model.probe_element(k, pr)?;
             let offset = pr.at.map(|[x, y]| {
                 crate::mesh::geometry::Vec2::new(x, y) - model.elements[element].props.centroid
             });

@@ -172,8 +172,13 @@ pub struct FractionRun {
     pub steps: u64,
     /// `ok` or `diverged`.
     pub status: String,
-    /// Largest `|total − initial|` over the largest energy seen.
-    pub max_relative_drift: f64,
+    /// Why a diverged run was stopped (what the guard saw: energy growth or a NaN), with the
+    /// step; `null` for `ok`.
+    pub reason: Option<String>,
+    /// Largest `|total − initial|` over the largest energy seen; `null` for a diverged run,
+    /// whose total stays conserved to round-off while its stored energy grows (see `history`),
+    /// so that the drift says nothing of it.
+    pub max_relative_drift: Option<f64>,
     /// `(t, total, kinetic + elastic)` energies (J) at the recorded steps: 200 or so per run
     /// below `Δt_crit`, every step above.
     /// The total stays conserved to round-off even in an unstable run (central difference
@@ -222,16 +227,19 @@ pub fn run_at_fraction(setup: &Setup, fraction: f64, steps: u64) -> FractionRun 
             |_| {},
         )
         .expect("the observer cannot fail");
+    let reason = match status {
+        Status::Diverged { step, t, reason } => {
+            Some(format!("at step {step} (t = {t:.6e} s): {reason}"))
+        }
+        Status::Ok | Status::Interrupted { .. } => None,
+    };
     FractionRun {
         fraction,
         dt,
         steps: cd.step,
-        status: if status == Status::Ok {
-            "ok".into()
-        } else {
-            "diverged".into()
-        },
-        max_relative_drift: cd.max_relative_drift(),
+        status: if reason.is_none() { "ok" } else { "diverged" }.into(),
+        max_relative_drift: reason.is_none().then(|| cd.max_relative_drift()),
+        reason,
         history,
     }
 }
@@ -270,7 +278,7 @@ pub fn write_fraction_histories(
         for (t, e, stored) in &r.history {
             text.push_str(&format!("{t:e},{e:e},{stored:e}\n"));
         }
-        std::fs::write(&path, text).map_err(|e| crate::error::Error::io(&path, e))?;
+        crate::output::write_atomic(&path, text.as_bytes())?;
     }
     Ok(())
 }
@@ -358,10 +366,15 @@ impl Report for StabilityReport {
             self.empirical.dt, self.empirical.ratio
         ));
         for f in &self.fractions {
-            t.push_str(&format!(
-                "  run at {:.3} Δt_crit: {} after {} steps, energy drift {:.3e}\n",
-                f.fraction, f.status, f.steps, f.max_relative_drift
-            ));
+            let outcome = match (&f.reason, f.max_relative_drift) {
+                (Some(reason), _) => format!("diverged {reason}"),
+                (None, drift) => format!(
+                    "ok, {}, energy drift {:.3e}",
+                    crate::output::count(f.steps as usize, "step", "steps"),
+                    drift.unwrap_or_default()
+                ),
+            };
+            t.push_str(&format!("  run at {:.3} Δt_crit: {outcome}\n", f.fraction));
         }
         t.trim_end().to_string()
     }

@@ -13,6 +13,7 @@ use crate::mesh::geometry::Vec2;
 use crate::model::loads::Loads;
 use crate::model::mass::Mass;
 use crate::model::{Model, GROUND};
+use crate::output::count;
 use faer::linalg::solvers::Solve;
 use serde::Serialize;
 use std::path::Path;
@@ -34,8 +35,10 @@ pub fn solve(model: &Model) -> Result<StaticSolution> {
         return Err(Error::scene(
             "bodies[].supports",
             format!(
-            "the model is a mechanism ({} free rigid mode{}): {}; add supports that restrain them",
-            modes.len(), if modes.len() == 1 { "" } else { "s" }, list.join("; ")),
+                "the model is a mechanism ({}): {}; add supports that restrain them",
+                crate::output::count(modes.len(), "free rigid mode", "free rigid modes"),
+                list.join("; ")
+            ),
         ));
     }
     let mass = Mass::new(model);
@@ -181,10 +184,13 @@ impl Report for StaticReport {
             .iter()
             .map(|e| e.u[0].hypot(e.u[1]))
             .fold(0.0, f64::max);
+        let springs = self.interfaces.iter().filter(|i| i.b.is_none()).count();
         let mut text = format!(
-            "{} elements, {} interfaces; strain energy {:.6e} J; largest displacement {:.6e} m",
-            self.elements.len(),
-            self.interfaces.len(),
+            "{}, {} between elements and {}; strain energy {:.6e} J; largest displacement \
+             {:.6e} m",
+            count(self.elements.len(), "element", "elements"),
+            count(self.interfaces.len() - springs, "interface", "interfaces"),
+            count(springs, "ground spring", "ground springs"),
             self.energy,
             max
         );

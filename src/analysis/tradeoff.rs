@@ -760,9 +760,8 @@ impl TradeoffReport {
     pub fn write(&self, dir: &Path) -> Result<()> {
         std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
         let (csv, md) = self.tables();
-        let write = |name: &str, text: &str| {
-            std::fs::write(dir.join(name), text).map_err(|e| Error::io(dir.join(name), e))
-        };
+        let write =
+            |name: &str, text: &str| crate::output::write_atomic(&dir.join(name), text.as_bytes());
         write("tradeoff.csv", &csv)?;
         write("tradeoff.md", &md)?;
         let pts: Vec<(f64, f64, bool, String)> = self

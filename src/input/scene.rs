@@ -23,7 +23,8 @@ pub struct Scene {
     /// ignored by `rbsm`.
     #[serde(rename = "$schema", default)]
     pub schema: Option<String>,
-    /// Name of the scene, used in outputs.
+    /// Name of the scene, used in outputs; at most `MAX_NAME` (256) characters.
+    #[schemars(length(max = MAX_NAME))]
     pub name: String,
     #[serde(default)]
     /// `stress` (default) or `strain`.
@@ -305,7 +306,9 @@ impl JsonSchema for InterfaceLawSpec {
 #[derive(Debug, Clone, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct BodySpec {
-    /// Name of the body, used in messages.
+    /// Name of the body, used in messages, `summary.json` and the history's clamp columns; at
+    /// most `MAX_NAME` (256) characters, no two bodies alike (an array's copies included).
+    #[schemars(length(max = MAX_NAME))]
     pub name: String,
     /// Name of its material in `materials`.
     pub material: String,
@@ -355,14 +358,46 @@ pub const HISTORY_COLUMNS: [&str; 7] = [
     "total",
 ];
 
+/// The longest name (characters) of a scene, a body or a probe.
+pub const MAX_NAME: usize = 256;
+
+/// Refuses a name longer than [`MAX_NAME`] characters, naming its key.
+fn bounded_name(field: &str, name: &str) -> Result<()> {
+    let n = name.chars().count();
+    if n <= MAX_NAME {
+        return Ok(());
+    }
+    Err(Error::scene(
+        field,
+        format!("must be at most {MAX_NAME} characters long, got {n}"),
+    ))
+}
+
 /// The largest scene file read (bytes): a scene names its meshes and repeats its bodies with
 /// `array`, so a larger file is not a scene (`/dev/zero`, a mesh given as the scene).
 pub const MAX_SCENE_BYTES: u64 = 256 << 20;
 
-/// The bytes of `path`, refused with an error past `limit` bytes (naming `what` the file was
-/// to be) instead of read to the end.
+/// The bytes of `path`, refused with an error (naming `what` the file was to be) when it is not
+/// a regular file (a FIFO, a device, a folder) or is larger than `limit` bytes, both told by its
+/// metadata before anything is read; a file that grows past `limit` meanwhile is refused when
+/// the reading reaches it.
 pub(crate) fn read_limited(path: &Path, limit: u64, what: &str) -> Result<Vec<u8>> {
     use std::io::Read;
+    let refuse = |why: String| Err(Error::io(path, std::io::Error::other(why)));
+    let meta = std::fs::metadata(path).map_err(|e| Error::io(path, e))?;
+    if !meta.is_file() {
+        return refuse(format!(
+            "not a regular file ({}): not {what}",
+            kind_of(&meta.file_type())
+        ));
+    }
+    if meta.len() > limit {
+        return refuse(format!(
+            "{} bytes, larger than {} MiB: not {what}",
+            meta.len(),
+            limit >> 20
+        ));
+    }
     let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
     let mut bytes = Vec::new();
     file.take(limit + 1)
@@ -375,6 +410,53 @@ pub(crate) fn read_limited(path: &Path, limit: u64, what: &str) -> Result<Vec<u8
         ));
     }
     Ok(bytes)
+}
+
+/// Refuses a softening law whose strength `f` (Pa, the key `strength`) and fracture energy `g`
+/// (J/m², the key `field`) give no finite softening: the strength is exhausted over the opening
+/// `w = 2 g / f` (`model::law::Strength`), along the slope `f / w = f² / (2 g)` (Pa/m); a `w`
+/// that underflows to zero or a slope that overflows gives NaN tractions at the first step.
+fn softening_slope(field: &str, g: f64, strength: &str, f: f64) -> Result<()> {
+    if f == 0.0 {
+        return Ok(());
+    }
+    let w = 2.0 * g / f;
+    if w.is_finite() && w >= f64::MIN_POSITIVE && (f / w).is_finite() {
+        return Ok(());
+    }
+    // The least energy that keeps both finite, rounded up so that it passes itself.
+    let least = (0.5 * f * (f / f64::MAX)).max(0.5 * f * f64::MIN_POSITIVE) * (1.0 + 1e-12);
+    Err(Error::scene(
+        field,
+        format!(
+            "{g:e} J/m² with `{strength}` {f:e} Pa gives a softening slope {strength}²/(2 \
+             {field_name}) that is not a finite number (Pa/m): it must be ≥ {least:e} J/m² for \
+             this `{strength}` (or lower `{strength}`)",
+            field_name = field.rsplit('.').next().unwrap_or(field)
+        ),
+    ))
+}
+
+/// What a file that is not a regular one is: a folder, a FIFO, a device, a socket.
+pub(crate) fn kind_of(t: &std::fs::FileType) -> &'static str {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        if t.is_fifo() {
+            return "a FIFO";
+        }
+        if t.is_char_device() || t.is_block_device() {
+            return "a device";
+        }
+        if t.is_socket() {
+            return "a socket";
+        }
+    }
+    if t.is_dir() {
+        "a folder"
+    } else {
+        "not a file"
+    }
 }
 
 /// Refuses JSON in which an object repeats a key (JSON parsers keep one of the two silently),
@@ -1080,9 +1162,10 @@ fn default_every() -> u64 {
 #[schemars(transform = probe_exactly_one)]
 pub struct ProbeSpec {
     #[serde(default)]
-    /// Column header: no commas, quotes or control characters, none of the history's own
-    /// columns, no two alike; `e<element>_<dof>` or `<dof>_at_<x>_<y>` when absent.
-    #[schemars(length(min = 1))]
+    /// Column header: 1 to `MAX_NAME` (256) characters, no commas, quotes or control
+    /// characters, none of the history's own columns, no two alike; `e<element>_<dof>` or
+    /// `<dof>_at_<x>_<y>` when absent.
+    #[schemars(length(min = 1, max = MAX_NAME))]
     pub name: Option<String>,
     /// Element (global index); give this or `at`.
     #[serde(default)]
@@ -1260,6 +1343,7 @@ impl Scene {
 
     /// Checks every value against its allowed range; the error names the field.
     pub fn validate(&self) -> Result<()> {
+        bounded_name("name", &self.name)?;
         positive("thickness", self.thickness)?;
         if let FormulationSpec::Hybrid { penalty } = self.formulation {
             positive("formulation.penalty", penalty)?;
@@ -1310,6 +1394,17 @@ impl Scene {
                 if let Some([g_f, g_s]) = energies {
                     positive(&at("fracture_energy"), g_f)?;
                     positive(&at("fracture_energy_shear"), g_s)?;
+                    for (energy, g, strength, f) in [
+                        (
+                            "fracture_energy",
+                            g_f,
+                            "tensile_strength",
+                            strength.tensile_strength,
+                        ),
+                        ("fracture_energy_shear", g_s, "cohesion", strength.cohesion),
+                    ] {
+                        softening_slope(&at(energy), g, strength, f)?;
+                    }
                 }
             }
         }
@@ -1347,6 +1442,13 @@ impl Scene {
             }
         }
         let own = columns.len();
+        // Each column's position, for a search per probe that does not grow with the probes.
+        let mut index: std::collections::HashMap<String, usize> = columns
+            .iter()
+            .enumerate()
+            .rev()
+            .map(|(i, c)| (c.clone(), i))
+            .collect();
         for (k, p) in self.output.probes.iter().enumerate() {
             match (p.element, p.at) {
                 (Some(_), None) => {}
@@ -1359,6 +1461,7 @@ impl Scene {
                 }
             }
             let (field, column) = (format!("output.probes[{k}].name"), p.column());
+            bounded_name(&field, &column)?;
             if column.is_empty()
                 || column
                     .chars()
@@ -1372,7 +1475,7 @@ impl Scene {
                     ),
                 ));
             }
-            if let Some(i) = columns.iter().position(|c| *c == column) {
+            if let Some(&i) = index.get(&column) {
                 let what = if i < own {
                     "one of the history's own columns".to_string()
                 } else {
@@ -1383,11 +1486,13 @@ impl Scene {
                     format!("`{column}` is {what}: every column needs its own name"),
                 ));
             }
-            columns.push(column);
+            index.insert(column, own + k);
         }
         for (i, b) in self.bodies.iter().enumerate() {
+            bounded_name(&format!("bodies[{i}].name"), &b.name)?;
             self.validate_body(i, b)?;
         }
+        self.refuse_duplicate_bodies()?;
         for (i, g) in self.ground.iter().enumerate() {
             finite_all(&format!("ground[{i}].from"), &g.from)?;
             finite_all(&format!("ground[{i}].to"), &g.to)?;
@@ -1447,6 +1552,57 @@ impl Scene {
                 "output.checkpoint_every",
                 "must be ≥ 1 (steps between checkpoints), or absent for none",
             ));
+        }
+        Ok(())
+    }
+
+    /// Refuses two bodies of the same name, an array's copies (`name[i,j]`) included: the
+    /// history's clamp columns, `summary.json` and the messages tell bodies by their names.
+    fn refuse_duplicate_bodies(&self) -> Result<()> {
+        let mut first = std::collections::HashMap::with_capacity(self.bodies.len());
+        for (k, b) in self.bodies.iter().enumerate() {
+            if let Some(j) = first.insert(b.name.as_str(), k) {
+                return Err(Error::scene(
+                    format!("bodies[{k}].name"),
+                    format!(
+                        "`{}` is the name of `bodies[{j}]` too: every body needs a name of its own",
+                        b.name
+                    ),
+                ));
+            }
+        }
+        // A name `base[i,j]` that is a copy of the array `base` (an array's own name is not
+        // used: its copies have theirs).
+        for (k, b) in self
+            .bodies
+            .iter()
+            .enumerate()
+            .filter(|(_, b)| b.array.is_none())
+        {
+            let Some((base, index)) = b.name.strip_suffix(']').and_then(|n| n.rsplit_once('['))
+            else {
+                continue;
+            };
+            let Some((i, j)) = index
+                .split_once(',')
+                .and_then(|(i, j)| Some((i.parse::<usize>().ok()?, j.parse::<usize>().ok()?)))
+            else {
+                continue;
+            };
+            if let Some(&a) = first.get(base) {
+                if let Some(array) = &self.bodies[a].array {
+                    if i < array.count[0] && j < array.count[1] && index == format!("{i},{j}") {
+                        return Err(Error::scene(
+                            format!("bodies[{k}].name"),
+                            format!(
+                                "`{}` is the name of a copy of `bodies[{a}]` (its `array`): \
+                                 every body needs a name of its own",
+                                b.name
+                            ),
+                        ));
+                    }
+                }
+            }
         }
         Ok(())
     }
@@ -1519,14 +1675,21 @@ impl Scene {
                 }
             }
             MeshSpec::Gmsh(GmshSpec { path }) => {
-                if !path.is_file() {
-                    return Err(Error::scene(
-                        at("mesh.path"),
-                        format!(
-                            "no file `{}` (a relative path starts at the scene file's directory)",
-                            path.display()
-                        ),
-                    ));
+                let problem = match std::fs::metadata(path) {
+                    Ok(m) if m.is_file() => None,
+                    Ok(m) => Some(format!(
+                        "`{}` is not a regular file ({}): give a gmsh mesh file",
+                        path.display(),
+                        kind_of(&m.file_type())
+                    )),
+                    Err(e) if e.kind() == std::io::ErrorKind::NotFound => Some(format!(
+                        "no file `{}` (a relative path starts at the scene file's directory)",
+                        path.display()
+                    )),
+                    Err(e) => Some(format!("`{}`: {e}", path.display())),
+                };
+                if let Some(message) = problem {
+                    return Err(Error::scene(at("mesh.path"), message));
                 }
             }
         }

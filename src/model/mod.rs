@@ -216,6 +216,32 @@ impl Model {
                 .get(body.first_interface)
                 .is_some_and(Option::is_some)
     }
+
+    /// Number of ground springs: the interfaces tied to ground (`b == GROUND`). The others
+    /// are the interfaces between elements.
+    pub fn ground_springs(&self) -> usize {
+        self.interfaces.iter().filter(|i| i.b == GROUND).count()
+    }
+}
+
+/// The elements found at points ([`Model::elements_at`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Located {
+    /// The element (global index) containing each point, `None` for a point in none.
+    pub elements: Vec<Option<usize>>,
+    /// Point-in-polygon tests made: about one per point when the points are spread over the
+    /// elements (a search that tried every element for every point made their product).
+    pub tests: u64,
+}
+
+/// Whether the polygon `cell` holds `x`, inside or on its boundary (within 1e-12 of an edge's
+/// length of the edge).
+fn cell_holds(cell: &[Vec2], x: Vec2) -> bool {
+    let n = cell.len();
+    (0..n).any(|i| {
+        let (a, b) = (cell[i], cell[(i + 1) % n]);
+        crate::mesh::geometry::point_segment_distance(x, a, b) <= 1e-12 * (a - b).norm()
+    }) || crate::mesh::geometry::point_in_polygon(x, cell)
 }
 
 /// The numerators of eq. 12, `k_n = E_n / (h_a + h_b)`, `k_s = E_s / (h_a + h_b)`:
@@ -474,8 +500,8 @@ impl Model {
         model.check_finite(scene)?;
         model.fixed.sort_unstable();
         model.fixed.dedup();
+        model.probe_elements(&scene.output.probes)?;
         for (k, p) in scene.output.probes.iter().enumerate() {
-            model.probe_element(k, p)?;
             dof_index(&p.dof, formulation, &format!("output.probes[{k}].dof"))?;
         }
         Ok(model)
@@ -576,41 +602,98 @@ impl Model {
     /// The element (global index) containing the reference point `x`: the first whose polygon
     /// holds it, inside or on its boundary.
     pub fn element_at(&self, x: Vec2) -> Option<usize> {
-        self.bodies.iter().find_map(|b| {
-            (0..b.mesh.n_cells()).find_map(|c| {
-                let pts = b.mesh.cell_points(c);
-                let n = pts.len();
-                let on_edge = (0..n).any(|i| {
-                    crate::mesh::geometry::point_segment_distance(x, pts[i], pts[(i + 1) % n])
-                        <= 1e-12 * (pts[i] - pts[(i + 1) % n]).norm()
-                });
-                (on_edge || crate::mesh::geometry::point_in_polygon(x, &pts))
-                    .then_some(b.first_element + c)
-            })
-        })
+        self.elements_at(&[x]).elements[0]
     }
 
-    /// The element of probe `k`: its `element`, checked, or the one containing its `at`.
-    pub fn probe_element(&self, k: usize, p: &crate::input::scene::ProbeSpec) -> Result<usize> {
-        match (p.element, p.at) {
-            (_, Some([x, y])) => self.element_at(Vec2::new(x, y)).ok_or_else(|| {
-                Error::scene(
-                    format!("output.probes[{k}].at"),
-                    format!(
-                        "[{x}, {y}] lies in no element (a point of the reference configuration, m)"
-                    ),
-                )
-            }),
-            (Some(e), None) if e < self.elements.len() => Ok(e),
-            (e, None) => Err(Error::scene(
-                format!("output.probes[{k}].element"),
-                format!(
-                    "must lie in 0..{} (global element index), got {}",
-                    self.elements.len(),
-                    e.map_or("nothing".into(), |e| e.to_string())
-                ),
-            )),
+    /// The element (global index) containing each reference point of `points`, as
+    /// [`Model::element_at`] finds it. The points are filed in a bucket grid and each element
+    /// is tested against the points near its box only, so that the search is linear in the
+    /// number of elements and of points, not their product.
+    pub fn elements_at(&self, points: &[Vec2]) -> Located {
+        let mut found = Located {
+            elements: vec![None; points.len()],
+            tests: 0,
+        };
+        let Some(&first) = points.first() else {
+            return found;
+        };
+        let (lo, hi) = points
+            .iter()
+            .fold((first, first), |(lo, hi), p| (lo.inf(p), hi.sup(p)));
+        let grid = crate::mesh::buckets::Buckets::new(lo, hi, points.len());
+        let mut lists = crate::mesh::buckets::BucketLists::default();
+        lists.fill(&grid, points.len(), |i| (points[i], points[i]));
+        let mut left = points.len();
+        let mut cell = Vec::new();
+        for b in &self.bodies {
+            for c in 0..b.mesh.n_cells() {
+                cell.clear();
+                cell.extend(b.mesh.cell(c).iter().map(|&v| b.mesh.vertices[v as usize]));
+                let (clo, chi) = cell
+                    .iter()
+                    .fold((cell[0], cell[0]), |(l, h), p| (l.inf(p), h.sup(p)));
+                // A point on an edge is in the cell within 1e-12 of the edge's length, so
+                // within that of the box's diagonal.
+                let tol = Vec2::repeat(2e-12 * (chi - clo).norm());
+                let (clo, chi) = (clo - tol, chi + tol);
+                if !crate::mesh::buckets::boxes_meet((clo, chi), (lo, hi)) {
+                    continue;
+                }
+                for k in grid.touching(clo, chi) {
+                    for &i in lists.bucket(k) {
+                        let (i, x) = (i as usize, points[i as usize]);
+                        if found.elements[i].is_some()
+                            || !crate::mesh::buckets::boxes_meet((clo, chi), (x, x))
+                        {
+                            continue;
+                        }
+                        found.tests += 1;
+                        if cell_holds(&cell, x) {
+                            found.elements[i] = Some(b.first_element + c);
+                            left -= 1;
+                        }
+                    }
+                }
+                if left == 0 {
+                    return found;
+                }
+            }
         }
+        found
+    }
+
+    /// The element of each probe of `probes` (`output.probes`): its `element`, checked, or the
+    /// one containing its `at`, all found in one search ([`Model::elements_at`]).
+    pub fn probe_elements(&self, probes: &[crate::input::scene::ProbeSpec]) -> Result<Vec<usize>> {
+        let points: Vec<Vec2> = probes
+            .iter()
+            .filter_map(|p| p.at.map(|[x, y]| Vec2::new(x, y)))
+            .collect();
+        let mut located = self.elements_at(&points).elements.into_iter();
+        probes
+            .iter()
+            .enumerate()
+            .map(|(k, p)| match (p.element, p.at) {
+                (_, Some([x, y])) => located.next().flatten().ok_or_else(|| {
+                    Error::scene(
+                        format!("output.probes[{k}].at"),
+                        format!(
+                            "[{x}, {y}] lies in no element (a point of the reference \
+                             configuration, m)"
+                        ),
+                    )
+                }),
+                (Some(e), None) if e < self.elements.len() => Ok(e),
+                (e, None) => Err(Error::scene(
+                    format!("output.probes[{k}].element"),
+                    format!(
+                        "must lie in 0..{} (global element index), got {}",
+                        self.elements.len(),
+                        e.map_or("nothing".into(), |e| e.to_string())
+                    ),
+                )),
+            })
+            .collect()
     }
 
     /// Number of DOFs, free and fixed.

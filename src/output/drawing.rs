@@ -255,9 +255,10 @@ pub fn model_svg(model: &Model) -> String {
     ];
     let key: Vec<&str> = key.iter().filter(|k| k.0).map(|k| k.1).collect();
     let caption = format!(
-        "{}: {} elements, {pairs} interfaces; {}",
+        "{}: {}, {}; {}",
         model.name,
-        model.elements.len(),
+        crate::output::count(model.elements.len(), "element", "elements"),
+        crate::output::count(pairs, "interface", "interfaces"),
         key.join(", ")
     );
     cv.text(cv.margin, 20.0, 13.0, &caption);
@@ -399,8 +400,7 @@ pub fn write_mode_shapes(
             omega / (2.0 * std::f64::consts::PI)
         );
         let path = dir.join(format!("mode_{:03}.svg", k + 1));
-        std::fs::write(&path, displaced_svg(model, shape, &caption))
-            .map_err(|e| Error::io(&path, e))?;
+        crate::output::write_atomic(&path, displaced_svg(model, shape, &caption).as_bytes())?;
     }
     Ok(())
 }

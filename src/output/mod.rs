@@ -25,8 +25,11 @@ pub struct Summary {
     pub evaluator: String,
     /// Number of elements.
     pub elements: usize,
-    /// Number of interfaces (ground springs included).
+    /// Number of interfaces between elements (as `rbsm check` and the run's information line
+    /// count them).
     pub interfaces: usize,
+    /// Number of ground springs (interfaces tied to ground by a support).
+    pub ground_springs: usize,
     /// Free DOFs (fixed ones excluded).
     pub dofs: usize,
     /// Time step (s).
@@ -264,11 +267,12 @@ impl History {
         }
     }
 
-    /// Creates `history.csv` in `dir` and writes the header; the rows are kept in memory too
+    /// Creates `history.csv` in `dir` (a new file renamed into place: a symbolic link there is
+    /// replaced, not written through) and writes the header; the rows are kept in memory too
     /// when `keep` is set.
     pub fn create(dir: &Path, columns: Columns, keep: bool) -> Result<History> {
         let path = dir.join("history.csv");
-        let file = std::fs::File::create(&path).map_err(|e| Error::io(&path, e))?;
+        let file = write_atomic_open(&path, &[])?;
         let mut h = History {
             file: Some((file, path, 0)),
             columns,
@@ -279,27 +283,51 @@ impl History {
     }
 
     /// Opens the history of an earlier run to go on after its first `len` bytes (the rows up to
-    /// a checkpoint); the rest is cut off. Rows kept in memory start at the checkpoint.
+    /// a checkpoint); the rest is cut off. Rows kept in memory start at the checkpoint. A
+    /// symbolic link in its place is replaced by a file of those bytes, its target left alone.
     pub fn resume(dir: &Path, columns: Columns, len: u64, keep: bool) -> Result<History> {
+        use std::io::{Read, Seek};
         let path = dir.join("history.csv");
-        let file = std::fs::OpenOptions::new()
-            .write(true)
-            .open(&path)
-            .map_err(|e| Error::io(&path, e))?;
-        let have = file.metadata().map_err(|e| Error::io(&path, e))?.len();
-        if have < len {
-            return Err(Error::io(
+        let fail = |e| Error::io(&path, e);
+        let short = |have: u64| {
+            Error::io(
                 &path,
                 std::io::Error::other(format!(
                     "holds {have} bytes, shorter than the {len} the checkpoint counts"
                 )),
+            )
+        };
+        let kind = std::fs::symlink_metadata(&path).map_err(fail)?.file_type();
+        let file = if kind.is_file() {
+            let mut file = std::fs::OpenOptions::new()
+                .write(true)
+                .open(&path)
+                .map_err(fail)?;
+            let have = file.metadata().map_err(fail)?.len();
+            if have < len {
+                return Err(short(have));
+            }
+            file.set_len(len).map_err(fail)?;
+            file.seek(std::io::SeekFrom::Start(len)).map_err(fail)?;
+            file
+        } else if kind.is_symlink() {
+            let mut bytes = Vec::new();
+            std::fs::File::open(&path)
+                .and_then(|f| f.take(len).read_to_end(&mut bytes))
+                .map_err(fail)?;
+            if (bytes.len() as u64) < len {
+                return Err(short(bytes.len() as u64));
+            }
+            write_atomic_open(&path, &bytes)?
+        } else {
+            return Err(Error::io(
+                &path,
+                std::io::Error::other(format!(
+                    "not a regular file ({})",
+                    crate::input::scene::kind_of(&kind)
+                )),
             ));
-        }
-        file.set_len(len).map_err(|e| Error::io(&path, e))?;
-        let mut file = file;
-        use std::io::Seek;
-        file.seek(std::io::SeekFrom::Start(len))
-            .map_err(|e| Error::io(&path, e))?;
+        };
         Ok(History {
             file: Some((file, path, len)),
             columns,
@@ -587,14 +615,40 @@ pub fn temporary(path: &Path) -> PathBuf {
 }
 
 /// Writes `bytes` to a temporary name beside `path`, then renames it over `path`: readers, and
-/// a process killed half way, see the old file whole or the new one whole.
+/// a process killed half way, see the old file whole or the new one whole. Nothing is written
+/// through a symbolic link: one at `path` is replaced by the file (its target left alone), and
+/// the temporary file is created anew ([`create_fresh`]).
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    write_atomic_open(path, bytes).map(drop)
+}
+
+/// [`write_atomic`], returning the file written, open for writing at its end: a file that
+/// grows (`history.csv`, the collections of VTK frames) goes on through this handle, never
+/// through whatever the name may later point to.
+pub fn write_atomic_open(path: &Path, bytes: &[u8]) -> Result<std::fs::File> {
     let tmp = temporary(path);
-    std::fs::write(&tmp, bytes).map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        Error::io(path, e)
-    })?;
-    std::fs::rename(&tmp, path).map_err(|e| Error::io(path, e))
+    let written = create_fresh(&tmp).and_then(|mut file| file.write_all(bytes).map(|_| file));
+    let file = written
+        .and_then(|file| std::fs::rename(&tmp, path).map(|_| file))
+        .map_err(|e| {
+            let _ = std::fs::remove_file(&tmp);
+            Error::io(path, e)
+        })?;
+    Ok(file)
+}
+
+/// Creates the file `path` anew for writing: what is there (a file, a symbolic link) is removed
+/// first, and the file is created only if nothing is there then (`O_EXCL`, which follows no
+/// link), so that the write cannot land in a link's target.
+pub fn create_fresh(path: &Path) -> std::io::Result<std::fs::File> {
+    match std::fs::remove_file(path) {
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => return Err(e),
+        _ => {}
+    }
+    std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(path)
 }
 
 /// `probes.csv`: the columns `keys`, then one column per probe (its unit in the
@@ -623,7 +677,8 @@ pub fn write_probe_rows(
     crate::output::write_atomic(&dir.join("probes.csv"), text.as_bytes())
 }
 
-/// `1 body`, `2 bodies`.
+/// `1 body`, `2 bodies`, `0 bodies`: the one way every report and information line counts
+/// things.
 pub fn count(n: usize, one: &str, many: &str) -> String {
     format!("{n} {}", if n == 1 { one } else { many })
 }

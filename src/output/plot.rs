@@ -314,16 +314,21 @@ fn panel(
     Ok(())
 }
 
-/// Creates the SVG `path` of `size` pixels, lets `draw` fill it, and writes it.
+/// Draws the SVG of `size` pixels that `draw` fills, and writes it to `path`
+/// ([`crate::output::write_atomic`]).
 fn svg_file(
     path: &Path,
     size: (u32, u32),
     draw: impl FnOnce(&DrawingArea<SVGBackend, plotters::coord::Shift>) -> Result<()>,
 ) -> Result<()> {
-    let root = SVGBackend::new(path, size).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| failed(path, e))?;
-    draw(&root)?;
-    root.present().map_err(|e| failed(path, e))
+    let mut text = String::new();
+    {
+        let root = SVGBackend::with_string(&mut text, size).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| failed(path, e))?;
+        draw(&root)?;
+        root.present().map_err(|e| failed(path, e))?;
+    }
+    crate::output::write_atomic(path, text.as_bytes())
 }
 
 /// The columns of a run's `history.csv` that are energies (J), the rest being probes.

@@ -63,18 +63,12 @@ struct Collection {
 }
 
 impl Collection {
-    /// Writes the collection `path` listing `frames` and opens it to add more.
+    /// Writes the collection `path` listing `frames` and keeps it open to add more (through
+    /// the file written, never through a link at `path`).
     fn open(path: PathBuf, frames: &[(f64, String)]) -> Result<Collection> {
-        write_collection(&path, frames)?;
-        let tail = (HEAD.len()
-            + frames
-                .iter()
-                .map(|(t, f)| entry(*t, f).len())
-                .sum::<usize>()) as u64;
-        let file = std::fs::OpenOptions::new()
-            .write(true)
-            .open(&path)
-            .map_err(|e| Error::io(&path, e))?;
+        let xml = collection_xml(frames);
+        let file = crate::output::write_atomic_open(&path, xml.as_bytes())?;
+        let tail = (xml.len() - TAIL.len()) as u64;
         Ok(Collection { path, file, tail })
     }
 
@@ -112,19 +106,6 @@ fn prune(dir: &Path, keep: &std::collections::HashSet<String>) -> Result<()> {
         }
     }
     Ok(())
-}
-
-/// Writes `path` through its temporary name, which is removed when writing fails.
-fn write_whole(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
-    let tmp = crate::output::temporary(path);
-    if let Err(e) = write(&tmp) {
-        let _ = std::fs::remove_file(&tmp);
-        return Err(match e {
-            Error::Io { source, .. } => Error::io(path, source),
-            other => other,
-        });
-    }
-    std::fs::rename(&tmp, path).map_err(|e| Error::io(path, e))
 }
 
 impl<'a> VtkSeries<'a> {
@@ -175,16 +156,12 @@ impl<'a> VtkSeries<'a> {
     /// collection(s).
     pub fn write(&mut self, model: &Model, s: &Snapshot) -> Result<()> {
         let name = format!("vtk/step_{:09}.vtu", s.step);
-        write_whole(&self.dir.join(&name), |tmp| {
-            write_frame(tmp, model, s.u, s.v, Placement::Current)
-        })?;
+        write_frame(&self.dir.join(&name), model, s.u, s.v, Placement::Current)?;
         let cracks = match (&self.cracks, s.failure) {
             (Some((plastic, _)), Some(state)) => {
                 let crack = crack_frame(&name);
                 let report = plastic.report(state);
-                write_whole(&self.dir.join(&crack), |tmp| {
-                    write_cracks(tmp, model, s.u, &report)
-                })?;
+                write_cracks(&self.dir.join(&crack), model, s.u, &report)?;
                 Some(crack)
             }
             _ => None,
@@ -352,7 +329,8 @@ pub fn write_cracks(
 }
 
 /// Writes one unstructured grid as a VTK XML file (`.vtu`, binary, inline): its points
-/// (x, y, z), its cells as `(connectivity, offsets)` with their types, and the cell data.
+/// (x, y, z), its cells as `(connectivity, offsets)` with their types, and the cell data;
+/// through a temporary name ([`crate::output::write_atomic`]).
 fn write_grid(
     path: &Path,
     points: Vec<f64>,
@@ -406,7 +384,7 @@ fn write_grid(
             1,
         );
     }
-    std::fs::write(path, xml).map_err(|e| Error::io(path, e))
+    crate::output::write_atomic(path, xml.as_bytes())
 }
 
 /// Writes each mode shape as `DIR/mode_NNN.vtu` and the collection `DIR/modes.pvd` (one time
@@ -447,10 +425,15 @@ pub fn write_mode_shapes(dir: &Path, model: &Model, shapes: &[Vec<f64>]) -> Resu
 
 /// Writes a collection listing `frames` (time, file name relative to the collection).
 pub fn write_collection(path: &Path, frames: &[(f64, String)]) -> Result<()> {
+    crate::output::write_atomic(path, collection_xml(frames).as_bytes())
+}
+
+/// The collection listing `frames`, ending with [`TAIL`].
+fn collection_xml(frames: &[(f64, String)]) -> String {
     let mut xml = String::from(HEAD);
     for (t, f) in frames {
         xml.push_str(&entry(*t, f));
     }
     xml.push_str(TAIL);
-    crate::output::write_atomic(path, xml.as_bytes())
+    xml
 }

@@ -8,7 +8,7 @@ use crate::analysis::setup::Setup;
 use crate::error::{Error, Result};
 use crate::output::vtk::VtkSeries;
 use crate::output::{
-    self, ClampSummary, Columns, ContactSummary, EnergySummary, FailureSummary, History,
+    self, count, ClampSummary, Columns, ContactSummary, EnergySummary, FailureSummary, History,
     ProbeColumn, Summary,
 };
 use crate::step::integrator::Status;
@@ -155,24 +155,27 @@ pub fn simulate(
         }
         None
     };
-    let ground_springs = model
-        .interfaces
-        .iter()
-        .filter(|i| i.b == crate::model::GROUND)
-        .count();
+    let ground_springs = model.ground_springs();
     monitor.info(&format!(
-        "{}: {} elements, {} interfaces between elements and {} ground springs, {} free DOFs ({} \
-            formulation, {} evaluator, {} threads)",
+        "{}: {}, {} between elements and {}, {} ({} formulation, {} evaluator, {})",
         model.name,
-        model.elements.len(),
-        model.interfaces.len() - ground_springs,
-        ground_springs,
-        model.n_free_dofs(),
+        count(model.elements.len(), "element", "elements"),
+        count(
+            model.interfaces.len() - ground_springs,
+            "interface",
+            "interfaces"
+        ),
+        count(ground_springs, "ground spring", "ground springs"),
+        count(model.n_free_dofs(), "free DOF", "free DOFs"),
         model.formulation.name(),
         p.evaluator.kind().name(),
-        rayon::current_num_threads()
+        count(rayon::current_num_threads(), "thread", "threads")
     ));
-    monitor.info(&format!("{}, {} steps", p.limit.describe(p.dt), p.steps));
+    monitor.info(&format!(
+        "{}, {}",
+        p.limit.describe(p.dt),
+        count(p.steps as usize, "step", "steps")
+    ));
     let mut warnings = p.warnings();
     for w in &warnings {
         monitor.info(&format!("warning: {w}"));
@@ -340,7 +343,8 @@ pub fn simulate(
         formulation: model.formulation.name().into(),
         evaluator: p.evaluator.kind().name().into(),
         elements: model.elements.len(),
-        interfaces: model.interfaces.len(),
+        interfaces: model.interfaces.len() - model.ground_springs(),
+        ground_springs: model.ground_springs(),
         dofs: model.n_free_dofs(),
         dt: p.dt,
         dt_crit: p.limit.dt_crit(),
@@ -420,10 +424,10 @@ impl crate::analysis::Report for Summary {
                 )
             }
             None => format!(
-                "{}: ok, {} steps (t = {:.6e} s) in {:.3} s; energy drift {:.3e} of the largest \
+                "{}: ok, {} (t = {:.6e} s) in {:.3} s; energy drift {:.3e} of the largest \
                     energy; outputs in {}",
                 self.scene,
-                self.steps,
+                count(self.steps as usize, "step", "steps"),
                 self.t_end,
                 self.wall_time_s,
                 self.energy.max_relative_drift,

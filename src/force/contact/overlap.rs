@@ -331,6 +331,20 @@ impl Overlap {
             }
         }
         let (neighbour_start, neighbours) = neighbours(model);
+        // The segments by end point, for the joints: `ends[0]` by their `to`, `ends[1]` by
+        // their `from`, each point with the first two segments there in index order (one of
+        // them is not the asking segment). Exact equality as before: `+ 0.0` makes −0 and 0 one
+        // key, and the points are finite (validated).
+        let key = |p: Vec2| ((p.x + 0.0).to_bits(), (p.y + 0.0).to_bits());
+        let mut ends: [rustc_hash::FxHashMap<(u64, u64), [u32; 2]>; 2] = Default::default();
+        for (j, h) in model.ground.iter().enumerate() {
+            for (side, p) in [(0, h[1]), (1, h[0])] {
+                let slot = ends[side].entry(key(p)).or_insert([NONE; 2]);
+                if let Some(free) = slot.iter_mut().find(|s| **s == NONE) {
+                    *free = j as u32;
+                }
+            }
+        }
         for (gi, g) in model.ground.iter().enumerate() {
             // The strip below the segment, stored `to → from` as a body's boundary is (solid on
             // the left), closed at each end by a wall: perpendicular at a free end, the bisector
@@ -351,11 +365,13 @@ impl Overlap {
                 None => (-n, true),
             };
             let joined = |at: Vec2, me_from: bool| {
-                model.ground.iter().enumerate().find_map(|(j, h)| {
-                    // A joint: this segment's `from` is another's `to`, or the reverse.
-                    let (end, other) = if me_from { (h[1], h[0]) } else { (h[0], h[1]) };
-                    (j != gi && end == at).then_some(other)
-                })
+                // A joint: this segment's `from` is another's `to` (whose `from` is returned),
+                // or its `to` another's `from` (whose `to` is returned); the first such other.
+                let (side, other) = if me_from { (0, 0) } else { (1, 1) };
+                ends[side]
+                    .get(&key(at))
+                    .and_then(|s| s.iter().find(|&&j| j != NONE && j as usize != gi))
+                    .map(|&j| model.ground[j as usize][other])
             };
             let (down_from, free_from) = wall(from, joined(from, true));
             let (down_to, free_to) = wall(to, joined(to, false));
