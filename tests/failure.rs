@@ -620,3 +620,64 @@ fn the_peak_reaction_does_not_depend_on_the_output_rows() {
         "the rows of every 500 steps miss the peak: {a:?} {b:?}"
     );
 }
+
+/// A checkpoint changed in any one byte, or cut short, is refused with its file's name (its
+/// checksum); one that is whole but belongs to another model (the same bodies, another
+/// ground) is refused when its state is restored, before any of its indices is used.
+#[test]
+fn a_damaged_or_foreign_checkpoint_is_refused() {
+    use rbsm::analysis::run::checkpoint::{Checkpoint, FILE};
+    let mut scene = bundled("beam_drop.json");
+    scene["bodies"][0]["mesh"]["sites"] = json!(30);
+    scene["time"]["end"] = json!(0.03);
+    let s = setup(&scene, EvaluatorKind::ElementWise);
+    let mut cd = s.integrator(s.dt);
+    cd.run(s.steps, s.steps, |_, _| Ok(()), |_| {}).unwrap();
+    let report = s.plastic.as_ref().unwrap().report(cd.failure().unwrap());
+    assert!(
+        report.iter().any(|i| i.status != "elastic"),
+        "the beam has landed"
+    );
+    let state = cd.state();
+    let parsed = Scene::from_json(&scene.to_string()).unwrap();
+    let opts = Overrides {
+        evaluator: Some(EvaluatorKind::ElementWise),
+        ..Overrides::default()
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let checkpoint = Checkpoint::new(&parsed, &opts, state.clone(), 0, vec![], None, 0.0);
+    checkpoint.write(dir.path()).unwrap();
+    let path = dir.path().join(FILE);
+    let whole = std::fs::read(&path).unwrap();
+    Checkpoint::read(dir.path(), &parsed, &opts).expect("the checkpoint as written");
+    // Every byte of the first and last 64, and 400 spread over the rest.
+    let n = whole.len();
+    let mut at: Vec<usize> = (0..64).chain(n - 64..n).collect();
+    at.extend((0..400).map(|k| 64 + k * (n - 128) / 400));
+    for &i in &at {
+        let mut bytes = whole.clone();
+        bytes[i] ^= 1 << (i % 8);
+        std::fs::write(&path, &bytes).unwrap();
+        let err = Checkpoint::read(dir.path(), &parsed, &opts)
+            .expect_err("a changed byte")
+            .to_string();
+        assert!(
+            err.contains(FILE) && err.contains("damaged"),
+            "byte {i}: {err}"
+        );
+    }
+    for keep in [0, 7, n / 2, n - 1] {
+        std::fs::write(&path, &whole[..keep]).unwrap();
+        assert!(
+            Checkpoint::read(dir.path(), &parsed, &opts).is_err(),
+            "{keep} bytes"
+        );
+    }
+    // The same beam over another ridge: the contact's edges are not the saved ones.
+    let mut other = scene.clone();
+    other["ground"][1]["to"] = json!([1.0, 0.02]);
+    let s2 = setup(&other, EvaluatorKind::ElementWise);
+    let mut cd2 = s2.integrator(s.dt);
+    let err = cd2.restore(state).expect_err("another ground");
+    assert!(err.contains("not this model's"), "{err}");
+}

@@ -564,15 +564,16 @@ impl<'a> CentralDifference<'a> {
                 self.u.len()
             ));
         }
-        if state.contact.is_some() != self.contact.is_some() {
-            return Err("one of the two has contact and the other not".into());
+        match (&self.contact, &state.contact) {
+            (Some(fresh), Some(saved)) => fresh.check_saved(saved)?,
+            (None, None) => {}
+            _ => return Err("one of the two has contact and the other not".into()),
         }
         if state.peaks.len() != self.peaks.len() {
             return Err("the moving clamps differ".into());
         }
-        if state.failure.as_ref().map(|s| s.points.len())
-            != self.failure.as_ref().map(|(_, s)| s.points.len())
-        {
+        let sizes = |s: &FailureState| (s.points.len(), s.released.len());
+        if state.failure.as_ref().map(sizes) != self.failure.as_ref().map(|(_, s)| sizes(s)) {
             return Err("the failing interfaces differ".into());
         }
         self.step = state.step;

@@ -1,6 +1,9 @@
 //! Checkpoints (`output.checkpoint_every`): the whole state of a run at a recorded step, so that
 //! `rbsm run SCENE --resume DIR` goes on from there and ends with the outputs, byte for byte,
-//! of a run that was never stopped. One file, `DIR/checkpoint.bin`, written atomically.
+//! of a run that was never stopped. One file, `DIR/checkpoint.bin`, written atomically: the
+//! state (postcard), then a 64-bit FNV-1a checksum of it, so that a file changed in any one
+//! byte (or cut short) is refused, not resumed; what it restores is then checked against the
+//! model (`CentralDifference::restore`).
 
 use crate::analysis::setup::Overrides;
 use crate::error::{Error, Result};
@@ -34,6 +37,14 @@ pub struct Checkpoint {
     pub rotation: f64,
 }
 
+/// FNV-1a, 64 bits. Each step `h ← (h ⊕ b) · p` is a bijection of `h` for a given byte, so two
+/// inputs of one length that differ in a single byte always hash differently.
+fn fnv1a(bytes: impl IntoIterator<Item = u8>) -> u64 {
+    bytes.into_iter().fold(0xcbf2_9ce4_8422_2325u64, |h, b| {
+        (h ^ b as u64).wrapping_mul(0x0100_0000_01b3)
+    })
+}
+
 /// A hash (FNV-1a, 64 bits) of everything that decides a run: the scene as parsed (its `Debug`
 /// form, which prints every number exactly) and the command-line overrides.
 pub fn fingerprint(scene: &Scene, opts: &Overrides) -> u64 {
@@ -47,9 +58,7 @@ pub fn fingerprint(scene: &Scene, opts: &Overrides) -> u64 {
         opts.steps,
         if opts.exact_dt_crit { "|exact" } else { "" }
     );
-    text.bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| {
-        (h ^ b as u64).wrapping_mul(0x0100_0000_01b3)
-    })
+    fnv1a(text.bytes())
 }
 
 impl Checkpoint {
@@ -77,8 +86,10 @@ impl Checkpoint {
     /// Writes `DIR/checkpoint.bin` atomically.
     pub fn write(&self, dir: &Path) -> Result<()> {
         let path = dir.join(FILE);
-        let bytes = postcard::to_stdvec(self)
+        let mut bytes = postcard::to_stdvec(self)
             .map_err(|e| Error::io(&path, std::io::Error::other(e.to_string())))?;
+        let sum = fnv1a(bytes.iter().copied());
+        bytes.extend_from_slice(&sum.to_le_bytes());
         output::write_atomic(&path, &bytes)
     }
 
@@ -96,7 +107,20 @@ impl Checkpoint {
             _ => Error::io(&path, e),
         })?;
         let bad = |why: String| Error::io(&path, std::io::Error::other(why));
-        let checkpoint: Checkpoint = postcard::from_bytes(&bytes)
+        let damaged = || {
+            bad(
+                "damaged: its checksum does not match its contents (a changed or missing \
+                byte); start the run again"
+                    .into(),
+            )
+        };
+        let (body, sum) = bytes
+            .split_at_checked(bytes.len().wrapping_sub(8))
+            .ok_or_else(damaged)?;
+        if fnv1a(body.iter().copied()).to_le_bytes() != sum {
+            return Err(damaged());
+        }
+        let checkpoint: Checkpoint = postcard::from_bytes(body)
             .map_err(|e| bad(format!("not a checkpoint of this version of rbsm ({e})")))?;
         if checkpoint.format != FORMAT {
             return Err(bad(format!(

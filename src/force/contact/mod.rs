@@ -290,8 +290,54 @@ impl Contact {
         }
     }
 
-    /// Goes on from `saved`, the contact state of a checkpoint of a run of the same model,
-    /// keeping this contact's interface law (a checkpoint holds none).
+    /// Whether `saved`, the contact state of a checkpoint, belongs to this contact's model (in
+    /// its initial state): the same vertices, edges and targets, and every index it holds
+    /// (contacts, neighbour lists, pieces, forces) within them. `Err` says what is off.
+    pub fn check_saved(&self, saved: &Contact) -> std::result::Result<(), String> {
+        let bytes = |x: &dyn erased::Bytes| x.bytes();
+        if bytes(&self.vertices) != bytes(&saved.vertices)
+            || bytes(&self.edges) != bytes(&saved.edges)
+            || bytes(&self.settings) != bytes(&saved.settings)
+        {
+            return Err("its contact vertices and edges are not this model's".into());
+        }
+        let (nv, ne) = (self.vertices.len(), self.edges.len());
+        let lengths = [
+            (saved.points.len(), self.points.len()),
+            (saved.previous.len(), nv),
+            (saved.anchors.len(), nv),
+            (saved.stamp.len(), ne),
+        ];
+        if lengths.iter().any(|(a, b)| a != b) {
+            return Err("its contact points are not this model's".into());
+        }
+        let records = saved.records.iter().chain(&saved.fresh);
+        if records
+            .clone()
+            .any(|r| r.vertex as usize >= nv || r.edge as usize >= ne)
+        {
+            return Err("a vertex contact names a vertex or an edge out of range".into());
+        }
+        let start = &saved.near_start;
+        if !(start.is_empty() && saved.near.is_empty())
+            && (start.len() != nv + 1
+                || start.windows(2).any(|w| w[0] > w[1])
+                || start.last().is_some_and(|&l| l as usize > saved.near.len())
+                || saved.near.iter().any(|&e| e as usize >= ne))
+        {
+            return Err("its neighbour list is out of range".into());
+        }
+        saved.ledger.check(&self.ledger)?;
+        match (&self.overlap, &saved.overlap) {
+            (None, None) => Ok(()),
+            (Some(fresh), Some(o)) => fresh.check_saved(o),
+            _ => Err("its contact model is not this scene's".into()),
+        }
+    }
+
+    /// Goes on from `saved`, the contact state of a checkpoint of a run of the same model
+    /// ([`Contact::check_saved`]), keeping this contact's interface law (a checkpoint holds
+    /// none).
     pub fn resume(&mut self, saved: Contact) {
         *self = Contact {
             law: self.law.clone(),
@@ -712,6 +758,21 @@ fn start_inside(m: Vec2, b1: Vec2, b2: Vec2, tol: f64) -> Option<(f64, f64)> {
     let depth = -(m - b1).dot(&n);
     let along = (m - b1).dot(&s) / l;
     (depth > 0.0 && depth <= 0.05 * tol && (0.0..=1.0).contains(&along)).then_some((depth, along))
+}
+
+/// Comparison of the parts of a saved contact that its model decides, by their serialised
+/// bytes.
+pub(crate) mod erased {
+    /// A value's postcard bytes (empty if it cannot be serialised, which these types always can).
+    pub trait Bytes {
+        fn bytes(&self) -> Vec<u8>;
+    }
+
+    impl<T: serde::Serialize> Bytes for T {
+        fn bytes(&self) -> Vec<u8> {
+            postcard::to_stdvec(self).unwrap_or_default()
+        }
+    }
 }
 
 /// The default of a contact read from a checkpoint, until [`Contact::resume`] gives it its

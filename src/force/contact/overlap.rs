@@ -623,6 +623,47 @@ impl Overlap {
         }
     }
 
+    /// Whether `saved`, read from a checkpoint, belongs to the model of `self` (in its
+    /// initial state): the same targets, faces and sources, and every index it holds in range.
+    pub(super) fn check_saved(&self, saved: &Overlap) -> std::result::Result<(), String> {
+        use super::erased::Bytes;
+        if self.targets.bytes() != saved.targets.bytes()
+            || self.faces.bytes() != saved.faces.bytes()
+            || self.sources.bytes() != saved.sources.bytes()
+            || self.offsets.bytes() != saved.offsets.bytes()
+            || self.neighbours.bytes() != saved.neighbours.bytes()
+            || self.neighbour_start.bytes() != saved.neighbour_start.bytes()
+            || self.fragments != saved.fragments
+            || self.first_interface != saved.first_interface
+        {
+            return Err("its contact targets and sources are not this model's".into());
+        }
+        let (ns, nt, nf) = (self.sources.len(), self.targets.len(), self.faces.len());
+        let lengths = [
+            (saved.corners.len(), self.corners.len()),
+            (saved.lines.len(), self.lines.len()),
+            (saved.anchors.len(), self.anchors.len()),
+            (saved.reach.len(), self.reach.len()),
+            (saved.released.len(), self.released.len()),
+            (saved.cracked.len(), self.cracked.len()),
+        ];
+        if lengths.iter().any(|(a, b)| a != b)
+            || saved.open.len() > nt
+            || saved
+                .candidates
+                .iter()
+                .any(|&(s, t)| s as usize >= ns || t as usize >= nt)
+            || saved
+                .pieces
+                .iter()
+                .chain(&saved.next)
+                .any(|p| p.source as usize >= ns || p.face as usize >= nf)
+        {
+            return Err("its contact pieces or neighbour list are out of range".into());
+        }
+        Ok(())
+    }
+
     /// The number of live pieces.
     pub fn len(&self) -> usize {
         self.pieces.len()

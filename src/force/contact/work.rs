@@ -32,6 +32,27 @@ impl Ledger {
         ledger
     }
 
+    /// Whether `self`, read from a checkpoint, fits the ledger `fresh` of the same model: the
+    /// same sizes, and every element it lists in range.
+    pub fn check(&self, fresh: &Ledger) -> std::result::Result<(), String> {
+        let n = fresh.mark.len();
+        if self.nd != fresh.nd
+            || self.now.len() != fresh.now.len()
+            || self.before.len() != fresh.before.len()
+            || self.mark.len() != n
+            || self.touched_now.len() > n
+            || self.touched_before.len() > n
+            || self
+                .touched_now
+                .iter()
+                .chain(&self.touched_before)
+                .any(|&e| e as usize >= n)
+        {
+            return Err("its contact forces are not this model's".into());
+        }
+        Ok(())
+    }
+
     /// Room to list every element as touched, so that the steps do not allocate.
     pub fn reserve(&mut self) {
         let n = self.mark.len();
