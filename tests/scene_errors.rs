@@ -705,3 +705,60 @@ fn a_model_too_large_for_memory_is_refused_before_it_is_built() {
         expect(&err, &["`bodies`", "needs about", "GiB is available"]);
     }
 }
+
+/// A ground spring on part of a side (`span`): a beam of 20 × 2 cells on two pads 0.1 m long
+/// at its ends rests on the two cells under each pad, and under a uniform load it deflects
+/// symmetrically; a span that holds no edge, or is not `from < to`, is refused with its key.
+#[test]
+fn ground_springs_on_part_of_a_side() {
+    let beam = |supports: Value| {
+        serde_json::json!({
+            "name": "pads", "thickness": 0.1, "formulation": {"kind": "rigid"},
+            "materials": {"c": {"E": 3e10, "nu": 0.2, "rho": 2400}},
+            "bodies": [{"name": "beam", "material": "c",
+                "mesh": {"kind": "grid", "origin": [0, 0], "size": [1.0, 0.1], "cells": [20, 2]},
+                "supports": supports,
+                "loads": [{"kind": "traction", "edge": "top", "value": [0.0, -1.0e5]}]}],
+            "time": {"dt_factor": 0.5, "steps": 10}
+        })
+    };
+    let pads = serde_json::json!([
+        {"kind": "ground-spring", "edge": "bottom", "span": [0.0, 0.1]},
+        {"kind": "ground-spring", "edge": "bottom", "span": [0.9, 1.0]}]);
+    let scene = Scene::from_json(&beam(pads).to_string()).unwrap();
+    let setup = Setup::new(&scene, &Overrides::default()).unwrap();
+    let grounded: Vec<f64> = setup
+        .model
+        .interfaces
+        .iter()
+        .filter(|i| i.b == rbsm::model::GROUND)
+        .map(|i| 0.5 * (i.p1.x + i.p2.x))
+        .collect();
+    assert_eq!(grounded.len(), 4, "{grounded:?}");
+    for (x, want) in grounded.iter().zip([0.025, 0.075, 0.925, 0.975]) {
+        assert!((x - want).abs() < 1e-12, "{grounded:?}");
+    }
+    let report = rbsm::analysis::statics::analyse(&setup).unwrap();
+    let v = |x: f64| {
+        let e = report
+            .elements
+            .iter()
+            .find(|e| (e.centroid[0] - x).abs() < 1e-9 && e.centroid[1] < 0.05)
+            .unwrap();
+        e.u[1]
+    };
+    assert!(v(0.475) < 0.0, "the beam sags");
+    assert!((v(0.275) - v(0.725)).abs() <= 1e-9 * v(0.475).abs());
+    let none = beam(serde_json::json!([
+        {"kind": "ground-spring", "edge": "bottom", "span": [0.3, 0.31]}]));
+    expect(
+        &error_of(&none),
+        &["bodies[0].supports[0].span", "no edge of side"],
+    );
+    let reversed = beam(serde_json::json!([
+        {"kind": "ground-spring", "edge": "bottom", "span": [0.5, 0.1]}]));
+    expect(
+        &error_of(&reversed),
+        &["bodies[0].supports[0].span", "from < to"],
+    );
+}

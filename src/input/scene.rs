@@ -787,6 +787,10 @@ pub struct GroundSpringSpec {
     #[serde(default = "both_components")]
     #[schemars(length(min = 1))]
     pub components: Vec<Component>,
+    /// Only the edges of the side whose midpoints lie in `[from, to]` (m) along it: `x` on
+    /// `bottom` and `top`, `y` on `left` and `right` (a bearing plate, a pad under a beam).
+    #[serde(default)]
+    pub span: Option<[f64; 2]>,
 }
 
 /// The listed DOFs (default all) of the elements with an edge on that side are fixed.
@@ -1695,13 +1699,18 @@ impl Scene {
         }
         for (k, s) in b.supports.iter().enumerate() {
             match s {
-                SupportSpec::GroundSpring(GroundSpringSpec { components, .. }) => {
+                SupportSpec::GroundSpring(GroundSpringSpec {
+                    edge,
+                    components,
+                    span,
+                }) => {
                     if components.is_empty() {
                         return Err(Error::scene(
                             at(&format!("supports[{k}].components")),
                             "must list `n`, `s` or both",
                         ));
                     }
+                    check_span(&at(&format!("supports[{k}].span")), edge, span)?;
                 }
                 SupportSpec::Clamp(ClampSpec {
                     edge,
@@ -1710,22 +1719,7 @@ impl Scene {
                     ramp,
                     span,
                 }) => {
-                    if let Some(span) = span {
-                        let field = at(&format!("supports[{k}].span"));
-                        finite_all(&field, span)?;
-                        if !(span[0] < span[1]) {
-                            return Err(Error::scene(
-                                field,
-                                format!("must be [from, to] with from < to, got {span:?}"),
-                            ));
-                        }
-                        if let EdgeSet::Group(_) = edge {
-                            return Err(Error::scene(
-                                field,
-                                "applies to a side (`left`, `right`, `bottom`, `top`) only",
-                            ));
-                        }
-                    }
+                    check_span(&at(&format!("supports[{k}].span")), edge, span)?;
                     if let Some(velocity) = velocity {
                         finite_all(&at(&format!("supports[{k}].velocity")), velocity)?;
                         for (c, dof) in ["u", "v"].into_iter().enumerate() {
@@ -1816,6 +1810,27 @@ fn positive(field: &str, x: f64) -> Result<()> {
             ),
         ))
     }
+}
+
+/// A support's `span` (`field`): finite, `from < to`, and on a side, not a gmsh group.
+fn check_span(field: &str, edge: &EdgeSet, span: &Option<[f64; 2]>) -> Result<()> {
+    let Some(span) = span else {
+        return Ok(());
+    };
+    finite_all(field, span)?;
+    if !(span[0] < span[1]) {
+        return Err(Error::scene(
+            field,
+            format!("must be [from, to] with from < to, got {span:?}"),
+        ));
+    }
+    if let EdgeSet::Group(_) = edge {
+        return Err(Error::scene(
+            field,
+            "applies to a side (`left`, `right`, `bottom`, `top`) only",
+        ));
+    }
+    Ok(())
 }
 
 fn finite_all(field: &str, xs: &[f64]) -> Result<()> {

@@ -358,8 +358,13 @@ impl Model {
             for (k, s) in spec.supports.iter().enumerate() {
                 let field = at(&format!("supports[{k}].edge"));
                 match s {
-                    SupportSpec::GroundSpring(GroundSpringSpec { edge, components }) => {
-                        for e in side_edges(&mesh, edge, &field)? {
+                    SupportSpec::GroundSpring(GroundSpringSpec {
+                        edge,
+                        components,
+                        span,
+                    }) => {
+                        let span_field = at(&format!("supports[{k}].span"));
+                        for e in supported_edges(&mesh, edge, span, &field, &span_field)? {
                             let mut iface = model
                                 .interface(
                                     first + e.cell as usize,
@@ -401,28 +406,8 @@ impl Model {
                                 .collect::<Result<_>>()?,
                         };
                         let mut moving = Vec::new();
-                        let mut edges = side_edges(&mesh, edge, &field)?;
-                        if let (Some([from, to]), EdgeSet::Side(side)) = (span, edge) {
-                            let along = |e: &&crate::mesh::BoundaryEdge| {
-                                let m = 0.5
-                                    * (mesh.vertices[e.v1 as usize] + mesh.vertices[e.v2 as usize]);
-                                match side {
-                                    Side::Bottom | Side::Top => m.x,
-                                    Side::Left | Side::Right => m.y,
-                                }
-                            };
-                            edges.retain(|e| (*from..=*to).contains(&along(e)));
-                            if edges.is_empty() {
-                                return Err(Error::scene(
-                                    at(&format!("supports[{k}].span")),
-                                    format!(
-                                        "no edge of side `{side:?}` has its midpoint in {:?}",
-                                        [from, to]
-                                    ),
-                                ));
-                            }
-                        }
-                        for e in edges {
+                        let span_field = at(&format!("supports[{k}].span"));
+                        for e in supported_edges(&mesh, edge, span, &field, &span_field)? {
                             let el = first + e.cell as usize;
                             model.fixed.extend(which.iter().map(|&d| el * nd + d));
                             moving.extend(
@@ -732,4 +717,37 @@ fn side_edges<'m>(
     field: &str,
 ) -> Result<Vec<&'m crate::mesh::BoundaryEdge>> {
     mesh.edges_in(set).map_err(|m| Error::scene(field, m))
+}
+
+/// The boundary edges a support holds: those of its side or group (an error naming `field`
+/// when there are none), and with a `span`, only the side's edges whose midpoints lie in it
+/// along the side (an error naming `span_field` when none does).
+fn supported_edges<'m>(
+    mesh: &'m Mesh,
+    set: &EdgeSet,
+    span: &Option<[f64; 2]>,
+    field: &str,
+    span_field: &str,
+) -> Result<Vec<&'m crate::mesh::BoundaryEdge>> {
+    let mut edges = side_edges(mesh, set, field)?;
+    if let (Some([from, to]), EdgeSet::Side(side)) = (span, set) {
+        let along = |e: &&crate::mesh::BoundaryEdge| {
+            let m = 0.5 * (mesh.vertices[e.v1 as usize] + mesh.vertices[e.v2 as usize]);
+            match side {
+                Side::Bottom | Side::Top => m.x,
+                Side::Left | Side::Right => m.y,
+            }
+        };
+        edges.retain(|e| (*from..=*to).contains(&along(e)));
+        if edges.is_empty() {
+            return Err(Error::scene(
+                span_field,
+                format!(
+                    "no edge of side `{side:?}` has its midpoint in {:?}",
+                    [from, to]
+                ),
+            ));
+        }
+    }
+    Ok(edges)
 }
