@@ -100,6 +100,8 @@ fn extras() -> Vec<(String, Value)> {
     plastic["bodies"][0]["supports"][1]["span"] = json!([0.0, 0.05]);
     let mut elastic = load("tension_bar.json");
     elastic["materials"]["concrete"]["interface"] = json!({"kind": "elastic"});
+    elastic["bodies"][0]["supports"][0] =
+        json!({"kind": "ground-spring", "edge": "left", "span": [0.0, 0.05]});
 
     let mut minimal = load("cantilever.json");
     for key in ["plane", "evaluator", "output"] {
