@@ -422,8 +422,9 @@ class StabilityResult:
     empirical_dt: float
     """The largest step found stable by bisection (s)."""
     fractions: List[Dict[str, Any]] = field(default_factory=list)
-    """One dict per fraction run (``fraction``, ``dt``, ``status``, ``max_relative_drift``),
-    with its ``history``: ``(rows, 3)`` of ``(t, total, kinetic + elastic)``."""
+    """One dict per fraction run (``fraction``, ``dt``, ``status``, ``reason``: why a diverged
+    run stopped, else ``None``; ``max_relative_drift``: ``None`` for a diverged run), with its
+    ``history``: ``(rows, 3)`` of ``(t, total, kinetic + elastic)``."""
 
 
 def stability(
