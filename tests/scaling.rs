@@ -74,3 +74,32 @@ fn setup_of_many_probes_is_linear() {
         located.tests
     );
 }
+
+/// Setup grows linearly with the ground segments: 3·10⁵ segments, a zigzag polyline, under a
+/// block with edge-to-edge contact. Each segment's joints with its neighbours were looked for
+/// among all segments (10⁵: 5.2 s; 3·10⁵ would take about 45 s); found by end point, the
+/// whole setup takes under a second here. The bound, 15 s, is far from both.
+#[test]
+fn setup_of_many_ground_segments_is_linear() {
+    const SEGMENTS: usize = 300_000;
+    let point = |k: usize| [k as f64 * 1e-3 - 150.0, if k % 2 == 0 { 0.0 } else { 1e-4 }];
+    let ground: Vec<serde_json::Value> = (0..SEGMENTS)
+        .map(|k| serde_json::json!({"from": point(k), "to": point(k + 1)}))
+        .collect();
+    let scene = serde_json::json!({
+        "name": "long", "thickness": 0.1, "formulation": {"kind": "rigid"},
+        "gravity": [0, -9.81],
+        "materials": {"m": {"E": 1e9, "nu": 0.2, "rho": 1000}},
+        "bodies": [{"name": "b", "material": "m",
+            "mesh": {"kind": "grid", "origin": [0, 0.01], "size": [0.1, 0.1], "cells": [2, 2]}}],
+        "ground": ground,
+        "contact": {"model": "edge-to-edge"},
+        "time": {"dt": 1e-6, "steps": 1}});
+    let scene = Scene::from_json(&scene.to_string()).unwrap();
+    let start = Instant::now();
+    let setup = Setup::new(&scene, &Overrides::default()).unwrap();
+    let seconds = start.elapsed().as_secs_f64();
+    assert_eq!(setup.model.ground.len(), SEGMENTS);
+    assert!(seconds < 15.0, "setup took {seconds} s");
+    eprintln!("setup with {SEGMENTS} ground segments: {seconds:.3} s");
+}
