@@ -82,7 +82,12 @@ fn setup_of_many_probes_is_linear() {
 #[test]
 fn setup_of_many_ground_segments_is_linear() {
     const SEGMENTS: usize = 300_000;
-    let point = |k: usize| [k as f64 * 1e-3 - 150.0, if k % 2 == 0 { 0.0 } else { 1e-4 }];
+    let point = |k: usize| {
+        [
+            k as f64 * 1e-3 - 150.0,
+            if k.is_multiple_of(2) { 0.0 } else { 1e-4 },
+        ]
+    };
     let ground: Vec<serde_json::Value> = (0..SEGMENTS)
         .map(|k| serde_json::json!({"from": point(k), "to": point(k + 1)}))
         .collect();
