@@ -20,9 +20,10 @@
 //! edge pushed as if 10 mm deep (paper_notes C10).
 //!
 //! A body whose interfaces can fail (`Model::fragments`) is one contact body until one of its
-//! interfaces is released; from then on its elements touch each other, but only through
-//! released faces: an edge between two elements is a source, and its face presses, once its
-//! interface is released, and two elements still bonded never see each other.
+//! interfaces is released; from then on its elements touch each other: an edge between two
+//! elements is a source once its interface is released, it enters any element of the body but
+//! the two of an interface that still holds, and other bodies see a face between two elements
+//! only once its interface is released.
 //!
 //! Between two bodies both take the role of the source, each with half the spring, so that two
 //! flat faces pressed together carry `k_n` of eq. 12 once, whichever body comes first.
@@ -64,11 +65,10 @@ struct Face {
     /// another element, a joint between segments). The surfaces partition the target by depth.
     surface: bool,
     /// In a body that fragments, the interface of a face shared with another element, else
-    /// [`NONE`]: such a face carries contact tractions only once its interface is released
-    /// (it is *exposed*). Against sources of its own body it partitions the target as a
-    /// surface from the start, so that a source edge entering the element across it, at a
-    /// corner, is pressed by no face of the element; against other bodies it only bounds the
-    /// target until released, as a face shared in a body that does not fragment does.
+    /// [`NONE`]: against other bodies such a face only bounds the target until its interface
+    /// is released (it is then *exposed*), as a face shared in a body that does not fragment
+    /// does; against the other elements of its body (those not bonded to its element) it is
+    /// a surface.
     interface: u32,
 }
 
@@ -150,7 +150,7 @@ pub(super) struct Overlap {
     neighbours: Vec<(u32, u32)>,
     /// Per interface of the model, whether it is released (bodies that fragment only).
     released: Vec<bool>,
-    /// Per target, whether a face of it carries tractions now (at the last rebuild).
+    /// Per target, whether a face of it is exposed to other bodies now (at the last rebuild).
     open: Vec<bool>,
 }
 
@@ -252,8 +252,6 @@ struct FaceNow {
     spring: [f64; 2],
     root: f64,
     surface: bool,
-    /// Whether it carries tractions: a surface whose interface, if it has one, is released.
-    exposed: bool,
 }
 
 impl Overlap {
@@ -751,7 +749,7 @@ impl Overlap {
         let targets = &self.targets;
         self.buckets
             .fill(&grid, targets.len(), |k| boxes(&targets[k]));
-        // A target none of whose faces carries tractions is entered by no source.
+        // A target none of whose faces is exposed is entered by no source of another body.
         self.open.clear();
         for t in &self.targets {
             let faces = &self.faces[t.first as usize..(t.first + t.count) as usize];
@@ -768,7 +766,7 @@ impl Overlap {
             for k in grid.touching(slo, shi) {
                 for &t in self.buckets.bucket(k) {
                     let target = &self.targets[t as usize];
-                    if !self.open[t as usize] || self.apart(s, target) {
+                    if (target.body != s.body && !self.open[t as usize]) || self.apart(s, target) {
                         continue;
                     }
                     if boxes_meet(boxes(target), (slo, shi)) {
@@ -832,13 +830,13 @@ impl Overlap {
         // compliances, on each surface face.
         let half = if tgt.element == GROUND { 1.0 } else { 0.5 };
         // A source of another body sees a target of a body that fragments as it sees one of a
-        // body that does not: its exposed faces are its surfaces. Within a body that fragments,
-        // every face partitions the target, and only the exposed ones press.
+        // body that does not: its exposed faces are its surfaces, the others only bound it.
+        // Within a body that fragments (two elements not bonded to each other), every face of
+        // the target is a surface: an overlap is an overlap whichever face it crosses.
         let within = src.body == tgt.body;
         for (k, f) in now.iter_mut().enumerate() {
             let face = &self.faces[tgt.first as usize + k];
-            f.exposed = face.surface && self.exposed(face.interface);
-            f.surface = if within { face.surface } else { f.exposed };
+            f.surface = face.surface && (within || self.exposed(face.interface));
             if face.surface {
                 let moduli = [0, 1].map(|c| self.factor / (src.compliance[c] + face.compliance[c]));
                 f.spring = at.law.springs(moduli).map(|k| half * k);
@@ -847,7 +845,7 @@ impl Overlap {
         }
         let length = (q2 - q1).norm();
         for i in 0..m {
-            if !now[i].exposed {
+            if !now[i].surface {
                 continue;
             }
             let ri = now[i].root;
