@@ -9,6 +9,7 @@ use rbsm::force::evaluator;
 use rbsm::input::scene::{EvaluatorKind, Scene};
 use rbsm::model::mass::Mass;
 use rbsm::model::Model;
+use rbsm::step::integrator::RunStatus;
 use std::f64::consts::PI;
 
 /// One row of `n` square blocks of side `h` with `supports` (JSON), `E`, `ν = 0.2`, `ρ`.
@@ -465,7 +466,7 @@ fn a_diverged_stability_run_gives_its_reason() {
     )
     .unwrap();
     let ok = rbsm::analysis::stability::run_at_fraction(&setup, 0.5, 500);
-    assert_eq!((ok.status.as_str(), ok.reason.as_deref()), ("ok", None));
+    assert_eq!((ok.status, ok.reason.as_deref()), (RunStatus::Ok, None));
     assert!(ok.max_relative_drift.unwrap() < 1e-6);
     let report = rbsm::analysis::stability::analyse(
         &setup,
@@ -476,7 +477,7 @@ fn a_diverged_stability_run_gives_its_reason() {
     )
     .unwrap();
     let bad = &report.fractions[1];
-    assert_eq!(bad.status, "diverged");
+    assert_eq!(bad.status, RunStatus::Diverged);
     assert!(bad.steps < 500 && bad.max_relative_drift.is_none());
     let reason = bad.reason.as_deref().unwrap();
     assert!(
@@ -495,4 +496,11 @@ fn a_diverged_stability_run_gives_its_reason() {
     let json = serde_json::to_value(&report).unwrap();
     assert!(json["fractions"][1]["max_relative_drift"].is_null());
     assert_eq!(json["fractions"][1]["reason"], reason);
+    assert_eq!(
+        (
+            &json["fractions"][0]["status"],
+            &json["fractions"][1]["status"]
+        ),
+        (&serde_json::json!("ok"), &serde_json::json!("diverged"))
+    );
 }

@@ -4,7 +4,7 @@
 mod common;
 use rbsm::analysis::setup::{Overrides, Setup};
 use rbsm::input::scene::{EvaluatorKind, Scene};
-use rbsm::step::integrator::Status;
+use rbsm::step::integrator::{RunStatus, Status};
 
 fn scene(name: &str) -> Scene {
     Scene::from_file(format!(
@@ -67,7 +67,7 @@ fn drift(scene: &Scene, factor: f64, steps: u64) -> f64 {
     s.time.dt_factor = Some(factor);
     let dir = tempfile::tempdir().unwrap();
     let summary = common::run_into(&s, Some(steps), dir.path());
-    assert_eq!(summary.status, "ok");
+    assert_eq!(summary.status, RunStatus::Ok);
     summary.energy.max_relative_drift
 }
 
@@ -96,7 +96,7 @@ fn unstable_run_stops_with_reason_and_keeps_its_outputs() {
     s.output.every = 50;
     let dir = tempfile::tempdir().unwrap();
     let summary = common::run_into(&s, None, dir.path());
-    assert_eq!(summary.status, "diverged");
+    assert_eq!(summary.status, RunStatus::Diverged);
     let reason = summary.reason.unwrap();
     assert!(
         reason.starts_with("step ") && reason.contains("t = ") && reason.contains("energy growth"),

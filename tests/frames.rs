@@ -5,6 +5,7 @@
 mod common;
 use rbsm::analysis::setup::{Overrides, Setup};
 use rbsm::input::scene::Scene;
+use rbsm::step::integrator::RunStatus;
 use serde_json::Value;
 use std::path::Path;
 use vtkio::model::{Attribute, CellType, DataSet, Piece, VertexNumbers};
@@ -402,7 +403,7 @@ fn crack_frames_resume_byte_for_byte_and_go_with_the_next_run() {
         &mut StopAt(2600, flag.clone()),
     )
     .unwrap();
-    assert_eq!(summary.status, "interrupted");
+    assert_eq!(summary.status, RunStatus::Interrupted);
     assert!(summary.steps < 5367);
     let resume = rbsm::analysis::run::RunParams {
         resume: true,
@@ -500,7 +501,7 @@ fn a_run_writes_through_no_link() {
         keep_history: false,
     };
     let first = run::run(&setup, &params(false), &out, &mut StopAt(330, flag.clone())).unwrap();
-    assert_eq!(first.status, "interrupted");
+    assert_eq!(first.status, RunStatus::Interrupted);
     for (name, target) in names.iter().zip(&planted) {
         assert_eq!(
             std::fs::read_to_string(target).unwrap(),
@@ -524,7 +525,7 @@ fn a_run_writes_through_no_link() {
         &mut StopAt(u64::MAX, flag.clone()),
     )
     .unwrap();
-    assert_eq!(end.status, "ok");
+    assert_eq!(end.status, RunStatus::Ok);
     assert_eq!(
         std::fs::read(&copy).unwrap(),
         before,

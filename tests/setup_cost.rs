@@ -8,6 +8,7 @@ use rbsm::analysis::run::{self, RunParams, Silent};
 use rbsm::analysis::setup::{Overrides, Setup};
 use rbsm::input::scene::Scene;
 use rbsm::output::Summary;
+use rbsm::step::integrator::RunStatus;
 
 /// The bundled cantilever, refined to 4000 elements so that Lanczos takes many iterations.
 fn cantilever(time: &str) -> Scene {
@@ -37,7 +38,7 @@ fn run_counted(scene: &Scene, overrides: &Overrides) -> (u64, Setup, Summary) {
         keep_history: false,
     };
     let summary = run::run(&setup, &params, out.path(), &mut Silent).unwrap();
-    assert_eq!(summary.status, "ok");
+    assert_eq!(summary.status, RunStatus::Ok);
     (limit::lanczos_iterations() - before, setup, summary)
 }
 
