@@ -370,9 +370,10 @@ fn model_of(mesh: &str) -> Model {
     common::model(mesh, r#"[{"edge": "left", "kind": "ground-spring"}]"#)
 }
 
-/// The bracket a setup knows without Lanczos (issue 22): `dt_safe ≤ Δt_crit ≤ dt_ceiling` on
-/// every bundled scene (rigid and hybrid, with and without contact, supported or free), each
-/// side proven, and the safe step no further than `1/√2` below the exact one.
+/// The bracket a setup knows without Lanczos (README, `rbsm run`; paper_notes.md 24): `dt_safe ≤
+/// Δt_crit ≤ dt_ceiling` on every bundled scene (rigid and hybrid, with and without contact,
+/// supported or free), each side proven, and the safe step no further than `1/√2` below the exact
+/// one.
 #[test]
 fn the_proven_bracket_holds_the_exact_critical_step_on_every_bundled_scene() {
     let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/examples/scenes");
@@ -419,7 +420,7 @@ fn the_proven_bracket_holds_the_exact_critical_step_on_every_bundled_scene() {
     assert!(seen >= 10, "{seen} scenes");
 }
 
-/// The free rigid modes are named as translations and a rotation (issue 40 item 5): a free
+/// The free rigid modes are named as translations and a rotation (README, `rbsm static`): a free
 /// body's are the translations along x and y and the rotation about its centroid, not three
 /// mixtures of them (each "can rotate about" some point); a body held at one element rotates
 /// about that element's centroid, and one held there in `v` only also translates along x.
@@ -478,7 +479,7 @@ fn free_rigid_modes_are_two_translations_and_a_rotation() {
 }
 
 /// A run of `rbsm stability` that diverges gives the reason (what the guard saw, and the
-/// step), and no energy drift, which says nothing of a diverged run (issue 40 item 5).
+/// step), and no energy drift, which says nothing of a diverged run.
 #[test]
 fn a_diverged_stability_run_gives_its_reason() {
     use rbsm::analysis::Report;

@@ -230,9 +230,9 @@ fn no_vtk_unless_asked() {
     assert!(history.lines().next().unwrap().ends_with(",u_tip,u_mid"));
 }
 
-/// Probes placed by point (`"at": [x, y]`, issue 19): at an element's centroid the same column
-/// as the element's own DOF; at a corner of the plate `N_e(x) U_e` of the element holding it;
-/// a point outside every element is an error naming the probe.
+/// Probes placed by point (`"at": [x, y]`, docs/scene.md *`probes`*): at an element's centroid the
+/// same column as the element's own DOF; at a corner of the plate `N_e(x) U_e` of the element
+/// holding it; a point outside every element is an error naming the probe.
 #[test]
 fn probes_by_point_read_the_displacement_there() {
     let path = format!(

@@ -1,6 +1,6 @@
-//! The frames ParaView opens (issue 19 items 1–3): a run's `series.pvd` lists VTK XML
-//! unstructured grids (`.vtu`), read back here with vtkio's XML parser; cells carry their own
-//! VTK type; rigid elements are drawn with their finite rotation.
+//! The frames ParaView opens (README, *Reading the outputs in ParaView*): a run's `series.pvd`
+//! lists VTK XML unstructured grids (`.vtu`), read back here with vtkio's XML parser; cells carry
+//! their own VTK type; rigid elements are drawn with their finite rotation.
 
 mod common;
 use rbsm::analysis::setup::{Overrides, Setup};
@@ -446,7 +446,7 @@ fn crack_frames_resume_byte_for_byte_and_go_with_the_next_run() {
     );
 }
 
-/// A run writes no file through a symbolic link (issue 40 item 7): a link in the output folder
+/// A run writes no file through a symbolic link: a link in the output folder
 /// is replaced by the file, its target left untouched, for `history.csv` (written row by row),
 /// the temporary names files are written under, the collection and the frames, and for the
 /// history a resumed run cuts back and goes on with.

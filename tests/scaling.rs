@@ -1,4 +1,4 @@
-//! Setup grows linearly with the probes (issue 40 item 7): 10⁵ probes placed by `at` took
+//! Setup grows linearly with the probes: 10⁵ probes placed by `at` took
 //! 11.3 s, each looked for in every element (and each name compared with every other).
 
 use rbsm::analysis::setup::{Overrides, Setup};

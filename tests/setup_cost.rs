@@ -1,7 +1,7 @@
-//! A run models only what its scene asks for, at setup too (issue 22): with a given `dt` it
-//! computes no `ω_max` (Lanczos iterations are counted process-wide, so this file holds one
-//! test, alone in its process), with a `dt_factor` only a few digits, and to full precision
-//! when asked.
+//! A run models only what its scene asks for, at setup too (paper_notes.md 24): with a given `dt`
+//! it computes no `ω_max` (Lanczos iterations are counted process-wide, so this file holds one
+//! test, alone in its process), with a `dt_factor` only a few digits, and to full precision when
+//! asked.
 
 use rbsm::analysis::limit;
 use rbsm::analysis::run::{self, RunParams, Silent};
