@@ -179,7 +179,7 @@ pub struct Point {
 
 /// How a point's run ended, serialised (and written into `tradeoff.csv`) as one text: `ok`,
 /// `diverged at step N (t = T s): reason` or `interrupted at step N (t = T s)`
-/// ([`Status::describe`]); read back from it by [`PointStatus::from_str`].
+/// ([`Status::describe`]); read back from it by its `FromStr`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(into = "String", try_from = "String")]
 pub enum PointStatus {
