@@ -711,10 +711,7 @@ fn render(
         .map(|b| (b.2, b.3))
         .next_back()
         .unwrap_or((0, f64::NAN));
-    let _ = writeln!(
-        s,
-        "\n## Targets (issue 6), 10⁶ rigid elements on a square grid\n"
-    );
+    let _ = writeln!(s, "\n## Targets, 10⁶ rigid elements on a square grid\n");
     let _ = writeln!(
         s,
         "A step time is the median of its samples, and beside it the middle half \
@@ -825,7 +822,8 @@ fn fmt(x: f64, digits: usize) -> String {
     format!("{x:.digits$}")
 }
 
-/// The sections of issue 22: the peer, the goals on 10⁶ elements, the run path and the setup.
+/// The sections of `benches/summary.md` on what a user sees: the peer, the goals on 10⁶
+/// elements, the run path and the setup.
 fn render_user(rows: &[Row], peers: &[Peer], r: &RunPath) -> String {
     let mut s = String::new();
     let row = |mesh: &str, formulation: &str, ev: &str, n: usize, thr: usize| {
@@ -886,7 +884,7 @@ fn render_user(rows: &[Row], peers: &[Peer], r: &RunPath) -> String {
     let run_s = 1e4 * inner_med * 1e-9 * 1e6;
     let _ = writeln!(
         s,
-        "\n## Goals (issue 22), 10⁶ elements\n\n| goal | measured | met |\n|---|---|---|"
+        "\n## Goals, 10⁶ elements\n\n| goal | measured | met |\n|---|---|---|"
     );
     let mut goal = |what: String, measured: f64, text: String, ok: bool| {
         let met = if measured.is_nan() {

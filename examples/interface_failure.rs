@@ -23,6 +23,7 @@
 //! interface has broken, relative to `G_f L t`: 1 to round-off.
 
 use rbsm::analysis::setup::{Overrides, Setup};
+use rbsm::force::failure::InterfaceStatus;
 use rbsm::input::scene::Scene;
 
 const F_T: f64 = 3.0e6;
@@ -63,7 +64,7 @@ pub struct Outcome {
     /// Fracture work at the end over `G_f L t`.
     pub energy_ratio: f64,
     /// The interface's status at the end.
-    pub status: &'static str,
+    pub status: InterfaceStatus,
 }
 
 pub fn compute() -> Outcome {
@@ -131,7 +132,7 @@ mod tests {
             "fracture work {} G_f L t",
             o.energy_ratio
         );
-        assert_eq!(o.status, "broken");
+        assert_eq!(o.status, super::InterfaceStatus::Broken);
         // The curve rises to f_t and falls to zero: the test covers all three branches.
         let peak = o.curve.iter().map(|c| c.1).fold(0.0, f64::max);
         assert!(peak > 0.99 * super::F_T && o.curve.last().unwrap().1 == 0.0);

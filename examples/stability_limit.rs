@@ -25,6 +25,7 @@
 use rbsm::analysis::setup::{Overrides, Setup};
 use rbsm::analysis::stability::run_at_fraction;
 use rbsm::input::scene::Scene;
+use rbsm::step::integrator::RunStatus;
 
 /// What the example prints and the test checks.
 struct Outcome {
@@ -104,7 +105,7 @@ fn compute() -> Outcome {
         unstable: unstable.into_iter().step_by(10).collect(),
         measured_growth,
         predicted_growth: energy_growth_per_step(2.02),
-        guarded_steps: if guarded.status == "diverged" {
+        guarded_steps: if guarded.status == RunStatus::Diverged {
             guarded.steps
         } else {
             0

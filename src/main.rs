@@ -6,6 +6,7 @@ use rbsm::analysis::run::{self, Monitor};
 use rbsm::analysis::setup::{Overrides, Setup};
 use rbsm::analysis::{check, eigen, stability, statics, tradeoff, Report};
 use rbsm::input::scene::{EvaluatorKind, Scene};
+use rbsm::step::integrator::RunStatus;
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -524,10 +525,10 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
             }
             print(cli.json, &summary)?;
             // A diverged or interrupted run kept its outputs; the exit code tells scripts which.
-            return Ok(match summary.status.as_str() {
-                "ok" => ExitCode::SUCCESS,
-                "interrupted" => ExitCode::from(130),
-                _ => ExitCode::from(3),
+            return Ok(match summary.status {
+                RunStatus::Ok => ExitCode::SUCCESS,
+                RunStatus::Interrupted => ExitCode::from(130),
+                RunStatus::Diverged => ExitCode::from(3),
             });
         }
     }

@@ -9,6 +9,7 @@ use rbsm::force::evaluator;
 use rbsm::input::scene::{EvaluatorKind, Scene};
 use rbsm::model::mass::Mass;
 use rbsm::model::Model;
+use rbsm::step::integrator::RunStatus;
 use std::f64::consts::PI;
 
 /// One row of `n` square blocks of side `h` with `supports` (JSON), `E`, `ν = 0.2`, `ρ`.
@@ -292,24 +293,50 @@ fn bounds_and_empirical_limit_on_a_square_grid() {
     );
 }
 
-/// `ω_max` of long thin models (issue 18 item 9). A free chain's top eigenvalues are a cluster
-/// of spacing `~ω²/N²` that the Lanczos Ritz value creeps into as `1/k²`: the old stop (Ritz
-/// value settled to 1e-11 over 20 iterations) left the 300-block chain 6.6e-9 short of the dense
-/// value and took 12 600 iterations (10 s) on 20 000 blocks, 2e-9 short. Now [`eigen::omega_max`]
-/// brackets `ω_max²` by the inertia of `σM − K` on such models: dense agreement to 1e-11, the
-/// `1/N²` approach of the top to the infinite chain's band edge is resolved
-/// (`ω_∞ − ω_N ∝ 1/N²`, so successive differences over doublings have ratio 4), and 20 000
-/// blocks take no longer than three times a square grid of the same DOFs.
+/// An evaluator that counts its evaluations of `f_int`: the cost of `ω_max` in operator
+/// applications (each Lanczos iteration is one, probing `K` for an inertia a few), which no
+/// load on the machine changes.
+struct Counted {
+    inner: Box<dyn evaluator::Evaluator>,
+    calls: std::sync::atomic::AtomicU64,
+}
+
+impl evaluator::Evaluator for Counted {
+    fn kind(&self) -> EvaluatorKind {
+        self.inner.kind()
+    }
+    fn internal_force(&self, u: &[f64], f: &mut [f64]) {
+        self.calls
+            .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        self.inner.internal_force(u, f);
+    }
+    fn bytes(&self) -> usize {
+        self.inner.bytes()
+    }
+}
+
+/// `ω_max` of long thin models (`limit::omega_max`'s doc). A free chain's top eigenvalues are a
+/// cluster of spacing `~ω²/N²` that the Lanczos Ritz value creeps into as `1/k²`: the old stop
+/// (Ritz value settled to 1e-11 over 20 iterations) left the 300-block chain 6.6e-9 short of the
+/// dense value and took 12 600 iterations (10 s) on 20 000 blocks, 2e-9 short. Now
+/// [`eigen::omega_max`] brackets `ω_max²` by the inertia of `σM − K` on such models: dense
+/// agreement to 1e-11, the `1/N²` approach of the top to the infinite chain's band edge is
+/// resolved (`ω_∞ − ω_N ∝ 1/N²`, so successive differences over doublings have ratio 4), and
+/// 20 000 blocks take no more evaluations of `f_int` than a square grid of the same DOFs (each
+/// costs the chain less: two interfaces per block, about four per square). The bisection's
+/// factorisations are admitted only when estimated to cost less than the iterations done
+/// (`limit::omega_max`), so the evaluations bound the whole cost. (Measured: 209 evaluations
+/// against 491.)
 #[test]
-fn omega_max_of_long_free_chains_is_accurate_and_fast() {
+fn omega_max_of_long_free_chains_is_accurate_and_cheap() {
     let omega = |m: &Model| {
         let mass = Mass::new(m);
-        let ev = evaluator::build(m, EvaluatorKind::Assembled);
-        let t = std::time::Instant::now();
-        (
-            limit::omega_max(m, ev.as_ref(), &mass, limit::EXACT),
-            t.elapsed().as_secs_f64(),
-        )
+        let ev = Counted {
+            inner: evaluator::build(m, EvaluatorKind::Assembled),
+            calls: Default::default(),
+        };
+        let w = limit::omega_max(m, &ev, &mass, limit::EXACT);
+        (w, ev.calls.into_inner())
     };
     let small = column(300, 0.01, "[]");
     let mass = Mass::new(&small);
@@ -322,7 +349,7 @@ fn omega_max_of_long_free_chains_is_accurate_and_fast() {
         "{lanczos} {dense}: {:e}",
         lanczos / dense - 1.0
     );
-    let w: Vec<(f64, f64)> = [5_000, 10_000, 20_000]
+    let w: Vec<(f64, u64)> = [5_000, 10_000, 20_000]
         .iter()
         .map(|&n| omega(&column(n, 0.01, "[]")))
         .collect();
@@ -333,8 +360,8 @@ fn omega_max_of_long_free_chains_is_accurate_and_fast() {
     ))
     .1;
     assert!(
-        w[2].1 <= 3.0 * square,
-        "chain {:.3} s, square {square:.3} s",
+        w[2].1 <= square,
+        "chain {} evaluations, square {square}",
         w[2].1
     );
 }
@@ -343,9 +370,10 @@ fn model_of(mesh: &str) -> Model {
     common::model(mesh, r#"[{"edge": "left", "kind": "ground-spring"}]"#)
 }
 
-/// The bracket a setup knows without Lanczos (issue 22): `dt_safe ≤ Δt_crit ≤ dt_ceiling` on
-/// every bundled scene (rigid and hybrid, with and without contact, supported or free), each
-/// side proven, and the safe step no further than `1/√2` below the exact one.
+/// The bracket a setup knows without Lanczos (README, `rbsm run`; paper_notes.md 24): `dt_safe ≤
+/// Δt_crit ≤ dt_ceiling` on every bundled scene (rigid and hybrid, with and without contact,
+/// supported or free), each side proven, and the safe step no further than `1/√2` below the exact
+/// one.
 #[test]
 fn the_proven_bracket_holds_the_exact_critical_step_on_every_bundled_scene() {
     let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/examples/scenes");
@@ -392,7 +420,7 @@ fn the_proven_bracket_holds_the_exact_critical_step_on_every_bundled_scene() {
     assert!(seen >= 10, "{seen} scenes");
 }
 
-/// The free rigid modes are named as translations and a rotation (issue 40 item 5): a free
+/// The free rigid modes are named as translations and a rotation (README, `rbsm static`): a free
 /// body's are the translations along x and y and the rotation about its centroid, not three
 /// mixtures of them (each "can rotate about" some point); a body held at one element rotates
 /// about that element's centroid, and one held there in `v` only also translates along x.
@@ -451,7 +479,7 @@ fn free_rigid_modes_are_two_translations_and_a_rotation() {
 }
 
 /// A run of `rbsm stability` that diverges gives the reason (what the guard saw, and the
-/// step), and no energy drift, which says nothing of a diverged run (issue 40 item 5).
+/// step), and no energy drift, which says nothing of a diverged run.
 #[test]
 fn a_diverged_stability_run_gives_its_reason() {
     use rbsm::analysis::Report;
@@ -465,7 +493,7 @@ fn a_diverged_stability_run_gives_its_reason() {
     )
     .unwrap();
     let ok = rbsm::analysis::stability::run_at_fraction(&setup, 0.5, 500);
-    assert_eq!((ok.status.as_str(), ok.reason.as_deref()), ("ok", None));
+    assert_eq!((ok.status, ok.reason.as_deref()), (RunStatus::Ok, None));
     assert!(ok.max_relative_drift.unwrap() < 1e-6);
     let report = rbsm::analysis::stability::analyse(
         &setup,
@@ -476,7 +504,7 @@ fn a_diverged_stability_run_gives_its_reason() {
     )
     .unwrap();
     let bad = &report.fractions[1];
-    assert_eq!(bad.status, "diverged");
+    assert_eq!(bad.status, RunStatus::Diverged);
     assert!(bad.steps < 500 && bad.max_relative_drift.is_none());
     let reason = bad.reason.as_deref().unwrap();
     assert!(
@@ -495,4 +523,11 @@ fn a_diverged_stability_run_gives_its_reason() {
     let json = serde_json::to_value(&report).unwrap();
     assert!(json["fractions"][1]["max_relative_drift"].is_null());
     assert_eq!(json["fractions"][1]["reason"], reason);
+    assert_eq!(
+        (
+            &json["fractions"][0]["status"],
+            &json["fractions"][1]["status"]
+        ),
+        (&serde_json::json!("ok"), &serde_json::json!("diverged"))
+    );
 }

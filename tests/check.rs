@@ -1,5 +1,5 @@
-//! `rbsm check SCENE` (issue 7): a valid scene is described without running, exit code 0; an
-//! invalid one is refused with the field at fault, exit code 1.
+//! `rbsm check SCENE` (README, *Commands*): a valid scene is described without running, exit code
+//! 0; an invalid one is refused with the field at fault, exit code 1.
 
 use std::process::Command;
 
@@ -89,8 +89,8 @@ fn a_bad_scene_is_refused_with_its_field() {
     assert!(stderr.contains("materials.concrete.E"), "{stderr}");
 }
 
-/// A valid scene whose time step is above `Δt_crit` is described, and exits 4 (issue 40 item
-/// 3): a run of it would diverge. Just below the limit it exits 0.
+/// A valid scene whose time step is above `Δt_crit` is described, and exits 4: a run of it would
+/// diverge. Just below the limit it exits 0.
 #[test]
 fn a_time_step_above_the_limit_exits_with_its_own_code() {
     let (code, stdout, stderr) = check(&["examples/scenes/cantilever.json", "--json"]);
@@ -112,7 +112,7 @@ fn a_time_step_above_the_limit_exits_with_its_own_code() {
     assert!(stdout.contains("would diverge"), "{stdout}");
 }
 
-/// Counts of one are singular in every line that counts things (issue 40 item 5), and the run's
+/// Counts of one are singular in every line that counts things, and the run's
 /// `summary.json` counts interfaces as `check` and the run's information line do: between
 /// elements, with the ground springs apart.
 #[test]

@@ -1,4 +1,4 @@
-//! The command line as scripts use it (issue 19 items 6, 7): `--json` gives JSON on standard
+//! The command line as scripts use it (README, *Commands*): `--json` gives JSON on standard
 //! output for every command, results and errors alike; a reader that closes the pipe early
 //! ends the process cleanly, with no panic.
 
@@ -67,7 +67,7 @@ fn every_command_answers_json_with_json() {
     std::fs::write(&bad, r#"{"name": "x", "thickness": -1}"#).unwrap();
     let (code, v) = json(&["check", bad.to_str().unwrap()]);
     assert_eq!(code, Some(1));
-    // A missing key is a scene error whose key is the path it should have (issue 40).
+    // A missing key is a scene error whose key is the path it should have.
     assert_eq!(v["error"]["kind"], "scene");
     let key = v["error"]["key"].as_str().unwrap();
     assert_eq!(
@@ -111,7 +111,7 @@ fn a_reader_that_closes_early_ends_the_process_cleanly() {
     }
 }
 
-/// `static` and `eigen` write files like `run` (issue 19 item 9): a summary, VTK a ParaView
+/// `static` and `eigen` write files like `run` (README, *Commands*): a summary, VTK a ParaView
 /// series opens, and the scene's probes.
 #[test]
 fn static_and_eigen_write_their_outputs() {
@@ -166,8 +166,8 @@ fn static_and_eigen_write_their_outputs() {
     assert!(probes.starts_with("mode,frequency_hz,tip_v (m)\n1,"));
 }
 
-/// An unknown key is reported by its JSON path, as the key at fault, not by the file (issue 40
-/// item 3); malformed JSON is still the file's.
+/// An unknown key is reported by its JSON path, as the key at fault, not by the file;
+/// malformed JSON is still the file's.
 #[test]
 fn an_unknown_key_is_the_key_of_its_error() {
     let tmp = tempfile::tempdir().unwrap();
@@ -212,7 +212,7 @@ fn an_unknown_key_is_the_key_of_its_error() {
 }
 
 /// `plot`'s folder is described in its help, and `schema`, whose output is JSON already,
-/// refuses `--json` as a usage error (exit 2) instead of ignoring it (issue 40 item 4).
+/// refuses `--json` as a usage error (exit 2) instead of ignoring it.
 #[test]
 fn plot_describes_its_folder_and_schema_refuses_json() {
     let help = Command::new(RBSM)

@@ -1,4 +1,4 @@
-//! The documents say what is so (issue 40 item 4): the figures README.md quotes about the
+//! The documents say what is so: the figures README.md quotes about the
 //! bundled scenes that are not timings, the `$schema` the scenes name, and the folders README's
 //! commands write into. Timings are measured, not tested.
 

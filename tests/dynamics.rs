@@ -4,7 +4,7 @@
 mod common;
 use rbsm::analysis::setup::{Overrides, Setup};
 use rbsm::input::scene::{EvaluatorKind, Scene};
-use rbsm::step::integrator::Status;
+use rbsm::step::integrator::{RunStatus, Status};
 
 fn scene(name: &str) -> Scene {
     Scene::from_file(format!(
@@ -67,7 +67,7 @@ fn drift(scene: &Scene, factor: f64, steps: u64) -> f64 {
     s.time.dt_factor = Some(factor);
     let dir = tempfile::tempdir().unwrap();
     let summary = common::run_into(&s, Some(steps), dir.path());
-    assert_eq!(summary.status, "ok");
+    assert_eq!(summary.status, RunStatus::Ok);
     summary.energy.max_relative_drift
 }
 
@@ -96,7 +96,7 @@ fn unstable_run_stops_with_reason_and_keeps_its_outputs() {
     s.output.every = 50;
     let dir = tempfile::tempdir().unwrap();
     let summary = common::run_into(&s, None, dir.path());
-    assert_eq!(summary.status, "diverged");
+    assert_eq!(summary.status, RunStatus::Diverged);
     let reason = summary.reason.unwrap();
     assert!(
         reason.starts_with("step ") && reason.contains("t = ") && reason.contains("energy growth"),
@@ -230,9 +230,9 @@ fn no_vtk_unless_asked() {
     assert!(history.lines().next().unwrap().ends_with(",u_tip,u_mid"));
 }
 
-/// Probes placed by point (`"at": [x, y]`, issue 19): at an element's centroid the same column
-/// as the element's own DOF; at a corner of the plate `N_e(x) U_e` of the element holding it;
-/// a point outside every element is an error naming the probe.
+/// Probes placed by point (`"at": [x, y]`, docs/scene.md *`probes`*): at an element's centroid the
+/// same column as the element's own DOF; at a corner of the plate `N_e(x) U_e` of the element
+/// holding it; a point outside every element is an error naming the probe.
 #[test]
 fn probes_by_point_read_the_displacement_there() {
     let path = format!(

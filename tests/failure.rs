@@ -6,6 +6,7 @@
 mod common;
 
 use rbsm::analysis::setup::{Overrides, Setup};
+use rbsm::force::failure::InterfaceStatus;
 use rbsm::input::scene::{EvaluatorKind, Scene};
 use rbsm::model::law::{PlasticPoint, Strength};
 use serde_json::{json, Value};
@@ -134,7 +135,9 @@ fn both_evaluators_agree_while_a_bar_cracks_and_the_energy_balance_closes() {
         .fold(0.0f64, |m, (a, e)| m.max((a - e).abs()));
     assert!(diff <= 1e-9 * scale, "|ΔU| = {diff:e} of {scale:e}");
     let broken = |r: &[rbsm::force::failure::InterfaceFailure]| {
-        r.iter().filter(|i| i.status == "broken").count()
+        r.iter()
+            .filter(|i| i.status == InterfaceStatus::Broken)
+            .count()
     };
     assert!(broken(&report_a) > 0, "the bar did not crack");
     assert_eq!(broken(&report_a), broken(&report_e));
@@ -308,7 +311,10 @@ fn a_dropped_beam_breaks_into_blocks_with_its_energy_balanced() {
     scene["time"]["end"] = json!(0.04);
     let run = |scene: &Value, kind| {
         let (u, rows, report) = run_through(scene, kind, 200);
-        let released = report.iter().filter(|i| i.status == "released").count();
+        let released = report
+            .iter()
+            .filter(|i| i.status == InterfaceStatus::Released)
+            .count();
         (u, rows, released)
     };
     let (ua, _, released_a) = run(&scene, EvaluatorKind::Assembled);
@@ -380,7 +386,10 @@ fn the_hand_over_to_contact_keeps_the_momentum() {
     let mut cd = s.integrator(s.dt);
     cd.run(s.steps, s.steps, |_, _| Ok(()), |_| {}).unwrap();
     let report = s.plastic.as_ref().unwrap().report(cd.failure().unwrap());
-    assert!(report.iter().all(|i| i.status == "released"), "{report:?}");
+    assert!(
+        report.iter().all(|i| i.status == InterfaceStatus::Released),
+        "{report:?}"
+    );
     let after = momentum(cd.velocity());
     let scale = before.iter().fold(0.0f64, |m, p| m.max(p.abs()));
     for c in 0..2 {
@@ -635,7 +644,7 @@ fn a_damaged_or_foreign_checkpoint_is_refused() {
     cd.run(s.steps, s.steps, |_, _| Ok(()), |_| {}).unwrap();
     let report = s.plastic.as_ref().unwrap().report(cd.failure().unwrap());
     assert!(
-        report.iter().any(|i| i.status != "elastic"),
+        report.iter().any(|i| i.status != InterfaceStatus::Elastic),
         "the beam has landed"
     );
     let state = cd.state();

@@ -1,10 +1,11 @@
-//! The frames ParaView opens (issue 19 items 1–3): a run's `series.pvd` lists VTK XML
-//! unstructured grids (`.vtu`), read back here with vtkio's XML parser; cells carry their own
-//! VTK type; rigid elements are drawn with their finite rotation.
+//! The frames ParaView opens (README, *Reading the outputs in ParaView*): a run's `series.pvd`
+//! lists VTK XML unstructured grids (`.vtu`), read back here with vtkio's XML parser; cells carry
+//! their own VTK type; rigid elements are drawn with their finite rotation.
 
 mod common;
 use rbsm::analysis::setup::{Overrides, Setup};
 use rbsm::input::scene::Scene;
+use rbsm::step::integrator::RunStatus;
 use serde_json::Value;
 use std::path::Path;
 use vtkio::model::{Attribute, CellType, DataSet, Piece, VertexNumbers};
@@ -402,7 +403,7 @@ fn crack_frames_resume_byte_for_byte_and_go_with_the_next_run() {
         &mut StopAt(2600, flag.clone()),
     )
     .unwrap();
-    assert_eq!(summary.status, "interrupted");
+    assert_eq!(summary.status, RunStatus::Interrupted);
     assert!(summary.steps < 5367);
     let resume = rbsm::analysis::run::RunParams {
         resume: true,
@@ -445,7 +446,7 @@ fn crack_frames_resume_byte_for_byte_and_go_with_the_next_run() {
     );
 }
 
-/// A run writes no file through a symbolic link (issue 40 item 7): a link in the output folder
+/// A run writes no file through a symbolic link: a link in the output folder
 /// is replaced by the file, its target left untouched, for `history.csv` (written row by row),
 /// the temporary names files are written under, the collection and the frames, and for the
 /// history a resumed run cuts back and goes on with.
@@ -500,7 +501,7 @@ fn a_run_writes_through_no_link() {
         keep_history: false,
     };
     let first = run::run(&setup, &params(false), &out, &mut StopAt(330, flag.clone())).unwrap();
-    assert_eq!(first.status, "interrupted");
+    assert_eq!(first.status, RunStatus::Interrupted);
     for (name, target) in names.iter().zip(&planted) {
         assert_eq!(
             std::fs::read_to_string(target).unwrap(),
@@ -524,7 +525,7 @@ fn a_run_writes_through_no_link() {
         &mut StopAt(u64::MAX, flag.clone()),
     )
     .unwrap();
-    assert_eq!(end.status, "ok");
+    assert_eq!(end.status, RunStatus::Ok);
     assert_eq!(
         std::fs::read(&copy).unwrap(),
         before,

@@ -1,4 +1,4 @@
-//! A seeded fuzz campaign (issue 18): 20 000 scenes and mesh files mutated from the bundled
+//! A seeded fuzz campaign: 20 000 scenes and mesh files mutated from the bundled
 //! ones. Each goes through what `rbsm run` does (parse, validate, model, `Δt_crit`, a few
 //! steps) and must end as `rbsm` would exit: 0 (ran), 1 (an error) or 3 (diverged), never a
 //! panic; every error names a key, a cell or a file.

@@ -1,5 +1,5 @@
-//! Meshes from gmsh (issue 7): the shipped MSH 4.1 file gives the model of the equivalent
-//! built-in grid, and unsupported files are refused with a clear message.
+//! Meshes from gmsh (docs/scene.md, *`mesh`*): the shipped MSH 4.1 file gives the model of the
+//! equivalent built-in grid, and unsupported files are refused with a clear message.
 
 use rbsm::input::scene::Scene;
 use rbsm::mesh::geometry::Vec2;
@@ -184,7 +184,7 @@ fn unsupported_files_and_names_are_refused_clearly() {
 }
 
 /// A `.geo` with physical curves but no `Physical Surface` makes gmsh save the curves alone:
-/// the error says to add the surface (issue 19 item 7), not to mesh in 2D.
+/// the error says to add the surface, not to mesh in 2D.
 #[test]
 fn a_mesh_saved_without_its_physical_surface_is_explained() {
     let root = env!("CARGO_MANIFEST_DIR");

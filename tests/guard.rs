@@ -1,6 +1,6 @@
-//! The divergence guard (issue 18 item 1): it never stops a stable run, whatever the run
-//! starts from (zero energy, loads ramped from zero, damping, gravity on touching bodies), and
-//! it still stops runs above `Δt_crit` within the steps it took before.
+//! The divergence guard (README, *Outputs*; paper_notes.md 18): it never stops a stable run,
+//! whatever the run starts from (zero energy, loads ramped from zero, damping, gravity on touching
+//! bodies), and it still stops runs above `Δt_crit` within the steps it took before.
 
 use rbsm::analysis::setup::{Overrides, Setup};
 use rbsm::input::scene::Scene;

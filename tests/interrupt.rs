@@ -1,7 +1,7 @@
-//! Runs that stop early lose nothing (issue 18 item 2 and 4): SIGINT finishes the step and
-//! writes complete outputs; after SIGKILL the history and the frame list are valid up to the
-//! last frame written, and `--resume` ends with the outputs of an uninterrupted run, byte for
-//! byte; a write error leaves whole rows.
+//! Runs that stop early lose nothing (README, *Outputs*: interrupting and resuming): SIGINT
+//! finishes the step and writes complete outputs; after SIGKILL the history and the frame list are
+//! valid up to the last frame written, and `--resume` ends with the outputs of an uninterrupted
+//! run, byte for byte; a write error leaves whole rows.
 #![cfg(unix)]
 
 use serde_json::Value;

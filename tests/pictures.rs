@@ -1,5 +1,5 @@
-//! Pictures (issue 7): the dependency-free SVG of a model and of a mode shape, the SVG histories
-//! of `rbsm plot`, and the commands that write them.
+//! Pictures (README, *Commands*: `draw`, `plot`): the dependency-free SVG of a model and of a mode
+//! shape, the SVG histories of `rbsm plot`, and the commands that write them.
 
 use rbsm::input::scene::Scene;
 use rbsm::model::{Model, GROUND};

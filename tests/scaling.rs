@@ -1,4 +1,4 @@
-//! Setup grows linearly with the probes (issue 40 item 7): 10⁵ probes placed by `at` took
+//! Setup grows linearly with the probes: 10⁵ probes placed by `at` took
 //! 11.3 s, each looked for in every element (and each name compared with every other).
 
 use rbsm::analysis::setup::{Overrides, Setup};
@@ -66,9 +66,6 @@ fn setup_of_many_probes_is_linear() {
         );
         assert_eq!(Some(placed[k].element), located.elements[k]);
     }
-    // A generous bound on the wall time (measured: well under a second, with the model): the
-    // quadratic search took minutes here.
-    assert!(seconds < 20.0, "setup took {seconds} s");
     eprintln!(
         "setup with {PROBES} probes: {seconds:.3} s, {} tests",
         located.tests

@@ -50,7 +50,7 @@ fn unknown_keys_are_named_with_their_path() {
 
 /// A key at fault in well-formed JSON (unknown, missing, of the wrong type, inside a kind's
 /// variant) is a scene error whose key is its JSON path, and its message places it by that path
-/// alone (issue 40: `rbsm check --json` and Python's `SceneError.key` gave the file or `<json>`,
+/// alone (`rbsm check --json` and Python's `SceneError.key` gave the file or `<json>`,
 /// and a scene built from a Python dict was placed at "line 1 column 376" of text nobody saw).
 /// Malformed JSON stays a parse error placed by line and column.
 #[test]
@@ -399,9 +399,9 @@ fn pointer<'v>(v: &'v mut Value, path: &[Value]) -> &'v mut Value {
     })
 }
 
-/// A file that never ends, a FIFO or a file past the largest scene size is refused by what
-/// its metadata says, before anything is read (issue 40 item 7): a FIFO without a writer would
-/// block the reader, and a 1 GiB file was read whole before its refusal.
+/// A file that never ends, a FIFO or a file past the largest scene size is refused by what its
+/// metadata says, before anything is read (docs/scene.md, *Top level*, on the size): a FIFO without
+/// a writer would block the reader, and a 1 GiB file was read whole before its refusal.
 #[cfg(unix)]
 #[test]
 fn a_device_a_fifo_or_a_huge_file_is_not_a_scene() {
@@ -437,7 +437,7 @@ fn a_device_a_fifo_or_a_huge_file_is_not_a_scene() {
 }
 
 /// A softening law whose slope `f_t²/(2 G_f)` overflows (or whose exhausting opening
-/// `2 G_f/f_t` underflows) is refused naming its keys (issue 40 item 7); it used to break every
+/// `2 G_f/f_t` underflows) is refused naming its keys; it used to break every
 /// interface at the first step with NaN energies.
 #[test]
 fn a_softening_slope_that_overflows_is_refused() {
@@ -481,7 +481,7 @@ fn a_softening_slope_that_overflows_is_refused() {
 }
 
 /// Two bodies of one name, or a body named as a copy of an array, are refused naming the
-/// second (issue 40 item 7): `history.csv` had a clamp's columns twice.
+/// second: `history.csv` had a clamp's columns twice.
 #[test]
 fn duplicate_body_names_are_refused() {
     let e = with(|v| {
@@ -511,7 +511,7 @@ fn duplicate_body_names_are_refused() {
     Scene::from_json(&v.to_string()).unwrap();
 }
 
-/// Names of the scene, its bodies and its probes are at most 256 characters (issue 40 item 7):
+/// Names of the scene, its bodies and its probes are at most 256 characters (docs/scene.md):
 /// a probe name of 10⁶ characters was accepted.
 #[test]
 fn names_are_bounded() {
@@ -559,7 +559,7 @@ fn array_makes_named_shifted_copies() {
     );
 }
 
-/// A key repeated inside one object is refused with its path (issue 18 item 7): JSON parsers
+/// A key repeated inside one object is refused with its path (README, *Scenes*): JSON parsers
 /// keep one of the two silently.
 #[test]
 fn repeated_keys_are_refused_everywhere() {
@@ -592,7 +592,7 @@ fn repeated_keys_are_refused_everywhere() {
 }
 
 /// Probe names become `history.csv` headers: no commas, quotes or newlines, none of the
-/// energy columns, no repeats (issue 18 item 7).
+/// energy columns, no repeats (docs/scene.md, *`probes`*).
 #[test]
 fn probe_names_must_make_a_valid_header() {
     let probe = |name: Value| serde_json::json!({"name": name, "element": 0, "dof": "u"});
@@ -610,7 +610,7 @@ fn probe_names_must_make_a_valid_header() {
     expect(&e, &["output.probes[1].name", "e0_u"]);
 }
 
-/// `--steps 0` is refused like `time.steps: 0` (issue 18 item 7).
+/// `--steps 0` is refused like `time.steps: 0`.
 #[test]
 fn zero_steps_are_refused_from_the_command_line_too() {
     let scene = Scene::from_json(&base().to_string()).unwrap();
@@ -627,7 +627,7 @@ fn zero_steps_are_refused_from_the_command_line_too() {
     expect(&e, &["--steps", "≥ 1"]);
 }
 
-/// Messages blame the input at fault (issue 18 item 8): a subnormal density or thickness is
+/// Messages blame the input at fault: a subnormal density or thickness is
 /// refused as such (it was blamed on the hybrid formulation's mass on a rigid grid), an
 /// overflowing penalty names the penalty (it was blamed on `materials`).
 #[test]
@@ -650,7 +650,7 @@ fn messages_blame_the_input_at_fault() {
     );
 }
 
-/// A polygon cell shaped like an 8 (two lobes meeting at a point) is refused (issue 18 item 8).
+/// A polygon cell shaped like an 8 (two lobes meeting at a point) is refused.
 #[test]
 fn a_figure_eight_cell_is_refused() {
     let e = with(|v| {
@@ -661,7 +661,7 @@ fn a_figure_eight_cell_is_refused() {
     expect(&e, &["cell 0", "touches itself"]);
 }
 
-/// Messages stay short (issue 18 item 8): a long value is echoed cut, not whole.
+/// Messages stay short: a long value is echoed cut, not whole.
 #[test]
 fn messages_are_cut_to_a_useful_length() {
     let long = "x".repeat(50_000);
@@ -680,7 +680,7 @@ fn messages_are_cut_to_a_useful_length() {
 }
 
 /// A model too large for the memory the process may take is refused with the estimate and
-/// what is available (issue 18 item 6), where it used to abort when an allocation failed.
+/// what is available, where it used to abort when an allocation failed.
 #[cfg(target_os = "linux")]
 #[test]
 fn a_model_too_large_for_memory_is_refused_before_it_is_built() {

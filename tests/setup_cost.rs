@@ -1,13 +1,14 @@
-//! A run models only what its scene asks for, at setup too (issue 22): with a given `dt` it
-//! computes no `ω_max` (Lanczos iterations are counted process-wide, so this file holds one
-//! test, alone in its process), with a `dt_factor` only a few digits, and to full precision
-//! when asked.
+//! A run models only what its scene asks for, at setup too (paper_notes.md 24): with a given `dt`
+//! it computes no `ω_max` (Lanczos iterations are counted process-wide, so this file holds one
+//! test, alone in its process), with a `dt_factor` only a few digits, and to full precision when
+//! asked.
 
 use rbsm::analysis::limit;
 use rbsm::analysis::run::{self, RunParams, Silent};
 use rbsm::analysis::setup::{Overrides, Setup};
 use rbsm::input::scene::Scene;
 use rbsm::output::Summary;
+use rbsm::step::integrator::RunStatus;
 
 /// The bundled cantilever, refined to 4000 elements so that Lanczos takes many iterations.
 fn cantilever(time: &str) -> Scene {
@@ -37,7 +38,7 @@ fn run_counted(scene: &Scene, overrides: &Overrides) -> (u64, Setup, Summary) {
         keep_history: false,
     };
     let summary = run::run(&setup, &params, out.path(), &mut Silent).unwrap();
-    assert_eq!(summary.status, "ok");
+    assert_eq!(summary.status, RunStatus::Ok);
     (limit::lanczos_iterations() - before, setup, summary)
 }
 

@@ -1,4 +1,4 @@
-//! Walls and columns of bricks in edge-to-edge and point contact (issue: contact at DEM scale):
+//! Walls and columns of bricks in edge-to-edge and point contact (`validation/report.md` §8.7):
 //! a running-bond wall settles on the ground and carries its weight, a frictionless wall keeps
 //! its energy up to the time step's error, and a column carries the weight of the bricks above
 //! it at every joint.

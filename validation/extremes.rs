@@ -2,24 +2,22 @@
 
 use super::Report;
 use crate::fixtures::extremes::{self, Run};
+use rbsm::step::integrator::Status;
 
 fn run_cell(r: &Run) -> String {
-    if r.status == "ok" {
-        format!("ok, drift {:.1e}", r.drift)
-    } else {
+    if let Some(detail) = r.status.detail() {
+        // Where it stopped, without the guard's reason.
         format!(
-            "stopped at step {}{}",
-            r.status
-                .trim_start_matches("diverged at step ")
-                .split(':')
-                .next()
-                .unwrap_or("?"),
+            "stopped {}{}",
+            detail.split(':').next().unwrap_or("?"),
             if r.finite {
                 ", state finite"
             } else {
                 ", NaN left!"
             }
         )
+    } else {
+        format!("ok, drift {:.1e}", r.drift)
     }
 }
 
@@ -106,7 +104,11 @@ pub fn extremes(r: &mut Report) {
                     );
                     r.bound(
                         &format!("extreme aspect {a:.0} {name}: stopped above Δt_crit (1 = no)"),
-                        if x.above.status == "ok" { 1.0 } else { 0.0 },
+                        if x.above.status == Status::Ok {
+                            1.0
+                        } else {
+                            0.0
+                        },
                         0.0,
                     );
                 }
@@ -286,7 +288,7 @@ pub fn extremes(r: &mut Report) {
         );
         r.bound(
             &format!("extreme dt {f} Δt_crit: outcome (0 = as expected)"),
-            if (x.status == "ok") == (f < 1.0) {
+            if (x.status == Status::Ok) == (f < 1.0) {
                 0.0
             } else {
                 1.0

@@ -6,7 +6,7 @@
 
 use super::Report;
 use rbsm::analysis::setup::{Overrides, Setup};
-use rbsm::force::failure::InterfaceFailure;
+use rbsm::force::failure::{InterfaceFailure, InterfaceStatus};
 use rbsm::input::scene::{EvaluatorKind, Scene};
 use rbsm::step::integrator::Energy;
 use serde_json::{json, Value};
@@ -76,7 +76,7 @@ impl Run {
             .map(|c| c.1)
             .fold(f64::NEG_INFINITY, f64::max)
     }
-    fn count(&self, status: &str) -> usize {
+    fn count(&self, status: InterfaceStatus) -> usize {
         self.interfaces
             .iter()
             .filter(|i| i.status == status)
@@ -238,7 +238,7 @@ fn fragments(r: &mut Report) {
             .as_ref()
             .unwrap()
             .report(cd.failure().unwrap());
-        let count = |s: &str| report.iter().filter(|i| i.status == s).count();
+        let count = |s| report.iter().filter(|i| i.status == s).count();
         let put_in = rows[0].kinetic - rows.iter().map(|e| e.potential).fold(0.0, f64::min);
         let drift = rows
             .iter()
@@ -249,9 +249,9 @@ fn fragments(r: &mut Report) {
         r.line(&format!(
             "| {} | {} | {} | {} | {:.4} | {:.4} | {drift:.2e} | {} | {:.2e} |",
             kind.name(),
-            count("released"),
-            count("broken"),
-            count("yielding"),
+            count(InterfaceStatus::Released),
+            count(InterfaceStatus::Broken),
+            count(InterfaceStatus::Yielding),
             last.fracture,
             last.friction,
             cd.step,
@@ -269,7 +269,7 @@ fn fragments(r: &mut Report) {
         );
         r.figure(
             &format!("fragments {}: released", kind.name()),
-            count("released") as f64,
+            count(InterfaceStatus::Released) as f64,
             0.0,
         );
         runs.push(states);
@@ -382,8 +382,8 @@ fn tension(r: &mut Report) {
         r.line(&format!(
             "| {name} | {} | {peak:.4} | {energy:.4} | {} | {} | {balance:.2e} | {} |",
             run.elements,
-            run.count("yielding"),
-            run.count("broken"),
+            run.count(InterfaceStatus::Yielding),
+            run.count(InterfaceStatus::Broken),
             run.cost()
         ));
         r.timing(&format!("- tension bar, {name}: {:.2} s", run.wall_s));
@@ -428,7 +428,7 @@ fn tension(r: &mut Report) {
         displacements differ by {:.2e} of the largest; fracture works {:.10e} J (assembled, \
         `K U − G δ_p`) and {:.10e} J (element-wise, each element's own edges).\n",
         a.steps,
-        a.count("broken"),
+        a.count(InterfaceStatus::Broken),
         diff / scale,
         a.last.fracture,
         e.last.fracture

@@ -28,7 +28,7 @@ use rbsm::force::evaluator;
 use rbsm::input::scene::{EvaluatorKind, Scene};
 use rbsm::model::mass::Mass;
 use rbsm::model::Model;
-use rbsm::step::integrator::Status;
+use rbsm::step::integrator::{RunStatus, Status};
 use std::collections::BTreeMap;
 use std::f64::consts::PI;
 use std::fmt::Write;
@@ -719,7 +719,7 @@ fn critical_time_step(r: &mut Report) {
         ));
         r.bound(
             &format!("run at {f} Δt_crit: diverged (1) when > 1"),
-            if (run.status == "ok") == (f < 1.0) {
+            if (run.status == RunStatus::Ok) == (f < 1.0) {
                 0.0
             } else {
                 1.0

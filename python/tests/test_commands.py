@@ -240,7 +240,7 @@ def test_type_stubs_let_a_checker_find_a_wrong_call(tmp_path):
 
 
 def misspelt_key(scenes):
-    """The tension bar with `tensile_strength` misspelt, as the issue's user wrote it."""
+    """The tension bar with `tensile_strength` misspelt, as a user might write it."""
     scene = json.loads((scenes / "tension_bar.json").read_text())
     law = scene["materials"]["concrete"]["interface"]
     law["tensile_strenght"] = law.pop("tensile_strength")

@@ -14,7 +14,7 @@ use crate::model::formulation::{Formulation, Hybrid, Kinematics, Rigid};
 use crate::model::loads::Loads;
 use crate::model::mass::Mass;
 use crate::model::{Model, GROUND};
-use crate::step::integrator::{CentralDifference, Status};
+use crate::step::integrator::{CentralDifference, RunStatus};
 use nalgebra::{DMatrix, SMatrix};
 use rand::{Rng, SeedableRng};
 use serde::Serialize;
@@ -171,7 +171,7 @@ pub struct FractionRun {
     /// Steps taken (fewer than asked when it diverged).
     pub steps: u64,
     /// `ok` or `diverged`.
-    pub status: String,
+    pub status: RunStatus,
     /// Why a diverged run was stopped (what the guard saw: energy growth or a NaN), with the
     /// step; `null` for `ok`.
     pub reason: Option<String>,
@@ -227,17 +227,13 @@ pub fn run_at_fraction(setup: &Setup, fraction: f64, steps: u64) -> FractionRun 
             |_| {},
         )
         .expect("the observer cannot fail");
-    let reason = match status {
-        Status::Diverged { step, t, reason } => {
-            Some(format!("at step {step} (t = {t:.6e} s): {reason}"))
-        }
-        Status::Ok | Status::Interrupted { .. } => None,
-    };
+    // No interrupt flag is set: a run ends or diverges.
+    let reason = status.detail();
     FractionRun {
         fraction,
         dt,
         steps: cd.step,
-        status: if reason.is_none() { "ok" } else { "diverged" }.into(),
+        status: status.kind(),
         max_relative_drift: reason.is_none().then(|| cd.max_relative_drift()),
         reason,
         history,
@@ -247,7 +243,7 @@ pub fn run_at_fraction(setup: &Setup, fraction: f64, steps: u64) -> FractionRun 
 /// The empirical limit: bisection on `fraction` between a stable and an unstable run of
 /// `steps` steps each, to a relative width of `tol`. Returns `(dt, dt / Δt_crit)`.
 pub fn empirical_limit(setup: &Setup, steps: u64, tol: f64) -> (f64, f64) {
-    let stable = |f: f64| run_at_fraction(setup, f, steps).status == "ok";
+    let stable = |f: f64| run_at_fraction(setup, f, steps).status == RunStatus::Ok;
     let (mut lo, mut hi) = (0.5, 2.0);
     while !stable(lo) {
         lo *= 0.5;

@@ -15,7 +15,7 @@ use crate::input::scene::{
 };
 use crate::mesh::geometry::Vec2;
 use crate::model::Model;
-use crate::step::integrator::Status;
+use crate::step::integrator::{RunStatus, Status};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 use std::time::Instant;
@@ -169,12 +169,92 @@ pub struct Point {
     pub wall_range_s: [f64; 2],
     /// Peak resident memory of the process during the point (MiB), where the system tells it.
     pub peak_mib: Option<f64>,
-    /// `ok`, or why the run stopped.
-    pub status: String,
+    /// `ok`, or where and why the run stopped.
+    pub status: PointStatus,
     /// Relative error against the reference; `None` when the run diverged.
     pub error: Option<f64>,
     /// Whether no other point has both a smaller error and a smaller wall time.
     pub pareto: bool,
+}
+
+/// How a point's run ended, serialised (and written into `tradeoff.csv`) as one text: `ok`,
+/// `diverged at step N (t = T s): reason` or `interrupted at step N (t = T s)`
+/// ([`Status::describe`]); read back from it by its `FromStr`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(into = "String", try_from = "String")]
+pub enum PointStatus {
+    /// Every step was taken.
+    Ok,
+    /// Stopped by the guard: `at step N (t = T s): reason` ([`Status::detail`]).
+    Diverged(String),
+    /// Stopped by the interrupt flag: `at step N (t = T s)`.
+    Interrupted(String),
+}
+
+impl From<&Status> for PointStatus {
+    fn from(status: &Status) -> Self {
+        let detail = status.detail().unwrap_or_default();
+        match status.kind() {
+            RunStatus::Ok => PointStatus::Ok,
+            RunStatus::Diverged => PointStatus::Diverged(detail),
+            RunStatus::Interrupted => PointStatus::Interrupted(detail),
+        }
+    }
+}
+
+impl PointStatus {
+    /// Whether every step was taken.
+    pub fn is_ok(&self) -> bool {
+        *self == PointStatus::Ok
+    }
+}
+
+impl std::fmt::Display for PointStatus {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            PointStatus::Ok => write!(f, "{}", RunStatus::Ok),
+            PointStatus::Diverged(detail) => write!(f, "{} {detail}", RunStatus::Diverged),
+            PointStatus::Interrupted(detail) => write!(f, "{} {detail}", RunStatus::Interrupted),
+        }
+    }
+}
+
+impl std::str::FromStr for PointStatus {
+    type Err = String;
+
+    /// The status that [`Display`](std::fmt::Display) wrote as `text`.
+    fn from_str(text: &str) -> std::result::Result<Self, String> {
+        let after = |kind: RunStatus| {
+            text.strip_prefix(kind.name())
+                .and_then(|rest| rest.strip_prefix(' '))
+                .map(str::to_string)
+        };
+        if text == RunStatus::Ok.name() {
+            Ok(PointStatus::Ok)
+        } else if let Some(detail) = after(RunStatus::Diverged) {
+            Ok(PointStatus::Diverged(detail))
+        } else if let Some(detail) = after(RunStatus::Interrupted) {
+            Ok(PointStatus::Interrupted(detail))
+        } else {
+            Err(format!(
+                "a point's status is `ok`, `diverged …` or `interrupted …`, not `{text}`"
+            ))
+        }
+    }
+}
+
+impl From<PointStatus> for String {
+    fn from(status: PointStatus) -> String {
+        status.to_string()
+    }
+}
+
+impl TryFrom<String> for PointStatus {
+    type Error = String;
+
+    fn try_from(text: String) -> std::result::Result<Self, String> {
+        text.parse()
+    }
 }
 
 /// The whole sweep.
@@ -263,7 +343,7 @@ impl Study {
         point_scene.validate()?;
         let (mut point, measure) = run_point(&point_scene, settings.clone())?;
         let mut times = vec![(point.setup_s, point.stepping_s)];
-        while point.status == "ok"
+        while point.status.is_ok()
             && times.len() < MAX_RUNS
             && times.iter().map(|t| t.1).sum::<f64>() < MIN_STEPPING_S
         {
@@ -516,7 +596,7 @@ fn run_point(scene: &Scene, settings: Vec<(Key, String)>) -> Result<(Point, Meas
         )
     };
     let stepping_s = clock.elapsed().as_secs_f64();
-    let status = status.describe();
+    let status = PointStatus::from(&status);
     let point = Point {
         settings,
         elements: model.elements.len(),
@@ -545,7 +625,7 @@ fn ground_height(model: &Model) -> f64 {
 /// Fills in every point's error; returns the reference's name and the error's definition.
 fn score(scene: &Scene, model: &Model, runs: &mut [(Point, Measure)]) -> Result<(String, String)> {
     let names: Vec<String> = scene.output.probes.iter().map(|p| p.column()).collect();
-    let ok = |p: &Point| p.status == "ok";
+    let ok = |p: &Point| p.status.is_ok();
     match &scene.reference {
         Some(ReferenceSpec::HoppingBlock) => {
             let ground = ground_height(model);
@@ -823,12 +903,16 @@ impl TradeoffReport {
                 p.wall_range_s[0],
                 p.wall_range_s[1],
                 p.pareto,
-                p.status.replace('"', "'")
+                p.status.to_string().replace('"', "'")
             ));
-            let err_md = match (&p.error, p.status.as_str()) {
+            let err_md = match (&p.error, &p.status) {
                 (Some(e), _) => format!("{e:.3e}"),
-                (None, "ok") => "reference".into(),
-                (None, s) => s.split(':').next().unwrap_or(s).to_string(),
+                (None, PointStatus::Ok) => "reference".into(),
+                // Where it stopped, without the guard's reason.
+                (None, status) => {
+                    let text = status.to_string();
+                    text.split(':').next().unwrap_or(&text).to_string()
+                }
             };
             md.push_str(&format!(
                 "| {} | {} | {:.3e} | {:.3} | {} | {:.3e} ({:.2e}–{:.2e}) of {} | {peak} | \

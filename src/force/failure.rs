@@ -63,15 +63,66 @@ impl FailureState {
     }
 }
 
+/// The state of a failing interface, from its two Gauss points; serialised (in
+/// `final_state.json`) as its lowercase name.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum InterfaceStatus {
+    /// No plastic displacement.
+    Elastic,
+    /// Plastic displacement, strength left.
+    Yielding,
+    /// Strength exhausted at both Gauss points.
+    Broken,
+    /// Broken and handed over to contact.
+    Released,
+}
+
+impl InterfaceStatus {
+    /// Every status, in the order of their crack-frame codes (`output::vtk::status_code`).
+    pub const ALL: [InterfaceStatus; 4] = [
+        InterfaceStatus::Elastic,
+        InterfaceStatus::Yielding,
+        InterfaceStatus::Broken,
+        InterfaceStatus::Released,
+    ];
+
+    /// `elastic`, `yielding`, `broken` or `released`, as serialised.
+    pub fn name(self) -> &'static str {
+        match self {
+            InterfaceStatus::Elastic => "elastic",
+            InterfaceStatus::Yielding => "yielding",
+            InterfaceStatus::Broken => "broken",
+            InterfaceStatus::Released => "released",
+        }
+    }
+}
+
+impl std::fmt::Display for InterfaceStatus {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for InterfaceStatus {
+    type Err = String;
+
+    /// The status named `name`, or why it is none.
+    fn from_str(name: &str) -> Result<Self, String> {
+        Self::ALL
+            .into_iter()
+            .find(|s| s.name() == name)
+            .ok_or_else(|| format!("status `{name}` is not elastic, yielding, broken or released"))
+    }
+}
+
 /// What an interface has done so far, from its two Gauss points.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct InterfaceFailure {
     /// The interface (index in `Model::interfaces`).
     pub interface: usize,
-    /// `elastic` (no plastic displacement), `yielding` (plastic displacement, strength left),
-    /// `broken` (strength exhausted at both Gauss points) or `released` (broken and handed over
-    /// to contact).
-    pub status: &'static str,
+    /// Its state.
+    pub status: InterfaceStatus,
     /// Mean plastic opening `δ_p,n` (m): the crack opening.
     pub opening: f64,
     /// Mean plastic slip `δ_p,s` (m).
@@ -388,13 +439,13 @@ impl<K: Kinematics<N>, const N: usize> PlasticForces for Points<K, N> {
                 InterfaceFailure {
                     interface: i as usize,
                     status: if state.released[k] {
-                        "released"
+                        InterfaceStatus::Released
                     } else if broken {
-                        "broken"
+                        InterfaceStatus::Broken
                     } else if plastic {
-                        "yielding"
+                        InterfaceStatus::Yielding
                     } else {
-                        "elastic"
+                        InterfaceStatus::Elastic
                     },
                     opening: 0.5 * (s[0].p[0] + s[1].p[0]),
                     slip: 0.5 * (s[0].p[1] + s[1].p[1]),

@@ -6,6 +6,7 @@
 //! edge midpoint (the lengths `h_a`, `h_b` of eq. 12).
 
 use crate::error::{Error, Result};
+use crate::force::failure::InterfaceStatus;
 use crate::mesh::geometry::Vec2;
 use crate::model::{Model, GROUND};
 use std::fmt::Write;
@@ -341,12 +342,12 @@ pub fn state_svg(model: &Model, state: &crate::output::FinalState) -> String {
         placement.position(model, e, &u[e * nd..(e + 1) * nd], x)
     });
     let mut cv = over_reference(&polygons, 0.4);
-    let of = |status: &'static str| state.interfaces.iter().filter(move |i| i.status == status);
+    let of = |status| state.interfaces.iter().filter(move |i| i.status == status);
     // Broken ones (and those released to contact) last, over the yielding ones.
     for (status, style) in [
-        ("yielding", YIELDING),
-        ("broken", BROKEN),
-        ("released", BROKEN),
+        (InterfaceStatus::Yielding, YIELDING),
+        (InterfaceStatus::Broken, BROKEN),
+        (InterfaceStatus::Released, BROKEN),
     ] {
         for i in of(status) {
             let [p1, p2] = interface_edge(model, &u, &model.interfaces[i.interface], placement);
@@ -373,10 +374,10 @@ pub fn state_svg(model: &Model, state: &crate::output::FinalState) -> String {
         format!(
             "{} broken (thick red, {} of them released to contact), {} yielding (orange), {} \
              elastic",
-            of("broken").count() + of("released").count(),
-            of("released").count(),
-            of("yielding").count(),
-            of("elastic").count()
+            of(InterfaceStatus::Broken).count() + of(InterfaceStatus::Released).count(),
+            of(InterfaceStatus::Released).count(),
+            of(InterfaceStatus::Yielding).count(),
+            of(InterfaceStatus::Elastic).count()
         )
     };
     cv.text(cv.margin, 38.0, 13.0, &legend);

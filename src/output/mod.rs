@@ -8,8 +8,9 @@ pub mod plot;
 pub mod vtk;
 
 use crate::error::{Error, Result};
+use crate::force::failure::InterfaceStatus;
 use crate::model::Model;
-use crate::step::integrator::{Energy, Snapshot};
+use crate::step::integrator::{Energy, RunStatus, Snapshot};
 use serde::Serialize;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -46,7 +47,7 @@ pub struct Summary {
     /// Time reached (s).
     pub t_end: f64,
     /// `ok`, `diverged` or `interrupted`.
-    pub status: String,
+    pub status: RunStatus,
     /// Why a run diverged, with the step and the time; `null` for `ok`.
     pub reason: Option<String>,
     /// Whole run, setup included (s).
@@ -104,11 +105,12 @@ impl FailureSummary {
         interfaces: &[crate::force::failure::InterfaceFailure],
         dissipated: [f64; 2],
     ) -> Self {
+        let of = |status| interfaces.iter().filter(|i| i.status == status).count();
         FailureSummary {
             interfaces: interfaces.len(),
-            yielding: interfaces.iter().filter(|i| i.status == "yielding").count(),
-            broken: interfaces.iter().filter(|i| i.status == "broken").count(),
-            released: interfaces.iter().filter(|i| i.status == "released").count(),
+            yielding: of(InterfaceStatus::Yielding),
+            broken: of(InterfaceStatus::Broken),
+            released: of(InterfaceStatus::Released),
             fracture: dissipated[0],
             friction: dissipated[1],
         }
@@ -563,17 +565,10 @@ pub fn read_final_state(path: &Path, model: &Model) -> Result<FinalState> {
     }
     let mut interfaces = Vec::with_capacity(file.interfaces.len());
     for (k, i) in file.interfaces.iter().enumerate() {
-        let status = match i.status.as_str() {
-            "elastic" => "elastic",
-            "yielding" => "yielding",
-            "broken" => "broken",
-            "released" => "released",
-            s => {
-                return Err(fail(format!(
-                    "interfaces[{k}]: status `{s}` is not elastic, yielding, broken or released"
-                )))
-            }
-        };
+        let status: InterfaceStatus = i
+            .status
+            .parse()
+            .map_err(|why| fail(format!("interfaces[{k}]: {why}")))?;
         let fails = model.strength.get(i.interface).is_some_and(Option::is_some);
         if !fails {
             return Err(fail(format!(

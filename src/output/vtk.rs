@@ -12,7 +12,7 @@
 //! keep one cell per element and only the elements' arrays, whatever the scene.
 
 use crate::error::{Error, Result};
-use crate::force::failure::{InterfaceFailure, PlasticForces};
+use crate::force::failure::{InterfaceFailure, InterfaceStatus, PlasticForces};
 use crate::mesh::geometry::Vec2;
 use crate::model::{Interface, Model, GROUND};
 use crate::step::integrator::Snapshot;
@@ -222,12 +222,12 @@ pub fn interface_edge(model: &Model, u: &[f64], i: &Interface, placement: Placem
 
 /// `1` for a `yielding` interface, `2` for a `broken` one, `3` for one `released` to contact,
 /// `0` for an `elastic` one.
-pub fn status_code(status: &str) -> i32 {
+pub fn status_code(status: InterfaceStatus) -> i32 {
     match status {
-        "yielding" => 1,
-        "broken" => 2,
-        "released" => 3,
-        _ => 0,
+        InterfaceStatus::Elastic => 0,
+        InterfaceStatus::Yielding => 1,
+        InterfaceStatus::Broken => 2,
+        InterfaceStatus::Released => 3,
     }
 }
 

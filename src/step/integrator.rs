@@ -172,17 +172,64 @@ struct Groups {
     active: bool,
 }
 
-impl Status {
-    /// `ok`, `interrupted at step N (t = T s)` or `diverged at step N (t = T s): reason`.
-    pub fn describe(&self) -> String {
+/// How a run ended, without where or why: the `status` of `summary.json` (`ok`, `interrupted`
+/// or `diverged`, the README's *Outputs*).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum RunStatus {
+    /// Every step was taken.
+    Ok,
+    /// Stopped by the interrupt flag.
+    Interrupted,
+    /// Stopped by the guard.
+    Diverged,
+}
+
+impl RunStatus {
+    /// `ok`, `interrupted` or `diverged`, as serialised.
+    pub fn name(self) -> &'static str {
         match self {
-            Status::Ok => "ok".to_string(),
-            Status::Interrupted { step, t } => {
-                format!("interrupted at step {step} (t = {t:.6e} s)")
-            }
+            RunStatus::Ok => "ok",
+            RunStatus::Interrupted => "interrupted",
+            RunStatus::Diverged => "diverged",
+        }
+    }
+}
+
+impl std::fmt::Display for RunStatus {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl Status {
+    /// The kind of ending, without its details.
+    pub fn kind(&self) -> RunStatus {
+        match self {
+            Status::Ok => RunStatus::Ok,
+            Status::Interrupted { .. } => RunStatus::Interrupted,
+            Status::Diverged { .. } => RunStatus::Diverged,
+        }
+    }
+
+    /// Where a run stopped early, and why when it diverged: `at step N (t = T s)` or
+    /// `at step N (t = T s): reason`; `None` for [`Status::Ok`].
+    pub fn detail(&self) -> Option<String> {
+        match self {
+            Status::Ok => None,
+            Status::Interrupted { step, t } => Some(format!("at step {step} (t = {t:.6e} s)")),
             Status::Diverged { step, t, reason } => {
-                format!("diverged at step {step} (t = {t:.6e} s): {reason}")
+                Some(format!("at step {step} (t = {t:.6e} s): {reason}"))
             }
+        }
+    }
+
+    /// `ok`, `interrupted at step N (t = T s)` or `diverged at step N (t = T s): reason`: the
+    /// kind followed by the [`detail`](Status::detail).
+    pub fn describe(&self) -> String {
+        match self.detail() {
+            None => self.kind().to_string(),
+            Some(detail) => format!("{} {detail}", self.kind()),
         }
     }
 }

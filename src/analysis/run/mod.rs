@@ -11,7 +11,7 @@ use crate::output::{
     self, count, ClampSummary, Columns, ContactSummary, EnergySummary, FailureSummary, History,
     ProbeColumn, Summary,
 };
-use crate::step::integrator::Status;
+use crate::step::integrator::{RunStatus, Status};
 use std::path::Path;
 use std::time::Instant;
 
@@ -296,23 +296,17 @@ pub fn simulate(
         monitor.info(&format!("warning: {w}"));
         warnings.push(w);
     }
-    let (status_name, reason) = match &status {
-        Status::Ok => ("ok", None),
-        Status::Interrupted { step, t } => (
-            "interrupted",
-            Some(format!(
-                "step {step}, t = {t:e} s: interrupted by a signal{}",
-                if scene.output.checkpoint_every.is_some() && out.is_some() {
-                    "; `rbsm run SCENE --resume DIR` goes on from the last checkpoint"
-                } else {
-                    ""
-                }
-            )),
-        ),
-        Status::Diverged { step, t, reason } => (
-            "diverged",
-            Some(format!("step {step}, t = {t:e} s: {reason}")),
-        ),
+    let reason = match &status {
+        Status::Ok => None,
+        Status::Interrupted { step, t } => Some(format!(
+            "step {step}, t = {t:e} s: interrupted by a signal{}",
+            if scene.output.checkpoint_every.is_some() && out.is_some() {
+                "; `rbsm run SCENE --resume DIR` goes on from the last checkpoint"
+            } else {
+                ""
+            }
+        )),
+        Status::Diverged { step, t, reason } => Some(format!("step {step}, t = {t:e} s: {reason}")),
     };
     // After a divergence the integrator has rolled back to its last good state.
     let failure = p
@@ -351,7 +345,7 @@ pub fn simulate(
         dt_safe: p.limit.dt_safe(),
         steps: cd.step,
         t_end: cd.t,
-        status: status_name.into(),
+        status: status.kind(),
         reason,
         wall_time_s: p.seconds + wall.elapsed().as_secs_f64(),
         setup_time_s: p.seconds,
@@ -408,7 +402,7 @@ impl crate::analysis::Report for Summary {
     fn text(&self) -> String {
         match &self.reason {
             Some(reason) => {
-                let state = if self.status == "diverged" {
+                let state = if self.status == RunStatus::Diverged {
                     "the last state that passed the guard"
                 } else {
                     "the step reached"
