@@ -3,40 +3,99 @@
 //! of aborting when an allocation fails.
 
 use crate::error::{Error, Result};
-use crate::input::scene::{FormulationSpec, Scene};
+use crate::input::scene::{ContactModel, EvaluatorKind, FormulationSpec, InterfaceLawSpec, Scene};
 
-/// Bytes per element a run holds at its peak, measured with `/usr/bin/time -f %M` on square
-/// grids of 4·10⁴ and 3.6·10⁵ elements (`rbsm run --steps 2`: model, evaluator, Lanczos for
-/// `Δt_crit`, integrator): at most 2.3 kB rigid and 5.0 kB hybrid, rounded up.
-const RIGID_ELEMENT: u64 = 2_600;
-const HYBRID_ELEMENT: u64 = 5_600;
-/// Contact (vertices, edges, neighbour lists) multiplies that by at most this much, and each
-/// body adds its own mesh (a wall of 3·10⁴ one-brick bodies: 4.0 to 4.5 kB per body).
+/// Address space per element at a run's peak (`VmPeak`, which bounds the resident `%M` of
+/// `/usr/bin/time`), measured on Voronoi bars (`tension_bar.json`, three interfaces per element,
+/// more than a grid's two) of 2·10⁴ and 10⁵ elements, `rbsm run --steps 2` (model, evaluator,
+/// Lanczos for `Δt_crit`, integrator, outputs) on 2 threads with one malloc arena: the slope
+/// between the two sizes, rounded up by about a tenth. Rigid and hybrid, by evaluator:
+/// element-wise 3.24 and 4.09 kB (resident 2.81 and 3.52 kB), assembled 4.78 and 12.4 kB
+/// (resident 3.2 and 7.2 kB: the sparse `K` is built in vectors that grow by doubling).
+const ELEMENT_WISE: [u64; 2] = [3_600, 4_500];
+const ASSEMBLED: [u64; 2] = [5_300, 13_700];
+/// Failing interfaces (`mohr-coulomb`, `softening`) add their state per Gauss point: 1.67 kB
+/// rigid, 2.44 kB hybrid (element-wise; resident 1.07 and 1.74 kB).
+const FAILING: [u64; 2] = [1_900, 2_700];
+/// A body that fragments (failing interfaces and edge-to-edge contact, `Model::fragments`)
+/// makes every element a contact target and every edge a source, with room for the neighbour
+/// lists and pieces of all of them: 3.35 kB rigid, 3.80 kB hybrid more than the same body
+/// without contact (resident 1.76 and 2.34 kB until it cracks).
+const FRAGMENTS: u64 = 4_200;
+/// Other contact (vertices, edges, neighbour lists) multiplies a body's elements' bytes by at
+/// most this much, and each body adds its own mesh (a wall of 3·10⁴ one-brick bodies: 4.0 to
+/// 4.5 kB per body).
 const CONTACT_FACTOR: f64 = 1.5;
 const PER_BODY: u64 = 1_500;
-/// What the process holds before the model: code, thread stacks, allocator arenas.
-const BASELINE: u64 = 256 << 20;
+/// What the process holds before the model: code, the main thread's stack, the allocator's
+/// first heap (8 to 10 MB measured, rounded up widely).
+const BASELINE: u64 = 64 << 20;
+/// Per thread of the pool: its stack (2 MiB, Rust's default, and a guard page).
+const THREAD_STACK: u64 = (2 << 20) + 4096;
+/// Per glibc malloc arena beyond the first: the 64 MiB of address space it reserves.
+const ARENA: u64 = 64 << 20;
 
-/// The estimated peak bytes of a run of `scene` with `elements` elements in all.
-pub fn estimate(scene: &Scene, elements: u64) -> u64 {
-    let per_element = match scene.formulation {
-        FormulationSpec::Hybrid { .. } => HYBRID_ELEMENT,
-        _ => RIGID_ELEMENT,
+/// The malloc arenas the process was bounded to (`rbsm` bounds glibc's to one), 0 when not
+/// bounded: then each thread may reserve an arena of its own.
+static ARENAS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+
+/// Tells the estimate that the process keeps at most `n` malloc arenas (glibc's `M_ARENA_MAX`).
+pub fn arenas_bounded(n: usize) {
+    ARENAS.store(n, std::sync::atomic::Ordering::Relaxed);
+}
+
+/// The estimated peak address space of a run of `scene` with `elements` elements in all,
+/// `threads` threads in its pool: the process's, its threads' and each body's elements' (their
+/// cells, as their meshes announce them; the elements of a gmsh body, unknown before it is read,
+/// count at the largest bytes per element of the scene's bodies). It bounds the resident memory too: the
+/// room reserved for fragments is touched as the bodies crack.
+pub fn estimate(scene: &Scene, elements: u64, threads: usize) -> u64 {
+    let hybrid = matches!(scene.formulation, FormulationSpec::Hybrid { .. }) as usize;
+    let base = match scene.evaluator {
+        EvaluatorKind::Assembled => ASSEMBLED[hybrid],
+        EvaluatorKind::ElementWise => ELEMENT_WISE[hybrid],
     };
-    let factor = if scene.contact.is_some() {
-        CONTACT_FACTOR
-    } else {
-        1.0
+    let edge_to_edge = scene
+        .contact
+        .is_some_and(|c| c.model == ContactModel::EdgeToEdge);
+    let per_body: Vec<(u64, f64)> = scene
+        .bodies
+        .iter()
+        .map(|b| {
+            let fails = scene
+                .materials
+                .get(&b.material)
+                .is_some_and(|m| m.interface != InterfaceLawSpec::Elastic);
+            let bytes = base + if fails { FAILING[hybrid] } else { 0 };
+            let bytes = match (scene.contact.is_some(), fails && edge_to_edge) {
+                (_, true) => (bytes + FRAGMENTS) as f64,
+                (true, false) => bytes as f64 * CONTACT_FACTOR,
+                (false, false) => bytes as f64,
+            };
+            (crate::mesh::cells_of(&b.mesh).unwrap_or(0), bytes)
+        })
+        .collect();
+    let known: u64 = per_body.iter().map(|(n, _)| n).sum();
+    let largest = per_body.iter().map(|p| p.1).fold(0.0, f64::max);
+    // Each body's bytes per element, weighted by its cells; the elements the meshes did not
+    // announce (gmsh bodies, counted once read) at the largest.
+    let weighted = per_body.iter().map(|&(n, b)| n as f64 * b).sum::<f64>()
+        + elements.saturating_sub(known) as f64 * largest;
+    let arenas = match ARENAS.load(std::sync::atomic::Ordering::Relaxed) {
+        0 => threads as u64,
+        n => n as u64 - 1,
     };
     BASELINE
-        + (elements as f64 * per_element as f64 * factor) as u64
+        + threads as u64 * THREAD_STACK
+        + arenas * ARENA
+        + weighted as u64
         + scene.bodies.len() as u64 * PER_BODY
 }
 
 /// Refuses `scene` when a model of `elements` elements needs more memory than the process may
 /// still take (see [`available`]).
 pub fn ensure_fits(scene: &Scene, elements: u64) -> Result<()> {
-    let need = estimate(scene, elements);
+    let need = estimate(scene, elements, rayon::current_num_threads());
     match available() {
         Some(free) if need > free => Err(Error::scene("bodies", format!(
             "a model of {elements} elements needs about {} to run, and {} is available \
