@@ -412,6 +412,16 @@ pub(crate) fn read_limited(path: &Path, limit: u64, what: &str) -> Result<Vec<u8
     Ok(bytes)
 }
 
+/// [`read_limited`] as UTF-8 text, refused (naming the file) where it is not.
+pub(crate) fn read_text_limited(path: &Path, limit: u64, what: &str) -> Result<String> {
+    String::from_utf8(read_limited(path, limit, what)?).map_err(|e| {
+        Error::io(
+            path,
+            std::io::Error::new(std::io::ErrorKind::InvalidData, e),
+        )
+    })
+}
+
 /// Refuses a softening law whose strength `f` (Pa, the key `strength`) and fracture energy `g`
 /// (J/m², the key `field`) give no finite softening: the strength is exhausted over the opening
 /// `w = 2 g / f` (`model::law::Strength`), along the slope `f / w = f² / (2 g)` (Pa/m); a `w`
@@ -1203,13 +1213,7 @@ impl Scene {
     /// Reads and validates a scene file.
     pub fn from_file(path: impl AsRef<Path>) -> Result<Scene> {
         let path = path.as_ref();
-        let bytes = read_limited(path, MAX_SCENE_BYTES, "a scene file")?;
-        let text = String::from_utf8(bytes).map_err(|e| {
-            Error::io(
-                path,
-                std::io::Error::new(std::io::ErrorKind::InvalidData, e),
-            )
-        })?;
+        let text = read_text_limited(path, MAX_SCENE_BYTES, "a scene file")?;
         Scene::parse(&text, path.parent()).map_err(|e| match e {
             Error::Parse { message, .. } => Error::parse(path.display().to_string(), message),
             other => other,

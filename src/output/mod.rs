@@ -520,9 +520,18 @@ struct StateInterface {
 /// a state that is not one (missing, not JSON, keys missing) or that belongs to another scene:
 /// another number of elements or of DOFs per element, centroids elsewhere, interfaces that
 /// the model does not have or that cannot fail.
+/// A file larger than the final state of `model` could be (1 KiB per element, 512 B per
+/// interface and 1 MiB, where `rbsm run` writes about 0.6 kB and 0.2 kB), or not a regular
+/// file, is refused before it is read.
 pub fn read_final_state(path: &Path, model: &Model) -> Result<FinalState> {
     let fail = |why: String| Error::io(path, std::io::Error::other(crate::error::cut(why)));
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let limit =
+        ((model.elements.len() as u64) << 10) + ((model.interfaces.len() as u64) << 9) + (1 << 20);
+    let text = crate::input::scene::read_text_limited(
+        path,
+        limit,
+        &format!("the final state of the scene `{}`", model.name),
+    )?;
     let file: StateFile = serde_json::from_str(&text)
         .map_err(|e| fail(format!("not a final state of `rbsm run`: {e}")))?;
     let other = "the final state of another scene";
