@@ -501,14 +501,16 @@ fn duplicate_body_names_are_refused() {
         v["bodies"].as_array_mut().unwrap().push(body);
     });
     expect(&e, &["`bodies[1].name`", "a copy of `bodies[0]`"]);
-    // Outside the array's counts the name is free.
-    let mut v = base();
-    let mut body = v["bodies"][0].clone();
-    body["name"] = "b[2,0]".into();
-    body["mesh"]["origin"] = serde_json::json!([9.0, 0.0]);
-    v["bodies"][0]["array"] = serde_json::json!({"count": [2, 1], "pitch": [2.0, 0.0]});
-    v["bodies"].as_array_mut().unwrap().push(body);
-    Scene::from_json(&v.to_string()).unwrap();
+    // Outside the array's counts the name is no copy's, but its comma is refused as any
+    // body name's is (`body_names_follow_the_column_rule`).
+    let e = with(|v| {
+        let mut body = v["bodies"][0].clone();
+        body["name"] = "b[2,0]".into();
+        body["mesh"]["origin"] = serde_json::json!([9.0, 0.0]);
+        v["bodies"][0]["array"] = serde_json::json!({"count": [2, 1], "pitch": [2.0, 0.0]});
+        v["bodies"].as_array_mut().unwrap().push(body);
+    });
+    expect(&e, &["`bodies[1].name`", "without commas"]);
 }
 
 /// Names of the scene, its bodies and its probes are at most 256 characters (issue 40 item 7):
@@ -782,4 +784,47 @@ fn a_body_that_fragments_is_refused_when_it_does_not_fit() {
     let kb = (need * (1u64 << 20) as f64) as u64 + 40_000;
     let (code, err) = run_limited(&small, &out, kb);
     assert_eq!(code, Some(0), "refused or aborted under {kb} kB: {err}");
+}
+
+/// A body name heads its moving clamps' columns of `history.csv` (`<body>_s<k>_disp`), so it
+/// follows the probes' rule (issue 40 item 7): a comma split the columns, a quote or a
+/// control character broke the CSV. An array's copies are named `name[i,j]`, so a body with
+/// an `array` can have no moving clamp.
+#[test]
+fn body_names_follow_the_column_rule() {
+    for name in ["bar,1", "bar\"", "bar\n", "bar\u{7}", ""] {
+        let e = with(|v| v["bodies"][0]["name"] = name.into());
+        expect(
+            &e,
+            &["bodies[0].name", "commas, quotes or control characters"],
+        );
+    }
+    // The same rule, word for word, as the probes'.
+    let e = with(|v| {
+        v["output"]["probes"] = serde_json::json!([{"name": "a,b", "element": 0, "dof": "u"}]);
+    });
+    expect(
+        &e,
+        &[
+            "output.probes[0].name",
+            "commas, quotes or control characters",
+        ],
+    );
+    let clamps = serde_json::json!([
+        {"kind": "clamp", "edge": "left"},
+        {"kind": "clamp", "edge": "right", "velocity": [0.01, 0.0]}
+    ]);
+    let e = with(|v| {
+        v["bodies"][0]["supports"] = clamps.clone();
+        v["bodies"][0]["array"] = serde_json::json!({"count": [2, 1], "pitch": [5.0, 0.0]});
+    });
+    expect(
+        &e,
+        &["bodies[0].supports[1].velocity", "array", "name[i,j]"],
+    );
+    // Without the array the scene is a good one: what is refused is the pair.
+    let mut v = base();
+    v["bodies"][0]["supports"] = clamps;
+    v["bodies"][0]["name"] = "bar [1] (left; x=0)".into();
+    Scene::from_json(&v.to_string()).unwrap();
 }
