@@ -189,7 +189,8 @@ enum Command {
         /// contact, seed; repeat for a product of sweeps.
         #[arg(long = "sweep", required = true)]
         sweeps: Vec<String>,
-        /// Output directory (default: out/tradeoff-<scene name>).
+        /// Output directory (default: out/tradeoff-<scene name>, the name's characters other
+        /// than ASCII letters, digits, `-` and `_` made `_`).
         #[arg(long)]
         out: Option<PathBuf>,
     },
@@ -489,7 +490,7 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
             let scene = Scene::from_file(scene)?;
             let dir = out
                 .clone()
-                .unwrap_or_else(|| PathBuf::from(format!("out/tradeoff-{}", scene.name)));
+                .unwrap_or_else(|| tradeoff::default_folder(&scene));
             let total: usize = sweeps.iter().map(|s| s.values.len()).product();
             let mut done = 0;
             let report = tradeoff::sweep(&scene, &sweeps, |p| {
