@@ -81,27 +81,52 @@ pub fn estimate(scene: &Scene, elements: u64, threads: usize) -> u64 {
     // announce (gmsh bodies, counted once read) at the largest.
     let weighted = per_body.iter().map(|&(n, b)| n as f64 * b).sum::<f64>()
         + elements.saturating_sub(known) as f64 * largest;
+    BASELINE + reserved(threads) + weighted as u64 + scene.bodies.len() as u64 * PER_BODY
+}
+
+/// The part of [`estimate`] that is address space reserved and mostly never touched: the
+/// threads' stacks and the malloc arenas beyond the first (each thread's own unless the
+/// process bounded them). It counts against `ulimit -v`, not against the free memory.
+fn reserved(threads: usize) -> u64 {
     let arenas = match ARENAS.load(std::sync::atomic::Ordering::Relaxed) {
         0 => threads as u64,
         n => n as u64 - 1,
     };
-    BASELINE
-        + threads as u64 * THREAD_STACK
-        + arenas * ARENA
-        + weighted as u64
-        + scene.bodies.len() as u64 * PER_BODY
+    threads as u64 * THREAD_STACK + arenas * ARENA
 }
 
-/// Refuses `scene` when a model of `elements` elements needs more memory than the process may
-/// still take (see [`available`]).
+/// Refuses `scene` when a model of `elements` elements needs more address space than is left
+/// under `ulimit -v`, or more memory (the estimate without [`reserved`]) than is free or left
+/// under the cgroup's limit (see [`room`]), with the two figures that do not fit.
 pub fn ensure_fits(scene: &Scene, elements: u64) -> Result<()> {
-    let need = estimate(scene, elements, rayon::current_num_threads());
-    match available() {
-        Some(free) if need > free => Err(Error::scene("bodies", format!(
-            "a model of {elements} elements needs about {} to run, and {} is available \
-             (the least of the free memory, the address-space limit and the cgroup limit); use fewer or larger cells",
-            gib(need), gib(free)))),
-        _ => Ok(()),
+    let threads = rayon::current_num_threads();
+    let need = estimate(scene, elements, threads);
+    let touched = need - reserved(threads);
+    let (memory, address) = room();
+    let short = match (address, memory) {
+        (Some(free), _) if need > free => Some((
+            need,
+            free,
+            "the room left under the address-space limit, `ulimit -v`",
+        )),
+        (_, Some(free)) if touched > free => Some((
+            touched,
+            free,
+            "the least of the free memory and the room left under the cgroup's limit",
+        )),
+        _ => None,
+    };
+    match short {
+        Some((need, free, what)) => Err(Error::scene(
+            "bodies",
+            format!(
+                "a model of {elements} elements needs about {} to run, and {} is available \
+                 ({what}); use fewer or larger cells",
+                gib(need),
+                gib(free)
+            ),
+        )),
+        None => Ok(()),
     }
 }
 
@@ -109,33 +134,41 @@ fn gib(bytes: u64) -> String {
     format!("{:.2} GiB", bytes as f64 / (1u64 << 30) as f64)
 }
 
-/// The bytes the process may still allocate: the least of the system's available memory
-/// (`MemAvailable`), the room left under the address-space limit (`ulimit -v`) and under the
-/// cgroup's memory limit. `None` where none of them can be read (not Linux).
+/// The bytes the process may still allocate: the least of [`room`]'s two figures. `None`
+/// where none of them can be read (not Linux).
 pub fn available() -> Option<u64> {
+    let (memory, address) = room();
+    memory.into_iter().chain(address).min()
+}
+
+/// What the process may still take: the memory, the least of the system's available memory
+/// (`MemAvailable`) and the room left under the cgroup's memory limit; and the address space,
+/// the room left under `ulimit -v`. Each `None` where it cannot be read (not Linux, no limit).
+fn room() -> (Option<u64>, Option<u64>) {
     let read = |path: &str| std::fs::read_to_string(path).ok();
     let field = |text: &str, key: &str| -> Option<u64> {
         let line = text.lines().find(|l| l.starts_with(key))?;
         line[key.len()..].split_whitespace().next()?.parse().ok()
     };
-    let mut limits = Vec::new();
+    let mut memory = Vec::new();
     if let Some(kb) = read("/proc/meminfo").and_then(|t| field(&t, "MemAvailable:")) {
-        limits.push(kb * 1024);
-    }
-    let used_virtual = read("/proc/self/status")
-        .and_then(|t| field(&t, "VmSize:"))
-        .map(|kb| kb * 1024);
-    if let (Some(limit), Some(used)) = (
-        read("/proc/self/limits").and_then(|t| field(&t, "Max address space")),
-        used_virtual,
-    ) {
-        limits.push(limit.saturating_sub(used));
+        memory.push(kb * 1024);
     }
     let cgroup = |name: &str| {
         read(&format!("/sys/fs/cgroup/{name}")).and_then(|t| t.trim().parse::<u64>().ok())
     };
     if let (Some(max), Some(current)) = (cgroup("memory.max"), cgroup("memory.current")) {
-        limits.push(max.saturating_sub(current));
+        memory.push(max.saturating_sub(current));
     }
-    limits.into_iter().min()
+    let used_virtual = read("/proc/self/status")
+        .and_then(|t| field(&t, "VmSize:"))
+        .map(|kb| kb * 1024);
+    let address = match (
+        read("/proc/self/limits").and_then(|t| field(&t, "Max address space")),
+        used_virtual,
+    ) {
+        (Some(limit), Some(used)) => Some(limit.saturating_sub(used)),
+        _ => None,
+    };
+    (memory.into_iter().min(), address)
 }
