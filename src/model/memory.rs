@@ -1,6 +1,9 @@
 //! The memory a model needs, estimated from its scene before the model is built, against what
 //! the process may still take: a model that does not fit is refused with both figures instead
-//! of aborting when an allocation fails.
+//! of aborting when an allocation fails. The estimate is of address space (`VmPeak`), which
+//! `ulimit -v` bounds and which bounds the resident memory; checked on `beam_drop.json` copied
+//! 48 times and run to its end (1,488 interfaces released): 78 MB at the peak, 141 MB
+//! estimated.
 
 use crate::error::{Error, Result};
 use crate::input::scene::{ContactModel, EvaluatorKind, FormulationSpec, InterfaceLawSpec, Scene};
