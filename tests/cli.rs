@@ -237,3 +237,113 @@ fn plot_describes_its_folder_and_schema_refuses_json() {
     let schema: Value = serde_json::from_slice(&out.stdout).unwrap();
     assert!(schema["properties"]["bodies"].is_object());
 }
+
+/// `rbsm ARGS --quiet`, killed after 60 s (a FIFO read whole would block for ever): exit code
+/// and standard error.
+fn within_a_minute(args: &[&str]) -> (Option<i32>, String) {
+    let mut child = Command::new(RBSM)
+        .args(args)
+        .arg("--quiet")
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let start = std::time::Instant::now();
+    while child.try_wait().unwrap().is_none() {
+        if start.elapsed().as_secs() > 60 {
+            child.kill().unwrap();
+            panic!("{args:?} still running after 60 s");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    let out = child.wait_with_output().unwrap();
+    (
+        out.status.code(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+/// `draw --state DIR` and `plot DIR` check the kind and size of the files they read before
+/// reading them, as scene and mesh files are: a FIFO is refused at once
+/// (it used to block), a file larger than a final state of the scene or than a CSV `plot`
+/// reads is refused unread, with the file named.
+#[cfg(unix)]
+#[test]
+fn draw_and_plot_refuse_files_too_large_or_not_regular() {
+    let tmp = tempfile::tempdir().unwrap();
+    let run = tmp.path().join("run");
+    let cantilever = scene("cantilever");
+    let (code, _) = json(&[
+        "run",
+        &cantilever,
+        "--steps",
+        "5",
+        "--out",
+        run.to_str().unwrap(),
+    ]);
+    assert_eq!(code, Some(0));
+    let svg = tmp.path().join("state.svg");
+    let draw = || {
+        within_a_minute(&[
+            "draw",
+            &cantilever,
+            "--state",
+            run.to_str().unwrap(),
+            "--out",
+            svg.to_str().unwrap(),
+        ])
+    };
+    let plot = || within_a_minute(&["plot", run.to_str().unwrap()]);
+    // The run's own files are read.
+    assert_eq!(draw().0, Some(0));
+    assert_eq!(plot().0, Some(0));
+    let fifo = |path: &std::path::Path| {
+        std::fs::remove_file(path).unwrap();
+        let made = Command::new("mkfifo").arg(path).status().unwrap();
+        assert!(made.success());
+    };
+    let sparse = |path: &std::path::Path, len: u64| {
+        std::fs::remove_file(path).unwrap();
+        std::fs::File::create(path).unwrap().set_len(len).unwrap();
+    };
+    let state = run.join("final_state.json");
+    let history = run.join("history.csv");
+    let saved = (
+        std::fs::read(&state).unwrap(),
+        std::fs::read(&history).unwrap(),
+    );
+    fifo(&state);
+    let (code, err) = draw();
+    assert_eq!(code, Some(1), "{err}");
+    assert!(
+        err.contains("final_state.json") && err.contains("not a regular file"),
+        "{err}"
+    );
+    // A final state of the cantilever's 200 elements is under 1.5 MiB.
+    sparse(&state, 64 << 20);
+    let (code, err) = draw();
+    assert_eq!(code, Some(1), "{err}");
+    assert!(
+        err.contains("final_state.json") && err.contains("larger than"),
+        "{err}"
+    );
+    std::fs::remove_file(&state).unwrap();
+    std::fs::write(&state, &saved.0).unwrap();
+    fifo(&history);
+    let (code, err) = plot();
+    assert_eq!(code, Some(1), "{err}");
+    assert!(
+        err.contains("history.csv") && err.contains("not a regular file"),
+        "{err}"
+    );
+    sparse(&history, rbsm::output::plot::MAX_CSV_BYTES + 1);
+    let (code, err) = plot();
+    assert_eq!(code, Some(1), "{err}");
+    assert!(
+        err.contains("history.csv") && err.contains("larger than 1024 MiB"),
+        "{err}"
+    );
+    std::fs::remove_file(&history).unwrap();
+    std::fs::write(&history, &saved.1).unwrap();
+    assert_eq!((draw().0, plot().0), (Some(0), Some(0)));
+}

@@ -501,14 +501,16 @@ fn duplicate_body_names_are_refused() {
         v["bodies"].as_array_mut().unwrap().push(body);
     });
     expect(&e, &["`bodies[1].name`", "a copy of `bodies[0]`"]);
-    // Outside the array's counts the name is free.
-    let mut v = base();
-    let mut body = v["bodies"][0].clone();
-    body["name"] = "b[2,0]".into();
-    body["mesh"]["origin"] = serde_json::json!([9.0, 0.0]);
-    v["bodies"][0]["array"] = serde_json::json!({"count": [2, 1], "pitch": [2.0, 0.0]});
-    v["bodies"].as_array_mut().unwrap().push(body);
-    Scene::from_json(&v.to_string()).unwrap();
+    // Outside the array's counts the name is no copy's, but its comma is refused as any
+    // body name's is (`body_names_follow_the_column_rule`).
+    let e = with(|v| {
+        let mut body = v["bodies"][0].clone();
+        body["name"] = "b[2,0]".into();
+        body["mesh"]["origin"] = serde_json::json!([9.0, 0.0]);
+        v["bodies"][0]["array"] = serde_json::json!({"count": [2, 1], "pitch": [2.0, 0.0]});
+        v["bodies"].as_array_mut().unwrap().push(body);
+    });
+    expect(&e, &["`bodies[1].name`", "without commas"]);
 }
 
 /// Names of the scene, its bodies and its probes are at most 256 characters (docs/scene.md):
@@ -761,4 +763,125 @@ fn ground_springs_on_part_of_a_side() {
         &error_of(&reversed),
         &["bodies[0].supports[0].span", "from < to"],
     );
+}
+
+/// `tension_bar.json` with `sites` Voronoi cells, failing interfaces, edge-to-edge contact and
+/// a ground below: a body that fragments (every element a contact target, every edge a source).
+fn fragmenting_bar(dir: &std::path::Path, sites: u64) -> std::path::PathBuf {
+    let text = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/examples/scenes/tension_bar.json"
+    ))
+    .unwrap();
+    let mut v: Value = serde_json::from_str(&text).unwrap();
+    v["bodies"][0]["mesh"]["sites"] = sites.into();
+    v["contact"] = serde_json::json!({"model": "edge-to-edge"});
+    v["ground"] = serde_json::json!([{"from": [-1, -0.001], "to": [1, -0.001]}]);
+    let path = dir.join(format!("bar{sites}.json"));
+    std::fs::write(&path, v.to_string()).unwrap();
+    path
+}
+
+/// `rbsm run SCENE --steps 2 --threads 2` under `ulimit -v limit_kb`: exit code and standard
+/// error.
+fn run_limited(
+    scene: &std::path::Path,
+    out: &std::path::Path,
+    limit_kb: u64,
+) -> (Option<i32>, String) {
+    let out = std::process::Command::new("sh")
+        .arg("-c")
+        .arg(format!(
+            "ulimit -v {limit_kb} && exec '{}' run '{}' --steps 2 --threads 2 --quiet --out '{}'",
+            env!("CARGO_BIN_EXE_rbsm"),
+            scene.display(),
+            out.display()
+        ))
+        .output()
+        .unwrap();
+    (
+        out.status.code(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+/// Failing interfaces with edge-to-edge contact are in the estimate, which bounds the address
+/// space a run takes: the 10⁵-cell bar that aborted under 0.8 GB ("memory
+/// allocation of 9574704 bytes failed", exit 134; the estimate left the fragments out and
+/// each thread reserved a malloc arena) is refused with both figures; a 2·10⁴-cell bar runs
+/// under a limit of the estimate it is refused with, and is refused under less.
+#[cfg(target_os = "linux")]
+#[test]
+fn a_body_that_fragments_is_refused_when_it_does_not_fit() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let (code, err) = run_limited(&fragmenting_bar(dir.path(), 100_000), &out, 800_000);
+    assert_eq!(code, Some(1), "{err}");
+    expect(
+        &err,
+        &[
+            "`bodies`",
+            "100000 elements",
+            "needs about",
+            "GiB is available",
+        ],
+    );
+    // The small bar: the figure it is refused with under too little room...
+    let small = fragmenting_bar(dir.path(), 20_000);
+    let (code, err) = run_limited(&small, &out, 100_000);
+    assert_eq!(code, Some(1), "{err}");
+    let need: f64 = err
+        .split("needs about ")
+        .nth(1)
+        .and_then(|rest| rest.split(" GiB").next())
+        .and_then(|x| x.parse().ok())
+        .unwrap_or_else(|| panic!("no figure in `{err}`"));
+    // ...is enough to run it, with the room the process held before the estimate (its code
+    // and libraries: 20 MB; the figure is rounded to 10 MB).
+    let kb = (need * (1u64 << 20) as f64) as u64 + 40_000;
+    let (code, err) = run_limited(&small, &out, kb);
+    assert_eq!(code, Some(0), "refused or aborted under {kb} kB: {err}");
+}
+
+/// A body name heads its moving clamps' columns of `history.csv` (`<body>_s<k>_disp`), so it
+/// follows the probes' rule (docs/scene.md, *Bodies*): a comma split the columns, a quote or a
+/// control character broke the CSV. An array's copies are named `name[i,j]`, so a body with
+/// an `array` can have no moving clamp.
+#[test]
+fn body_names_follow_the_column_rule() {
+    for name in ["bar,1", "bar\"", "bar\n", "bar\u{7}", ""] {
+        let e = with(|v| v["bodies"][0]["name"] = name.into());
+        expect(
+            &e,
+            &["bodies[0].name", "commas, quotes or control characters"],
+        );
+    }
+    // The same rule, word for word, as the probes'.
+    let e = with(|v| {
+        v["output"]["probes"] = serde_json::json!([{"name": "a,b", "element": 0, "dof": "u"}]);
+    });
+    expect(
+        &e,
+        &[
+            "output.probes[0].name",
+            "commas, quotes or control characters",
+        ],
+    );
+    let clamps = serde_json::json!([
+        {"kind": "clamp", "edge": "left"},
+        {"kind": "clamp", "edge": "right", "velocity": [0.01, 0.0]}
+    ]);
+    let e = with(|v| {
+        v["bodies"][0]["supports"] = clamps.clone();
+        v["bodies"][0]["array"] = serde_json::json!({"count": [2, 1], "pitch": [5.0, 0.0]});
+    });
+    expect(
+        &e,
+        &["bodies[0].supports[1].velocity", "array", "name[i,j]"],
+    );
+    // Without the array the scene is a good one: what is refused is the pair.
+    let mut v = base();
+    v["bodies"][0]["supports"] = clamps;
+    v["bodies"][0]["name"] = "bar [1] (left; x=0)".into();
+    Scene::from_json(&v.to_string()).unwrap();
 }

@@ -368,3 +368,41 @@ fn a_seed_sweep_redraws_the_voronoi_mesh() {
     let e = Sweep::parse("seed=-1").unwrap_err().to_string();
     assert!(e.contains("--sweep seed"), "{e}");
 }
+
+/// The default folder of a sweep is one folder directly in `out/` whatever the scene's name
+/// holds: a `/` or `..` in the name moved the files elsewhere. The name is
+/// sanitised (not refused: it is free text elsewhere), its safe characters kept.
+#[test]
+fn the_default_folder_stays_in_out_whatever_the_name() {
+    let mut scene = column();
+    for name in [
+        "../../etc",
+        "a/b",
+        "..",
+        ".",
+        "/abs",
+        "",
+        "é\u{0}\\x",
+        &"y".repeat(256),
+    ] {
+        scene.name = name.to_string();
+        let dir = rbsm::analysis::tradeoff::default_folder(&scene);
+        let parts: Vec<_> = dir.components().collect();
+        assert_eq!(parts.len(), 2, "{name:?} gives {dir:?}");
+        assert_eq!(parts[0].as_os_str(), "out");
+        let folder = parts[1].as_os_str().to_str().unwrap();
+        assert!(
+            folder.starts_with("tradeoff-")
+                && folder.len() <= 255
+                && folder[9..]
+                    .chars()
+                    .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_'),
+            "{name:?} gives {dir:?}"
+        );
+    }
+    scene.name = "column_step-2".into();
+    assert_eq!(
+        rbsm::analysis::tradeoff::default_folder(&scene),
+        std::path::Path::new("out/tradeoff-column_step-2")
+    );
+}

@@ -73,8 +73,20 @@ impl Setup {
     /// Builds everything an analysis of `scene` needs.
     pub fn new(scene: &Scene, overrides: &Overrides) -> Result<Setup> {
         let start = std::time::Instant::now();
+        // The model's memory estimate depends on the evaluator: the one that will be built.
+        let overridden;
+        let scene = match overrides.evaluator {
+            Some(kind) if kind != scene.evaluator => {
+                overridden = Scene {
+                    evaluator: kind,
+                    ..scene.clone()
+                };
+                &overridden
+            }
+            _ => scene,
+        };
         let model = Model::build(scene)?;
-        let kind = overrides.evaluator.unwrap_or(scene.evaluator);
+        let kind = scene.evaluator;
         let evaluator = evaluator::build(&model, kind);
         let plastic = failure::build(&model, kind);
         let mass = Mass::new(&model);

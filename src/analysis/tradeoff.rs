@@ -280,6 +280,26 @@ pub enum Measure {
     Apex(f64),
 }
 
+/// The folder a sweep of `scene` writes to unless told another: `out/tradeoff-<name>`, the
+/// scene's name with every character other than an ASCII letter, a digit, `-` and `_` made
+/// `_`, and cut to 200 characters, so that it is one folder directly in `out/` whatever the
+/// name holds (a `/` or `..` moved the files elsewhere).
+pub fn default_folder(scene: &Scene) -> std::path::PathBuf {
+    let name: String = scene
+        .name
+        .chars()
+        .take(200)
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect();
+    std::path::Path::new("out").join(format!("tradeoff-{name}"))
+}
+
 /// Runs `scene` (read and validated, as [`Scene::from_file`] gives it) at every combination
 /// of `sweeps`, calling `progress` with each finished point. The errors compare the histories
 /// of the scene's probes, the columns `rbsm run` writes.

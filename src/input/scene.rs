@@ -306,9 +306,10 @@ impl JsonSchema for InterfaceLawSpec {
 #[derive(Debug, Clone, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct BodySpec {
-    /// Name of the body, used in messages, `summary.json` and the history's clamp columns; at
-    /// most `MAX_NAME` (256) characters, no two bodies alike (an array's copies included).
-    #[schemars(length(max = MAX_NAME))]
+    /// Name of the body, used in messages, `summary.json` and the history's clamp columns: 1 to
+    /// `MAX_NAME` (256) characters, no commas, quotes or control characters, no two bodies
+    /// alike (an array's copies included).
+    #[schemars(length(min = 1, max = MAX_NAME))]
     pub name: String,
     /// Name of its material in `materials`.
     pub material: String,
@@ -373,6 +374,23 @@ fn bounded_name(field: &str, name: &str) -> Result<()> {
     ))
 }
 
+/// Refuses a name that heads columns of `history.csv` (a probe's; a body's, in its moving
+/// clamps' `<body>_s<k>_disp` and `_force`) when it is empty, longer than [`MAX_NAME`]
+/// characters or holds a comma, a quote or a control character, naming its key.
+fn column_name(field: &str, name: &str) -> Result<()> {
+    bounded_name(field, name)?;
+    if name.is_empty() || name.chars().any(|c| c == ',' || c == '"' || c.is_control()) {
+        return Err(Error::scene(
+            field,
+            format!(
+                "must be a non-empty name without commas, quotes or control characters \
+                 (it heads columns of `history.csv`), got {name:?}"
+            ),
+        ));
+    }
+    Ok(())
+}
+
 /// The largest scene file read (bytes): a scene names its meshes and repeats its bodies with
 /// `array`, so a larger file is not a scene (`/dev/zero`, a mesh given as the scene).
 pub const MAX_SCENE_BYTES: u64 = 256 << 20;
@@ -410,6 +428,16 @@ pub(crate) fn read_limited(path: &Path, limit: u64, what: &str) -> Result<Vec<u8
         ));
     }
     Ok(bytes)
+}
+
+/// [`read_limited`] as UTF-8 text, refused (naming the file) where it is not.
+pub(crate) fn read_text_limited(path: &Path, limit: u64, what: &str) -> Result<String> {
+    String::from_utf8(read_limited(path, limit, what)?).map_err(|e| {
+        Error::io(
+            path,
+            std::io::Error::new(std::io::ErrorKind::InvalidData, e),
+        )
+    })
 }
 
 /// Refuses a softening law whose strength `f` (Pa, the key `strength`) and fracture energy `g`
@@ -1207,13 +1235,7 @@ impl Scene {
     /// Reads and validates a scene file.
     pub fn from_file(path: impl AsRef<Path>) -> Result<Scene> {
         let path = path.as_ref();
-        let bytes = read_limited(path, MAX_SCENE_BYTES, "a scene file")?;
-        let text = String::from_utf8(bytes).map_err(|e| {
-            Error::io(
-                path,
-                std::io::Error::new(std::io::ErrorKind::InvalidData, e),
-            )
-        })?;
+        let text = read_text_limited(path, MAX_SCENE_BYTES, "a scene file")?;
         Scene::parse(&text, path.parent()).map_err(|e| match e {
             Error::Parse { message, .. } => Error::parse(path.display().to_string(), message),
             other => other,
@@ -1465,20 +1487,7 @@ impl Scene {
                 }
             }
             let (field, column) = (format!("output.probes[{k}].name"), p.column());
-            bounded_name(&field, &column)?;
-            if column.is_empty()
-                || column
-                    .chars()
-                    .any(|c| c == ',' || c == '"' || c.is_control())
-            {
-                return Err(Error::scene(
-                    field,
-                    format!(
-                        "must be a non-empty column name without \
-                    commas, quotes or control characters, got {column:?}"
-                    ),
-                ));
-            }
+            column_name(&field, &column)?;
             if let Some(&i) = index.get(&column) {
                 let what = if i < own {
                     "one of the history's own columns".to_string()
@@ -1492,11 +1501,12 @@ impl Scene {
             }
             index.insert(column, own + k);
         }
+        // Duplicates first: a name that repeats an array's copy (`name[i,j]`) is told so.
+        self.refuse_duplicate_bodies()?;
         for (i, b) in self.bodies.iter().enumerate() {
-            bounded_name(&format!("bodies[{i}].name"), &b.name)?;
+            column_name(&format!("bodies[{i}].name"), &b.name)?;
             self.validate_body(i, b)?;
         }
-        self.refuse_duplicate_bodies()?;
         for (i, g) in self.ground.iter().enumerate() {
             finite_all(&format!("ground[{i}].from"), &g.from)?;
             finite_all(&format!("ground[{i}].to"), &g.to)?;
@@ -1775,6 +1785,22 @@ impl Scene {
                         "both counts must be ≥ 1 and their product ≤ {MAX_BODIES}, got {:?}",
                         a.count
                     ),
+                ));
+            }
+            if let Some(k) = b.supports.iter().position(|s| {
+                matches!(
+                    s,
+                    SupportSpec::Clamp(ClampSpec {
+                        velocity: Some(_),
+                        ..
+                    })
+                )
+            }) {
+                return Err(Error::scene(
+                    at(&format!("supports[{k}].velocity")),
+                    "a moving clamp's columns of `history.csv` are named after its body, and \
+                     the copies of an `array` are named `name[i,j]`, with a comma: give a \
+                     body with a moving clamp no `array`",
                 ));
             }
             finite_all(&at("array.pitch"), &a.pitch)?;

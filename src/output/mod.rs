@@ -522,9 +522,18 @@ struct StateInterface {
 /// a state that is not one (missing, not JSON, keys missing) or that belongs to another scene:
 /// another number of elements or of DOFs per element, centroids elsewhere, interfaces that
 /// the model does not have or that cannot fail.
+/// A file larger than the final state of `model` could be (1 KiB per element, 512 B per
+/// interface and 1 MiB, where `rbsm run` writes about 0.6 kB and 0.2 kB), or not a regular
+/// file, is refused before it is read.
 pub fn read_final_state(path: &Path, model: &Model) -> Result<FinalState> {
     let fail = |why: String| Error::io(path, std::io::Error::other(crate::error::cut(why)));
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let limit =
+        ((model.elements.len() as u64) << 10) + ((model.interfaces.len() as u64) << 9) + (1 << 20);
+    let text = crate::input::scene::read_text_limited(
+        path,
+        limit,
+        &format!("the final state of the scene `{}`", model.name),
+    )?;
     let file: StateFile = serde_json::from_str(&text)
         .map_err(|e| fail(format!("not a final state of `rbsm run`: {e}")))?;
     let other = "the final state of another scene";
@@ -594,9 +603,15 @@ pub fn read_final_state(path: &Path, model: &Model) -> Result<FinalState> {
 
 /// Writes any serialisable value as pretty JSON, atomically ([`write_atomic`]).
 pub fn write_json(path: &Path, value: &impl Serialize) -> Result<()> {
-    let mut text = serde_json::to_vec_pretty(value).map_err(|e| Error::io(path, e.into()))?;
-    text.push(b'\n');
-    write_atomic(path, &text)
+    // Streamed to the file: the text of a large final state is never whole in memory (it
+    // was 67 MB in a vector of twice its room for 10⁵ elements).
+    write_atomic_with(path, |file| {
+        let mut w = std::io::BufWriter::new(file);
+        serde_json::to_writer_pretty(&mut w, value)?;
+        w.write_all(b"\n")?;
+        w.flush()
+    })
+    .map(drop)
 }
 
 /// The temporary name beside `path` that [`write_atomic`] writes first: hidden, with the same
@@ -621,8 +636,16 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
 /// grows (`history.csv`, the collections of VTK frames) goes on through this handle, never
 /// through whatever the name may later point to.
 pub fn write_atomic_open(path: &Path, bytes: &[u8]) -> Result<std::fs::File> {
+    write_atomic_with(path, |file| file.write_all(bytes))
+}
+
+/// [`write_atomic_open`] of what `write` writes into the file.
+fn write_atomic_with(
+    path: &Path,
+    write: impl FnOnce(&mut std::fs::File) -> std::io::Result<()>,
+) -> Result<std::fs::File> {
     let tmp = temporary(path);
-    let written = create_fresh(&tmp).and_then(|mut file| file.write_all(bytes).map(|_| file));
+    let written = create_fresh(&tmp).and_then(|mut file| write(&mut file).map(|_| file));
     let file = written
         .and_then(|file| std::fs::rename(&tmp, path).map(|_| file))
         .map_err(|e| {

@@ -155,9 +155,14 @@ fn invalid(path: &Path, message: &str) -> Error {
     )
 }
 
-/// Reads a CSV file of numbers under one header line, as the runs write them.
+/// The largest file `plot` reads (bytes): a history or fraction series larger than this is
+/// thinned with `output.every` before it can be drawn.
+pub const MAX_CSV_BYTES: u64 = 1 << 30;
+
+/// Reads a CSV file of numbers under one header line, as the runs write them; a file that is
+/// not a regular one or is larger than [`MAX_CSV_BYTES`] is refused before it is read.
 pub fn read_csv(path: &Path) -> Result<Vec<Column>> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let text = crate::input::scene::read_text_limited(path, MAX_CSV_BYTES, "a CSV file to plot")?;
     let bad = |line: usize, message: String| invalid(path, &format!("line {line}: {message}"));
     let mut lines = text.lines();
     let mut columns: Vec<Column> = lines
@@ -387,10 +392,14 @@ pub fn histories(dir: &Path) -> Result<Vec<std::path::PathBuf>> {
             .collect();
         if !probes.is_empty() {
             // The units from the run's summary, when it is there.
-            let summary: serde_json::Value = std::fs::read_to_string(dir.join("summary.json"))
-                .ok()
-                .and_then(|t| serde_json::from_str(&t).ok())
-                .unwrap_or_default();
+            let summary: serde_json::Value = crate::input::scene::read_text_limited(
+                &dir.join("summary.json"),
+                MAX_CSV_BYTES,
+                "a run's summary",
+            )
+            .ok()
+            .and_then(|t| serde_json::from_str(&t).ok())
+            .unwrap_or_default();
             let unit = |name: &str| {
                 let listed = summary["probes"]
                     .as_array()

@@ -234,7 +234,7 @@ impl Contact {
             .fold((0.0, 0.0f64), |(t, l), e| (t + e.length, l.max(e.length)));
         let tenth = 0.1 * total / body_edges.count().max(1) as f64;
         let skin = tenth.max(0.05 * longest);
-        let mut contact = Contact {
+        let contact = Contact {
             settings,
             frames: Frames {
                 formulation: model.formulation,
@@ -263,12 +263,14 @@ impl Contact {
             step: None,
             stats: ContactStats::default(),
         };
-        contact.reserve();
         Some(contact)
     }
 
-    /// A copy of this contact for a new run: the state and the room of its buffers (a plain
-    /// `clone` keeps only their contents, and the steps would then allocate).
+    /// A copy of this contact for a new run, with room in its buffers for the steps (a plain
+    /// `clone` keeps only their contents, and the steps would then allocate). The contact of
+    /// [`Contact::new`] has no such room: it is the setup's initial state, never stepped, and
+    /// its room would be address space held for nothing (the neighbour lists and pieces of
+    /// every edge of a body that fragments, 1.2 kB per Voronoi element).
     pub fn copy(&self) -> Contact {
         let mut c = self.clone();
         c.reserve();

@@ -473,13 +473,12 @@ impl Overlap {
             neighbours,
             open: Vec::new(),
         };
-        overlap.reserve();
         overlap.place_lines(true);
         overlap
     }
 
     /// Room for the candidates and pieces of every source edge, so that the steps do not
-    /// allocate.
+    /// allocate (`Contact::copy` makes it, for a run).
     pub(super) fn reserve(&mut self) {
         let n = self.sources.len();
         self.buckets.reserve(self.targets.len());
