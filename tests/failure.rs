@@ -55,6 +55,17 @@ fn run_through(
     (cd.u.clone(), rows, report)
 }
 
+/// A run of `setup` to its end without a folder: its summary, history and final state.
+fn in_memory(setup: &Setup) -> rbsm::analysis::run::Outcome {
+    rbsm::analysis::run::simulate(
+        setup,
+        &Default::default(),
+        None,
+        &mut rbsm::analysis::run::Silent,
+    )
+    .unwrap()
+}
+
 const K: [f64; 2] = [1.0e12, 8.0e11];
 
 fn strength(phi_deg: f64, energies: Option<[f64; 2]>) -> Strength {
@@ -478,13 +489,7 @@ fn contact_acts_only_across_released_interfaces() {
             scene.as_object_mut().unwrap().remove("contact");
         }
         let s = setup(&scene, EvaluatorKind::ElementWise);
-        let out = rbsm::analysis::run::simulate(
-            &s,
-            &Default::default(),
-            None,
-            &mut rbsm::analysis::run::Silent,
-        )
-        .unwrap();
+        let out = in_memory(&s);
         let failure = out.summary.failure.as_ref().unwrap();
         let (released, yielding) = (failure.released, failure.yielding);
         let pairs = out
@@ -556,13 +561,7 @@ fn a_body_that_can_fragment_touches_others_as_one_body_until_it_cracks() {
         }
         let s = setup(&scene, EvaluatorKind::ElementWise);
         assert_eq!(s.model.fragments(0), softening);
-        rbsm::analysis::run::simulate(
-            &s,
-            &Default::default(),
-            None,
-            &mut rbsm::analysis::run::Silent,
-        )
-        .unwrap()
+        in_memory(&s)
     };
     let (elastic, fragments) = (scene(false), scene(true));
     let (a, b) = (
@@ -598,13 +597,7 @@ fn the_peak_reaction_does_not_depend_on_the_output_rows() {
         let mut scene = bundled("tension_bar.json");
         scene["output"]["every"] = json!(every);
         let s = setup(&scene, EvaluatorKind::ElementWise);
-        let out = rbsm::analysis::run::simulate(
-            &s,
-            &Default::default(),
-            None,
-            &mut rbsm::analysis::run::Silent,
-        )
-        .unwrap();
+        let out = in_memory(&s);
         let column = out
             .columns
             .iter()

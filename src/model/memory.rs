@@ -99,8 +99,8 @@ fn reserved(threads: usize) -> u64 {
 }
 
 /// Refuses `scene` when a model of `elements` elements needs more address space than is left
-/// under `ulimit -v`, or more memory (the estimate without [`reserved`]) than is free or left
-/// under the cgroup's limit (see [`room`]), with the two figures that do not fit.
+/// under `ulimit -v`, or more memory (the estimate without `reserved`) than is free or left
+/// under the cgroup's limit (see `room`), with the two figures that do not fit.
 pub fn ensure_fits(scene: &Scene, elements: u64) -> Result<()> {
     let threads = rayon::current_num_threads();
     let need = estimate(scene, elements, threads);
@@ -137,7 +137,7 @@ fn gib(bytes: u64) -> String {
     format!("{:.2} GiB", bytes as f64 / (1u64 << 30) as f64)
 }
 
-/// The bytes the process may still allocate: the least of [`room`]'s two figures. `None`
+/// The bytes the process may still allocate: the least of `room`'s two figures. `None`
 /// where none of them can be read (not Linux).
 pub fn available() -> Option<u64> {
     let (memory, address) = room();
