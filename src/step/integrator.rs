@@ -108,15 +108,25 @@ pub const CHECK_EVERY: u64 = 100;
 /// sixth of a step: shorter stretches (outputs every few steps) stay on the plain state.
 const MIN_STRETCH: u64 = 16;
 
+/// The last state that passed the divergence guard: a run that diverges returns to it.
+#[derive(Debug, Default)]
+struct Good {
+    step: u64,
+    t: f64,
+    u: Vec<f64>,
+    /// Whole-step velocities `v^n`.
+    velocity: Vec<f64>,
+}
+
 /// Central-difference time stepping of one model with one evaluator.
 pub struct CentralDifference<'a> {
     evaluator: &'a dyn Evaluator,
     mass: &'a Mass,
     loads: &'a Loads,
-    /// Mass-proportional damping `α` (1/s).
-    pub damping: f64,
-    /// Time step `Δt` (s).
-    pub dt: f64,
+    /// Mass-proportional damping `α` (1/s): the model's, or none ([`CentralDifference::undamped`]).
+    damping: f64,
+    /// Time step `Δt` (s), fixed at construction.
+    dt: f64,
     /// Time `t_n` of the current state (s).
     pub t: f64,
     /// Steps taken, `n`.
@@ -136,7 +146,8 @@ pub struct CentralDifference<'a> {
     loaded: Option<Vec<u32>>,
     /// The energy bookkeeping: what was put in and taken out so far.
     ledger: EnergyLedger,
-    good: (u64, f64, Vec<f64>, Vec<f64>),
+    /// The last state that passed the guard, to which a diverged run is rolled back.
+    good: Good,
     /// The failing interfaces' state at the step of `good`.
     good_failure: FailureState,
     /// Whether `v` already holds `v^{n+½}` of the current step `n`: a run ended there after its
@@ -339,7 +350,12 @@ impl<'a> CentralDifference<'a> {
             contact,
             loaded: None,
             ledger: EnergyLedger::default(),
-            good: (0, 0.0, vec![0.0; n], vec![0.0; n]),
+            good: Good {
+                step: 0,
+                t: 0.0,
+                u: vec![0.0; n],
+                velocity: vec![0.0; n],
+            },
             good_failure: FailureState::default(),
             fraction: None,
             pending: false,
@@ -553,6 +569,13 @@ impl<'a> CentralDifference<'a> {
         self.loads.subtract(self.t, &mut self.force);
     }
 
+    /// Steps without the model's mass-proportional damping (the stability analysis measures
+    /// the undamped scheme).
+    pub fn undamped(mut self) -> Self {
+        self.damping = 0.0;
+        self
+    }
+
     /// Tells the guard the stability limit `Δt_crit` of the model, or a lower bound of it (see
     /// [`GROWTH_LIMIT`]: the guard is then more lenient below the bound, and as strict as without
     /// one above it).
@@ -625,7 +648,12 @@ impl<'a> CentralDifference<'a> {
         }
         self.step = state.step;
         self.t = state.step as f64 * self.dt;
-        self.good = (state.step, self.t, state.u.clone(), state.velocity.clone());
+        self.good = Good {
+            step: state.step,
+            t: self.t,
+            u: state.u.clone(),
+            velocity: state.velocity.clone(),
+        };
         (self.u, self.v, self.scratch) = (state.u, state.v, state.velocity);
         if let (Some(c), Some(saved)) = (self.contact.as_mut(), state.contact) {
             c.resume(saved);
@@ -713,8 +741,9 @@ impl<'a> CentralDifference<'a> {
             self.book_energy_in(&energy, dt);
             if let Some(reason) = self.guard(&energy) {
                 let (step, t) = (self.step, self.t);
-                let (gs, gt, gu, gv) = std::mem::take(&mut self.good);
-                (self.step, self.t, self.u, self.scratch) = (gs, gt, gu, gv);
+                let good = std::mem::take(&mut self.good);
+                (self.step, self.t, self.u, self.scratch) =
+                    (good.step, good.t, good.u, good.velocity);
                 if let Some((_, s)) = self.failure.as_mut() {
                     std::mem::swap(s, &mut self.good_failure);
                 }
@@ -736,10 +765,10 @@ impl<'a> CentralDifference<'a> {
                     &energy,
                 )?;
             }
-            self.good.0 = self.step;
-            self.good.1 = self.t;
-            self.good.2.copy_from_slice(&self.u);
-            self.good.3.copy_from_slice(&self.scratch);
+            self.good.step = self.step;
+            self.good.t = self.t;
+            self.good.u.copy_from_slice(&self.u);
+            self.good.velocity.copy_from_slice(&self.scratch);
             if let Some((_, s)) = &self.failure {
                 self.good_failure.copy_from(s);
             }
