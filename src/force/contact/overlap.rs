@@ -33,7 +33,7 @@
 //! formed) and `δ̄_n` its mean depth: it follows the penetration profile, and the Coulomb
 //! limit `k_s |s| ≤ μ k_n δ̄_n` (a return mapping on `s`) holds at every point of the piece.
 
-use super::{frame, Frames, Ledger, NONE};
+use super::{frame, same, Frames, Ledger, NONE};
 use crate::mesh::buckets::{boxes_meet, moved_beyond, BucketLists, Buckets};
 use crate::mesh::geometry::Vec2;
 use crate::model::law::InterfaceLaw;
@@ -623,13 +623,12 @@ impl Overlap {
     /// Whether `saved`, read from a checkpoint, belongs to the model of `self` (in its
     /// initial state): the same targets, faces and sources, and every index it holds in range.
     pub(super) fn check_saved(&self, saved: &Overlap) -> std::result::Result<(), String> {
-        use super::erased::Bytes;
-        if self.targets.bytes() != saved.targets.bytes()
-            || self.faces.bytes() != saved.faces.bytes()
-            || self.sources.bytes() != saved.sources.bytes()
-            || self.offsets.bytes() != saved.offsets.bytes()
-            || self.neighbours.bytes() != saved.neighbours.bytes()
-            || self.neighbour_start.bytes() != saved.neighbour_start.bytes()
+        if !same(&self.targets, &saved.targets)
+            || !same(&self.faces, &saved.faces)
+            || !same(&self.sources, &saved.sources)
+            || !same(&self.offsets, &saved.offsets)
+            || !same(&self.neighbours, &saved.neighbours)
+            || !same(&self.neighbour_start, &saved.neighbour_start)
             || self.fragments != saved.fragments
             || self.first_interface != saved.first_interface
         {
