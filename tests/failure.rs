@@ -8,7 +8,7 @@ mod common;
 use rbsm::analysis::setup::{Overrides, Setup};
 use rbsm::force::failure::InterfaceStatus;
 use rbsm::input::scene::{EvaluatorKind, Scene};
-use rbsm::model::law::{PlasticPoint, Strength};
+use rbsm::model::law::{InterfaceLaw, LawPoint, Strength};
 use serde_json::{json, Value};
 
 fn bundled(name: &str) -> Value {
@@ -84,7 +84,7 @@ fn strength(phi_deg: f64, energies: Option<[f64; 2]>) -> Strength {
 #[test]
 fn mohr_coulomb_caps_the_shear_at_c_minus_sigma_tan_phi() {
     let s = strength(30.0, None);
-    let mut point = PlasticPoint::default();
+    let mut point = LawPoint::default();
     let dn = -3.0e-6; // σ = −3 MPa
     let cap = s.c + 3.0e6 * s.tan_phi;
     let mut last = 0.0;
@@ -111,7 +111,7 @@ fn mohr_coulomb_caps_the_shear_at_c_minus_sigma_tan_phi() {
 #[test]
 fn a_broken_interface_keeps_compression_and_friction_only() {
     let s = strength(30.0, Some([100.0, 400.0]));
-    let mut point = PlasticPoint::default();
+    let mut point = LawPoint::default();
     for i in 0..=2000 {
         s.update(K, [0.0, i as f64 * 2e-7], &mut point);
     }
@@ -250,7 +250,7 @@ fn a_scene_without_failure_pays_nothing() {
     scene.as_object_mut().unwrap().remove("damping");
     scene["bodies"][0]["supports"] = json!([{"kind": "clamp", "edge": "left"}]);
     let s = setup(&scene, EvaluatorKind::ElementWise);
-    assert!(s.plastic.is_none() && s.model.strength.is_empty());
+    assert!(s.plastic.is_none() && !s.model.any_fails());
     let dir = tempfile::tempdir().unwrap();
     let summary = common::run_into(&s.scene, Some(10), dir.path());
     assert!(summary.failure.is_none());

@@ -1,14 +1,18 @@
-//! The interface-law seam (eq. 11, `rbsm::model::law`): a law defined here, springs twice as
-//! stiff, set on a model reaches both evaluators, the statics, the midpoint tractions and the
-//! contact springs, with no change to any of them.
+//! The interface-law seam (eq. 11, `rbsm::model::law`): laws defined here reach the crate with
+//! no change to it. A linear one, springs twice as stiff, set as a model's law reaches both
+//! evaluators, the statics, the midpoint tractions and the contact springs; one with a state
+//! (brittle in tension) reaches the plastic forces, the run and its reports.
 
 mod common;
 use common::*;
+use rbsm::analysis::run::{self as run, RunParams, Silent};
+use rbsm::analysis::setup::{Overrides, Setup};
 use rbsm::analysis::statics;
 use rbsm::force::contact::{self, Contact};
 use rbsm::force::evaluator;
+use rbsm::force::failure::{self, InterfaceStatus};
 use rbsm::input::scene::{EvaluatorKind, Scene};
-use rbsm::model::law::InterfaceLaw;
+use rbsm::model::law::{InterfaceLaw, LawPoint};
 use rbsm::model::loads::Loads;
 use rbsm::model::mass::Mass;
 use rbsm::model::Model;
@@ -20,11 +24,8 @@ use std::sync::Arc;
 struct Twice;
 
 impl InterfaceLaw for Twice {
-    fn traction(&self, k: [f64; 2], delta: [f64; 2]) -> [f64; 2] {
-        [2.0 * k[0] * delta[0], 2.0 * k[1] * delta[1]]
-    }
-    fn tangent(&self, k: [f64; 2], _: [f64; 2]) -> [[f64; 2]; 2] {
-        [[2.0 * k[0], 0.0], [0.0, 2.0 * k[1]]]
+    fn springs(&self, k: [f64; 2]) -> [f64; 2] {
+        [2.0 * k[0], 2.0 * k[1]]
     }
     fn is_linear(&self) -> bool {
         true
@@ -211,4 +212,166 @@ fn contact_springs_use_the_law() {
     let k2 = contact::stiffness_estimate(&twice, &Contact::new(&twice).unwrap());
     assert!(k.iter().any(|&x| x != 0.0));
     assert!(k.iter().zip(&k2).all(|(a, b)| *b == 2.0 * a));
+}
+
+/// A law with a state, defined here and given to a model through the seam alone
+/// (`Model::set_law`): brittle in tension. A Gauss point is elastic until its normal traction
+/// passes `f_t`; then it breaks, the elastic energy it held, `½ k_n δ_n²` per unit area, is
+/// booked as the work of fracture, and it carries no tension from then on (its opening
+/// `δ_p,n` follows `δ_n`); shear stays elastic.
+#[derive(Debug)]
+struct Brittle {
+    f_t: f64,
+}
+
+impl InterfaceLaw for Brittle {
+    fn springs(&self, k: [f64; 2]) -> [f64; 2] {
+        k
+    }
+    fn is_linear(&self) -> bool {
+        false
+    }
+    fn update(&self, k: [f64; 2], delta: [f64; 2], point: &mut LawPoint) -> ([f64; 2], bool) {
+        let mut sigma = k[0] * (delta[0] - point.p[0]);
+        let mut flowed = false;
+        if point.kappa[0] == 0.0 && sigma > self.f_t {
+            point.kappa[0] = 1.0;
+            point.fracture += 0.5 * sigma * sigma / k[0];
+        }
+        if point.kappa[0] > 0.0 && sigma > 0.0 {
+            point.p[0] = delta[0];
+            sigma = 0.0;
+            flowed = true;
+        }
+        ([sigma, k[1] * (delta[1] - point.p[1])], flowed)
+    }
+    fn is_broken(&self, point: &LawPoint) -> bool {
+        point.kappa[0] > 0.0
+    }
+}
+
+const F_T: f64 = 1.0e6;
+
+/// A scene of rigid squares in a row, `cells` long, held by a clamp on the left and pulled by
+/// one on the right at 0.02 m/s.
+fn row(cells: usize) -> Scene {
+    let json = format!(
+        r#"{{"name": "brittle", "thickness": 0.1, "formulation": {{"kind": "rigid"}},
+        "materials": {{"m": {{"E": 2.0e10, "nu": 0.2, "rho": 2400.0}}}},
+        "damping": 500,
+        "bodies": [{{"name": "b", "material": "m",
+            "mesh": {{"kind": "grid", "origin": [0, 0], "size": [{}, 0.05], "cells": [{cells}, 1]}},
+            "supports": [{{"kind": "clamp", "edge": "left"}},
+                {{"kind": "clamp", "edge": "right", "velocity": [0.02, 0], "ramp": 1e-4}}]}}],
+        "time": {{"dt_factor": 0.5, "end": 1e-3}}}}"#,
+        0.05 * cells as f64
+    );
+    Scene::from_json(&json).unwrap()
+}
+
+fn brittle(scene: &Scene) -> Model {
+    let mut model = Model::build(scene).unwrap();
+    model.set_law(Arc::new(Brittle { f_t: F_T }), |_| true);
+    model
+}
+
+/// On one interface, against the law in closed form: two squares pulled apart by `δ_n` keep
+/// the elastic force below `f_t / k_n`; beyond it the interface breaks, carries nothing, and
+/// has dissipated `t L ½ k_n δ_n²`. Both evaluators give the same forces.
+#[test]
+fn a_law_with_state_through_the_seam_alone() {
+    let scene = row(2);
+    let model = brittle(&scene);
+    let i = model
+        .interfaces
+        .iter()
+        .position(|i| i.b != rbsm::model::GROUND)
+        .unwrap();
+    let (k_n, length) = (model.interfaces[i].k_n, model.interfaces[i].length);
+    for kind in [EvaluatorKind::Assembled, EvaluatorKind::ElementWise] {
+        let ev = evaluator::build(&model, kind);
+        let plastic = failure::build(&model, kind).expect("the law is not linear: points");
+        assert_eq!(plastic.interfaces(), &[i as u32]);
+        for (ratio, breaks) in [(0.5, false), (2.0, true)] {
+            let d = ratio * F_T / k_n;
+            let mut u = vec![0.0; model.n_dofs()];
+            u[3] = d;
+            let mut state = plastic.initial();
+            plastic.update(&u, &mut state);
+            let mut f = vec![0.0; u.len()];
+            ev.internal_force(&u, &mut f);
+            plastic.subtract_plastic(&state, &mut f);
+            let elastic = model.thickness * length * k_n * d;
+            let expected = if breaks { 0.0 } else { elastic };
+            assert!(
+                (f[3] - expected).abs() <= 1e-12 * elastic
+                    && (f[0] + expected).abs() <= 1e-12 * elastic,
+                "{kind:?} δ_n = {ratio} f_t/k_n: f = {:?}, expected ±{expected}",
+                &f[..6]
+            );
+            let report = plastic.report(&state);
+            let dissipated = if breaks {
+                0.5 * model.thickness * length * k_n * d * d
+            } else {
+                0.0
+            };
+            assert!(
+                (report[0].dissipated - dissipated).abs() <= 1e-12 * dissipated.max(1.0),
+                "{kind:?}: {} dissipated, {dissipated} expected",
+                report[0].dissipated
+            );
+            let status = if breaks {
+                InterfaceStatus::Broken
+            } else {
+                InterfaceStatus::Elastic
+            };
+            assert_eq!(report[0].status, status, "{kind:?}");
+        }
+    }
+}
+
+/// Through a whole run (`Setup::with_model`, `run::simulate`): a row of squares pulled apart
+/// breaks at the law's strength. The work of fracture is that of the interfaces that broke,
+/// `t h f_t² / (2 k_n)` each, plus the overshoot of the step at which each broke, which is
+/// first order in `Δt`: at `Δt/2` the excess is about half; so is the energy books' drift. The
+/// scene with its elastic law does none of it.
+#[test]
+fn a_run_with_a_law_of_its_own() {
+    let scene = row(4);
+    let (k_n, h) = (Model::build(&scene).unwrap().interfaces[0].k_n, 0.05);
+    let each = 0.1 * h * F_T * F_T / (2.0 * k_n);
+    let params = RunParams::default();
+    let excess = [0.5, 0.25].map(|dt_factor| {
+        let overrides = Overrides {
+            dt_factor: Some(dt_factor),
+            ..Overrides::default()
+        };
+        let setup = Setup::with_model(&scene, &overrides, brittle(&scene)).unwrap();
+        let outcome = run::simulate(&setup, &params, None, &mut Silent).unwrap();
+        let failure = outcome
+            .summary
+            .failure
+            .expect("a law that is not linear reports failure");
+        assert_eq!(failure.interfaces, 3);
+        assert!(failure.broken >= 1, "{failure:?}");
+        let drift = outcome.summary.energy.max_relative_drift;
+        let ratio = failure.fracture / (failure.broken as f64 * each);
+        eprintln!(
+            "Δt_crit × {dt_factor}: {} broken, fracture / closed form = {ratio}, energy drift {drift}",
+            failure.broken
+        );
+        [ratio - 1.0, drift]
+    });
+    // The excess of the work over the closed form, and the energy books' drift (the work of
+    // a traction that drops within one step is booked to first order, as for `Strength`).
+    for (c, what) in ["fracture excess", "energy drift"].iter().enumerate() {
+        let [coarse, fine] = [excess[0][c], excess[1][c]];
+        assert!(
+            coarse > 0.0 && fine > 0.0 && fine <= 0.7 * coarse,
+            "{what} {coarse:e} at Δt, {fine:e} at Δt/2: not first order"
+        );
+    }
+    let elastic = Setup::new(&scene, &Overrides::default()).unwrap();
+    let plain = run::simulate(&elastic, &params, None, &mut Silent).unwrap();
+    assert!(plain.summary.failure.is_none() && elastic.plastic.is_none());
 }

@@ -142,6 +142,7 @@ fn interface_stiffness_matches_the_closed_form() {
         h_b: 0.5,
         k_n,
         k_s,
+        law: rbsm::model::DEFAULT_LAW,
     };
     let [kaa, kab, kba, kbb] = interface_stiffness::<Rigid, 3>(&iface, &Elastic, xa, xb, t);
     // Closed form: B at the midpoint, 2 × 6, rows (n, s).

@@ -641,7 +641,8 @@ fn largest_block_eigenvalue<K: Kinematics<N>, const N: usize>(
         } else {
             centroid(i.b)
         };
-        let [kaa, _, _, kbb] = interface_stiffness::<K, N>(i, &*model.law, centroid(i.a), xb, t);
+        let [kaa, _, _, kbb] =
+            interface_stiffness::<K, N>(i, model.law_of(i), centroid(i.a), xb, t);
         k_diag[i.a as usize] += kaa;
         if i.b != GROUND {
             k_diag[i.b as usize] += kbb;

@@ -69,23 +69,47 @@ pub struct Setup {
     pub seconds: f64,
 }
 
+/// `scene` with the evaluator `overrides` asks for.
+fn evaluated_by<'s>(scene: &'s Scene, overrides: &Overrides) -> std::borrow::Cow<'s, Scene> {
+    match overrides.evaluator {
+        Some(kind) if kind != scene.evaluator => std::borrow::Cow::Owned(Scene {
+            evaluator: kind,
+            ..scene.clone()
+        }),
+        _ => std::borrow::Cow::Borrowed(scene),
+    }
+}
+
 impl Setup {
     /// Builds everything an analysis of `scene` needs.
+    ///
+    /// # Errors
+    /// The scene's model cannot be built (`Model::build`), its `ω_max` is not finite, or its
+    /// time step or step count is out of range.
     pub fn new(scene: &Scene, overrides: &Overrides) -> Result<Setup> {
         let start = std::time::Instant::now();
         // The model's memory estimate depends on the evaluator: the one that will be built.
-        let overridden;
-        let scene = match overrides.evaluator {
-            Some(kind) if kind != scene.evaluator => {
-                overridden = Scene {
-                    evaluator: kind,
-                    ..scene.clone()
-                };
-                &overridden
-            }
-            _ => scene,
-        };
-        let model = Model::build(scene)?;
+        let scene = evaluated_by(scene, overrides);
+        let model = Model::build(&scene)?;
+        Self::assemble(&scene, overrides, model, start)
+    }
+
+    /// [`Setup::new`] with the model given: one built from `scene` (`Model::build`) and then
+    /// changed from code, such as a law the scene cannot name ([`Model::set_law`]).
+    ///
+    /// # Errors
+    /// As [`Setup::new`], the model's build excepted.
+    pub fn with_model(scene: &Scene, overrides: &Overrides, model: Model) -> Result<Setup> {
+        let start = std::time::Instant::now();
+        Self::assemble(&evaluated_by(scene, overrides), overrides, model, start)
+    }
+
+    fn assemble(
+        scene: &Scene,
+        overrides: &Overrides,
+        model: Model,
+        start: std::time::Instant,
+    ) -> Result<Setup> {
         let kind = scene.evaluator;
         let evaluator = evaluator::build(&model, kind);
         let plastic = failure::build(&model, kind);

@@ -120,7 +120,7 @@ fn interface_bound<K: Kinematics<N>, const N: usize>(model: &Model) -> f64 {
             model.elements[i.b as usize].props.centroid
         };
         let [kaa, kab, kba, kbb] =
-            interface_stiffness::<K, N>(i, &*model.law, xa, xb, model.thickness);
+            interface_stiffness::<K, N>(i, model.law_of(i), xa, xb, model.thickness);
         let mut elements = vec![i.a as usize];
         if i.b != GROUND {
             elements.push(i.b as usize);

@@ -59,9 +59,9 @@ pub fn solve(model: &Model) -> Result<StaticSolution> {
     Ok(StaticSolution { u, energy })
 }
 
-/// The traction `[t_n, t_s]` (Pa) at the midpoint of an interface by the model's law (eq. 11;
-/// `λ = diag(k_n, k_s) δ` for [`crate::model::law::Elastic`]), with `δ = u_b − u_a` on the
-/// interface's `(n, s)` axes.
+/// The traction `[t_n, t_s]` (Pa) at the midpoint of an interface by the springs of its law
+/// (eq. 11; `λ = diag(k_n', k_s') δ`, `(k_n, k_s)` for [`crate::model::law::Elastic`]), with
+/// `δ = u_b − u_a` on the interface's `(n, s)` axes: the analysis is linear.
 pub fn midpoint_traction(model: &Model, i: &crate::model::Interface, u: &[f64]) -> [f64; 2] {
     let nd = model.formulation.ndof();
     let m = i.midpoint();
@@ -76,10 +76,8 @@ pub fn midpoint_traction(model: &Model, i: &crate::model::Interface, u: &[f64]) 
         )
     };
     let delta = disp(i.b) - disp(i.a);
-    model.law.traction(
-        [i.k_n, i.k_s],
-        [i.normal.dot(&delta), i.tangent.dot(&delta)],
-    )
+    let [k_n, k_s] = model.law_of(i).springs([i.k_n, i.k_s]);
+    [k_n * i.normal.dot(&delta), k_s * i.tangent.dot(&delta)]
 }
 
 #[derive(Serialize)]
@@ -158,7 +156,7 @@ pub fn analyse(setup: &Setup) -> Result<StaticReport> {
         })
         .collect();
     let mut notes = Vec::new();
-    if model.strength.iter().any(Option::is_some) {
+    if model.any_fails() {
         notes.push(
             "the analysis is linear: the interfaces' strengths are ignored (`rbsm run` with a \
              moving clamp gives the collapse)"

@@ -1,5 +1,5 @@
-//! Interfaces that fail: the plastic part of the internal forces when a material's interface
-//! law has a strength ([`Strength`]; eq. 11 beyond its elastic range).
+//! Interfaces that fail: the plastic part of the internal forces of the interfaces whose law
+//! (eq. 11, [`InterfaceLaw`]) is not linear, such as a strength ([`crate::model::law::Strength`]).
 //!
 //! The traction at a Gauss point is `λ = diag(k_n, k_s) (δ − δ_p)`, so the internal forces
 //! split into the elastic ones of the evaluator and a plastic correction:
@@ -10,10 +10,10 @@
 //! one forms each element's share from its own edges' Gauss points, `±N_e(x)ᵀ T_p`, with no
 //! stored matrix (eq. 15). Both update the state the same way, [`PlasticForces::update`]: the
 //! relative displacement `δ = N_b U_b − N_a U_a` at each Gauss point and the return mapping of
-//! its strength ([`Strength::update`]), once per evaluation, that is once per time step.
+//! its law ([`InterfaceLaw::update`]), once per evaluation, that is once per time step.
 //!
-//! Only the interfaces between elements of a failing material have points; ground springs
-//! (supports) stay elastic.
+//! Only the interfaces between elements whose law is not linear have points; ground springs
+//! (supports) keep their law's springs.
 //!
 //! **Hand-over to contact.** In a scene with edge-to-edge contact a broken interface whose
 //! elements have moved apart by more than [`RELEASE`] of its length (in opening or in slip),
@@ -27,11 +27,12 @@
 use crate::input::scene::EvaluatorKind;
 use crate::mesh::geometry::Vec2;
 use crate::model::formulation::{Formulation, Hybrid, Kinematics, Rigid};
-use crate::model::law::{PlasticPoint, Strength};
+use crate::model::law::{InterfaceLaw, LawPoint};
 use crate::model::{Model, GROUND};
 use crate::parallel::for_each_chunk;
 use rayon::prelude::*;
 use std::marker::PhantomData;
+use std::sync::Arc;
 
 /// A broken interface is released to contact once its elements have moved apart by more than
 /// this fraction of its length.
@@ -42,7 +43,7 @@ pub const RELEASE: f64 = 0.01;
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct FailureState {
     /// One per Gauss point.
-    pub points: Vec<PlasticPoint>,
+    pub points: Vec<LawPoint>,
     /// Per failing interface, whether it has been released to contact (only in scenes whose
     /// fragments collide, else all false).
     pub released: Vec<bool>,
@@ -139,7 +140,7 @@ pub trait PlasticForces: Send + Sync {
     /// A state with every point elastic.
     fn initial(&self) -> FailureState {
         FailureState {
-            points: vec![PlasticPoint::default(); 2 * self.interfaces().len()],
+            points: vec![LawPoint::default(); 2 * self.interfaces().len()],
             released: vec![false; self.interfaces().len()],
             handover: 0.0,
             changed: false,
@@ -160,7 +161,11 @@ pub trait PlasticForces: Send + Sync {
 
 /// The plastic forces of `model` for the evaluator `kind`; `None` when no interface can fail.
 pub fn build(model: &Model, kind: EvaluatorKind) -> Option<Box<dyn PlasticForces>> {
-    if !model.strength.iter().any(Option::is_some) {
+    if !model
+        .interfaces
+        .iter()
+        .any(|i| i.b != GROUND && model.fails(i))
+    {
         return None;
     }
     Some(match model.formulation {
@@ -184,8 +189,8 @@ struct Point {
     k: [f64; 2],
     /// `t w`: thickness times the Gauss weight `L/2` (m²).
     tw: f64,
-    /// Its strength, in `Points::strengths` (one per material: the points stay small).
-    strength: u32,
+    /// Its law, in `Points::laws` (an index: the points stay small).
+    law: u32,
 }
 
 impl Point {
@@ -215,8 +220,8 @@ enum Correction<const N: usize> {
 
 struct Points<K: Kinematics<N>, const N: usize> {
     points: Vec<Point>,
-    /// The distinct strengths of the model's failing interfaces.
-    strengths: Vec<Strength>,
+    /// The model's laws ([`Model::laws`]), then its default law.
+    laws: Vec<Arc<dyn InterfaceLaw>>,
     interfaces: Vec<u32>,
     /// Per failing interface, the separation beyond which a broken one is released (m):
     /// [`RELEASE`] of its length where its body fragments (`Model::fragments`), else infinite;
@@ -231,22 +236,19 @@ struct Points<K: Kinematics<N>, const N: usize> {
 impl<K: Kinematics<N>, const N: usize> Points<K, N> {
     fn new(model: &Model, kind: EvaluatorKind) -> Self {
         let mut points = Vec::new();
-        let mut strengths: Vec<Strength> = Vec::new();
+        let mut laws = model.laws.clone();
+        laws.push(model.law.clone());
         let mut interfaces = Vec::new();
         let mut release = Vec::new();
         let centroid = |e: u32| model.elements[e as usize].props.centroid;
         let fragments: Vec<bool> = (0..model.bodies.len())
             .map(|b| model.fragments(b))
             .collect();
-        for (k, (i, s)) in model.interfaces.iter().zip(&model.strength).enumerate() {
-            let Some(strength) = *s else { continue };
-            let strength = match strengths.iter().position(|x| *x == strength) {
-                Some(k) => k as u32,
-                None => {
-                    strengths.push(strength);
-                    strengths.len() as u32 - 1
-                }
-            };
+        for (k, i) in model.interfaces.iter().enumerate() {
+            if i.b == GROUND || !model.fails(i) {
+                continue;
+            }
+            let law = i.law.min(model.laws.len() as u32);
             interfaces.push(k as u32);
             let body = model.elements[i.a as usize].body as usize;
             release.push(if fragments[body] && i.b != GROUND {
@@ -267,9 +269,9 @@ impl<K: Kinematics<N>, const N: usize> Points<K, N> {
                     },
                     normal: i.normal,
                     tangent: i.tangent,
-                    k: [i.k_n, i.k_s],
+                    k: laws[law as usize].springs([i.k_n, i.k_s]),
                     tw: model.thickness * w,
-                    strength,
+                    law,
                 });
             }
         }
@@ -313,7 +315,7 @@ impl<K: Kinematics<N>, const N: usize> Points<K, N> {
         }
         Points {
             points,
-            strengths,
+            laws,
             interfaces,
             release,
             row_start,
@@ -342,7 +344,7 @@ impl<K: Kinematics<N>, const N: usize> PlasticForces for Points<K, N> {
                 if released[j / 2] {
                     s.p = delta;
                 } else {
-                    self.strengths[p.strength as usize].update(p.k, delta, s);
+                    self.laws[p.law as usize].update(p.k, delta, s);
                 }
             });
         // Hand-over: broken interfaces whose elements moved apart beyond their range.
@@ -355,7 +357,7 @@ impl<K: Kinematics<N>, const N: usize> PlasticForces for Points<K, N> {
                 &self.points[2 * k..2 * k + 2],
                 &mut state.points[2 * k..2 * k + 2],
             );
-            if !(0..2).all(|g| self.strengths[p[g].strength as usize].is_broken(&s[g])) {
+            if !(0..2).all(|g| self.laws[p[g].law as usize].is_broken(&s[g])) {
                 continue;
             }
             let d = [0, 1].map(|g| p[g].delta::<K, N>(u));
@@ -433,8 +435,7 @@ impl<K: Kinematics<N>, const N: usize> PlasticForces for Points<K, N> {
                     &self.points[2 * k..2 * k + 2],
                     &state.points[2 * k..2 * k + 2],
                 );
-                let broken =
-                    (0..2).all(|g| self.strengths[p[g].strength as usize].is_broken(&s[g]));
+                let broken = (0..2).all(|g| self.laws[p[g].law as usize].is_broken(&s[g]));
                 let plastic = s.iter().any(|s| s.p != [0.0; 2]);
                 InterfaceFailure {
                     interface: i as usize,

@@ -2,50 +2,85 @@
 //!
 //! On an interface with unit normal `n` and tangent `s`, the relative displacement
 //! `δ = u_b − u_a` has the components `(δ_n, δ_s) = (n·δ, s·δ)`, and the traction on `a` from
-//! `b` is `λ = λ_n n + λ_s s` (Pa). An [`InterfaceLaw`] maps `(δ_n, δ_s)` to `(λ_n, λ_s)` and
-//! gives the tangent `dλ/dδ`, given the interface's elastic moduli `k = (k_n, k_s)` of eq. 12
-//! (Pa/m, the hybrid penalty included). The evaluators, the statics and the contact springs
-//! all reach eq. 11 through the model's law ([`crate::model::Model::law`]); [`Elastic`] is the
-//! default.
+//! `b` is `λ = λ_n n + λ_s s` (Pa). An [`InterfaceLaw`] maps `(δ_n, δ_s)` and the state of the
+//! Gauss point ([`LawPoint`]) to `(λ_n, λ_s)`, given the interface's elastic moduli
+//! `k = (k_n, k_s)` of eq. 12 (Pa/m, the hybrid penalty included). It is the one seam of eq. 11:
+//! the elastic springs ([`Elastic`]), the strength of interfaces that fail ([`Strength`]) and
+//! the contact springs all go through it, and a law defined outside the crate reaches the
+//! evaluators, the statics and the contact the same way (`tests/law.rs` adds two).
 //!
-//! A law that is linear and stateless ([`InterfaceLaw::is_linear`]) is a constant
-//! `λ = diag(k_n', k_s') δ`: the evaluators then take its springs once, when they are built
-//! (`<dyn InterfaceLaw>::springs`), assemble a constant `K`, and split the Gauss rule of an
-//! edge into `δ₀ ± δ₁` (`force::evaluator::ElementWise`). A law with a state per Gauss point
-//! (plasticity, softening) will need neither.
+//! Every law is written as springs and a plastic relative displacement:
+//! `λ = diag(k_n', k_s') (δ − δ_p)`, with `(k_n', k_s')` its [`springs`](InterfaceLaw::springs)
+//! and `δ_p` the point's [`LawPoint::p`], which [`InterfaceLaw::update`] keeps (any traction
+//! can be written so). That is what lets the evaluators keep their elastic hot loops for every
+//! law: they assemble a constant `K` (or split the Gauss rule of an edge into `δ₀ ± δ₁`,
+//! `force::evaluator::ElementWise`) from the springs, and `force::failure` subtracts the
+//! plastic part `G δ_p` for the interfaces whose law is not [linear](InterfaceLaw::is_linear).
+//! A linear law has no state: no point of it is stored or updated.
 
 use std::fmt::Debug;
 
 /// A traction–separation law of the interfaces (eq. 11), on each interface's `(n, s)` axes.
+///
+/// A linear law implements [`springs`](InterfaceLaw::springs) and
+/// [`is_linear`](InterfaceLaw::is_linear) (`true`); a law with a state per Gauss point also
+/// [`update`](InterfaceLaw::update), and [`is_broken`](InterfaceLaw::is_broken) when its
+/// interfaces can be handed over to contact.
 pub trait InterfaceLaw: Send + Sync + Debug {
-    /// The traction `(λ_n, λ_s)` (Pa) at the relative displacement `δ = (δ_n, δ_s)` (m) of an
-    /// interface with elastic moduli `k = (k_n, k_s)` (Pa/m, eq. 12).
-    fn traction(&self, k: [f64; 2], delta: [f64; 2]) -> [f64; 2];
-    /// The tangent `dλ/dδ` (Pa/m) at `δ`, row by row: `[[dλ_n/dδ_n, dλ_n/dδ_s],
-    /// [dλ_s/dδ_n, dλ_s/dδ_s]]`.
-    fn tangent(&self, k: [f64; 2], delta: [f64; 2]) -> [[f64; 2]; 2];
-    /// Whether `λ = tangent · δ` with the same tangent at every `δ` and no state: only then
-    /// may the evaluators use a constant `K` and the Gauss split `δ₀ ± δ₁`.
+    /// The springs `(k_n', k_s')` (Pa/m) of an interface with elastic moduli `k = (k_n, k_s)`
+    /// (eq. 12): `λ = diag(k_n', k_s') (δ − δ_p)`. `(k_n, k_s)` for [`Elastic`].
+    fn springs(&self, k: [f64; 2]) -> [f64; 2];
+    /// Whether `λ = diag(k_n', k_s') δ` at every `δ`, with no state: only then does the model
+    /// store no point for its interfaces (the evaluators' constant `K` is then the whole
+    /// force).
     fn is_linear(&self) -> bool;
+    /// The traction `(λ_n, λ_s)` (Pa) at the relative displacement `δ = (δ_n, δ_s)` (m) of a
+    /// Gauss point in the state `point`, which it updates, on the interface's springs
+    /// `k = (k_n', k_s')` ([`springs`](InterfaceLaw::springs) of its moduli): the plastic
+    /// relative displacement `δ_p` with `λ = diag(k) (δ − δ_p)`, the law's internal variables,
+    /// and the work dissipated, booked in [`LawPoint::fracture`] and [`LawPoint::friction`]
+    /// (J/m²). Returns whether the point flowed. Called once per Gauss point and time step, in
+    /// parallel, for the interfaces whose law is not linear. The default is a linear law's: no
+    /// flow.
+    #[inline]
+    fn update(&self, k: [f64; 2], delta: [f64; 2], point: &mut LawPoint) -> ([f64; 2], bool) {
+        (
+            [
+                k[0] * (delta[0] - point.p[0]),
+                k[1] * (delta[1] - point.p[1]),
+            ],
+            false,
+        )
+    }
+    /// The tangent `dλ/dδ` (Pa/m) at `δ` in the state `point`, on the springs `k` as in
+    /// [`update`](InterfaceLaw::update), row by row:
+    /// `[[dλ_n/dδ_n, dλ_n/dδ_s], [dλ_s/dδ_n, dλ_s/dδ_s]]`, for a solver that needs it. The
+    /// default is the springs' (exact for a linear law; the unloading tangent of a plastic one).
+    fn tangent(&self, k: [f64; 2], _delta: [f64; 2], _point: &LawPoint) -> [[f64; 2]; 2] {
+        [[k[0], 0.0], [0.0, k[1]]]
+    }
+    /// Whether the point carries no more than compression and friction: once both points of an
+    /// interface are, and its elements have moved apart, it is handed over to contact
+    /// (`force::failure`). Never, by default.
+    fn is_broken(&self, _point: &LawPoint) -> bool {
+        false
+    }
 }
 
-impl dyn InterfaceLaw + '_ {
-    /// The springs `(k_n', k_s')` (Pa/m) of a linear law on an interface with moduli `k`: its
-    /// tangent, `λ = diag(k_n', k_s') δ`. The evaluators and the contact take them when they
-    /// are built; panics for a law that is not linear, or whose tangent couples `δ_n` and
-    /// `δ_s` (neither is supported yet).
-    pub fn springs(&self, k: [f64; 2]) -> [f64; 2] {
-        assert!(
-            self.is_linear(),
-            "the interface law {self:?} is not linear: the evaluators need a linear law"
-        );
-        let [[k_n, ns], [sn, k_s]] = self.tangent(k, [0.0; 2]);
-        assert!(
-            ns == 0.0 && sn == 0.0,
-            "the interface law {self:?} couples the normal and shear springs"
-        );
-        [k_n, k_s]
-    }
+/// The state of one Gauss point of an interface whose law is not linear (two per interface,
+/// owned by the run, `force::failure::FailureState`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct LawPoint {
+    /// Plastic relative displacement `δ_p = (δ_p,n, δ_p,s)` (m):
+    /// `λ = diag(k_n', k_s') (δ − δ_p)`.
+    pub p: [f64; 2],
+    /// The law's internal variables; for [`Strength`], the plastic opening and slip accumulated
+    /// on the cut-off and the shear surface (m).
+    pub kappa: [f64; 2],
+    /// Work of the strength (tension and cohesion) per unit area (J/m²).
+    pub fracture: f64,
+    /// Work of friction per unit area (J/m²).
+    pub friction: f64,
 }
 
 /// Linear elastic springs (eqs. 11, 12): `λ = diag(k_n, k_s) δ`, the default law.
@@ -53,15 +88,20 @@ impl dyn InterfaceLaw + '_ {
 pub struct Elastic;
 
 impl InterfaceLaw for Elastic {
-    fn traction(&self, k: [f64; 2], delta: [f64; 2]) -> [f64; 2] {
-        [k[0] * delta[0], k[1] * delta[1]]
-    }
-    fn tangent(&self, k: [f64; 2], _: [f64; 2]) -> [[f64; 2]; 2] {
-        [[k[0], 0.0], [0.0, k[1]]]
+    fn springs(&self, k: [f64; 2]) -> [f64; 2] {
+        k
     }
     fn is_linear(&self) -> bool {
         true
     }
+}
+
+/// The law of a material's interfaces in a scene: `None` for the elastic one (the model's
+/// default law then applies), else its [`Strength`].
+pub fn from_spec(
+    spec: &crate::input::scene::InterfaceLawSpec,
+) -> Option<std::sync::Arc<dyn InterfaceLaw>> {
+    Strength::from_spec(spec).map(|s| std::sync::Arc::new(s) as std::sync::Arc<dyn InterfaceLaw>)
 }
 
 /// The strength of an interface that fails (eq. 11 beyond its elastic range): Mohr–Coulomb with
@@ -72,7 +112,7 @@ impl InterfaceLaw for Elastic {
 /// Inside the surface the springs are elastic, `λ = diag(k_n, k_s) (δ − δ_p)`; on it the plastic
 /// relative displacement `δ_p` grows. The flow is not associated and has no dilatancy: the
 /// tension cut-off opens `δ_p,n`, the shear surface slides `δ_p,s`, so the return of each is
-/// one division and the two do not interact ([`Strength::update`]). With fracture energies
+/// one division and the two do not interact (its [`InterfaceLaw::update`]). With fracture energies
 /// `G_f`, `G_f,II` the strengths scale by `1 − ξ`, `ξ = κ_n / w_n + κ_s / w_s` (at most 1),
 /// where `κ_n` and `κ_s` are the plastic opening and slip accumulated on the cut-off and on the
 /// shear surface, and `w_n = 2 G_f / f_t`, `w_s = 2 G_f,II / c` the opening and slip at which
@@ -95,19 +135,6 @@ pub struct Strength {
     pub w_s: f64,
 }
 
-/// The state of one Gauss point of an interface with a [`Strength`].
-#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct PlasticPoint {
-    /// Plastic relative displacement `δ_p = (δ_p,n, δ_p,s)` (m).
-    pub p: [f64; 2],
-    /// Plastic opening and slip accumulated on the cut-off and the shear surface (m).
-    pub kappa: [f64; 2],
-    /// Work of the strength (tension and cohesion) per unit area (J/m²).
-    pub fracture: f64,
-    /// Work of friction `−σ tan φ |Δδ_p,s|` per unit area (J/m²).
-    pub friction: f64,
-}
-
 impl Strength {
     /// The strength of a scene's law, `None` for an elastic one.
     pub fn from_spec(spec: &crate::input::scene::InterfaceLawSpec) -> Option<Strength> {
@@ -126,15 +153,20 @@ impl Strength {
     }
 
     /// How much of the strength is spent, `ξ` in [0, 1].
-    pub fn softening(&self, point: &PlasticPoint) -> f64 {
+    pub fn softening(&self, point: &LawPoint) -> f64 {
         (point.kappa[0] / self.w_n + point.kappa[1] / self.w_s).min(1.0)
     }
+}
 
-    /// Whether the point's strength is exhausted.
-    pub fn is_broken(&self, point: &PlasticPoint) -> bool {
-        self.softening(point) >= 1.0 && (self.f_t > 0.0 || self.c > 0.0)
+/// Mohr–Coulomb with cut-off and softening through the seam: the springs are the moduli, the
+/// update is the return mapping.
+impl InterfaceLaw for Strength {
+    fn springs(&self, k: [f64; 2]) -> [f64; 2] {
+        k
     }
-
+    fn is_linear(&self) -> bool {
+        false
+    }
     /// The return mapping at relative displacement `δ` with elastic springs `k` (Pa/m): the
     /// traction `(σ, τ)` (Pa), with the point's plastic displacement, softening and dissipated
     /// work updated. Backward Euler: the tension cut-off returns to the surface softened by its
@@ -145,12 +177,7 @@ impl Strength {
     /// point) the strength of the start of the update is used. Returns whether the point
     /// flowed.
     #[inline]
-    pub fn update(
-        &self,
-        k: [f64; 2],
-        delta: [f64; 2],
-        point: &mut PlasticPoint,
-    ) -> ([f64; 2], bool) {
+    fn update(&self, k: [f64; 2], delta: [f64; 2], point: &mut LawPoint) -> ([f64; 2], bool) {
         let xi = self.softening(point);
         // The cut-off, lowered to the apex of the shear surface when that comes first; both
         // scale with `1 − ξ`.
@@ -218,5 +245,9 @@ impl Strength {
             point.fracture += work - friction;
         }
         ([sigma, tau], flowed)
+    }
+    /// Whether the point's strength is exhausted.
+    fn is_broken(&self, point: &LawPoint) -> bool {
+        self.softening(point) >= 1.0 && (self.f_t > 0.0 || self.c > 0.0)
     }
 }

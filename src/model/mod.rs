@@ -17,7 +17,8 @@ use crate::input::scene::{EdgeSet, Side};
 use crate::mesh::geometry::{area_properties, AreaProperties, Vec2};
 use crate::mesh::Mesh;
 use crate::model::formulation::{elasticity, Formulation};
-use crate::model::law::{Elastic, InterfaceLaw, Strength};
+use crate::model::law::{Elastic, InterfaceLaw};
+use std::collections::BTreeMap;
 use std::sync::Arc;
 
 /// Marks the `b` side of an interface tied to fixed ground (`U_b = 0`, `h_b = 0`).
@@ -62,7 +63,13 @@ pub struct Interface {
     pub k_n: f64,
     /// Shear spring `k_s` (Pa/m).
     pub k_s: f64,
+    /// Its law (eq. 11): an index in [`Model::laws`], or [`DEFAULT_LAW`] for the model's
+    /// [`Model::law`] ([`Model::law_of`]).
+    pub law: u32,
 }
+
+/// [`Interface::law`] of an interface under the model's default law.
+pub const DEFAULT_LAW: u32 = u32::MAX;
 
 impl Interface {
     /// The two Gauss points of the edge and their weight (`L/2` each): exact for the quadratic
@@ -161,11 +168,12 @@ pub struct Model {
     pub contact: Option<ContactSpec>,
     /// Rigid ground segments `[from, to]` (m); the free side is on the left of `from → to`.
     pub ground: Vec<[Vec2; 2]>,
-    /// The law of the interfaces and contact springs (eq. 11): [`Elastic`] unless replaced.
+    /// The default law (eq. 11): that of the contact springs, the supports and the interfaces of
+    /// materials with no law of their own; [`Elastic`] unless replaced.
     pub law: Arc<dyn InterfaceLaw>,
-    /// The strength of each interface whose material's law fails (`materials.*.interface`),
-    /// in interface order; empty when no law fails (then no interface has a state).
-    pub strength: Vec<Option<Strength>>,
+    /// The laws of their own of the materials that have one (`materials.*.interface` other
+    /// than `elastic`), one per such material in name order; [`Interface::law`] indexes them.
+    pub laws: Vec<Arc<dyn InterfaceLaw>>,
     /// Clamps that move (displacement control), in scene order.
     pub prescribed: Vec<Prescribed>,
 }
@@ -212,9 +220,39 @@ impl Model {
             .is_some_and(|c| c.model == crate::input::scene::ContactModel::EdgeToEdge)
             && !body.mesh.shared.is_empty()
             && self
-                .strength
+                .interfaces
                 .get(body.first_interface)
-                .is_some_and(Option::is_some)
+                .is_some_and(|i| self.fails(i))
+    }
+
+    /// The law of interface `i` (eq. 11).
+    pub fn law_of(&self, i: &Interface) -> &dyn InterfaceLaw {
+        match i.law {
+            DEFAULT_LAW => &*self.law,
+            k => &*self.laws[k as usize],
+        }
+    }
+
+    /// Whether interface `i` can fail: its law is not linear, so its Gauss points have a state.
+    pub fn fails(&self, i: &Interface) -> bool {
+        !self.law_of(i).is_linear()
+    }
+
+    /// Whether any interface can fail.
+    pub fn any_fails(&self) -> bool {
+        self.interfaces.iter().any(|i| self.fails(i))
+    }
+
+    /// Gives the interfaces between elements for which `which` holds the law `law` (a law the
+    /// scene cannot name: the seam of eq. 11 from code). Supports keep theirs.
+    pub fn set_law(&mut self, law: Arc<dyn InterfaceLaw>, which: impl Fn(&Interface) -> bool) {
+        let k = self.laws.len() as u32;
+        self.laws.push(law);
+        for i in self.interfaces.iter_mut().filter(|i| i.b != GROUND) {
+            if which(i) {
+                i.law = k;
+            }
+        }
     }
 
     /// Number of ground springs: the interfaces tied to ground (`b == GROUND`). The others
@@ -284,13 +322,17 @@ impl Model {
                 .map(|g| [Vec2::new(g.from[0], g.from[1]), Vec2::new(g.to[0], g.to[1])])
                 .collect(),
             law: Arc::new(Elastic),
-            strength: Vec::new(),
+            laws: Vec::new(),
             prescribed: Vec::new(),
         };
-        let fails = scene
-            .materials
-            .values()
-            .any(|m| m.interface != crate::input::scene::InterfaceLawSpec::Elastic);
+        // One law per material that has its own, in name order.
+        let mut own_law = BTreeMap::new();
+        for (name, m) in &scene.materials {
+            if let Some(law) = law::from_spec(&m.interface) {
+                own_law.insert(name.as_str(), model.laws.len() as u32);
+                model.laws.push(law);
+            }
+        }
         // What the scene's meshes will make, known before meshing except for gmsh files,
         // whose elements are counted once read.
         let mut expected: u64 = scene
@@ -348,12 +390,13 @@ impl Model {
                         &material,
                     )
                     .map_err(|m| Error::mesh(&spec.name, e.a as usize, m))?;
-                model.interfaces.push(iface);
-                if fails {
-                    model
-                        .strength
-                        .push(Strength::from_spec(&material.interface));
-                }
+                model.interfaces.push(Interface {
+                    law: own_law
+                        .get(spec.material.as_str())
+                        .copied()
+                        .unwrap_or(DEFAULT_LAW),
+                    ..iface
+                });
             }
             for (k, s) in spec.supports.iter().enumerate() {
                 let field = at(&format!("supports[{k}].edge"));
@@ -381,12 +424,9 @@ impl Model {
                             if !components.contains(&Component::S) {
                                 iface.k_s = 0.0;
                             }
+                            // Supports are boundary conditions, not material: they keep the
+                            // default law.
                             model.interfaces.push(iface);
-                            if fails {
-                                // Supports are boundary conditions, not material: they stay
-                                // elastic.
-                                model.strength.push(None);
-                            }
                         }
                     }
                     SupportSpec::Clamp(ClampSpec {
@@ -537,6 +577,7 @@ impl Model {
             h_b,
             k_n,
             k_s,
+            law: DEFAULT_LAW,
         })
     }
 

@@ -145,7 +145,7 @@ impl Columns {
     /// The columns of `model`'s history with `probes`.
     pub fn of(model: &Model, probes: Vec<Probe>) -> Self {
         Columns {
-            failure: !model.strength.is_empty(),
+            failure: model.any_fails(),
             damping: model.damping > 0.0,
             clamps: model.prescribed.clone(),
             probes,
@@ -578,12 +578,15 @@ pub fn read_final_state(path: &Path, model: &Model) -> Result<FinalState> {
             .status
             .parse()
             .map_err(|why| fail(format!("interfaces[{k}]: {why}")))?;
-        let fails = model.strength.get(i.interface).is_some_and(Option::is_some);
+        let fails = model
+            .interfaces
+            .get(i.interface)
+            .is_some_and(|i| model.fails(i));
         if !fails {
             return Err(fail(format!(
                 "interfaces[{k}]: interface {} is not one of the scene's {} that can fail: {other}",
                 i.interface,
-                model.strength.iter().filter(|s| s.is_some()).count()
+                model.interfaces.iter().filter(|i| model.fails(i)).count()
             )));
         }
         interfaces.push(crate::force::failure::InterfaceFailure {

@@ -21,8 +21,8 @@ use nalgebra::{Matrix2, SMatrix};
 use std::marker::PhantomData;
 
 /// The stiffness of one interface, `K_ab = t ∫ Bᵀ diag(k_n', k_s') B dℓ` with
-/// `B = [n s]ᵀ [−N_a(x), N_b(x)]` and `(k_n', k_s')` the springs of the linear `law` on the
-/// interface's moduli (eq. 11; `(k_n, k_s)` for [`crate::model::law::Elastic`]), integrated
+/// `B = [n s]ᵀ [−N_a(x), N_b(x)]` and `(k_n', k_s')` the springs of the interface's `law` on its
+/// moduli (eq. 11; `(k_n, k_s)` for [`crate::model::law::Elastic`]), integrated
 /// exactly by 2-point Gauss ([`Interface::gauss_points`]).
 /// Returns the blocks `(aa, ab, ba, bb)`; for a ground interface only `aa` is non-zero.
 pub fn interface_stiffness<K: Kinematics<N>, const N: usize>(
@@ -139,7 +139,7 @@ pub fn assemble<K: Kinematics<N>, const N: usize>(model: &Model) -> BlockCsr<N> 
             centroid(i.b)
         };
         let [kaa, kab, kba, kbb] =
-            interface_stiffness::<K, N>(i, &*model.law, centroid(i.a), xb, model.thickness);
+            interface_stiffness::<K, N>(i, model.law_of(i), centroid(i.a), xb, model.thickness);
         triplets.push((i.a, i.a, kaa));
         if i.b != GROUND {
             triplets.push((i.a, i.b, kab));

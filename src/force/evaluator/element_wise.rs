@@ -527,7 +527,7 @@ pub struct ElementWise<K: Kernel<N>, const N: usize> {
 
 impl<K: Kernel<N>, const N: usize> ElementWise<K, N> {
     /// Face records, blocks and crossing interfaces from the model's interfaces, with the
-    /// springs of its law, which must be linear.
+    /// springs of their laws (`force::failure` adds the plastic part of a law that is not linear).
     pub fn new(model: &Model) -> Self {
         Self::build(model, true, true)
     }
@@ -552,7 +552,7 @@ impl<K: Kernel<N>, const N: usize> ElementWise<K, N> {
                 };
                 // `S` is even in the normal and `λ` odd in `δ = u_b − u_a`: the sides may swap.
                 let (a, b) = if i.b < i.a { (i.b, i.a) } else { (i.a, i.b) };
-                let [k_n, k_s] = model.law.springs([i.k_n, i.k_s]);
+                let [k_n, k_s] = model.law_of(i).springs([i.k_n, i.k_s]);
                 let (k_n, k_s) = (k_n * tl, k_s * tl);
                 let springs = Springs::new(i.normal, k_n, k_s);
                 let (da, db, g) = (offset(a), offset(b), 0.5 * (g1 - g0));
