@@ -11,11 +11,11 @@ use crate::error::Result;
 use crate::force::contact::Contact;
 use crate::force::evaluator::{Evaluator, GroupedStep};
 use crate::force::failure::{FailureState, PlasticForces};
-use crate::lanes::grouped;
 use crate::model::loads::Loads;
 use crate::model::mass::{Mass, Update};
 use crate::model::{Model, Prescribed};
 use crate::parallel::for_each_chunk;
+use crate::step::grouped::{Groups, MIN_STRETCH};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
@@ -102,12 +102,6 @@ pub const GROWTH_LIMIT: f64 = 4.0;
 /// Steps between two divergence checks when no output is due sooner.
 pub const CHECK_EVERY: u64 = 100;
 
-/// The fewest steps between two checks that go on the state in groups of four elements
-/// ([`GroupedStep`]). Moving `U` and `v` into the groups and back reads and writes each twice,
-/// about the bytes of one and a half steps, and a grouped step of a rigid grid saves about a
-/// sixth of a step: shorter stretches (outputs every few steps) stay on the plain state.
-const MIN_STRETCH: u64 = 16;
-
 /// The last state that passed the divergence guard: a run that diverges returns to it.
 #[derive(Debug, Default)]
 struct Good {
@@ -168,19 +162,8 @@ pub struct CentralDifference<'a> {
     /// Each moving clamp's largest reaction over every step so far and its time `[R, t]`.
     peaks: Vec<[f64; 2]>,
     /// The state in groups of four elements, for a fused step that goes in lanes
-    /// ([`GroupedStep`]): the steps between two checks run on it.
+    /// ([`crate::step::grouped`]): the steps between two checks run on it.
     groups: Option<Groups>,
-}
-
-/// `U`, `v` and the lumped `M⁻¹` in groups of four elements ([`grouped`]).
-struct Groups {
-    u: Vec<f64>,
-    v: Vec<f64>,
-    inv: Vec<f64>,
-    /// DOFs per element.
-    nd: usize,
-    /// Whether `u` and `v` hold the state, and the integrator's own are behind.
-    active: bool,
 }
 
 /// How a run ended, without where or why: the `status` of `summary.json` (`ok`, `interrupted`
@@ -370,22 +353,7 @@ impl<'a> CentralDifference<'a> {
         if s.contact.is_none() {
             s.loaded = loads.loaded_elements();
         }
-        let grouped = evaluator.fused().and_then(|f| f.grouped());
-        let undamped = s.damping == 0.0;
-        if let (Some(_), true, Some(_), Some(inv)) =
-            (grouped, undamped, &s.loaded, mass.lumped_inverse())
-        {
-            let (nd, len) = (mass.nd(), grouped::len(mass.nd(), n));
-            let mut g = vec![0.0; len];
-            grouped::group(nd, inv, &mut g);
-            s.groups = Some(Groups {
-                u: vec![0.0; len],
-                v: vec![0.0; len],
-                inv: g,
-                nd,
-                active: false,
-            });
-        }
+        s.groups = Groups::new(evaluator, mass, n, s.damping == 0.0, s.loaded.is_some());
         s.net_force(false);
         mass.advance(&s.force, &mut s.v, &mut [], -0.5 * dt, (1.0, 1.0));
         s
@@ -868,21 +836,13 @@ impl<'a> CentralDifference<'a> {
         let (Some(g), Some(loaded)) = (self.groups.as_mut(), self.loaded.as_deref()) else {
             return false;
         };
-        if !g.active {
-            grouped::group(g.nd, &self.u, &mut g.u);
-            grouped::group(g.nd, &self.v, &mut g.v);
-            g.active = true;
-        }
         if !self.force_clear {
             self.force.fill(0.0);
         }
         self.loads.subtract(self.t, &mut self.force);
-        grouped.advance_grouped(&mut g.u, &mut g.v, &g.inv, &mut self.force, loaded, dt);
+        g.advance(grouped, &self.u, &self.v, &mut self.force, loaded, dt);
         self.force_clear = true;
-        let (nd, v) = (g.nd, &g.v);
-        self.ledger.external_work += self
-            .loads
-            .work_increment(self.t, dt, |d| v[grouped::index(nd, d)]);
+        self.ledger.external_work += self.loads.work_increment(self.t, dt, |d| g.velocity(d));
         self.step += 1;
         self.t = self.step as f64 * dt;
         true
@@ -890,10 +850,8 @@ impl<'a> CentralDifference<'a> {
 
     /// Brings `U` and `v` back from their groups, if the last step left them there.
     fn ungroup(&mut self) {
-        if let Some(g) = self.groups.as_mut().filter(|g| g.active) {
-            grouped::ungroup(g.nd, &g.u, &mut self.u);
-            grouped::ungroup(g.nd, &g.v, &mut self.v);
-            g.active = false;
+        if let Some(g) = self.groups.as_mut() {
+            g.leave(&mut self.u, &mut self.v);
         }
     }
 
@@ -1131,7 +1089,7 @@ mod tests {
             };
             // A stretch of a check's steps goes into the groups, one of a few steps does not.
             let mut probe = CentralDifference::new(&model, ev.as_ref(), &mass, &loads, None, 1e-7);
-            let active = |cd: &CentralDifference| cd.groups.as_ref().is_some_and(|g| g.active);
+            let active = |cd: &CentralDifference| cd.groups.as_ref().is_some_and(Groups::active);
             probe.step_unchecked(1e-7, (1.0, 1.0), MIN_STRETCH - 1);
             assert!(!active(&probe));
             probe.step_unchecked(1e-7, (1.0, 1.0), CHECK_EVERY);

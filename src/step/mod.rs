@@ -1,4 +1,6 @@
 //! Stage 5, the explicit step: central difference with its energy bookkeeping and divergence
-//! guard ([`integrator`]).
+//! guard ([`integrator`]), and the layout of its state in groups of four elements that a fused
+//! step in lanes runs on ([`grouped`]).
 
+pub mod grouped;
 pub mod integrator;
