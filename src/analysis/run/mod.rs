@@ -6,12 +6,14 @@ pub mod checkpoint;
 use crate::analysis::run::checkpoint::Checkpoint;
 use crate::analysis::setup::Setup;
 use crate::error::{Error, Result};
+use crate::input::scene::Scene;
+use crate::model::Model;
 use crate::output::vtk::VtkSeries;
 use crate::output::{
     self, count, ClampSummary, Columns, ContactSummary, EnergySummary, FailureSummary, History,
     ProbeColumn, Summary,
 };
-use crate::step::integrator::{RunStatus, Status};
+use crate::step::integrator::{CentralDifference, Energy, RunStatus, Snapshot, Status};
 use std::path::Path;
 use std::time::Instant;
 
@@ -135,51 +137,10 @@ pub fn simulate(
             "a run resumes from the checkpoint in its output folder: give the folder",
         ));
     }
-    let (p, scene, opts) = (setup, &setup.scene, &setup.overrides);
+    let (p, scene) = (setup, &setup.scene);
     let model = &p.model;
-    let checkpoint = if let (true, Some(out)) = (params.resume, out) {
-        let c = Checkpoint::read(out, scene, opts)?;
-        // The summary and final state of the stopped run end at another step; files it was
-        // writing when killed are half written.
-        for name in ["summary.json", "final_state.json"] {
-            remove(&out.join(name))?;
-        }
-        for name in OUTPUTS {
-            remove(&crate::output::temporary(&out.join(name)))?;
-        }
-        Some(c)
-    } else {
-        if let Some(out) = out {
-            std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
-            clear_previous(out)?;
-        }
-        None
-    };
-    let ground_springs = model.ground_springs();
-    monitor.info(&format!(
-        "{}: {}, {} between elements and {}, {} ({} formulation, {} evaluator, {})",
-        model.name,
-        count(model.elements.len(), "element", "elements"),
-        count(
-            model.interfaces.len() - ground_springs,
-            "interface",
-            "interfaces"
-        ),
-        count(ground_springs, "ground spring", "ground springs"),
-        count(model.n_free_dofs(), "free DOF", "free DOFs"),
-        model.formulation.name(),
-        p.evaluator.kind().name(),
-        count(rayon::current_num_threads(), "thread", "threads")
-    ));
-    monitor.info(&format!(
-        "{}, {}",
-        p.limit.describe(p.dt),
-        count(p.steps as usize, "step", "steps")
-    ));
-    let mut warnings = p.warnings();
-    for w in &warnings {
-        monitor.info(&format!("warning: {w}"));
-    }
+    let checkpoint = prepare_folder(setup, params, out)?;
+    let mut warnings = announce(setup, monitor);
     let probes = p.probes()?;
     let probe_columns: Vec<ProbeColumn> = probes
         .iter()
@@ -190,124 +151,15 @@ pub fn simulate(
         .collect();
     let mut cd = p.integrator(p.dt);
     let columns = Columns::of(model, probes);
-    let keep = params.keep_history;
-    let (mut history, mut vtk, mut first, mut rotation) = match (checkpoint, out) {
-        (None, None) => (History::memory(columns), None, None, 0.0f64),
-        (None, Some(out)) => (
-            History::create(out, columns, keep)?,
-            scene
-                .output
-                .vtk
-                .then(|| VtkSeries::create(out, p.plastic.as_deref()))
-                .transpose()?,
-            None,
-            0.0f64,
-        ),
-        (Some(_), None) => unreachable!("refused above: a resumed run has a folder"),
-        (Some(c), Some(out)) => {
-            monitor.info(&format!(
-                "resuming from the checkpoint at step {}",
-                c.state.step()
-            ));
-            cd.restore(c.state).map_err(|why| {
-                Error::io(
-                    out.join(crate::analysis::run::checkpoint::FILE),
-                    std::io::Error::other(why),
-                )
-            })?;
-            let vtk = scene
-                .output
-                .vtk
-                .then(|| VtkSeries::resume(out, c.frames, p.plastic.as_deref()))
-                .transpose()?;
-            (
-                History::resume(out, columns, c.history_bytes, keep)?,
-                vtk,
-                c.first,
-                c.rotation,
-            )
-        }
-    };
-    if let Some(flag) = &params.interrupt {
-        cd.stop_on(flag.clone());
-    }
-    let (end, every) = (p.steps, scene.output.every);
-    let interrupted = || {
-        params
-            .interrupt
-            .as_ref()
-            .is_some_and(|f| f.load(std::sync::atomic::Ordering::Relaxed))
-    };
-    let mut last = None;
-    // Each moving clamp's peak reaction over every step and its displacement there.
-    let mut peaks = vec![(f64::NEG_INFINITY, 0.0); model.prescribed.len()];
+    let mut rec = open_outputs(setup, params, out, checkpoint, columns, &mut cd, monitor)?;
     let start = Instant::now();
-    // In chunks that end at the checkpoints; a chunk's end is recorded only when it is a
-    // history row's step, the last step or the step where the run was interrupted.
-    let status = loop {
-        let step = cd.step;
-        let next = scene
-            .output
-            .checkpoint_every
-            .map_or(end, |c| ((step / c + 1) * c).min(end));
-        let status = cd.run(
-            next - step,
-            every,
-            |s, e| {
-                if !(s.step % every == 0 || s.step == end || interrupted()) {
-                    return Ok(());
-                }
-                first.get_or_insert(*e);
-                last = Some(*e);
-                rotation = rotation.max(crate::model::checks::largest_rotation(model, s.u, true));
-                history.write(s, e)?;
-                for ((peak, at), (c, &[r, t])) in
-                    peaks.iter_mut().zip(model.prescribed.iter().zip(s.peaks))
-                {
-                    (*peak, *at) = (r, c.velocity.norm() * c.travel(t));
-                }
-                if let Some(v) = vtk.as_mut() {
-                    v.write(model, s)?;
-                }
-                Ok(())
-            },
-            |step| monitor.progress(step, p.steps),
-        )?;
-        if status != Status::Ok || next == end {
-            break status;
-        }
-        let Some(out) = out else {
-            continue;
-        };
-        let frames = vtk.as_ref().map_or_else(Vec::new, |v| v.frames().to_vec());
-        Checkpoint::new(
-            scene,
-            opts,
-            cd.state(),
-            history.bytes(),
-            frames,
-            first,
-            rotation,
-        )
-        .write(out)?;
-    };
+    let status = step_through(setup, params, out, &mut cd, &mut rec, monitor)?;
     let step_time = start.elapsed().as_secs_f64();
-    if let Some(w) = crate::model::checks::rotation_warning(rotation) {
+    if let Some(w) = crate::model::checks::rotation_warning(rec.rotation) {
         monitor.info(&format!("warning: {w}"));
         warnings.push(w);
     }
-    let reason = match &status {
-        Status::Ok => None,
-        Status::Interrupted { step, t } => Some(format!(
-            "step {step}, t = {t:e} s: interrupted by a signal{}",
-            if scene.output.checkpoint_every.is_some() && out.is_some() {
-                "; `rbsm run SCENE --resume DIR` goes on from the last checkpoint"
-            } else {
-                ""
-            }
-        )),
-        Status::Diverged { step, t, reason } => Some(format!("step {step}, t = {t:e} s: {reason}")),
-    };
+    let reason = reason(&status, scene, out);
     // After a divergence the integrator has rolled back to its last good state.
     let failure = p
         .plastic
@@ -331,7 +183,7 @@ pub fn simulate(
             failure.as_ref().map(|(_, r)| &r[..]),
         )?;
     }
-    let (first, last) = (first.unwrap_or_default(), last.unwrap_or_default());
+    let (first, last) = (rec.first.unwrap_or_default(), rec.last.unwrap_or_default());
     let summary = Summary {
         scene: scene.name.clone(),
         formulation: model.formulation.name().into(),
@@ -357,22 +209,14 @@ pub fn simulate(
             final_: last.total,
             max_relative_drift: cd.max_relative_drift(),
         },
-        contact: cd.contact.as_ref().map(|c| ContactSummary {
-            model: c.settings.model.name().into(),
-            friction: c.settings.friction,
-            mean_pairs: c.stats.pairs as f64 / c.stats.steps.max(1) as f64,
-            max_pairs: c.stats.max_pairs,
-            tests_per_step: c.stats.tests as f64 / c.stats.steps.max(1) as f64,
-            rebuilds: c.stats.rebuilds,
-            time_s: c.stats.time_s,
-        }),
+        contact: cd.contact.as_ref().map(contact_summary),
         probes: probe_columns,
         failure: failure.as_ref().map(|(s, _)| s.clone()),
         clamps: model
             .prescribed
             .iter()
-            .zip(peaks)
-            .map(|(c, (peak_force, displacement_at_peak))| ClampSummary {
+            .zip(&rec.peaks)
+            .map(|(c, &(peak_force, displacement_at_peak))| ClampSummary {
                 name: c.name.clone(),
                 peak_force,
                 displacement_at_peak,
@@ -389,8 +233,8 @@ pub fn simulate(
     }
     Ok(Outcome {
         summary,
-        columns: history.header(),
-        history: history.into_rows(),
+        columns: rec.history.header(),
+        history: rec.history.into_rows(),
         t: cd.t,
         u: std::mem::take(&mut cd.u),
         v,
@@ -428,5 +272,253 @@ impl crate::analysis::Report for Summary {
                 self.dir.display()
             ),
         }
+    }
+}
+
+/// Readies the output folder: with `params.resume`, reads its checkpoint and removes what the
+/// stopped run left half done; else creates it and clears a previous run's outputs.
+fn prepare_folder(
+    setup: &Setup,
+    params: &RunParams,
+    out: Option<&Path>,
+) -> Result<Option<Checkpoint>> {
+    let Some(out) = out else {
+        return Ok(None);
+    };
+    if !params.resume {
+        std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+        clear_previous(out)?;
+        return Ok(None);
+    }
+    let c = Checkpoint::read(out, &setup.scene, &setup.overrides)?;
+    // The summary and final state of the stopped run end at another step; files it was
+    // writing when killed are half written.
+    for name in ["summary.json", "final_state.json"] {
+        remove(&out.join(name))?;
+    }
+    for name in OUTPUTS {
+        remove(&crate::output::temporary(&out.join(name)))?;
+    }
+    Ok(Some(c))
+}
+
+/// Tells the monitor what the run models and how it steps, with the setup's warnings; returns
+/// the warnings.
+fn announce(setup: &Setup, monitor: &mut dyn Monitor) -> Vec<String> {
+    let (p, model) = (setup, &setup.model);
+    let ground_springs = model.ground_springs();
+    monitor.info(&format!(
+        "{}: {}, {} between elements and {}, {} ({} formulation, {} evaluator, {})",
+        model.name,
+        count(model.elements.len(), "element", "elements"),
+        count(
+            model.interfaces.len() - ground_springs,
+            "interface",
+            "interfaces"
+        ),
+        count(ground_springs, "ground spring", "ground springs"),
+        count(model.n_free_dofs(), "free DOF", "free DOFs"),
+        model.formulation.name(),
+        p.evaluator.kind().name(),
+        count(rayon::current_num_threads(), "thread", "threads")
+    ));
+    monitor.info(&format!(
+        "{}, {}",
+        p.limit.describe(p.dt),
+        count(p.steps as usize, "step", "steps")
+    ));
+    let warnings = p.warnings();
+    for w in &warnings {
+        monitor.info(&format!("warning: {w}"));
+    }
+    warnings
+}
+
+/// What a run records at its recorded steps: the history, the VTK series, the first and last
+/// energies, the largest rotation, and each moving clamp's peak reaction over every step with
+/// its displacement there.
+struct Recorder<'s> {
+    history: History,
+    vtk: Option<VtkSeries<'s>>,
+    first: Option<Energy>,
+    last: Option<Energy>,
+    rotation: f64,
+    peaks: Vec<(f64, f64)>,
+}
+
+impl Recorder<'_> {
+    /// Records the state `s` with its energies `e`.
+    fn record(&mut self, model: &Model, s: &Snapshot, e: &Energy) -> Result<()> {
+        self.first.get_or_insert(*e);
+        self.last = Some(*e);
+        self.rotation = self
+            .rotation
+            .max(crate::model::checks::largest_rotation(model, s.u, true));
+        self.history.write(s, e)?;
+        for ((peak, at), (c, &[r, t])) in self
+            .peaks
+            .iter_mut()
+            .zip(model.prescribed.iter().zip(s.peaks))
+        {
+            (*peak, *at) = (r, c.velocity.norm() * c.travel(t));
+        }
+        if let Some(v) = self.vtk.as_mut() {
+            v.write(model, s)?;
+        }
+        Ok(())
+    }
+}
+
+/// The contact's part of the summary.
+fn contact_summary(c: &crate::force::contact::Contact) -> ContactSummary {
+    ContactSummary {
+        model: c.settings.model.name().into(),
+        friction: c.settings.friction,
+        mean_pairs: c.stats.pairs as f64 / c.stats.steps.max(1) as f64,
+        max_pairs: c.stats.max_pairs,
+        tests_per_step: c.stats.tests as f64 / c.stats.steps.max(1) as f64,
+        rebuilds: c.stats.rebuilds,
+        time_s: c.stats.time_s,
+    }
+}
+
+/// The recorder of a run: new outputs, or those of the checkpoint `checkpoint` with the
+/// integrator restored to it.
+fn open_outputs<'s>(
+    setup: &'s Setup,
+    params: &RunParams,
+    out: Option<&Path>,
+    checkpoint: Option<Checkpoint>,
+    columns: Columns,
+    cd: &mut CentralDifference<'_>,
+    monitor: &mut dyn Monitor,
+) -> Result<Recorder<'s>> {
+    let (p, scene) = (setup, &setup.scene);
+    let keep = params.keep_history;
+    let peaks = vec![(f64::NEG_INFINITY, 0.0); setup.model.prescribed.len()];
+    let (history, vtk, first, rotation) = match (checkpoint, out) {
+        (None, None) => (History::memory(columns), None, None, 0.0f64),
+        (None, Some(out)) => (
+            History::create(out, columns, keep)?,
+            scene
+                .output
+                .vtk
+                .then(|| VtkSeries::create(out, p.plastic.as_deref()))
+                .transpose()?,
+            None,
+            0.0f64,
+        ),
+        (Some(_), None) => unreachable!("refused above: a resumed run has a folder"),
+        (Some(c), Some(out)) => {
+            monitor.info(&format!(
+                "resuming from the checkpoint at step {}",
+                c.state.step()
+            ));
+            cd.restore(c.state).map_err(|why| {
+                Error::io(
+                    out.join(crate::analysis::run::checkpoint::FILE),
+                    std::io::Error::other(why),
+                )
+            })?;
+            let vtk = scene
+                .output
+                .vtk
+                .then(|| VtkSeries::resume(out, c.frames, p.plastic.as_deref()))
+                .transpose()?;
+            (
+                History::resume(out, columns, c.history_bytes, keep)?,
+                vtk,
+                c.first,
+                c.rotation,
+            )
+        }
+    };
+    Ok(Recorder {
+        history,
+        vtk,
+        first,
+        last: None,
+        rotation,
+        peaks,
+    })
+}
+
+/// Why the run stopped early, for the summary: `None` for a run that took every step.
+fn reason(status: &Status, scene: &Scene, out: Option<&Path>) -> Option<String> {
+    match status {
+        Status::Ok => None,
+        Status::Interrupted { step, t } => Some(format!(
+            "step {step}, t = {t:e} s: interrupted by a signal{}",
+            if scene.output.checkpoint_every.is_some() && out.is_some() {
+                "; `rbsm run SCENE --resume DIR` goes on from the last checkpoint"
+            } else {
+                ""
+            }
+        )),
+        Status::Diverged { step, t, reason } => Some(format!("step {step}, t = {t:e} s: {reason}")),
+    }
+}
+
+/// Steps the run to its end (or its stop), recording at the steps the output asks for and
+/// writing a checkpoint at the end of each chunk (`output.checkpoint_every`); returns how it
+/// ended.
+fn step_through(
+    setup: &Setup,
+    params: &RunParams,
+    out: Option<&Path>,
+    cd: &mut CentralDifference<'_>,
+    rec: &mut Recorder<'_>,
+    monitor: &mut dyn Monitor,
+) -> Result<Status> {
+    let (p, scene, opts, model) = (setup, &setup.scene, &setup.overrides, &setup.model);
+    if let Some(flag) = &params.interrupt {
+        cd.stop_on(flag.clone());
+    }
+    let (end, every) = (p.steps, scene.output.every);
+    let interrupted = || {
+        params
+            .interrupt
+            .as_ref()
+            .is_some_and(|f| f.load(std::sync::atomic::Ordering::Relaxed))
+    };
+    // In chunks that end at the checkpoints; a chunk's end is recorded only when it is a
+    // history row's step, the last step or the step where the run was interrupted.
+    loop {
+        let step = cd.step;
+        let next = scene
+            .output
+            .checkpoint_every
+            .map_or(end, |c| ((step / c + 1) * c).min(end));
+        let status = cd.run(
+            next - step,
+            every,
+            |s, e| {
+                if !(s.step % every == 0 || s.step == end || interrupted()) {
+                    return Ok(());
+                }
+                rec.record(model, s, e)
+            },
+            |step| monitor.progress(step, p.steps),
+        )?;
+        if status != Status::Ok || next == end {
+            return Ok(status);
+        }
+        let Some(out) = out else {
+            continue;
+        };
+        let frames = rec
+            .vtk
+            .as_ref()
+            .map_or_else(Vec::new, |v| v.frames().to_vec());
+        Checkpoint::new(
+            scene,
+            opts,
+            cd.state(),
+            rec.history.bytes(),
+            frames,
+            rec.first,
+            rec.rotation,
+        )
+        .write(out)?;
     }
 }
