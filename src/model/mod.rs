@@ -9,11 +9,11 @@ pub mod mass;
 pub mod memory;
 
 use crate::error::{Error, Result};
+use crate::input::scene::{BodySpec, EdgeSet, Side};
 use crate::input::scene::{
     ClampSpec, Component, ContactSpec, ForceSpec, GroundSpringSpec, LoadSpec, MaterialSpec, Plane,
     Scene, SupportSpec, TractionSpec,
 };
-use crate::input::scene::{EdgeSet, Side};
 use crate::mesh::geometry::{area_properties, AreaProperties, Vec2};
 use crate::mesh::Mesh;
 use crate::model::formulation::{elasticity, Formulation};
@@ -294,10 +294,15 @@ pub fn spring_moduli(m: &MaterialSpec, plane: Plane) -> [f64; 2] {
 }
 
 impl Model {
-    /// Builds the model of a validated scene.
+    /// Builds the model of a validated scene ([`Scene::validate`]): per body its mesh, elements,
+    /// interfaces, supports and loads, in scene order.
+    ///
+    /// # Errors
+    /// A mesh that cannot be built or has a degenerate element or edge, a model that would not
+    /// fit in memory, an edge, span, element, DOF or probe of the scene that names nothing in
+    /// its mesh, or masses and springs that are not finite.
     pub fn build(scene: &Scene) -> Result<Model> {
         let formulation = Formulation::from_spec(scene.formulation)?;
-        let nd = formulation.ndof();
         let t = scene.thickness;
         let mut model = Model {
             name: scene.name.clone(),
@@ -348,36 +353,7 @@ impl Model {
                 expected += mesh.n_cells() as u64;
                 memory::ensure_fits(scene, expected)?;
             }
-            let first = model.elements.len();
-            let props: Vec<AreaProperties> = (0..mesh.n_cells())
-                .map(|c| area_properties(&mesh.cell_points(c)))
-                .collect();
-            let body_area: f64 = props.iter().map(|p| p.area).sum();
-            let body_centroid = props.iter().map(|p| p.area * p.centroid).sum::<Vec2>() / body_area;
-            let rot = nalgebra::Rotation2::new(spec.initial.rotation_deg.to_radians());
-            if spec.initial.rotation_deg != 0.0 {
-                for v in &mut mesh.vertices {
-                    *v = body_centroid + rot * (*v - body_centroid);
-                }
-            }
-            let omega = spec.initial.angular_velocity;
-            let v0 = Vec2::new(spec.initial.velocity[0], spec.initial.velocity[1]);
-            for c in 0..mesh.n_cells() {
-                let p = area_properties(&mesh.cell_points(c));
-                model.elements.push(Element {
-                    body: bi as u32,
-                    props: p,
-                    rho: material.rho,
-                    d: elasticity(material.e, material.nu, scene.plane),
-                });
-                let r = p.centroid - body_centroid;
-                let mut v = vec![0.0; nd];
-                v[0] = v0.x - omega * r.y;
-                v[1] = v0.y + omega * r.x;
-                v[2] = omega;
-                model.initial_velocity.extend(v);
-            }
-            let at = |k: &str| format!("bodies[{bi}].{k}");
+            let first = model.add_elements(bi, spec, &material, &mut mesh, scene.plane);
             let first_interface = model.interfaces.len();
             for e in &mesh.shared {
                 let iface = model
@@ -398,122 +374,8 @@ impl Model {
                     ..iface
                 });
             }
-            for (k, s) in spec.supports.iter().enumerate() {
-                let field = at(&format!("supports[{k}].edge"));
-                match s {
-                    SupportSpec::GroundSpring(GroundSpringSpec {
-                        edge,
-                        components,
-                        span,
-                    }) => {
-                        let span_field = at(&format!("supports[{k}].span"));
-                        for e in supported_edges(&mesh, edge, span, &field, &span_field)? {
-                            let mut iface = model
-                                .interface(
-                                    first + e.cell as usize,
-                                    None,
-                                    &mesh,
-                                    e.v1,
-                                    e.v2,
-                                    &material,
-                                )
-                                .map_err(|m| Error::mesh(&spec.name, e.cell as usize, m))?;
-                            if !components.contains(&Component::N) {
-                                iface.k_n = 0.0;
-                            }
-                            if !components.contains(&Component::S) {
-                                iface.k_s = 0.0;
-                            }
-                            // Supports are boundary conditions, not material: they keep the
-                            // default law.
-                            model.interfaces.push(iface);
-                        }
-                    }
-                    SupportSpec::Clamp(ClampSpec {
-                        edge,
-                        dofs,
-                        velocity,
-                        ramp,
-                        span,
-                    }) => {
-                        let which: Vec<usize> = match dofs {
-                            None => (0..nd).collect(),
-                            Some(names) => names
-                                .iter()
-                                .map(|n| {
-                                    dof_index(n, formulation, &at(&format!("supports[{k}].dofs")))
-                                })
-                                .collect::<Result<_>>()?,
-                        };
-                        let mut moving = Vec::new();
-                        let span_field = at(&format!("supports[{k}].span"));
-                        for e in supported_edges(&mesh, edge, span, &field, &span_field)? {
-                            let el = first + e.cell as usize;
-                            model.fixed.extend(which.iter().map(|&d| el * nd + d));
-                            moving.extend(
-                                which.iter().filter(|&&d| d < 2).map(|&d| (el * nd + d, d)),
-                            );
-                        }
-                        if let Some(v) = velocity {
-                            moving.sort_unstable();
-                            moving.dedup();
-                            model.prescribed.push(Prescribed {
-                                name: format!("{}_s{k}", spec.name),
-                                velocity: Vec2::new(v[0], v[1]),
-                                ramp: *ramp,
-                                dofs: moving,
-                            });
-                        }
-                    }
-                }
-            }
-            for (k, l) in spec.loads.iter().enumerate() {
-                match l {
-                    LoadSpec::Traction(TractionSpec {
-                        edge,
-                        value,
-                        amplitude,
-                    }) => {
-                        let q = Vec2::new(value[0], value[1]);
-                        for e in side_edges(&mesh, edge, &at(&format!("loads[{k}].edge")))? {
-                            let (p, r) =
-                                (mesh.vertices[e.v1 as usize], mesh.vertices[e.v2 as usize]);
-                            // Uniform traction: the resultant acts at the midpoint, exactly.
-                            model.loads.push(Load {
-                                element: (first + e.cell as usize) as u32,
-                                point: 0.5 * (p + r),
-                                force: q * (r - p).norm() * t,
-                                moment: 0.0,
-                                amplitude: amplitude.clone().map(Amplitude),
-                            });
-                        }
-                    }
-                    LoadSpec::Force(ForceSpec {
-                        element,
-                        value,
-                        amplitude,
-                    }) => {
-                        if *element >= mesh.n_cells() {
-                            return Err(Error::scene(
-                                at(&format!("loads[{k}].element")),
-                                format!(
-                                    "must lie in 0..{} (elements of body `{}`), got {element}",
-                                    mesh.n_cells(),
-                                    spec.name
-                                ),
-                            ));
-                        }
-                        let el = first + element;
-                        model.loads.push(Load {
-                            element: el as u32,
-                            point: model.elements[el].props.centroid,
-                            force: Vec2::new(value[0], value[1]),
-                            moment: value[2],
-                            amplitude: amplitude.clone().map(Amplitude),
-                        });
-                    }
-                }
-            }
+            model.add_supports(bi, spec, &mesh, &material, first)?;
+            model.add_loads(bi, spec, &mesh, first)?;
             model.bodies.push(Body {
                 name: spec.name.clone(),
                 mesh,
@@ -530,6 +392,177 @@ impl Model {
             dof_index(&p.dof, formulation, &format!("output.probes[{k}].dof"))?;
         }
         Ok(model)
+    }
+
+    /// The elements of body `bi` (`spec`, meshed as `mesh`, which it turns by the body's initial
+    /// rotation) with their initial velocities; returns the index of the first.
+    fn add_elements(
+        &mut self,
+        bi: usize,
+        spec: &BodySpec,
+        material: &MaterialSpec,
+        mesh: &mut Mesh,
+        plane: Plane,
+    ) -> usize {
+        let nd = self.formulation.ndof();
+        let first = self.elements.len();
+        let props: Vec<AreaProperties> = (0..mesh.n_cells())
+            .map(|c| area_properties(&mesh.cell_points(c)))
+            .collect();
+        let body_area: f64 = props.iter().map(|p| p.area).sum();
+        let body_centroid = props.iter().map(|p| p.area * p.centroid).sum::<Vec2>() / body_area;
+        let rot = nalgebra::Rotation2::new(spec.initial.rotation_deg.to_radians());
+        if spec.initial.rotation_deg != 0.0 {
+            for v in &mut mesh.vertices {
+                *v = body_centroid + rot * (*v - body_centroid);
+            }
+        }
+        let omega = spec.initial.angular_velocity;
+        let v0 = Vec2::new(spec.initial.velocity[0], spec.initial.velocity[1]);
+        for c in 0..mesh.n_cells() {
+            let p = area_properties(&mesh.cell_points(c));
+            self.elements.push(Element {
+                body: bi as u32,
+                props: p,
+                rho: material.rho,
+                d: elasticity(material.e, material.nu, plane),
+            });
+            let r = p.centroid - body_centroid;
+            let mut v = vec![0.0; nd];
+            v[0] = v0.x - omega * r.y;
+            v[1] = v0.y + omega * r.x;
+            v[2] = omega;
+            self.initial_velocity.extend(v);
+        }
+        first
+    }
+
+    /// The supports of body `bi` (`spec`, meshed as `mesh`, its elements from `first`): ground
+    /// springs (interfaces to ground, with the default law) and clamps (fixed DOFs, and the
+    /// moving ones of displacement control).
+    fn add_supports(
+        &mut self,
+        bi: usize,
+        spec: &BodySpec,
+        mesh: &Mesh,
+        material: &MaterialSpec,
+        first: usize,
+    ) -> Result<()> {
+        let (nd, formulation) = (self.formulation.ndof(), self.formulation);
+        let at = |k: &str| format!("bodies[{bi}].{k}");
+        for (k, s) in spec.supports.iter().enumerate() {
+            let field = at(&format!("supports[{k}].edge"));
+            match s {
+                SupportSpec::GroundSpring(GroundSpringSpec {
+                    edge,
+                    components,
+                    span,
+                }) => {
+                    let span_field = at(&format!("supports[{k}].span"));
+                    for e in supported_edges(mesh, edge, span, &field, &span_field)? {
+                        let mut iface = self
+                            .interface(first + e.cell as usize, None, mesh, e.v1, e.v2, material)
+                            .map_err(|m| Error::mesh(&spec.name, e.cell as usize, m))?;
+                        if !components.contains(&Component::N) {
+                            iface.k_n = 0.0;
+                        }
+                        if !components.contains(&Component::S) {
+                            iface.k_s = 0.0;
+                        }
+                        // Supports are boundary conditions, not material: they keep the
+                        // default law.
+                        self.interfaces.push(iface);
+                    }
+                }
+                SupportSpec::Clamp(ClampSpec {
+                    edge,
+                    dofs,
+                    velocity,
+                    ramp,
+                    span,
+                }) => {
+                    let which: Vec<usize> = match dofs {
+                        None => (0..nd).collect(),
+                        Some(names) => names
+                            .iter()
+                            .map(|n| dof_index(n, formulation, &at(&format!("supports[{k}].dofs"))))
+                            .collect::<Result<_>>()?,
+                    };
+                    let mut moving = Vec::new();
+                    let span_field = at(&format!("supports[{k}].span"));
+                    for e in supported_edges(mesh, edge, span, &field, &span_field)? {
+                        let el = first + e.cell as usize;
+                        self.fixed.extend(which.iter().map(|&d| el * nd + d));
+                        moving.extend(which.iter().filter(|&&d| d < 2).map(|&d| (el * nd + d, d)));
+                    }
+                    if let Some(v) = velocity {
+                        moving.sort_unstable();
+                        moving.dedup();
+                        self.prescribed.push(Prescribed {
+                            name: format!("{}_s{k}", spec.name),
+                            velocity: Vec2::new(v[0], v[1]),
+                            ramp: *ramp,
+                            dofs: moving,
+                        });
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The loads of body `bi`: each traction as one force per boundary edge at its midpoint,
+    /// each force at its element's centroid.
+    fn add_loads(&mut self, bi: usize, spec: &BodySpec, mesh: &Mesh, first: usize) -> Result<()> {
+        let t = self.thickness;
+        let at = |k: &str| format!("bodies[{bi}].{k}");
+        for (k, l) in spec.loads.iter().enumerate() {
+            match l {
+                LoadSpec::Traction(TractionSpec {
+                    edge,
+                    value,
+                    amplitude,
+                }) => {
+                    let q = Vec2::new(value[0], value[1]);
+                    for e in side_edges(mesh, edge, &at(&format!("loads[{k}].edge")))? {
+                        let (p, r) = (mesh.vertices[e.v1 as usize], mesh.vertices[e.v2 as usize]);
+                        // Uniform traction: the resultant acts at the midpoint, exactly.
+                        self.loads.push(Load {
+                            element: (first + e.cell as usize) as u32,
+                            point: 0.5 * (p + r),
+                            force: q * (r - p).norm() * t,
+                            moment: 0.0,
+                            amplitude: amplitude.clone().map(Amplitude),
+                        });
+                    }
+                }
+                LoadSpec::Force(ForceSpec {
+                    element,
+                    value,
+                    amplitude,
+                }) => {
+                    if *element >= mesh.n_cells() {
+                        return Err(Error::scene(
+                            at(&format!("loads[{k}].element")),
+                            format!(
+                                "must lie in 0..{} (elements of body `{}`), got {element}",
+                                mesh.n_cells(),
+                                spec.name
+                            ),
+                        ));
+                    }
+                    let el = first + element;
+                    self.loads.push(Load {
+                        element: el as u32,
+                        point: self.elements[el].props.centroid,
+                        force: Vec2::new(value[0], value[1]),
+                        moment: value[2],
+                        amplitude: amplitude.clone().map(Amplitude),
+                    });
+                }
+            }
+        }
+        Ok(())
     }
 
     /// The interface on the edge `v1 → v2` of element `a` (counter-clockwise in `a`), to element
