@@ -36,10 +36,9 @@ use crate::input::scene::{ContactModel, ContactSpec, EvaluatorKind};
 use crate::mesh::buckets::{boxes_meet, moved_beyond, BucketLists, Buckets};
 use crate::mesh::geometry::Vec2;
 use crate::model::formulation::{rotation, Formulation};
-use crate::model::law::{Elastic, InterfaceLaw};
+use crate::model::law::InterfaceLaw;
 use crate::model::{Model, GROUND};
 use overlap::Overlap;
-use std::sync::Arc;
 use std::time::Instant;
 use work::Ledger;
 
@@ -119,10 +118,6 @@ pub struct Contact {
     frames: Frames,
     thickness: f64,
     factor: f64,
-    /// The model's interface law, which gives the springs of eq. 12 their traction (eq. 11);
-    /// not part of a checkpoint ([`Contact::resume`]).
-    #[serde(skip, default = "elastic")]
-    law: Arc<dyn InterfaceLaw>,
     vertices: Vec<Vertex>,
     edges: Vec<Edge>,
     /// Current points: the vertices' positions, then the ground points (fixed).
@@ -242,7 +237,6 @@ impl Contact {
             },
             thickness: model.thickness,
             factor: model.formulation.spring_factor(),
-            law: model.law.clone(),
             previous: points[..vertices.len()].to_vec(),
             stamp: vec![NONE; edges.len()],
             vertices,
@@ -294,7 +288,8 @@ impl Contact {
 
     /// Whether `saved`, the contact state of a checkpoint, belongs to this contact's model (in
     /// its initial state): the same vertices, edges and targets, and every index it holds
-    /// (contacts, neighbour lists, pieces, forces) within them. `Err` says what is off.
+    /// (contacts, neighbour lists, pieces, forces) within them. `Err` says what is off. A
+    /// checkpoint that passes is restored by assignment: it holds the whole contact state.
     pub fn check_saved(&self, saved: &Contact) -> std::result::Result<(), String> {
         if !same(&self.vertices, &saved.vertices)
             || !same(&self.edges, &saved.edges)
@@ -336,16 +331,6 @@ impl Contact {
         }
     }
 
-    /// Goes on from `saved`, the contact state of a checkpoint of a run of the same model
-    /// ([`Contact::check_saved`]), keeping this contact's interface law (a checkpoint holds
-    /// none).
-    pub fn resume(&mut self, saved: Contact) {
-        *self = Contact {
-            law: self.law.clone(),
-            ..saved
-        };
-    }
-
     /// Hands the interfaces of `plastic` that `state` has released over to contact: their two
     /// elements touch from now on (`force::failure`). Nothing to do for a scene whose bodies do
     /// not fragment.
@@ -375,10 +360,20 @@ impl Contact {
     /// Subtracts the contact forces `f_c^n` at step `n`, state `u = U^n`, from `f` (which holds
     /// `f_int − P`) and returns the contact energy `−W`, `W` the work of the contact forces on
     /// the bodies so far: the energy stored in the contact springs plus what friction, and
-    /// tangential springs released while stretched, took from the motion (J). `velocity` is
-    /// `v^{n−½}`, so that `U^n − U^{n−1} = Δt v^{n−½}`. A second call at the same step gives the
-    /// same forces. Allocation-free once the buffers have grown.
-    pub fn apply(&mut self, step: u64, u: &[f64], velocity: &[f64], dt: f64, f: &mut [f64]) -> f64 {
+    /// tangential springs released while stretched, took from the motion (J). `law` is the
+    /// model's interface law ([`crate::model::Model::law`]), which gives the contact springs
+    /// their traction. `velocity` is `v^{n−½}`, so that `U^n − U^{n−1} = Δt v^{n−½}`. A second
+    /// call at the same step gives the same forces. Allocation-free once the buffers have
+    /// grown.
+    pub fn apply(
+        &mut self,
+        law: &dyn InterfaceLaw,
+        step: u64,
+        u: &[f64],
+        velocity: &[f64],
+        dt: f64,
+        f: &mut [f64],
+    ) -> f64 {
         if self.step != Some(step) {
             // A step with nothing to do (bodies in flight) is not timed: two clock readings would
             // cost more than it.
@@ -389,7 +384,7 @@ impl Contact {
                 Some(_) if idle => 0.0,
                 Some(o) => o.forces(
                     &self.frames,
-                    &*self.law,
+                    law,
                     u,
                     velocity,
                     dt,
@@ -398,7 +393,7 @@ impl Contact {
                 ),
                 None => {
                     self.place(u);
-                    self.detect();
+                    self.detect(law);
                     self.update_gaps();
                     self.point_forces(u)
                 }
@@ -455,8 +450,8 @@ impl Contact {
     }
 
     /// New contacts: vertex paths that entered an edge of another body this step (eqs. 18–20);
-    /// at the first step, vertices that start just inside an edge.
-    fn detect(&mut self) {
+    /// at the first step, vertices that start just inside an edge; `law` gives their springs.
+    fn detect(&mut self, law: &dyn InterfaceLaw) {
         let n = self.vertices.len();
         if moved_beyond(&self.points[..n], &self.anchors, 0.5 * self.skin) {
             self.rebuild_near();
@@ -492,7 +487,7 @@ impl Contact {
             }
             if let Some((_, e, lambda)) = best {
                 if self.find(v as u32, e).is_none() {
-                    let r = self.record(v as u32, e, lambda);
+                    let r = self.record(law, v as u32, e, lambda);
                     self.fresh.push(r);
                 }
             }
@@ -557,8 +552,9 @@ impl Contact {
             .fold(0.0, f64::max)
     }
 
-    /// A new contact of vertex `v` with edge `e`: its tributary length and springs.
-    fn record(&self, v: u32, e: u32, lambda: f64) -> Record {
+    /// A new contact of vertex `v` with edge `e`: its tributary length and the springs of the
+    /// interface law `law`.
+    fn record(&self, law: &dyn InterfaceLaw, v: u32, e: u32, lambda: f64) -> Record {
         let target = &self.edges[e as usize];
         let [b1, b2] = target.ends.map(|i| self.points[i as usize]);
         let (_, n_target, _) = frame(b1, b2);
@@ -584,9 +580,8 @@ impl Contact {
                 compliance[c] += 0.5 * ed.length * ed.compliance[c];
             }
         }
-        let k = self
-            .law
-            .springs([0, 1].map(|c| self.factor / (compliance[c] / ell + target.compliance[c])));
+        let k =
+            law.springs([0, 1].map(|c| self.factor / (compliance[c] / ell + target.compliance[c])));
         Record {
             vertex: v,
             edge: e,
@@ -767,12 +762,6 @@ fn same<T: serde::Serialize + ?Sized>(a: &T, b: &T) -> bool {
     postcard::to_stdvec(a).ok() == postcard::to_stdvec(b).ok()
 }
 
-/// The default of a contact read from a checkpoint, until [`Contact::resume`] gives it its
-/// model's law.
-fn elastic() -> Arc<dyn InterfaceLaw> {
-    Arc::new(Elastic)
-}
-
 /// The stiffness of every contact closed at once against rigid ground, per element (row-major
 /// `ndof × ndof` blocks): each boundary edge pressed with `k_n` in every direction
 /// (edge-to-edge), or each boundary vertex with `k_n ℓ_trib` (point). Contacts between bodies
@@ -795,7 +784,7 @@ pub fn stiffness_estimate(model: &Model, contact: &Contact) -> Vec<f64> {
     };
     for edge in contact.edges.iter().filter(|e| e.element != GROUND) {
         let e = edge.element as usize;
-        let [k, _] = contact
+        let [k, _] = model
             .law
             .springs(edge.compliance.map(|c| contact.factor / c));
         match contact.settings.model {
