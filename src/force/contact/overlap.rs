@@ -33,10 +33,9 @@
 //! formed) and `δ̄_n` its mean depth: it follows the penetration profile, and the Coulomb
 //! limit `k_s |s| ≤ μ k_n δ̄_n` (a return mapping on `s`) holds at every point of the piece.
 
-use super::{frame, same, Frames, Ledger, NONE};
+use super::{frame, same, ContactStats, Frames, Ledger, Step, NONE};
 use crate::mesh::buckets::{boxes_meet, moved_beyond, BucketLists, Buckets};
 use crate::mesh::geometry::Vec2;
-use crate::model::law::InterfaceLaw;
 use crate::model::{Model, GROUND};
 use rayon::prelude::*;
 use std::collections::{HashMap, HashSet};
@@ -119,8 +118,6 @@ pub(super) struct Overlap {
     candidates: Vec<(u32, u32)>,
     /// The neighbour list is rebuilt when a corner has moved more than half of this (m).
     skin: f64,
-    /// Rebuilds of the neighbour list so far.
-    pub rebuilds: u64,
     /// The force of the ground on the bodies at the last evaluation (N).
     pub ground: Vec2,
     buckets: BucketLists,
@@ -130,9 +127,6 @@ pub(super) struct Overlap {
     /// The narrow phase's work, block by block (kept: no allocation in the step).
     #[serde(skip)]
     blocks: Vec<Block>,
-    thickness: f64,
-    factor: f64,
-    friction: Option<f64>,
     /// No evaluation yet: no step to measure slips over, and the neighbour list to build.
     fresh: bool,
     /// The fragments changed: the neighbour list must be rebuilt.
@@ -156,17 +150,6 @@ pub(super) struct Overlap {
 
 /// Candidates per block of the narrow phase (a rayon task).
 const BLOCK: usize = 1024;
-
-/// What one step's narrow phase reads.
-struct Step<'a> {
-    frames: &'a Frames,
-    /// The model's interface law (eq. 11).
-    law: &'a dyn InterfaceLaw,
-    u: &'a [f64],
-    /// `v^{n−½}`: the step that led here moved the bodies by `Δt v^{n−½}`.
-    velocity: &'a [f64],
-    dt: f64,
-}
 
 /// What a block of candidates gives: generalised forces on elements, live pieces, the ground's
 /// force and the stored energy.
@@ -256,7 +239,7 @@ struct FaceNow {
 
 impl Overlap {
     /// `skin` (m): the neighbour list is rebuilt when a corner has moved half of it.
-    pub fn new(model: &Model, friction: Option<f64>, skin: f64) -> Overlap {
+    pub fn new(model: &Model, skin: f64) -> Overlap {
         let mut targets = Vec::new();
         let mut faces = Vec::new();
         let mut offsets = Vec::new();
@@ -445,14 +428,10 @@ impl Overlap {
             sources,
             candidates: Vec::new(),
             skin,
-            rebuilds: 0,
             ground: Vec2::zeros(),
             blocks: Vec::new(),
             pieces: Vec::new(),
             next: Vec::new(),
-            thickness: model.thickness,
-            factor: model.formulation.spring_factor(),
-            friction,
             fresh: true,
             stale: false,
             fragments: (0..model.bodies.len())
@@ -488,25 +467,16 @@ impl Overlap {
         self.next.reserve_exact(4 * n);
     }
 
-    /// The contact forces of state `u` into `ledger`; `velocity` is `v^{n−½}`, so that the step
-    /// that led here moved the bodies by `Δt v^{n−½}` (not used at the first evaluation).
-    /// Returns the energy stored in the contact springs (J).
-    /// `tests` counts the narrow-phase tests (source edge against target).
-    #[allow(clippy::too_many_arguments)]
-    pub fn forces(
-        &mut self,
-        frames: &Frames,
-        law: &dyn InterfaceLaw,
-        u: &[f64],
-        velocity: &[f64],
-        dt: f64,
-        ledger: &mut Ledger,
-        tests: &mut u64,
-    ) -> f64 {
+    /// The contact forces of the step's state into `ledger` (the step's velocity, with which
+    /// the step that led here moved the bodies, is not used at the first evaluation). Returns
+    /// the energy stored in the contact springs (J). `stats` counts the narrow-phase tests
+    /// (source edge against target) and the rebuilds of the neighbour list.
+    pub fn forces(&mut self, at: &Step, ledger: &mut Ledger, stats: &mut ContactStats) -> f64 {
+        let (frames, u) = (at.frames, at.u);
         self.place(frames, u);
         if self.stale || moved_beyond(&self.corners, &self.anchors, 0.5 * self.skin) {
             self.rebuild(u);
-            self.rebuilds += 1;
+            stats.rebuilds += 1;
             self.stale = false;
         }
         if self.candidates.is_empty() {
@@ -523,19 +493,12 @@ impl Overlap {
             self.blocks.resize_with(n, Block::default);
         }
         let mut blocks = std::mem::take(&mut self.blocks);
-        let at = Step {
-            frames,
-            law,
-            u,
-            velocity,
-            dt,
-        };
         let this = &*self;
         let work = |(block, chunk): (&mut Block, &[(u32, u32)])| {
             block.clear(chunk.len());
             block.cursor = this.pieces.partition_point(|p| p.source < chunk[0].0);
             for &(source, target) in chunk {
-                this.pair(&at, block, source, target);
+                this.pair(at, block, source, target);
             }
             block.finish();
         };
@@ -566,7 +529,7 @@ impl Overlap {
             energy += block.energy;
         }
         self.blocks = blocks;
-        *tests += self.candidates.len() as u64;
+        stats.tests += self.candidates.len() as u64;
         std::mem::swap(&mut self.pieces, &mut self.next);
         self.fresh = false;
         energy
@@ -836,7 +799,7 @@ impl Overlap {
             let face = &self.faces[tgt.first as usize + k];
             f.surface = face.surface && (within || self.exposed(face.interface));
             if face.surface {
-                let moduli = [0, 1].map(|c| self.factor / (src.compliance[c] + face.compliance[c]));
+                let moduli = [0, 1].map(|c| at.factor / (src.compliance[c] + face.compliance[c]));
                 f.spring = at.law.springs(moduli).map(|k| half * k);
                 f.root = f.spring[0].sqrt();
             }
@@ -906,7 +869,7 @@ impl Overlap {
         let face = tgt.first + i as u32;
         let lerp = |v: [f64; 2], xi: f64| v[0] + xi * (v[1] - v[0]);
         let half = 0.5 * (b - a);
-        let w = half * length * self.thickness;
+        let w = half * length * at.thickness;
         let gauss = [-1.0, 1.0].map(|g| a + half * (1.0 + g / 3f64.sqrt()));
         let d = gauss.map(|xi| lerp(depth, xi));
         let mean = 0.5 * (d[0] + d[1]);
@@ -941,7 +904,7 @@ impl Overlap {
             }
             slip += step.dot(&s);
         }
-        if let Some(mu) = self.friction {
+        if let Some(mu) = at.friction {
             // A depth that round-off leaves a hair below zero (bodies stacked on one another)
             // holds no friction.
             let limit = if k[1] > 0.0 {
