@@ -85,6 +85,7 @@ pub fn check(p: &Setup) -> Result<CheckReport> {
     let contact = p.contact.clone().map(|mut c| {
         let n = m.n_dofs();
         c.apply(
+            &*m.law,
             0,
             &vec![0.0; n],
             &m.initial_velocity,

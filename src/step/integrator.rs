@@ -11,6 +11,7 @@ use crate::error::Result;
 use crate::force::contact::Contact;
 use crate::force::evaluator::{Evaluator, GroupedStep};
 use crate::force::failure::{FailureState, PlasticForces};
+use crate::model::law::InterfaceLaw;
 use crate::model::loads::Loads;
 use crate::model::mass::{Mass, Update};
 use crate::model::{Model, Prescribed};
@@ -135,6 +136,8 @@ pub struct CentralDifference<'a> {
     scratch: Vec<f64>,
     /// Contact state and forces; `None` for a scene without contact.
     pub contact: Option<Contact>,
+    /// The model's interface law, which gives the contact springs their traction.
+    law: &'a dyn InterfaceLaw,
     /// The elements where `−P − f_c` can be non-zero, when the loads name them (no gravity, no
     /// contact): a fused step reads `force` only there.
     loaded: Option<Vec<u32>>,
@@ -280,7 +283,7 @@ impl<'a> CentralDifference<'a> {
     /// `contact` is the model's contact in its initial state (`Contact::new`), `None` for a
     /// scene without contact.
     pub fn new(
-        model: &Model,
+        model: &'a Model,
         evaluator: &'a dyn Evaluator,
         mass: &'a Mass,
         loads: &'a Loads,
@@ -303,7 +306,7 @@ impl<'a> CentralDifference<'a> {
     /// `v^{−½} = v^0 − ½ Δt a^0`.
     #[allow(clippy::too_many_arguments)]
     pub fn from_state(
-        model: &Model,
+        model: &'a Model,
         evaluator: &'a dyn Evaluator,
         mass: &'a Mass,
         loads: &'a Loads,
@@ -331,6 +334,7 @@ impl<'a> CentralDifference<'a> {
             force_clear: false,
             scratch: vec![0.0; n],
             contact,
+            law: &*model.law,
             loaded: None,
             ledger: EnergyLedger::default(),
             good: Good {
@@ -531,8 +535,14 @@ impl<'a> CentralDifference<'a> {
     /// `force −= f_c^n + P(t_n)`.
     fn subtract_external(&mut self) {
         if let Some(c) = self.contact.as_mut() {
-            self.ledger.contact_energy =
-                c.apply(self.step, &self.u, &self.v, self.dt, &mut self.force);
+            self.ledger.contact_energy = c.apply(
+                self.law,
+                self.step,
+                &self.u,
+                &self.v,
+                self.dt,
+                &mut self.force,
+            );
         }
         self.loads.subtract(self.t, &mut self.force);
     }
@@ -624,7 +634,7 @@ impl<'a> CentralDifference<'a> {
         };
         (self.u, self.v, self.scratch) = (state.u, state.v, state.velocity);
         if let (Some(c), Some(saved)) = (self.contact.as_mut(), state.contact) {
-            c.resume(saved);
+            *c = saved;
         }
         if let (Some((_, s)), Some(saved)) = (self.failure.as_mut(), state.failure) {
             self.good_failure.copy_from(&saved);

@@ -17,7 +17,7 @@ use std::path::{Path, PathBuf};
 pub const FILE: &str = "checkpoint.bin";
 
 /// Bumped when the layout changes: an older checkpoint is then refused, not misread.
-const FORMAT: u32 = 2;
+const FORMAT: u32 = 3;
 
 /// What a run needs to go on from a checkpoint.
 #[derive(Debug, Clone, Serialize, Deserialize)]

@@ -33,10 +33,9 @@
 //! formed) and `δ̄_n` its mean depth: it follows the penetration profile, and the Coulomb
 //! limit `k_s |s| ≤ μ k_n δ̄_n` (a return mapping on `s`) holds at every point of the piece.
 
-use super::{frame, same, Frames, Ledger, NONE};
+use super::{frame, same, ContactStats, Frames, Ledger, Step, NONE};
 use crate::mesh::buckets::{boxes_meet, moved_beyond, BucketLists, Buckets};
 use crate::mesh::geometry::Vec2;
-use crate::model::law::InterfaceLaw;
 use crate::model::{Model, GROUND};
 use rayon::prelude::*;
 use std::collections::{HashMap, HashSet};
@@ -119,8 +118,6 @@ pub(super) struct Overlap {
     candidates: Vec<(u32, u32)>,
     /// The neighbour list is rebuilt when a corner has moved more than half of this (m).
     skin: f64,
-    /// Rebuilds of the neighbour list so far.
-    pub rebuilds: u64,
     /// The force of the ground on the bodies at the last evaluation (N).
     pub ground: Vec2,
     buckets: BucketLists,
@@ -130,9 +127,6 @@ pub(super) struct Overlap {
     /// The narrow phase's work, block by block (kept: no allocation in the step).
     #[serde(skip)]
     blocks: Vec<Block>,
-    thickness: f64,
-    factor: f64,
-    friction: Option<f64>,
     /// No evaluation yet: no step to measure slips over, and the neighbour list to build.
     fresh: bool,
     /// The fragments changed: the neighbour list must be rebuilt.
@@ -156,17 +150,6 @@ pub(super) struct Overlap {
 
 /// Candidates per block of the narrow phase (a rayon task).
 const BLOCK: usize = 1024;
-
-/// What one step's narrow phase reads.
-struct Step<'a> {
-    frames: &'a Frames,
-    /// The model's interface law (eq. 11).
-    law: &'a dyn InterfaceLaw,
-    u: &'a [f64],
-    /// `v^{n−½}`: the step that led here moved the bodies by `Δt v^{n−½}`.
-    velocity: &'a [f64],
-    dt: f64,
-}
 
 /// What a block of candidates gives: generalised forces on elements, live pieces, the ground's
 /// force and the stored energy.
@@ -255,171 +238,22 @@ struct FaceNow {
 }
 
 impl Overlap {
+    /// The edge-to-edge contact of `model`, in its reference configuration: its bodies'
+    /// targets and sources ([`Shapes::body`]) and the ground's strips ([`Shapes::ground`]).
     /// `skin` (m): the neighbour list is rebuilt when a corner has moved half of it.
-    pub fn new(model: &Model, friction: Option<f64>, skin: f64) -> Overlap {
-        let mut targets = Vec::new();
-        let mut faces = Vec::new();
-        let mut offsets = Vec::new();
-        let mut sources = Vec::new();
-        for (bi, body) in model.bodies.iter().enumerate() {
-            let mesh = &body.mesh;
-            let on_boundary: HashSet<(u32, u32)> =
-                mesh.boundary.iter().map(|e| (e.cell, e.v1)).collect();
-            // In a body that fragments every element is a target whose faces are all surfaces,
-            // and each edge a source; an edge between two elements is a source, and its face
-            // carries tractions, only once its interface is released (`Overlap::apart`).
-            let fragments = model.fragments(bi);
-            let shared: HashMap<(u32, u32), u32> = if fragments {
-                mesh.shared
-                    .iter()
-                    .enumerate()
-                    .flat_map(|(j, e)| {
-                        let i = (body.first_interface + j) as u32;
-                        [((e.a, e.v1), i), ((e.b, e.v2), i)]
-                    })
-                    .collect()
-            } else {
-                HashMap::new()
-            };
-            let mut cells: Vec<u32> = if fragments {
-                (0..mesh.n_cells() as u32).collect()
-            } else {
-                mesh.boundary.iter().map(|e| e.cell).collect()
-            };
-            cells.sort_unstable();
-            cells.dedup();
-            for c in cells {
-                let element = body.first_element + c as usize;
-                let centroid = model.elements[element].props.centroid;
-                let cell = mesh.cell(c as usize);
-                let first = offsets.len() as u32;
-                for (k, &v) in cell.iter().enumerate() {
-                    let (p1, p2) = (
-                        mesh.vertices[v as usize],
-                        mesh.vertices[cell[(k + 1) % cell.len()] as usize],
-                    );
-                    let (_, n, _) = frame(p1, p2);
-                    let h = (p1 - centroid).dot(&n).abs();
-                    let compliance = [h / body.moduli[0], h / body.moduli[1]];
-                    let surface = fragments || on_boundary.contains(&(c, v));
-                    let interface = shared.get(&(c, v)).copied().unwrap_or(NONE);
-                    offsets.push(p1 - centroid);
-                    faces.push(Face {
-                        compliance,
-                        surface,
-                        interface,
-                    });
-                    if surface {
-                        let ends = [first + k as u32, first + ((k + 1) % cell.len()) as u32];
-                        sources.push(Source {
-                            element: element as u32,
-                            body: bi as u32,
-                            ends,
-                            compliance,
-                            interface,
-                        });
-                    }
-                }
-                targets.push(Target {
-                    element: element as u32,
-                    body: bi as u32,
-                    first,
-                    count: cell.len() as u32,
-                });
-            }
+    pub fn new(model: &Model, skin: f64) -> Overlap {
+        let mut shapes = Shapes::default();
+        for bi in 0..model.bodies.len() {
+            shapes.body(model, bi);
         }
+        shapes.ground(&model.ground);
+        let Shapes {
+            targets,
+            faces,
+            offsets,
+            sources,
+        } = shapes;
         let (neighbour_start, neighbours) = neighbours(model);
-        // The segments by end point, for the joints: `ends[0]` by their `to`, `ends[1]` by
-        // their `from`, each point with the first two segments there in index order (one of
-        // them is not the asking segment). Exact equality as before: `+ 0.0` makes −0 and 0 one
-        // key, and the points are finite (validated).
-        let key = |p: Vec2| ((p.x + 0.0).to_bits(), (p.y + 0.0).to_bits());
-        let mut ends: [rustc_hash::FxHashMap<(u64, u64), [u32; 2]>; 2] = Default::default();
-        for (j, h) in model.ground.iter().enumerate() {
-            for (side, p) in [(0, h[1]), (1, h[0])] {
-                let slot = ends[side].entry(key(p)).or_insert([NONE; 2]);
-                if let Some(free) = slot.iter_mut().find(|s| **s == NONE) {
-                    *free = j as u32;
-                }
-            }
-        }
-        for (gi, g) in model.ground.iter().enumerate() {
-            // The strip below the segment, stored `to → from` as a body's boundary is (solid on
-            // the left), closed at each end by a wall: perpendicular at a free end, the bisector
-            // with the next segment at a joint.
-            let (from, to) = (g[0], g[1]);
-            let (_, n, length) = frame(to, from);
-            let depth = 1.0e3 * length;
-            let wall = |at: Vec2, other: Option<Vec2>| match other {
-                // The other segment's normal at the joint: the wall bisects the two.
-                Some(o) => {
-                    let (_, m, _) = if at == from {
-                        frame(from, o)
-                    } else {
-                        frame(o, to)
-                    };
-                    (-(n + m).normalize(), false)
-                }
-                None => (-n, true),
-            };
-            let joined = |at: Vec2, me_from: bool| {
-                // A joint: this segment's `from` is another's `to` (whose `from` is returned),
-                // or its `to` another's `from` (whose `to` is returned); the first such other.
-                let (side, other) = if me_from { (0, 0) } else { (1, 1) };
-                ends[side]
-                    .get(&key(at))
-                    .and_then(|s| s.iter().find(|&&j| j != NONE && j as usize != gi))
-                    .map(|&j| model.ground[j as usize][other])
-            };
-            let (down_from, free_from) = wall(from, joined(from, true));
-            let (down_to, free_to) = wall(to, joined(to, false));
-            // Walls that converge (a free end beside a joint, a segment between a ridge and a
-            // valley) would cross below the segment and fold the strip: it stops at half the
-            // depth where they meet.
-            let gap = to - from;
-            let det = down_to.x * down_from.y - down_from.x * down_to.y;
-            let depth = if det.abs() > 1e-12 {
-                let a = (down_to.x * gap.y - gap.x * down_to.y) / det;
-                let b = (down_from.x * gap.y - gap.x * down_from.y) / det;
-                if a > 0.0 && b > 0.0 {
-                    depth.min(0.5 * a.min(b))
-                } else {
-                    depth
-                }
-            } else {
-                depth
-            };
-            let first = offsets.len() as u32;
-            offsets.extend([to, from, from + depth * down_from, to + depth * down_to]);
-            faces.extend([
-                Face {
-                    compliance: [0.0; 2],
-                    surface: true,
-                    interface: NONE,
-                },
-                Face {
-                    compliance: [0.0; 2],
-                    surface: free_from,
-                    interface: NONE,
-                },
-                Face {
-                    compliance: [0.0; 2],
-                    surface: false,
-                    interface: NONE,
-                },
-                Face {
-                    compliance: [0.0; 2],
-                    surface: free_to,
-                    interface: NONE,
-                },
-            ]);
-            targets.push(Target {
-                element: GROUND,
-                body: NONE,
-                first,
-                count: 4,
-            });
-        }
         let corners = offsets.clone();
         let lines = vec![(Vec2::zeros(), Vec2::zeros(), Vec2::zeros()); corners.len()];
         let reach = targets
@@ -445,14 +279,10 @@ impl Overlap {
             sources,
             candidates: Vec::new(),
             skin,
-            rebuilds: 0,
             ground: Vec2::zeros(),
             blocks: Vec::new(),
             pieces: Vec::new(),
             next: Vec::new(),
-            thickness: model.thickness,
-            factor: model.formulation.spring_factor(),
-            friction,
             fresh: true,
             stale: false,
             fragments: (0..model.bodies.len())
@@ -488,25 +318,16 @@ impl Overlap {
         self.next.reserve_exact(4 * n);
     }
 
-    /// The contact forces of state `u` into `ledger`; `velocity` is `v^{n−½}`, so that the step
-    /// that led here moved the bodies by `Δt v^{n−½}` (not used at the first evaluation).
-    /// Returns the energy stored in the contact springs (J).
-    /// `tests` counts the narrow-phase tests (source edge against target).
-    #[allow(clippy::too_many_arguments)]
-    pub fn forces(
-        &mut self,
-        frames: &Frames,
-        law: &dyn InterfaceLaw,
-        u: &[f64],
-        velocity: &[f64],
-        dt: f64,
-        ledger: &mut Ledger,
-        tests: &mut u64,
-    ) -> f64 {
+    /// The contact forces of the step's state into `ledger` (the step's velocity, with which
+    /// the step that led here moved the bodies, is not used at the first evaluation). Returns
+    /// the energy stored in the contact springs (J). `stats` counts the narrow-phase tests
+    /// (source edge against target) and the rebuilds of the neighbour list.
+    pub fn forces(&mut self, at: &Step, ledger: &mut Ledger, stats: &mut ContactStats) -> f64 {
+        let (frames, u) = (at.frames, at.u);
         self.place(frames, u);
         if self.stale || moved_beyond(&self.corners, &self.anchors, 0.5 * self.skin) {
             self.rebuild(u);
-            self.rebuilds += 1;
+            stats.rebuilds += 1;
             self.stale = false;
         }
         if self.candidates.is_empty() {
@@ -523,19 +344,12 @@ impl Overlap {
             self.blocks.resize_with(n, Block::default);
         }
         let mut blocks = std::mem::take(&mut self.blocks);
-        let at = Step {
-            frames,
-            law,
-            u,
-            velocity,
-            dt,
-        };
         let this = &*self;
         let work = |(block, chunk): (&mut Block, &[(u32, u32)])| {
             block.clear(chunk.len());
             block.cursor = this.pieces.partition_point(|p| p.source < chunk[0].0);
             for &(source, target) in chunk {
-                this.pair(&at, block, source, target);
+                this.pair(at, block, source, target);
             }
             block.finish();
         };
@@ -566,7 +380,7 @@ impl Overlap {
             energy += block.energy;
         }
         self.blocks = blocks;
-        *tests += self.candidates.len() as u64;
+        stats.tests += self.candidates.len() as u64;
         std::mem::swap(&mut self.pieces, &mut self.next);
         self.fresh = false;
         energy
@@ -836,7 +650,7 @@ impl Overlap {
             let face = &self.faces[tgt.first as usize + k];
             f.surface = face.surface && (within || self.exposed(face.interface));
             if face.surface {
-                let moduli = [0, 1].map(|c| self.factor / (src.compliance[c] + face.compliance[c]));
+                let moduli = [0, 1].map(|c| at.factor / (src.compliance[c] + face.compliance[c]));
                 f.spring = at.law.springs(moduli).map(|k| half * k);
                 f.root = f.spring[0].sqrt();
             }
@@ -906,7 +720,7 @@ impl Overlap {
         let face = tgt.first + i as u32;
         let lerp = |v: [f64; 2], xi: f64| v[0] + xi * (v[1] - v[0]);
         let half = 0.5 * (b - a);
-        let w = half * length * self.thickness;
+        let w = half * length * at.thickness;
         let gauss = [-1.0, 1.0].map(|g| a + half * (1.0 + g / 3f64.sqrt()));
         let d = gauss.map(|xi| lerp(depth, xi));
         let mean = 0.5 * (d[0] + d[1]);
@@ -941,7 +755,7 @@ impl Overlap {
             }
             slip += step.dot(&s);
         }
-        if let Some(mu) = self.friction {
+        if let Some(mu) = at.friction {
             // A depth that round-off leaves a hair below zero (bodies stacked on one another)
             // holds no friction.
             let limit = if k[1] > 0.0 {
@@ -987,6 +801,184 @@ impl Overlap {
             }
         }
     }
+}
+
+/// The targets with their faces and corners, and the sources: the geometry of edge-to-edge
+/// contact in the reference configuration, as [`Overlap::new`] gathers it.
+#[derive(Debug, Default)]
+struct Shapes {
+    targets: Vec<Target>,
+    faces: Vec<Face>,
+    /// The corners: offsets from their element's centroid, ground corners absolute.
+    offsets: Vec<Vec2>,
+    sources: Vec<Source>,
+}
+
+impl Shapes {
+    /// The targets and sources of body `bi`: each element with an edge on the body's boundary
+    /// is a target whose boundary faces are surfaces, and each boundary edge a source. In a
+    /// body that fragments every element is a target whose faces are all surfaces, and each
+    /// edge a source; an edge between two elements is a source, and its face carries
+    /// tractions, only once its interface is released (`Overlap::apart`).
+    fn body(&mut self, model: &Model, bi: usize) {
+        let body = &model.bodies[bi];
+        let mesh = &body.mesh;
+        let on_boundary: HashSet<(u32, u32)> =
+            mesh.boundary.iter().map(|e| (e.cell, e.v1)).collect();
+        let fragments = model.fragments(bi);
+        let shared: HashMap<(u32, u32), u32> = if fragments {
+            mesh.shared
+                .iter()
+                .enumerate()
+                .flat_map(|(j, e)| {
+                    let i = (body.first_interface + j) as u32;
+                    [((e.a, e.v1), i), ((e.b, e.v2), i)]
+                })
+                .collect()
+        } else {
+            HashMap::new()
+        };
+        let mut cells: Vec<u32> = if fragments {
+            (0..mesh.n_cells() as u32).collect()
+        } else {
+            mesh.boundary.iter().map(|e| e.cell).collect()
+        };
+        cells.sort_unstable();
+        cells.dedup();
+        for c in cells {
+            let element = body.first_element + c as usize;
+            let centroid = model.elements[element].props.centroid;
+            let cell = mesh.cell(c as usize);
+            let first = self.offsets.len() as u32;
+            for (k, &v) in cell.iter().enumerate() {
+                let (p1, p2) = (
+                    mesh.vertices[v as usize],
+                    mesh.vertices[cell[(k + 1) % cell.len()] as usize],
+                );
+                let (_, n, _) = frame(p1, p2);
+                let h = (p1 - centroid).dot(&n).abs();
+                let compliance = [h / body.moduli[0], h / body.moduli[1]];
+                let surface = fragments || on_boundary.contains(&(c, v));
+                let interface = shared.get(&(c, v)).copied().unwrap_or(NONE);
+                self.offsets.push(p1 - centroid);
+                self.faces.push(Face {
+                    compliance,
+                    surface,
+                    interface,
+                });
+                if surface {
+                    let ends = [first + k as u32, first + ((k + 1) % cell.len()) as u32];
+                    self.sources.push(Source {
+                        element: element as u32,
+                        body: bi as u32,
+                        ends,
+                        compliance,
+                        interface,
+                    });
+                }
+            }
+            self.targets.push(Target {
+                element: element as u32,
+                body: bi as u32,
+                first,
+                count: cell.len() as u32,
+            });
+        }
+    }
+
+    /// The strip below each ground segment `[from, to]` ([`strip`]): a target of four faces,
+    /// the segment, its two end walls (surfaces at a free end) and a bottom.
+    fn ground(&mut self, ground: &[[Vec2; 2]]) {
+        // The segments by end point, for the joints: `ends[0]` by their `to`, `ends[1]` by
+        // their `from`, each point with the first two segments there in index order (one of
+        // them is not the asking segment). Exact equality as before: `+ 0.0` makes −0 and 0 one
+        // key, and the points are finite (validated).
+        let key = |p: Vec2| ((p.x + 0.0).to_bits(), (p.y + 0.0).to_bits());
+        let mut ends: [rustc_hash::FxHashMap<(u64, u64), [u32; 2]>; 2] = Default::default();
+        for (j, h) in ground.iter().enumerate() {
+            for (side, p) in [(0, h[1]), (1, h[0])] {
+                let slot = ends[side].entry(key(p)).or_insert([NONE; 2]);
+                if let Some(free) = slot.iter_mut().find(|s| **s == NONE) {
+                    *free = j as u32;
+                }
+            }
+        }
+        for (gi, &[from, to]) in ground.iter().enumerate() {
+            let joined = |at: Vec2, me_from: bool| {
+                // A joint: this segment's `from` is another's `to` (whose `from` is returned),
+                // or its `to` another's `from` (whose `to` is returned); the first such other.
+                let (side, other) = if me_from { (0, 0) } else { (1, 1) };
+                ends[side]
+                    .get(&key(at))
+                    .and_then(|s| s.iter().find(|&&j| j != NONE && j as usize != gi))
+                    .map(|&j| ground[j as usize][other])
+            };
+            let (corners, [free_from, free_to]) =
+                strip(from, to, joined(from, true), joined(to, false));
+            let first = self.offsets.len() as u32;
+            self.offsets.extend(corners);
+            let face = |surface: bool| Face {
+                compliance: [0.0; 2],
+                surface,
+                interface: NONE,
+            };
+            self.faces
+                .extend([face(true), face(free_from), face(false), face(free_to)]);
+            self.targets.push(Target {
+                element: GROUND,
+                body: NONE,
+                first,
+                count: 4,
+            });
+        }
+    }
+}
+
+/// The strip below the ground segment `from → to`, stored `to → from` as a body's boundary is
+/// (solid on the left), closed at each end by a wall: perpendicular at a free end, the
+/// bisector with the next segment at a joint (`from_joint`, `to_joint`: the far end of the
+/// segment met there). Returns its corners and whether each end wall (at `from`, at `to`) is
+/// free, hence a surface.
+fn strip(
+    from: Vec2,
+    to: Vec2,
+    from_joint: Option<Vec2>,
+    to_joint: Option<Vec2>,
+) -> ([Vec2; 4], [bool; 2]) {
+    let (_, n, length) = frame(to, from);
+    let depth = 1.0e3 * length;
+    let wall = |at: Vec2, other: Option<Vec2>| match other {
+        // The other segment's normal at the joint: the wall bisects the two.
+        Some(o) => {
+            let (_, m, _) = if at == from {
+                frame(from, o)
+            } else {
+                frame(o, to)
+            };
+            (-(n + m).normalize(), false)
+        }
+        None => (-n, true),
+    };
+    let (down_from, free_from) = wall(from, from_joint);
+    let (down_to, free_to) = wall(to, to_joint);
+    // Walls that converge (a free end beside a joint, a segment between a ridge and a valley)
+    // would cross below the segment and fold the strip: it stops at half the depth where they
+    // meet.
+    let gap = to - from;
+    let det = down_to.x * down_from.y - down_from.x * down_to.y;
+    let depth = if det.abs() > 1e-12 {
+        let a = (down_to.x * gap.y - gap.x * down_to.y) / det;
+        let b = (down_from.x * gap.y - gap.x * down_from.y) / det;
+        if a > 0.0 && b > 0.0 {
+            depth.min(0.5 * a.min(b))
+        } else {
+            depth
+        }
+    } else {
+        depth
+    };
+    let corners = [to, from, from + depth * down_from, to + depth * down_to];
+    (corners, [free_from, free_to])
 }
 
 /// The edge neighbours of every element of the bodies that fragment, with the interface of
