@@ -29,23 +29,7 @@ pub fn read(body: &str, path: &Path) -> Result<Mesh> {
     let bytes = crate::input::scene::read_limited(path, MAX_MESH_BYTES, "a mesh file")?;
     let field = format!("mesh `{body}` ({})", path.display());
     let fail = |message: String| Error::scene(field.clone(), message);
-    let header = format_header(&bytes)
-        .ok_or_else(|| fail("not a gmsh MSH file: no `$MeshFormat` header".into()))?;
-    let [version, file_type, data_size] =
-        [0, 1, 2].map(|i| header.get(i).map_or("", String::as_str));
-    if version != "4.1" {
-        return Err(fail(format!(
-            "MSH version {version} is not supported; save the mesh as MSH 4.1 \
-            (`gmsh -2 -format msh41 file.geo`)"
-        )));
-    }
-    if !matches!(file_type, "0" | "1") || data_size != "8" {
-        return Err(fail(format!(
-            "the `$MeshFormat` line reads `{}`: MSH 4.1 has file type 0 (ASCII) or 1 (binary) and \
-                data size 8",
-            header.join(" ")
-        )));
-    }
+    check_header(&bytes, &fail)?;
     // The reader panics on some malformed files; that is an error in the file, not a crash.
     let parsed = std::panic::catch_unwind(|| mshio::parse_msh_bytes(&bytes))
         .map_err(|_| fail("the MSH 4.1 reader failed on malformed data in this file".into()))?;
@@ -55,68 +39,9 @@ pub fn read(body: &str, path: &Path) -> Result<Mesh> {
         .nodes
         .as_ref()
         .ok_or_else(|| fail("the file has no `$Nodes` section".into()))?;
-    let elements = msh
-        .data
-        .elements
-        .as_ref()
-        .ok_or_else(|| fail("the file has no `$Elements` section".into()))?;
-    // Node tag → coordinates. Without a tag map a block's tags run on from the smallest tag.
-    let mut coordinates: HashMap<u64, Vec2> = HashMap::new();
-    let mut next = nodes.min_node_tag;
-    for block in &nodes.node_blocks {
-        let tags: Vec<u64> = match &block.node_tags {
-            Some(map) => {
-                let mut t = vec![0; block.nodes.len()];
-                for (&tag, &i) in map {
-                    t[i] = tag;
-                }
-                t
-            }
-            None => (next..next + block.nodes.len() as u64).collect(),
-        };
-        next += block.nodes.len() as u64;
-        for (tag, n) in tags.into_iter().zip(&block.nodes) {
-            coordinates.insert(tag, Vec2::new(n.x, n.y));
-        }
-    }
-    let names = physical_names(&bytes);
-    let curve_groups: HashMap<i32, Vec<i32>> =
-        msh.data.entities.as_ref().map_or_else(HashMap::new, |e| {
-            e.curves
-                .iter()
-                .map(|c| (c.tag, c.physical_tags.clone()))
-                .collect()
-        });
-    let mut cells: Vec<Vec<u64>> = Vec::new();
-    let mut lines: BTreeMap<String, Vec<[u64; 2]>> = BTreeMap::new();
-    for block in &elements.element_blocks {
-        match block.element_type {
-            ElementType::Tri3 | ElementType::Qua4 => {
-                cells.extend(block.elements.iter().map(|e| e.nodes.clone()))
-            }
-            ElementType::Lin2 => {
-                for &group in curve_groups.get(&block.entity_tag).into_iter().flatten() {
-                    let name = names
-                        .get(&(1, group))
-                        .cloned()
-                        .unwrap_or_else(|| group.to_string());
-                    lines
-                        .entry(name)
-                        .or_default()
-                        .extend(block.elements.iter().map(|e| [e.nodes[0], e.nodes[1]]));
-                }
-            }
-            ElementType::Pnt => {}
-            other => {
-                let tag = block.elements.first().map_or(0, |e| e.element_tag);
-                return Err(fail(format!(
-                    "element {tag} is of type {other:?}, which is not supported: use 3-node triangles or 4-node quadrilaterals \
-                     (first order, `Mesh.ElementOrder = 1`) for cells and 2-node lines for groups"
-                )));
-            }
-        }
-    }
-    if cells.is_empty() && (!lines.is_empty() || !names.is_empty()) {
+    let coordinates = node_coordinates(nodes);
+    let (cells, lines, named) = cells_and_groups(&msh, &bytes, &fail)?;
+    if cells.is_empty() && (!lines.is_empty() || named) {
         // gmsh saves only the elements of physical groups once any is defined.
         return Err(fail(
             "the file has no triangles or quadrilaterals, only elements of physical groups: \
@@ -173,6 +98,105 @@ pub fn read(body: &str, path: &Path) -> Result<Mesh> {
         mesh.groups.push(EdgeGroup { name, edges });
     }
     Ok(mesh)
+}
+
+/// Refuses a file that is not MSH 4.1 with 8-byte data, ASCII or binary.
+fn check_header(bytes: &[u8], fail: &dyn Fn(String) -> Error) -> Result<()> {
+    let header = format_header(bytes)
+        .ok_or_else(|| fail("not a gmsh MSH file: no `$MeshFormat` header".into()))?;
+    let [version, file_type, data_size] =
+        [0, 1, 2].map(|i| header.get(i).map_or("", String::as_str));
+    if version != "4.1" {
+        return Err(fail(format!(
+            "MSH version {version} is not supported; save the mesh as MSH 4.1 \
+            (`gmsh -2 -format msh41 file.geo`)"
+        )));
+    }
+    if !matches!(file_type, "0" | "1") || data_size != "8" {
+        return Err(fail(format!(
+            "the `$MeshFormat` line reads `{}`: MSH 4.1 has file type 0 (ASCII) or 1 (binary) and \
+                data size 8",
+            header.join(" ")
+        )));
+    }
+    Ok(())
+}
+
+/// Node tag → coordinates. Without a tag map a block's tags run on from the smallest tag.
+fn node_coordinates(nodes: &mshio::mshfile::Nodes<u64, i32, f64>) -> HashMap<u64, Vec2> {
+    let mut coordinates: HashMap<u64, Vec2> = HashMap::new();
+    let mut next = nodes.min_node_tag;
+    for block in &nodes.node_blocks {
+        let tags: Vec<u64> = match &block.node_tags {
+            Some(map) => {
+                let mut t = vec![0; block.nodes.len()];
+                for (&tag, &i) in map {
+                    t[i] = tag;
+                }
+                t
+            }
+            None => (next..next + block.nodes.len() as u64).collect(),
+        };
+        next += block.nodes.len() as u64;
+        for (tag, n) in tags.into_iter().zip(&block.nodes) {
+            coordinates.insert(tag, Vec2::new(n.x, n.y));
+        }
+    }
+    coordinates
+}
+
+/// The cells (node tags of each triangle and quadrilateral) and the named groups of lines
+/// (node-tag pairs of each 2-node line, by physical group) of a parsed file; and whether it
+/// names any physical group.
+#[allow(clippy::type_complexity)]
+fn cells_and_groups(
+    msh: &mshio::MshFile<u64, i32, f64>,
+    bytes: &[u8],
+    fail: &dyn Fn(String) -> Error,
+) -> Result<(Vec<Vec<u64>>, BTreeMap<String, Vec<[u64; 2]>>, bool)> {
+    let elements = msh
+        .data
+        .elements
+        .as_ref()
+        .ok_or_else(|| fail("the file has no `$Elements` section".into()))?;
+    let names = physical_names(bytes);
+    let curve_groups: HashMap<i32, Vec<i32>> =
+        msh.data.entities.as_ref().map_or_else(HashMap::new, |e| {
+            e.curves
+                .iter()
+                .map(|c| (c.tag, c.physical_tags.clone()))
+                .collect()
+        });
+    let mut cells: Vec<Vec<u64>> = Vec::new();
+    let mut lines: BTreeMap<String, Vec<[u64; 2]>> = BTreeMap::new();
+    for block in &elements.element_blocks {
+        match block.element_type {
+            ElementType::Tri3 | ElementType::Qua4 => {
+                cells.extend(block.elements.iter().map(|e| e.nodes.clone()))
+            }
+            ElementType::Lin2 => {
+                for &group in curve_groups.get(&block.entity_tag).into_iter().flatten() {
+                    let name = names
+                        .get(&(1, group))
+                        .cloned()
+                        .unwrap_or_else(|| group.to_string());
+                    lines
+                        .entry(name)
+                        .or_default()
+                        .extend(block.elements.iter().map(|e| [e.nodes[0], e.nodes[1]]));
+                }
+            }
+            ElementType::Pnt => {}
+            other => {
+                let tag = block.elements.first().map_or(0, |e| e.element_tag);
+                return Err(fail(format!(
+                    "element {tag} is of type {other:?}, which is not supported: use 3-node triangles or 4-node quadrilaterals \
+                     (first order, `Mesh.ElementOrder = 1`) for cells and 2-node lines for groups"
+                )));
+            }
+        }
+    }
+    Ok((cells, lines, !names.is_empty()))
 }
 
 /// The words of the `$MeshFormat` line: version, file type, data size (the header is text in

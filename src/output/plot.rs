@@ -356,80 +356,102 @@ pub fn histories(dir: &Path) -> Result<Vec<std::path::PathBuf>> {
     let mut written = Vec::new();
     let history = dir.join("history.csv");
     if history.exists() {
-        let columns = read_csv(&history)?;
-        let t = &columns
-            .first()
-            .filter(|c| c.name == "t")
-            .ok_or_else(|| invalid(&history, "the first column must be `t`"))?
-            .values;
-        let pairs = |c: &Column| {
-            t.iter()
-                .copied()
-                .zip(c.values.iter().copied())
-                .collect::<Vec<_>>()
+        written.extend(run_plots(dir, &history)?);
+    }
+    written.extend(stability_plot(dir)?);
+    if written.is_empty() {
+        return Err(invalid(
+            dir,
+            "holds neither history.csv (from `rbsm run`) nor fraction_F.csv \
+            files (from `rbsm stability --out`)",
+        ));
+    }
+    Ok(written)
+}
+
+/// `energies.svg` and, when the run had probes, `probes.svg` from a run's `history` in `dir`;
+/// returns the files written.
+fn run_plots(dir: &Path, history: &Path) -> Result<Vec<std::path::PathBuf>> {
+    let mut written = Vec::new();
+    let columns = read_csv(history)?;
+    let t = &columns
+        .first()
+        .filter(|c| c.name == "t")
+        .ok_or_else(|| invalid(history, "the first column must be `t`"))?
+        .values;
+    let pairs = |c: &Column| {
+        t.iter()
+            .copied()
+            .zip(c.values.iter().copied())
+            .collect::<Vec<_>>()
+    };
+    let energies: Vec<(&str, Vec<(f64, f64)>)> = columns
+        .iter()
+        .filter(|c| ENERGIES.contains(&c.name.as_str()) && c.values.iter().any(|v| *v != 0.0))
+        .map(|c| (c.name.as_str(), pairs(c)))
+        .collect();
+    let path = dir.join("energies.svg");
+    svg_file(&path, (820, 480), |root| {
+        panel(
+            root,
+            &path,
+            "energies",
+            "t (s)",
+            "energy (J)",
+            &energies,
+            false,
+        )
+    })?;
+    written.push(path);
+    let probes: Vec<&Column> = columns[1..]
+        .iter()
+        .filter(|c| !ENERGIES.contains(&c.name.as_str()))
+        .collect();
+    if !probes.is_empty() {
+        // The units from the run's summary, when it is there.
+        let summary: serde_json::Value = crate::input::scene::read_text_limited(
+            &dir.join("summary.json"),
+            MAX_CSV_BYTES,
+            "a run's summary",
+        )
+        .ok()
+        .and_then(|t| serde_json::from_str(&t).ok())
+        .unwrap_or_default();
+        let unit = |name: &str| {
+            let listed = summary["probes"]
+                .as_array()
+                .into_iter()
+                .flatten()
+                .find(|p| p["name"] == name);
+            match listed.and_then(|p| p["unit"].as_str()) {
+                Some("1") => "strain".to_string(),
+                Some(u) => format!("({u})"),
+                None => "(m, rad or strain)".to_string(),
+            }
         };
-        let energies: Vec<(&str, Vec<(f64, f64)>)> = columns
-            .iter()
-            .filter(|c| ENERGIES.contains(&c.name.as_str()) && c.values.iter().any(|v| *v != 0.0))
-            .map(|c| (c.name.as_str(), pairs(c)))
-            .collect();
-        let path = dir.join("energies.svg");
-        svg_file(&path, (820, 480), |root| {
-            panel(
-                root,
-                &path,
-                "energies",
-                "t (s)",
-                "energy (J)",
-                &energies,
-                false,
-            )
+        let path = dir.join("probes.svg");
+        svg_file(&path, (820, 260 * probes.len() as u32), |root| {
+            for (area, c) in root.split_evenly((probes.len(), 1)).iter().zip(&probes) {
+                panel(
+                    area,
+                    &path,
+                    &format!("probe {}", c.name),
+                    "t (s)",
+                    &format!("{} {}", c.name, unit(&c.name)),
+                    &[(c.name.as_str(), pairs(c))],
+                    false,
+                )?;
+            }
+            Ok(())
         })?;
         written.push(path);
-        let probes: Vec<&Column> = columns[1..]
-            .iter()
-            .filter(|c| !ENERGIES.contains(&c.name.as_str()))
-            .collect();
-        if !probes.is_empty() {
-            // The units from the run's summary, when it is there.
-            let summary: serde_json::Value = crate::input::scene::read_text_limited(
-                &dir.join("summary.json"),
-                MAX_CSV_BYTES,
-                "a run's summary",
-            )
-            .ok()
-            .and_then(|t| serde_json::from_str(&t).ok())
-            .unwrap_or_default();
-            let unit = |name: &str| {
-                let listed = summary["probes"]
-                    .as_array()
-                    .into_iter()
-                    .flatten()
-                    .find(|p| p["name"] == name);
-                match listed.and_then(|p| p["unit"].as_str()) {
-                    Some("1") => "strain".to_string(),
-                    Some(u) => format!("({u})"),
-                    None => "(m, rad or strain)".to_string(),
-                }
-            };
-            let path = dir.join("probes.svg");
-            svg_file(&path, (820, 260 * probes.len() as u32), |root| {
-                for (area, c) in root.split_evenly((probes.len(), 1)).iter().zip(&probes) {
-                    panel(
-                        area,
-                        &path,
-                        &format!("probe {}", c.name),
-                        "t (s)",
-                        &format!("{} {}", c.name, unit(&c.name)),
-                        &[(c.name.as_str(), pairs(c))],
-                        false,
-                    )?;
-                }
-                Ok(())
-            })?;
-            written.push(path);
-        }
     }
+    Ok(written)
+}
+
+/// `stability.svg` from the `fraction_F.csv` files of `rbsm stability --out` in `dir`, when it
+/// has any.
+fn stability_plot(dir: &Path) -> Result<Option<std::path::PathBuf>> {
     let mut fractions = Vec::new();
     for entry in std::fs::read_dir(dir).map_err(|e| Error::io(dir, e))? {
         let p = entry.map_err(|e| Error::io(dir, e))?.path();
@@ -441,88 +463,81 @@ pub fn histories(dir: &Path) -> Result<Vec<std::path::PathBuf>> {
             fractions.push((f.to_string(), p.clone()));
         }
     }
-    if !fractions.is_empty() {
-        fractions.sort_by(|a, b| {
-            a.0.parse::<f64>()
-                .unwrap_or(f64::MAX)
-                .total_cmp(&b.0.parse::<f64>().unwrap_or(f64::MAX))
-        });
-        let mut series = Vec::new();
-        for (f, p) in &fractions {
-            let c = read_csv(p)?;
-            let stored = c
-                .iter()
-                .find(|c| c.name == "stored")
-                .ok_or_else(|| invalid(p, "expected the columns t,total,stored"))?;
-            // Relative to the first energy stored: a run loaded from rest starts at 0 J.
-            let s0 = stored
-                .values
-                .iter()
-                .copied()
-                .find(|e| *e > 0.0)
-                .unwrap_or(1.0);
-            series.push((
-                format!("dt = {f} Δt_crit"),
-                c[0].values
-                    .iter()
-                    .zip(&stored.values)
-                    .map(|(t, e)| (*t, e / s0))
-                    .collect::<Vec<_>>(),
-            ));
-        }
-        let series: Vec<(&str, Vec<(f64, f64)>)> = series
-            .iter()
-            .map(|(n, s)| (n.as_str(), s.clone()))
-            .collect();
-        // A run above the limit stops within a few steps: the second panel shows those steps.
-        let shortest = series
-            .iter()
-            .map(|s| s.1.last().map_or(0.0, |p| p.0))
-            .fold(f64::INFINITY, f64::min);
-        let early: Vec<(&str, Vec<(f64, f64)>)> = series
-            .iter()
-            .map(|(n, s)| {
-                (
-                    *n,
-                    s.iter()
-                        .copied()
-                        .filter(|p| p.0 <= 1.5 * shortest)
-                        .collect(),
-                )
-            })
-            .collect();
-        let path = dir.join("stability.svg");
-        svg_file(&path, (820, 900), |root| {
-            let areas = root.split_evenly((2, 1));
-            panel(
-                &areas[0],
-                &path,
-                "kinetic + elastic energy at fractions of Δt_crit",
-                "t (s)",
-                "E / E(first stored)",
-                &series,
-                true,
-            )?;
-            panel(
-                &areas[1],
-                &path,
-                "the first steps, until the shortest run stopped",
-                "t (s)",
-                "E / E(first stored)",
-                &early,
-                true,
-            )
-        })?;
-        written.push(path);
+    if fractions.is_empty() {
+        return Ok(None);
     }
-    if written.is_empty() {
-        return Err(invalid(
-            dir,
-            "holds neither history.csv (from `rbsm run`) nor fraction_F.csv \
-            files (from `rbsm stability --out`)",
+    fractions.sort_by(|a, b| {
+        a.0.parse::<f64>()
+            .unwrap_or(f64::MAX)
+            .total_cmp(&b.0.parse::<f64>().unwrap_or(f64::MAX))
+    });
+    let mut series = Vec::new();
+    for (f, p) in &fractions {
+        let c = read_csv(p)?;
+        let stored = c
+            .iter()
+            .find(|c| c.name == "stored")
+            .ok_or_else(|| invalid(p, "expected the columns t,total,stored"))?;
+        // Relative to the first energy stored: a run loaded from rest starts at 0 J.
+        let s0 = stored
+            .values
+            .iter()
+            .copied()
+            .find(|e| *e > 0.0)
+            .unwrap_or(1.0);
+        series.push((
+            format!("dt = {f} Δt_crit"),
+            c[0].values
+                .iter()
+                .zip(&stored.values)
+                .map(|(t, e)| (*t, e / s0))
+                .collect::<Vec<_>>(),
         ));
     }
-    Ok(written)
+    let series: Vec<(&str, Vec<(f64, f64)>)> = series
+        .iter()
+        .map(|(n, s)| (n.as_str(), s.clone()))
+        .collect();
+    // A run above the limit stops within a few steps: the second panel shows those steps.
+    let shortest = series
+        .iter()
+        .map(|s| s.1.last().map_or(0.0, |p| p.0))
+        .fold(f64::INFINITY, f64::min);
+    let early: Vec<(&str, Vec<(f64, f64)>)> = series
+        .iter()
+        .map(|(n, s)| {
+            (
+                *n,
+                s.iter()
+                    .copied()
+                    .filter(|p| p.0 <= 1.5 * shortest)
+                    .collect(),
+            )
+        })
+        .collect();
+    let path = dir.join("stability.svg");
+    svg_file(&path, (820, 900), |root| {
+        let areas = root.split_evenly((2, 1));
+        panel(
+            &areas[0],
+            &path,
+            "kinetic + elastic energy at fractions of Δt_crit",
+            "t (s)",
+            "E / E(first stored)",
+            &series,
+            true,
+        )?;
+        panel(
+            &areas[1],
+            &path,
+            "the first steps, until the shortest run stopped",
+            "t (s)",
+            "E / E(first stored)",
+            &early,
+            true,
+        )
+    })?;
+    Ok(Some(path))
 }
 
 #[cfg(test)]
