@@ -162,6 +162,8 @@ pub struct Model {
     pub gravity: Vec2,
     /// Mass-proportional damping `α` (1/s).
     pub damping: f64,
+    /// Local non-viscous damping `α` in [0, 1) (the step stage's `local` module); 0 for none.
+    pub local_damping: f64,
     /// Initial velocity of every DOF (`ndof` per element).
     pub initial_velocity: Vec<f64>,
     /// Contact between bodies and with the ground; `None` when the scene has none.
@@ -319,6 +321,7 @@ impl Model {
                 .map(|g| Vec2::new(g[0], g[1]))
                 .unwrap_or_else(Vec2::zeros),
             damping: scene.damping.unwrap_or(0.0),
+            local_damping: 0.0,
             initial_velocity: Vec::new(),
             contact: scene.contact,
             ground: scene

@@ -146,7 +146,7 @@ impl Columns {
     pub fn of(model: &Model, probes: Vec<Probe>) -> Self {
         Columns {
             failure: model.any_fails(),
-            damping: model.damping > 0.0,
+            damping: model.damping > 0.0 || model.local_damping > 0.0,
             clamps: model.prescribed.clone(),
             probes,
         }

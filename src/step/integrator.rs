@@ -17,6 +17,7 @@ use crate::model::mass::{Mass, Update};
 use crate::model::{Model, Prescribed};
 use crate::parallel::for_each_chunk;
 use crate::step::grouped::{Groups, MIN_STRETCH};
+use crate::step::local::LocalDamping;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
@@ -41,7 +42,7 @@ pub struct Energy {
     pub fracture: f64,
     /// Work of friction on the interfaces so far (J; failing laws).
     pub friction: f64,
-    /// Work of the mass-proportional damping so far (J).
+    /// Work of the damping so far, mass-proportional and local (J).
     pub damping: f64,
     /// `kinetic + elastic + contact + potential + fracture + friction + damping −
     /// external_work` (J).
@@ -120,6 +121,8 @@ pub struct CentralDifference<'a> {
     loads: &'a Loads,
     /// Mass-proportional damping `α` (1/s): the model's, or none ([`CentralDifference::undamped`]).
     damping: f64,
+    /// Local non-viscous damping, when the model has it ([`crate::step::local`]).
+    local: Option<LocalDamping>,
     /// Time step `Δt` (s), fixed at construction.
     dt: f64,
     /// Time `t_n` of the current state (s).
@@ -325,6 +328,7 @@ impl<'a> CentralDifference<'a> {
             mass,
             loads,
             damping: model.damping,
+            local: LocalDamping::new(model.local_damping, n, &model.fixed),
             dt,
             t: 0.0,
             step: 0,
@@ -501,7 +505,22 @@ impl<'a> CentralDifference<'a> {
     /// Whether a step must go through the net force vector: the fused step has no place for
     /// the plastic forces or the clamps' reactions (it books the damping's work itself).
     fn needs_net_force(&self) -> bool {
-        self.failure.is_some() || !self.prescribed.is_empty()
+        self.failure.is_some() || !self.prescribed.is_empty() || self.local.is_some()
+    }
+
+    /// Damps `force` locally against `v = v^{n−½}`, when the run has local damping.
+    fn damp_locally(&mut self) {
+        if let Some(l) = self.local.as_mut() {
+            l.apply(&mut self.force, &self.v);
+        }
+    }
+
+    /// Books the local damping's work over the step once `v` holds `v^{n+½}` and `scratch`
+    /// `v^{n−½}`.
+    fn book_local(&mut self, dt: f64) {
+        if let Some(l) = &self.local {
+            self.ledger.damping += l.work(&self.scratch, &self.v, dt);
+        }
     }
 
     /// `force ← f_int(U^n) − f_c^n − P(t_n)`, so that `a^n = −M⁻¹ force`; returns the elastic
@@ -709,9 +728,11 @@ impl<'a> CentralDifference<'a> {
             self.ungroup();
             let elastic = self.net_force(true);
             self.scratch.copy_from_slice(&self.v);
+            self.damp_locally();
             self.mass
                 .advance(&self.force, &mut self.v, &mut [], dt, damping);
             self.book_clamps(dt);
+            self.book_local(dt);
             let shadow = self.mass.kinetic_product(&self.scratch, &self.v);
             // v^n = (v^{n−½} + v^{n+½}) / 2 for the energies and the outputs.
             let kinetic = self.book_damping(dt);
@@ -823,12 +844,14 @@ impl<'a> CentralDifference<'a> {
             }
             None => {
                 self.net_force(false);
-                if self.damping > 0.0 {
+                if self.damping > 0.0 || self.local.is_some() {
                     self.scratch.copy_from_slice(&self.v);
                 }
+                self.damp_locally();
                 self.mass
                     .advance(&self.force, &mut self.v, &mut self.u, dt, damping);
                 self.book_clamps(dt);
+                self.book_local(dt);
                 if self.damping > 0.0 {
                     self.book_damping(dt);
                 }
