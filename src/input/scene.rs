@@ -6,9 +6,9 @@
 //! [`Scene::validate`] then checks every value against its allowed range.
 
 use crate::error::{Error, Result};
-use schemars::{json_schema, JsonSchema, Schema, SchemaGenerator};
+use crate::input::kinds::kinds;
+use schemars::{JsonSchema, Schema};
 use serde::{Deserialize, Serialize};
-use std::borrow::Cow;
 use std::collections::BTreeMap;
 use std::path::Path;
 
@@ -67,21 +67,20 @@ pub struct Scene {
     pub reference: Option<ReferenceSpec>,
 }
 
-/// A closed form or theory for the error of `rbsm tradeoff` (`kind`: `hopping-block` or
-/// `bar-step`).
-#[derive(Debug, Clone, PartialEq, Serialize, JsonSchema)]
-#[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
-pub enum ReferenceSpec {
-    /// The first bounce of a body dropped on horizontal ground: its apex returns to the drop
-    /// height (the paper's hopping block, module `hopping`).
-    HoppingBlock,
-    /// An axial bar (the first body, a grid from `origin.x` to `origin.x + size.x`) held by a
-    /// ground spring on its left edge, loaded at `t = 0` by the traction of its right edge: the
-    /// displacement history of the named probe against the bar's modal series.
-    BarStep {
-        /// The probe (a `u` DOF) whose history is compared.
-        probe: String,
-    },
+kinds! {
+    #[derive(Debug, Clone, PartialEq)]
+    pub enum ReferenceSpec: "A closed form or theory for the error of `rbsm tradeoff`" {
+        /// The first bounce of a body dropped on horizontal ground: its apex returns to the drop
+        /// height (the paper's hopping block, module `hopping`).
+        "hopping-block" => HoppingBlock,
+        /// An axial bar (the first body, a grid from `origin.x` to `origin.x + size.x`) held by a
+        /// ground spring on its left edge, loaded at `t = 0` by the traction of its right edge: the
+        /// displacement history of the named probe against the bar's modal series.
+        "bar-step" => BarStep {
+            /// The probe (a `u` DOF) whose history is compared.
+            probe: String,
+        },
+    }
 }
 
 /// Plane stress or plane strain (eq. 12 and its plane-strain form).
@@ -95,65 +94,18 @@ pub enum Plane {
     Strain,
 }
 
-/// Which displacement field an element carries (`kind`: `rigid` or `hybrid`).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, JsonSchema)]
-#[serde(tag = "kind", rename_all = "lowercase", deny_unknown_fields)]
-pub enum FormulationSpec {
-    /// Plain RBSM: `(u, v, θ)` per element (eq. 10).
-    Rigid,
-    /// Rigid plus constant strain (eqs. 5, 8), springs `penalty` times eq. 12.
-    Hybrid {
-        /// The penalty factor `p > 0` (dimensionless): larger is more accurate (error O(1/p))
-        /// and costs time step (`Δt_crit ∝ 1/√p`).
-        #[schemars(extend("exclusiveMinimum" = 0))]
-        penalty: f64,
-    },
-}
-
-/// The keys of a `kind` that has none: an object with only `kind` (serde's internally tagged
-/// unit variants would accept and drop any other key, so `{"kind": "rigid", "penalty": 100}`
-/// would pass silently).
-#[derive(Deserialize, JsonSchema)]
-#[serde(deny_unknown_fields)]
-struct NoKeys {}
-
-/// The keys of `{"kind": "hybrid", ...}`.
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct HybridKeys {
-    penalty: f64,
-}
-
-/// The keys of `{"kind": "bar-step", ...}`.
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct BarStepKeys {
-    probe: String,
-}
-
-impl<'de> Deserialize<'de> for FormulationSpec {
-    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
-        let (kind, rest) = split_kind(d)?;
-        match kind.as_str() {
-            "rigid" => variant(rest).map(|NoKeys {}| FormulationSpec::Rigid),
-            "hybrid" => {
-                variant(rest).map(|HybridKeys { penalty }| FormulationSpec::Hybrid { penalty })
-            }
-            other => Err(unknown_kind(other, &["rigid", "hybrid"])),
-        }
-    }
-}
-
-impl<'de> Deserialize<'de> for ReferenceSpec {
-    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
-        let (kind, rest) = split_kind(d)?;
-        match kind.as_str() {
-            "hopping-block" => variant(rest).map(|NoKeys {}| ReferenceSpec::HoppingBlock),
-            "bar-step" => {
-                variant(rest).map(|BarStepKeys { probe }| ReferenceSpec::BarStep { probe })
-            }
-            other => Err(unknown_kind(other, &["hopping-block", "bar-step"])),
-        }
+kinds! {
+    #[derive(Debug, Clone, Copy, PartialEq)]
+    pub enum FormulationSpec: "Which displacement field an element carries" {
+        /// Plain RBSM: `(u, v, θ)` per element (eq. 10).
+        "rigid" => Rigid,
+        /// Rigid plus constant strain (eqs. 5, 8), springs `penalty` times eq. 12.
+        "hybrid" => Hybrid {
+            /// The penalty factor `p > 0` (dimensionless): larger is more accurate (error O(1/p))
+            /// and costs time step (`Δt_crit ∝ 1/√p`).
+            #[schemars(extend("exclusiveMinimum" = 0))]
+            penalty: f64,
+        },
     }
 }
 
@@ -197,18 +149,25 @@ pub struct MaterialSpec {
     pub interface: InterfaceLawSpec,
 }
 
-/// The law of a material's interfaces (`kind`: `elastic`, `mohr-coulomb` or `softening`;
-/// `docs/scene.md`, *Interfaces that fail*).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
-#[serde(tag = "kind", rename_all = "kebab-case")]
-pub enum InterfaceLawSpec {
-    /// Springs that never yield.
-    #[default]
-    Elastic,
-    /// Mohr–Coulomb with a tension cut-off, elastic–perfectly plastic.
-    MohrCoulomb(StrengthSpec),
-    /// The same surface, softening with the plastic opening and slip until it is exhausted.
-    Softening(SofteningSpec),
+kinds! {
+    ///
+    /// `docs/scene.md`, *Interfaces that fail*.
+    #[derive(Debug, Clone, Copy, PartialEq)]
+    pub enum InterfaceLawSpec: "The law of a material's interfaces" {
+        /// Springs that never yield.
+        "elastic" => Elastic,
+        /// Mohr–Coulomb with a tension cut-off, elastic–perfectly plastic.
+        "mohr-coulomb" => MohrCoulomb(StrengthSpec),
+        /// The same surface, softening with the plastic opening and slip until it is exhausted.
+        "softening" => Softening(SofteningSpec),
+    }
+}
+
+/// `elastic`, the law of a material that names none.
+impl Default for InterfaceLawSpec {
+    fn default() -> Self {
+        InterfaceLawSpec::Elastic
+    }
 }
 
 /// The strength of an interface: `σ ≤ f_t` and `|τ| ≤ c − σ tan φ` (compression negative).
@@ -263,42 +222,6 @@ impl InterfaceLawSpec {
                 Some([s.fracture_energy, s.fracture_energy_shear]),
             )),
         }
-    }
-}
-
-impl<'de> Deserialize<'de> for InterfaceLawSpec {
-    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
-        let (kind, rest) = split_kind(d)?;
-        match kind.as_str() {
-            "elastic" => variant(rest).map(|NoKeys {}| InterfaceLawSpec::Elastic),
-            "mohr-coulomb" => variant(rest).map(InterfaceLawSpec::MohrCoulomb),
-            "softening" => variant(rest).map(InterfaceLawSpec::Softening),
-            other => Err(unknown_kind(
-                other,
-                &["elastic", "mohr-coulomb", "softening"],
-            )),
-        }
-    }
-}
-
-/// One object per kind, as [`InterfaceLawSpec`]'s `Deserialize` reads them (keep the two in
-/// step).
-impl JsonSchema for InterfaceLawSpec {
-    fn schema_name() -> Cow<'static, str> {
-        "InterfaceLawSpec".into()
-    }
-
-    fn json_schema(generator: &mut SchemaGenerator) -> Schema {
-        let variants = [
-            kind_variant::<NoKeys>(generator, "elastic"),
-            kind_variant::<StrengthSpec>(generator, "mohr-coulomb"),
-            kind_variant::<SofteningSpec>(generator, "softening"),
-        ];
-        one_of_kinds(
-            "The law of a material's interfaces (`kind`: `elastic`, `mohr-coulomb` or \
-             `softening`).",
-            variants,
-        )
     }
 }
 
@@ -606,22 +529,23 @@ impl BodySpec {
     }
 }
 
-/// How a body is cut into elements (`kind`: `grid`, `voronoi` or `polygons`).
-#[derive(Debug, Clone)]
-pub enum MeshSpec {
-    /// `grid`: rectangles or triangles.
-    Grid(GridSpec),
-    /// `voronoi`: centroidal Voronoi cells.
-    Voronoi(VoronoiSpec),
-    /// `polygons`: explicit cells.
-    Polygons(PolygonsSpec),
-    /// `gmsh`: an MSH 4.1 file.
-    Gmsh(GmshSpec),
+kinds! {
+    #[derive(Debug, Clone)]
+    pub enum MeshSpec: "How a body is cut into elements" {
+        /// Rectangles or triangles.
+        "grid" => Grid(GridSpec),
+        /// Centroidal Voronoi cells.
+        "voronoi" => Voronoi(VoronoiSpec),
+        /// Explicit cells.
+        "polygons" => Polygons(PolygonsSpec),
+        /// An MSH 4.1 file.
+        "gmsh" => Gmsh(GmshSpec),
+    }
 }
 
 /// A gmsh MSH 4.1 file of triangles and quadrilaterals; a relative `path` is taken from the
 /// scene file's directory. Its physical groups of lines name edges for supports and loads.
-#[derive(Debug, Clone, Deserialize, JsonSchema)]
+#[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct GmshSpec {
     /// The MSH file.
@@ -629,7 +553,7 @@ pub struct GmshSpec {
 }
 
 /// `cells = [nx, ny]` rectangles (or twice as many triangles) over `origin .. origin + size`.
-#[derive(Debug, Clone, Deserialize, JsonSchema)]
+#[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct GridSpec {
     /// Lower-left corner (m).
@@ -646,7 +570,7 @@ pub struct GridSpec {
 }
 
 /// `sites` centroidal Voronoi cells clipped to the rectangle, after `lloyd` iterations.
-#[derive(Debug, Clone, Deserialize, JsonSchema)]
+#[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct VoronoiSpec {
     /// Lower-left corner (m).
@@ -667,7 +591,7 @@ pub struct VoronoiSpec {
 }
 
 /// Explicit polygons, vertex lists counter-clockwise.
-#[derive(Debug, Clone, Deserialize, JsonSchema)]
+#[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct PolygonsSpec {
     /// Vertex coordinates `[x, y]` (m), at least 3.
@@ -676,42 +600,6 @@ pub struct PolygonsSpec {
     /// Cells as lists of vertex indices (from 0), counter-clockwise; at least 1.
     #[schemars(length(min = 1))]
     pub cells: Vec<Vec<usize>>,
-}
-
-impl<'de> Deserialize<'de> for MeshSpec {
-    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
-        let (kind, rest) = split_kind(d)?;
-        match kind.as_str() {
-            "grid" => variant(rest).map(MeshSpec::Grid),
-            "voronoi" => variant(rest).map(MeshSpec::Voronoi),
-            "polygons" => variant(rest).map(MeshSpec::Polygons),
-            "gmsh" => variant(rest).map(MeshSpec::Gmsh),
-            other => Err(unknown_kind(
-                other,
-                &["grid", "voronoi", "polygons", "gmsh"],
-            )),
-        }
-    }
-}
-
-/// One object per kind, as [`MeshSpec`]'s `Deserialize` reads them (keep the two in step).
-impl JsonSchema for MeshSpec {
-    fn schema_name() -> Cow<'static, str> {
-        "MeshSpec".into()
-    }
-
-    fn json_schema(generator: &mut SchemaGenerator) -> Schema {
-        let variants = [
-            kind_variant::<GridSpec>(generator, "grid"),
-            kind_variant::<VoronoiSpec>(generator, "voronoi"),
-            kind_variant::<PolygonsSpec>(generator, "polygons"),
-            kind_variant::<GmshSpec>(generator, "gmsh"),
-        ];
-        one_of_kinds(
-            "How a body is cut into elements (`kind`: `grid`, `voronoi`, `polygons` or `gmsh`).",
-            variants,
-        )
-    }
 }
 
 /// The most cells one mesh may have (about 10 GB of model at ~500 bytes per element).
@@ -766,6 +654,13 @@ impl<'de> serde::Deserialize<'de> for EdgeSet {
     }
 }
 
+/// Its name, as scenes write it.
+impl Serialize for EdgeSet {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
+        s.collect_str(self)
+    }
+}
+
 /// A string: a side name or the name of a gmsh physical group (any string parses).
 impl schemars::JsonSchema for EdgeSet {
     fn schema_name() -> std::borrow::Cow<'static, str> {
@@ -796,17 +691,18 @@ fn default_cell() -> Cell {
     Cell::Rect
 }
 
-/// A support on a side of the body's bounding box (`kind`: `ground-spring` or `clamp`).
-#[derive(Debug, Clone)]
-pub enum SupportSpec {
-    /// `ground-spring`.
-    GroundSpring(GroundSpringSpec),
-    /// `clamp`.
-    Clamp(ClampSpec),
+kinds! {
+    #[derive(Debug, Clone)]
+    pub enum SupportSpec: "A support on an edge set of the body" {
+        /// Ground springs.
+        "ground-spring" => GroundSpring(GroundSpringSpec),
+        /// Fixed or moving DOFs.
+        "clamp" => Clamp(ClampSpec),
+    }
 }
 
 /// The edges of a side tied to fixed ground by springs with `h_b = 0`.
-#[derive(Debug, Clone, Deserialize, JsonSchema)]
+#[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct GroundSpringSpec {
     /// Where: a side or a gmsh group.
@@ -822,7 +718,7 @@ pub struct GroundSpringSpec {
 }
 
 /// The listed DOFs (default all) of the elements with an edge on that side are fixed.
-#[derive(Debug, Clone, Deserialize, JsonSchema)]
+#[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ClampSpec {
     /// Where: a side or a gmsh group.
@@ -846,35 +742,6 @@ pub struct ClampSpec {
     pub span: Option<[f64; 2]>,
 }
 
-impl<'de> Deserialize<'de> for SupportSpec {
-    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
-        let (kind, rest) = split_kind(d)?;
-        match kind.as_str() {
-            "ground-spring" => variant(rest).map(SupportSpec::GroundSpring),
-            "clamp" => variant(rest).map(SupportSpec::Clamp),
-            other => Err(unknown_kind(other, &["ground-spring", "clamp"])),
-        }
-    }
-}
-
-/// One object per kind, as [`SupportSpec`]'s `Deserialize` reads them (keep the two in step).
-impl JsonSchema for SupportSpec {
-    fn schema_name() -> Cow<'static, str> {
-        "SupportSpec".into()
-    }
-
-    fn json_schema(generator: &mut SchemaGenerator) -> Schema {
-        let variants = [
-            kind_variant::<GroundSpringSpec>(generator, "ground-spring"),
-            kind_variant::<ClampSpec>(generator, "clamp"),
-        ];
-        one_of_kinds(
-            "A support on an edge set of the body (`kind`: `ground-spring` or `clamp`).",
-            variants,
-        )
-    }
-}
-
 fn both_components() -> Vec<Component> {
     vec![Component::N, Component::S]
 }
@@ -889,17 +756,18 @@ pub enum Component {
     S,
 }
 
-/// A load on a body (`kind`: `traction` or `force`).
-#[derive(Debug, Clone)]
-pub enum LoadSpec {
-    /// `traction`.
-    Traction(TractionSpec),
-    /// `force`.
-    Force(ForceSpec),
+kinds! {
+    #[derive(Debug, Clone)]
+    pub enum LoadSpec: "A load on a body" {
+        /// A traction on edges.
+        "traction" => Traction(TractionSpec),
+        /// A force on one element.
+        "force" => Force(ForceSpec),
+    }
 }
 
 /// Uniform traction (N/m², global components) on the edges of one side.
-#[derive(Debug, Clone, Deserialize, JsonSchema)]
+#[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct TractionSpec {
     /// Where: a side or a gmsh group.
@@ -915,7 +783,7 @@ pub struct TractionSpec {
 
 /// `[F_x, F_y, M]` (N, N, N·m) at the centroid of one element of the body (index within
 /// the body).
-#[derive(Debug, Clone, Deserialize, JsonSchema)]
+#[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ForceSpec {
     /// Element index within the body.
@@ -927,69 +795,6 @@ pub struct ForceSpec {
     /// increasing `t`, held constant outside its range; constant 1 when absent.
     #[schemars(length(min = 1))]
     pub amplitude: Option<Vec<[f64; 2]>>,
-}
-
-impl<'de> Deserialize<'de> for LoadSpec {
-    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
-        let (kind, rest) = split_kind(d)?;
-        match kind.as_str() {
-            "traction" => variant(rest).map(LoadSpec::Traction),
-            "force" => variant(rest).map(LoadSpec::Force),
-            other => Err(unknown_kind(other, &["traction", "force"])),
-        }
-    }
-}
-
-/// One object per kind, as [`LoadSpec`]'s `Deserialize` reads them (keep the two in step).
-impl JsonSchema for LoadSpec {
-    fn schema_name() -> Cow<'static, str> {
-        "LoadSpec".into()
-    }
-
-    fn json_schema(generator: &mut SchemaGenerator) -> Schema {
-        let variants = [
-            kind_variant::<TractionSpec>(generator, "traction"),
-            kind_variant::<ForceSpec>(generator, "force"),
-        ];
-        one_of_kinds(
-            "A load on a body (`kind`: `traction` or `force`).",
-            variants,
-        )
-    }
-}
-
-/// The schema of one kind of a `kind`-keyed object (read by [`split_kind`] and [`variant`]):
-/// the variant's own object schema with the key `kind`, a constant, added and required.
-fn kind_variant<T: JsonSchema>(generator: &mut SchemaGenerator, kind: &str) -> Schema {
-    let mut schema = T::json_schema(generator);
-    let object = schema.ensure_object();
-    let properties = object
-        .entry("properties")
-        .or_insert_with(|| serde_json::json!({}));
-    if let Some(properties) = properties.as_object_mut() {
-        properties.insert(
-            "kind".into(),
-            serde_json::json!({"type": "string", "const": kind}),
-        );
-    }
-    let required = object
-        .entry("required")
-        .or_insert_with(|| serde_json::json!([]));
-    if let Some(required) = required.as_array_mut() {
-        required.insert(0, "kind".into());
-    }
-    schema
-}
-
-/// Exactly one of `variants`, each told by its `kind`.
-fn one_of_kinds<const N: usize>(description: &str, variants: [Schema; N]) -> Schema {
-    let variants: Vec<Schema> = variants.into();
-    json_schema!({
-        "description": description,
-        "type": "object",
-        "required": ["kind"],
-        "oneOf": variants,
-    })
 }
 
 /// Every item of an array schema > 0 (`[f64; 2]` sizes).
@@ -1028,47 +833,6 @@ fn time_exactly_one(schema: &mut Schema) {
 
 fn probe_exactly_one(schema: &mut Schema) {
     exactly_one_of(schema, "element", "at");
-}
-
-/// Splits an object with a `kind` key into the kind and the other keys. Dispatching by hand,
-/// rather than with serde's internally tagged enums, keeps the path of an error inside the
-/// variant (`bodies[0].mesh.cells`), which serde's buffering would lose.
-fn split_kind<'de, D: serde::Deserializer<'de>>(
-    d: D,
-) -> std::result::Result<(String, serde_json::Value), D::Error> {
-    use serde::de::Error as _;
-    let mut value = serde_json::Value::deserialize(d)?;
-    let map = value
-        .as_object_mut()
-        .ok_or_else(|| D::Error::custom("expected an object with a `kind` key"))?;
-    match map.remove("kind") {
-        Some(serde_json::Value::String(kind)) => Ok((kind, value)),
-        Some(other) => Err(D::Error::custom(format!(
-            "`kind` must be a string, got {other}"
-        ))),
-        None => Err(D::Error::missing_field("kind")),
-    }
-}
-
-/// Deserialises the keys of one variant; an error names the key path within the variant.
-fn variant<T: serde::de::DeserializeOwned, E: serde::de::Error>(
-    rest: serde_json::Value,
-) -> std::result::Result<T, E> {
-    serde_path_to_error::deserialize(rest).map_err(|e| {
-        let path = e.path().to_string();
-        E::custom(if path == "." {
-            e.into_inner().to_string()
-        } else {
-            format!("`{path}`: {}", e.into_inner())
-        })
-    })
-}
-
-fn unknown_kind<E: serde::de::Error>(kind: &str, allowed: &[&str]) -> E {
-    E::custom(format!(
-        "unknown kind `{kind}`, expected one of: {}",
-        allowed.join(", ")
-    ))
 }
 
 /// Initial placement and motion of a body.
