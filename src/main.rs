@@ -5,6 +5,7 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use rbsm::analysis::run::{self, Monitor};
 use rbsm::analysis::setup::{Overrides, Setup};
 use rbsm::analysis::{check, eigen, stability, statics, tradeoff, Report};
+use rbsm::input::names::Named;
 use rbsm::input::scene::{EvaluatorKind, Scene};
 use rbsm::step::integrator::RunStatus;
 use std::io::IsTerminal;
@@ -12,43 +13,15 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
-/// `--evaluator`: the scene's `evaluator` values.
-#[derive(Clone, Copy, clap::ValueEnum)]
-enum EvaluatorArg {
-    /// Global sparse `K`, `f = K U` (eqs. 7–13).
-    Assembled,
-    /// Per element, the resultant of the tractions on its boundary (eqs. 15–16).
-    ElementWise,
-}
-
-impl From<EvaluatorArg> for EvaluatorKind {
-    fn from(a: EvaluatorArg) -> Self {
-        match a {
-            EvaluatorArg::Assembled => EvaluatorKind::Assembled,
-            EvaluatorArg::ElementWise => EvaluatorKind::ElementWise,
-        }
-    }
-}
-
-/// `eigen --method`.
-#[derive(Clone, Copy, clap::ValueEnum)]
-enum MethodArg {
-    /// Dense up to 500 free DOFs, sparse above.
-    Auto,
-    /// Dense symmetric eigensolver (nalgebra), all modes.
-    Dense,
-    /// Lanczos for `ω_max`, Krylov–Schur shift-invert (faer) for the lowest modes.
-    Sparse,
-}
-
-impl From<MethodArg> for rbsm::analysis::eigen::Method {
-    fn from(a: MethodArg) -> Self {
-        match a {
-            MethodArg::Auto => Self::Auto,
-            MethodArg::Dense => Self::Dense,
-            MethodArg::Sparse => Self::Sparse,
-        }
-    }
+/// A parser of the library's names of `T` (`--evaluator`, `--method`), each listed with its
+/// help in `--help` and in the error that refuses another.
+fn named<T: Named + Send + Sync>() -> impl clap::builder::TypedValueParser<Value = T> {
+    use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
+    let values = T::ALL.iter().map(|v| {
+        // clap's style: help without its final full stop.
+        PossibleValue::new(v.name()).help(v.help().trim_end_matches('.'))
+    });
+    PossibleValuesParser::new(values).try_map(|name| T::from_name(&name))
 }
 
 #[derive(Parser)]
@@ -86,8 +59,8 @@ enum Command {
         #[arg(long, value_name = "DIR")]
         resume: Option<PathBuf>,
         /// Override the scene's evaluator.
-        #[arg(long, value_enum)]
-        evaluator: Option<EvaluatorArg>,
+        #[arg(long, value_parser = named::<EvaluatorKind>())]
+        evaluator: Option<EvaluatorKind>,
         /// Override the time step (s).
         #[arg(long, conflicts_with = "dt_factor")]
         dt: Option<f64>,
@@ -111,8 +84,8 @@ enum Command {
         /// The scene file (JSON; see docs/scene.md).
         scene: PathBuf,
         /// Override the scene's evaluator.
-        #[arg(long, value_enum)]
-        evaluator: Option<EvaluatorArg>,
+        #[arg(long, value_parser = named::<EvaluatorKind>())]
+        evaluator: Option<EvaluatorKind>,
         /// Override the time step (s).
         #[arg(long)]
         dt: Option<f64>,
@@ -134,8 +107,8 @@ enum Command {
         #[arg(long, default_value_t = 10)]
         modes: usize,
         /// Dense (all modes) or sparse (Krylov–Schur) solver.
-        #[arg(long, value_enum, default_value = "auto")]
-        method: MethodArg,
+        #[arg(long, value_parser = named::<eigen::Method>(), default_value_t = eigen::Method::Auto)]
+        method: eigen::Method,
         /// Write the mode shapes as VTK into this directory.
         #[arg(long)]
         vtk: Option<PathBuf>,
@@ -379,14 +352,6 @@ impl Report for Written {
     }
 }
 
-/// The overrides of an analysis that needs `ω_max` to full precision.
-fn exact() -> Overrides {
-    Overrides {
-        exact_dt_crit: true,
-        ..Default::default()
-    }
-}
-
 /// The setup of the scene file `path` with `overrides`.
 fn setup(path: &Path, overrides: Overrides) -> rbsm::error::Result<Setup> {
     Setup::new(&Scene::from_file(path)?, &overrides)
@@ -404,10 +369,9 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
             dt,
         } => {
             let overrides = Overrides {
-                evaluator: evaluator.map(Into::into),
+                evaluator: *evaluator,
                 dt: *dt,
-                exact_dt_crit: true,
-                ..Default::default()
+                ..Overrides::exact()
             };
             let report = check::check(&setup(scene, overrides)?)?;
             print(cli.json, &report)?;
@@ -453,10 +417,10 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
             svg,
             out,
         } => {
-            let setup = setup(scene, exact())?;
+            let setup = setup(scene, Overrides::exact())?;
             let params = eigen::EigenParams {
                 modes: *modes,
-                method: (*method).into(),
+                method: *method,
             };
             let r = eigen::analyse(&setup, &params)?;
             let files = eigen::Files {
@@ -477,7 +441,7 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
                 fractions: fractions.clone(),
                 steps: *steps,
             };
-            let r = stability::analyse(&setup(scene, exact())?, &params)?;
+            let r = stability::analyse(&setup(scene, Overrides::exact())?, &params)?;
             if let Some(dir) = out {
                 stability::write_fraction_histories(dir, &r.fractions)?;
             }
@@ -526,7 +490,7 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
             exact_dt_crit,
         } => {
             let overrides = Overrides {
-                evaluator: evaluator.map(Into::into),
+                evaluator: *evaluator,
                 dt: *dt,
                 dt_factor: *dt_factor,
                 steps: *steps,

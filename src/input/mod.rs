@@ -2,4 +2,5 @@
 //! it knows nothing of the stages after it, which turn its specs into their own settings.
 
 pub(crate) mod kinds;
+pub mod names;
 pub mod scene;

@@ -7,6 +7,7 @@
 
 use crate::error::{Error, Result};
 use crate::input::kinds::kinds;
+use crate::input::names::named;
 use schemars::{JsonSchema, Schema};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -109,24 +110,21 @@ kinds! {
     }
 }
 
-/// Which evaluator computes the internal forces (module `evaluator`).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
-#[serde(rename_all = "kebab-case")]
-pub enum EvaluatorKind {
-    /// Global sparse `K`, `f = K U` (eqs. 7–13).
-    #[default]
-    Assembled,
-    /// Per element, the resultant of the tractions on its boundary (eqs. 15–16).
-    ElementWise,
+named! {
+    /// Which evaluator computes the internal forces (module `evaluator`).
+    #[derive(Debug, Clone, Copy, PartialEq, Eq, JsonSchema)]
+    pub enum EvaluatorKind {
+        /// Global sparse `K`, `f = K U` (eqs. 7–13).
+        "assembled" => Assembled,
+        /// Per element, the resultant of the tractions on its boundary (eqs. 15–16).
+        "element-wise" => ElementWise,
+    }
 }
 
-impl EvaluatorKind {
-    /// The name used in scenes and outputs.
-    pub fn name(self) -> &'static str {
-        match self {
-            EvaluatorKind::Assembled => "assembled",
-            EvaluatorKind::ElementWise => "element-wise",
-        }
+/// `assembled`, the scene's evaluator when it names none.
+impl Default for EvaluatorKind {
+    fn default() -> Self {
+        EvaluatorKind::Assembled
     }
 }
 
@@ -872,23 +870,14 @@ pub struct ContactSpec {
     pub friction: Option<f64>,
 }
 
-/// The contact model (`contact.model`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
-#[serde(rename_all = "kebab-case")]
-pub enum ContactModel {
-    /// The paper's contact: the penetrating part of the boundary is a temporary interface.
-    EdgeToEdge,
-    /// Classic DEM: a spring at each penetrating vertex.
-    Point,
-}
-
-impl ContactModel {
-    /// The name used in scenes and outputs.
-    pub fn name(self) -> &'static str {
-        match self {
-            ContactModel::EdgeToEdge => "edge-to-edge",
-            ContactModel::Point => "point",
-        }
+named! {
+    /// The contact model (`contact.model`).
+    #[derive(Debug, Clone, Copy, PartialEq, Eq, JsonSchema)]
+    pub enum ContactModel {
+        /// The paper's contact: the penetrating part of the boundary is a temporary interface.
+        "edge-to-edge" => EdgeToEdge,
+        /// Classic DEM: a spring at each penetrating vertex.
+        "point" => Point,
     }
 }
 
