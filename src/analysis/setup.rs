@@ -97,6 +97,7 @@ impl Setup {
             _ => scene,
         };
         let model = Model::build(scene)?;
+        crate::output::refuse_own_columns(&model, &scene.output.probes)?;
         let kind = scene.evaluator;
         let evaluator = evaluator::build(&model, kind);
         let plastic = failure::build(&model, kind);

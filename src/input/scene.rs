@@ -269,17 +269,6 @@ pub struct ArraySpec {
 /// All DOF names, in the order of `U_e` (as scenes name them: `docs/scene.md`).
 pub const DOF_NAMES: [&str; 6] = ["u", "v", "theta", "ex", "ey", "gxy"];
 
-/// The columns of `history.csv` before the probes (a probe may take none of these names).
-pub const HISTORY_COLUMNS: [&str; 7] = [
-    "t",
-    "kinetic",
-    "elastic",
-    "contact",
-    "potential",
-    "external_work",
-    "total",
-];
-
 /// The longest name (characters) of a scene, a body or a probe.
 pub const MAX_NAME: usize = 256;
 
@@ -1203,31 +1192,10 @@ impl Scene {
                 ));
             }
         }
-        // The history's own columns: the energies, those a model may add, and the moving
-        // clamps'.
-        let mut columns: Vec<String> = HISTORY_COLUMNS
-            .iter()
-            .chain(&["fracture", "friction", "damping"])
-            .map(|c| c.to_string())
-            .collect();
-        for b in &self.bodies {
-            for (k, s) in b.supports.iter().enumerate() {
-                if let SupportSpec::Clamp(ClampSpec {
-                    velocity: Some(_), ..
-                }) = s
-                {
-                    columns.extend(["disp", "force"].map(|c| format!("{}_s{k}_{c}", b.name)));
-                }
-            }
-        }
-        let own = columns.len();
-        // Each column's position, for a search per probe that does not grow with the probes.
-        let mut index: std::collections::HashMap<String, usize> = columns
-            .iter()
-            .enumerate()
-            .rev()
-            .map(|(i, c)| (c.clone(), i))
-            .collect();
+        // Each column's probe, for a search per probe that does not grow with the probes. (Whether
+        // a probe's column is one of the history's own is the output stage's to say:
+        // `output::refuse_own_columns`, called by the setup.)
+        let mut first = std::collections::HashMap::with_capacity(self.output.probes.len());
         for (k, p) in self.output.probes.iter().enumerate() {
             match (p.element, p.at) {
                 (Some(_), None) => {}
@@ -1241,18 +1209,15 @@ impl Scene {
             }
             let (field, column) = (format!("output.probes[{k}].name"), p.column());
             column_name(&field, &column)?;
-            if let Some(&i) = index.get(&column) {
-                let what = if i < own {
-                    "one of the history's own columns".to_string()
-                } else {
-                    format!("the column of `output.probes[{}]`", i - own)
-                };
+            if let Some(j) = first.insert(column.clone(), k) {
                 return Err(Error::scene(
                     field,
-                    format!("`{column}` is {what}: every column needs its own name"),
+                    format!(
+                        "`{column}` is the column of `output.probes[{j}]`: every column needs \
+                         its own name"
+                    ),
                 ));
             }
-            index.insert(column, own + k);
         }
         // Duplicates first: a name that repeats an array's copy (`name[i,j]`) is told so.
         self.refuse_duplicate_bodies()?;
