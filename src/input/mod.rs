@@ -3,4 +3,5 @@
 
 pub(crate) mod kinds;
 pub mod names;
+pub mod range;
 pub mod scene;

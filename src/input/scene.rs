@@ -8,10 +8,67 @@
 use crate::error::{Error, Result};
 use crate::input::kinds::kinds;
 use crate::input::names::named;
+use crate::input::range::Range;
 use schemars::{JsonSchema, Schema};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::Path;
+
+// The range of each number of a scene: its schema (`#[schemars(transform = KEY.schema())]`)
+// and `Scene::validate` read it.
+
+/// `thickness` (m).
+const THICKNESS: Range = Range::above(0.0, "m");
+/// `damping`, `α` (1/s).
+const DAMPING: Range = Range::at_least(0.0, "1/s");
+/// `formulation.penalty`, `p` (dimensionless).
+const PENALTY: Range = Range::above(0.0, "");
+/// A material's `E` (Pa).
+const YOUNG: Range = Range::above(0.0, "Pa");
+/// A material's `nu` (dimensionless).
+const POISSON: Range = Range::above(-1.0, "").below(0.5);
+/// A material's `rho` (kg/m³).
+const DENSITY: Range = Range::above(0.0, "kg/m³");
+/// An interface's `tensile_strength` (Pa).
+const TENSILE_STRENGTH: Range = Range::at_least(0.0, "Pa");
+/// An interface's `cohesion` (Pa).
+const COHESION: Range = Range::at_least(0.0, "Pa");
+/// An interface's `friction_angle` (degrees).
+const FRICTION_ANGLE: Range = Range::at_least(0.0, "degrees").below(90.0);
+/// An interface's `fracture_energy` (J/m²).
+const FRACTURE_ENERGY: Range = Range::above(0.0, "J/m²");
+/// An interface's `fracture_energy_shear` (J/m²).
+const FRACTURE_ENERGY_SHEAR: Range = Range::above(0.0, "J/m²");
+/// Each of a grid's or a Voronoi mesh's `size` (m).
+const SIZE: Range = Range::above(0.0, "m");
+/// Each of a grid's `cells`, and their product.
+const CELLS: Range = Range::at_least(1.0, "").at_most(MAX_CELLS as f64);
+/// A Voronoi mesh's `sites`.
+const SITES: Range = Range::at_least(
+    3.0,
+    "the Delaunay triangulation under the cells needs three sites",
+)
+.at_most(MAX_CELLS as f64);
+/// A Voronoi mesh's `lloyd` iterations.
+const LLOYD: Range = Range::at_least(0.0, "").at_most(10_000.0);
+/// Each of an array's `count`, and their product.
+const COUNT: Range = Range::at_least(1.0, "").at_most(MAX_BODIES as f64);
+/// A clamp's `ramp` (s).
+const RAMP: Range = Range::at_least(0.0, "s");
+/// `contact.friction`, Coulomb's `μ` (dimensionless).
+const FRICTION: Range = Range::at_least(0.0, "or null for no slip limit").called("μ");
+/// `time.dt` (s).
+const DT: Range = Range::above(0.0, "s");
+/// `time.dt_factor` (of `Δt_crit`).
+const DT_FACTOR: Range = Range::above(0.0, "");
+/// `time.end` (s).
+const END: Range = Range::above(0.0, "s");
+/// `time.steps`.
+const STEPS: Range = Range::at_least(1.0, "");
+/// `output.every`.
+const EVERY: Range = Range::at_least(1.0, "steps between history rows");
+/// `output.checkpoint_every`.
+const CHECKPOINT_EVERY: Range = Range::at_least(1.0, "steps between checkpoints; absent for none");
 
 /// A scene of `rbsm` (a 2D Rigid-Bodies-Spring Model run with explicit dynamics): one JSON
 /// object; units SI (m, kg, s, N, Pa). Every key is described in the repository's
@@ -31,7 +88,7 @@ pub struct Scene {
     /// `stress` (default) or `strain`.
     pub plane: Plane,
     /// Out-of-plane thickness `t` (m), > 0.
-    #[schemars(extend("exclusiveMinimum" = 0))]
+    #[schemars(transform = THICKNESS.schema())]
     pub thickness: f64,
     /// `rigid` or `hybrid` with its penalty.
     pub formulation: FormulationSpec,
@@ -43,7 +100,7 @@ pub struct Scene {
     pub gravity: Option<[f64; 2]>,
     /// Mass-proportional damping coefficient `α` (1/s), ≥ 0: `C = α M`. Optional, default none.
     #[serde(default)]
-    #[schemars(range(min = 0))]
+    #[schemars(transform = DAMPING.schema())]
     pub damping: Option<f64>,
     /// Materials by name (at least one).
     #[schemars(extend("minProperties" = 1))]
@@ -104,7 +161,7 @@ kinds! {
         "hybrid" => Hybrid {
             /// The penalty factor `p > 0` (dimensionless): larger is more accurate (error O(1/p))
             /// and costs time step (`Δt_crit ∝ 1/√p`).
-            #[schemars(extend("exclusiveMinimum" = 0))]
+            #[schemars(transform = PENALTY.schema())]
             penalty: f64,
         },
     }
@@ -134,13 +191,13 @@ impl Default for EvaluatorKind {
 pub struct MaterialSpec {
     /// Young's modulus (Pa), > 0.
     #[serde(rename = "E")]
-    #[schemars(extend("exclusiveMinimum" = 0))]
+    #[schemars(transform = YOUNG.schema())]
     pub e: f64,
     /// Poisson's ratio (dimensionless), in (−1, 0.5).
-    #[schemars(extend("exclusiveMinimum" = -1, "exclusiveMaximum" = 0.5))]
+    #[schemars(transform = POISSON.schema())]
     pub nu: f64,
     /// Density (kg/m³), > 0.
-    #[schemars(extend("exclusiveMinimum" = 0))]
+    #[schemars(transform = DENSITY.schema())]
     pub rho: f64,
     /// The law of the interfaces between its elements (eq. 11): `elastic` when absent.
     #[serde(default)]
@@ -173,13 +230,13 @@ impl Default for InterfaceLawSpec {
 #[serde(deny_unknown_fields)]
 pub struct StrengthSpec {
     /// Tensile strength `f_t` (Pa), ≥ 0.
-    #[schemars(extend("minimum" = 0))]
+    #[schemars(transform = TENSILE_STRENGTH.schema())]
     pub tensile_strength: f64,
     /// Cohesion `c` (Pa), ≥ 0.
-    #[schemars(extend("minimum" = 0))]
+    #[schemars(transform = COHESION.schema())]
     pub cohesion: f64,
     /// Friction angle `φ` (degrees), in [0, 90).
-    #[schemars(extend("minimum" = 0, "exclusiveMaximum" = 90))]
+    #[schemars(transform = FRICTION_ANGLE.schema())]
     pub friction_angle: f64,
 }
 
@@ -188,19 +245,19 @@ pub struct StrengthSpec {
 #[serde(deny_unknown_fields)]
 pub struct SofteningSpec {
     /// Tensile strength `f_t` (Pa), ≥ 0.
-    #[schemars(extend("minimum" = 0))]
+    #[schemars(transform = TENSILE_STRENGTH.schema())]
     pub tensile_strength: f64,
     /// Cohesion `c` (Pa), ≥ 0.
-    #[schemars(extend("minimum" = 0))]
+    #[schemars(transform = COHESION.schema())]
     pub cohesion: f64,
     /// Friction angle `φ` (degrees), in [0, 90).
-    #[schemars(extend("minimum" = 0, "exclusiveMaximum" = 90))]
+    #[schemars(transform = FRICTION_ANGLE.schema())]
     pub friction_angle: f64,
     /// Mode I fracture energy `G_f` (J/m²), > 0: the work of tension per unit crack area.
-    #[schemars(extend("exclusiveMinimum" = 0))]
+    #[schemars(transform = FRACTURE_ENERGY.schema())]
     pub fracture_energy: f64,
     /// Mode II fracture energy `G_f,II` (J/m²), > 0: the work of cohesion per unit crack area.
-    #[schemars(extend("exclusiveMinimum" = 0))]
+    #[schemars(transform = FRACTURE_ENERGY_SHEAR.schema())]
     pub fracture_energy_shear: f64,
 }
 
@@ -257,7 +314,7 @@ pub struct BodySpec {
 #[serde(deny_unknown_fields)]
 pub struct ArraySpec {
     /// Copies along x and y, each ≥ 1, their product ≤ `MAX_BODIES` (1 000 000).
-    #[schemars(inner(range(min = 1, max = MAX_BODIES)))]
+    #[schemars(transform = COUNT.items())]
     pub count: [usize; 2],
     /// Shift between neighbouring copies along x and y (m).
     pub pitch: [f64; 2],
@@ -546,10 +603,10 @@ pub struct GridSpec {
     /// Lower-left corner (m).
     pub origin: [f64; 2],
     /// Width and height (m), each > 0.
-    #[schemars(transform = items_positive)]
+    #[schemars(transform = SIZE.items())]
     pub size: [f64; 2],
     /// Cells along x and y, each ≥ 1, their product ≤ `MAX_CELLS` (20 000 000).
-    #[schemars(inner(range(min = 1, max = MAX_CELLS)))]
+    #[schemars(transform = CELLS.items())]
     pub cells: [usize; 2],
     #[serde(default = "default_cell")]
     /// `rect` (default) or `tri`.
@@ -563,17 +620,17 @@ pub struct VoronoiSpec {
     /// Lower-left corner (m).
     pub origin: [f64; 2],
     /// Width and height (m), each > 0.
-    #[schemars(transform = items_positive)]
+    #[schemars(transform = SIZE.items())]
     pub size: [f64; 2],
     /// Number of cells, 3 to `MAX_CELLS` (20 000 000).
-    #[schemars(range(min = 3, max = MAX_CELLS))]
+    #[schemars(transform = SITES.schema())]
     pub sites: usize,
     #[serde(default)]
     /// Random seed of the sites (default 0).
     pub seed: u64,
     #[serde(default)]
     /// Lloyd iterations towards centroidal cells, 0 to 10 000 (default 0).
-    #[schemars(range(max = 10_000))]
+    #[schemars(transform = LLOYD.schema())]
     pub lloyd: usize,
 }
 
@@ -721,7 +778,7 @@ pub struct ClampSpec {
     pub velocity: Option<[f64; 2]>,
     /// Time over which the velocity rises linearly from zero (s), ≥ 0: a smooth start.
     #[serde(default)]
-    #[schemars(extend("minimum" = 0))]
+    #[schemars(transform = RAMP.schema())]
     pub ramp: f64,
     /// Only the edges of the side whose midpoints lie in `[from, to]` (m) along it: `x` on
     /// `bottom` and `top`, `y` on `left` and `right` (a footing on part of a surface).
@@ -782,13 +839,6 @@ pub struct ForceSpec {
     /// increasing `t`, held constant outside its range; constant 1 when absent.
     #[schemars(length(min = 1))]
     pub amplitude: Option<Vec<[f64; 2]>>,
-}
-
-/// Every item of an array schema > 0 (`[f64; 2]` sizes).
-fn items_positive(schema: &mut Schema) {
-    if let Some(items) = schema.get_mut("items").and_then(|i| i.as_object_mut()) {
-        items.insert("exclusiveMinimum".into(), 0.into());
-    }
 }
 
 /// Every item of an array schema (or of an array-or-null) one of the DOF names.
@@ -855,7 +905,7 @@ pub struct ContactSpec {
     pub model: ContactModel,
     /// Coulomb friction coefficient `μ ≥ 0` (dimensionless); `null` or absent is no slip limit.
     #[serde(default)]
-    #[schemars(range(min = 0))]
+    #[schemars(transform = FRICTION.schema())]
     pub friction: Option<f64>,
 }
 
@@ -877,19 +927,19 @@ named! {
 pub struct TimeSpec {
     #[serde(default)]
     /// Time step (s), > 0.
-    #[schemars(extend("exclusiveMinimum" = 0))]
+    #[schemars(transform = DT.schema())]
     pub dt: Option<f64>,
     #[serde(default)]
     /// Time step as a fraction of the computed `Δt_crit` (dimensionless), > 0.
-    #[schemars(extend("exclusiveMinimum" = 0))]
+    #[schemars(transform = DT_FACTOR.schema())]
     pub dt_factor: Option<f64>,
     #[serde(default)]
     /// End time (s), > 0.
-    #[schemars(extend("exclusiveMinimum" = 0))]
+    #[schemars(transform = END.schema())]
     pub end: Option<f64>,
     #[serde(default)]
     /// Number of steps, ≥ 1.
-    #[schemars(range(min = 1))]
+    #[schemars(transform = STEPS.schema())]
     pub steps: Option<u64>,
 }
 
@@ -899,7 +949,7 @@ pub struct TimeSpec {
 pub struct OutputSpec {
     /// A history row (and a VTK frame) every this many steps, ≥ 1 (default 100).
     #[serde(default = "default_every")]
-    #[schemars(range(min = 1))]
+    #[schemars(transform = EVERY.schema())]
     pub every: u64,
     /// ParaView output: VTK XML frames (`.vtu`) and a `.pvd` series.
     #[serde(default)]
@@ -910,7 +960,7 @@ pub struct OutputSpec {
     /// Steps between checkpoints (`checkpoint.bin`, for `rbsm run --resume`), ≥ 1; none when
     /// absent.
     #[serde(default)]
-    #[schemars(range(min = 1))]
+    #[schemars(transform = CHECKPOINT_EVERY.schema())]
     pub checkpoint_every: Option<u64>,
 }
 
@@ -1109,76 +1159,55 @@ impl Scene {
             .0
     }
 
-    /// Checks every value against its allowed range; the error names the field.
+    /// Checks every value against its allowed range; the error names the field. Section by
+    /// section: the whole scene's numbers, the materials, the output, the bodies, the ground
+    /// and contact, the time. (Whether a probe's column is one of the history's own is the
+    /// output stage's to say: `output::refuse_own_columns`, called by the setup.)
     pub fn validate(&self) -> Result<()> {
         bounded_name("name", &self.name)?;
-        positive("thickness", self.thickness)?;
+        THICKNESS.check("thickness", self.thickness)?;
         if let FormulationSpec::Hybrid { penalty } = self.formulation {
-            positive("formulation.penalty", penalty)?;
+            PENALTY.check("formulation.penalty", penalty)?;
         }
         if let Some(g) = self.gravity {
             finite_all("gravity", &g)?;
         }
         if let Some(alpha) = self.damping {
-            if !(alpha >= 0.0 && alpha.is_finite()) {
-                return Err(Error::scene(
-                    "damping",
-                    format!("must be a finite number ≥ 0 (1/s), got {alpha}"),
-                ));
-            }
+            DAMPING.check("damping", alpha)?;
         }
+        self.validate_materials()?;
+        if self.bodies.is_empty() {
+            return Err(Error::scene("bodies", "at least one body is needed"));
+        }
+        self.validate_output()?;
+        // Duplicates first: a name that repeats an array's copy (`name[i,j]`) is told so.
+        self.refuse_duplicate_bodies()?;
+        for (i, b) in self.bodies.iter().enumerate() {
+            column_name(&format!("bodies[{i}].name"), &b.name)?;
+            self.validate_body(i, b)?;
+        }
+        self.validate_contact()?;
+        self.time.validate()
+    }
+
+    /// At least one material, each in range, its interface law included.
+    fn validate_materials(&self) -> Result<()> {
         if self.materials.is_empty() {
             return Err(Error::scene("materials", "at least one material is needed"));
         }
         for (name, m) in &self.materials {
-            positive(&format!("materials.{name}.E"), m.e)?;
-            positive(&format!("materials.{name}.rho"), m.rho)?;
-            if !(m.nu > -1.0 && m.nu < 0.5) {
-                return Err(Error::scene(
-                    format!("materials.{name}.nu"),
-                    format!("must lie in (-1, 0.5), got {}", m.nu),
-                ));
-            }
-            if let Some((strength, energies)) = m.interface.strength() {
-                let at = |k: &str| format!("materials.{name}.interface.{k}");
-                for (key, x) in [
-                    ("tensile_strength", strength.tensile_strength),
-                    ("cohesion", strength.cohesion),
-                ] {
-                    if !(x >= 0.0 && x.is_finite()) {
-                        return Err(Error::scene(
-                            at(key),
-                            format!("must be a finite number ≥ 0 (Pa), got {x}"),
-                        ));
-                    }
-                }
-                let phi = strength.friction_angle;
-                if !(0.0..90.0).contains(&phi) {
-                    return Err(Error::scene(
-                        at("friction_angle"),
-                        format!("must lie in [0, 90) degrees, got {phi}"),
-                    ));
-                }
-                if let Some([g_f, g_s]) = energies {
-                    positive(&at("fracture_energy"), g_f)?;
-                    positive(&at("fracture_energy_shear"), g_s)?;
-                    for (energy, g, strength, f) in [
-                        (
-                            "fracture_energy",
-                            g_f,
-                            "tensile_strength",
-                            strength.tensile_strength,
-                        ),
-                        ("fracture_energy_shear", g_s, "cohesion", strength.cohesion),
-                    ] {
-                        softening_slope(&at(energy), g, strength, f)?;
-                    }
-                }
-            }
+            let at = |k: &str| format!("materials.{name}.{k}");
+            YOUNG.check(&at("E"), m.e)?;
+            DENSITY.check(&at("rho"), m.rho)?;
+            POISSON.check(&at("nu"), m.nu)?;
+            m.interface.validate(&at("interface"))?;
         }
-        if self.bodies.is_empty() {
-            return Err(Error::scene("bodies", "at least one body is needed"));
-        }
+        Ok(())
+    }
+
+    /// The reference's probe, the probes (placed once, each column named by the rule of
+    /// [`column_name`], no two alike) and how often rows and checkpoints are written.
+    fn validate_output(&self) -> Result<()> {
         if let Some(ReferenceSpec::BarStep { probe }) = &self.reference {
             if !self
                 .output
@@ -1192,9 +1221,7 @@ impl Scene {
                 ));
             }
         }
-        // Each column's probe, for a search per probe that does not grow with the probes. (Whether
-        // a probe's column is one of the history's own is the output stage's to say:
-        // `output::refuse_own_columns`, called by the setup.)
+        // Each column's probe, for a search per probe that does not grow with the probes.
         let mut first = std::collections::HashMap::with_capacity(self.output.probes.len());
         for (k, p) in self.output.probes.iter().enumerate() {
             match (p.element, p.at) {
@@ -1219,12 +1246,15 @@ impl Scene {
                 ));
             }
         }
-        // Duplicates first: a name that repeats an array's copy (`name[i,j]`) is told so.
-        self.refuse_duplicate_bodies()?;
-        for (i, b) in self.bodies.iter().enumerate() {
-            column_name(&format!("bodies[{i}].name"), &b.name)?;
-            self.validate_body(i, b)?;
+        EVERY.check_count("output.every", self.output.every)?;
+        if let Some(n) = self.output.checkpoint_every {
+            CHECKPOINT_EVERY.check_count("output.checkpoint_every", n)?;
         }
+        Ok(())
+    }
+
+    /// The ground's segments, which act only through contact, and the contact's friction.
+    fn validate_contact(&self) -> Result<()> {
         for (i, g) in self.ground.iter().enumerate() {
             finite_all(&format!("ground[{i}].from"), &g.from)?;
             finite_all(&format!("ground[{i}].to"), &g.to)?;
@@ -1242,48 +1272,11 @@ impl Scene {
                 `\"contact\": {\"model\": \"edge-to-edge\"}` (or `point`)",
             ));
         }
-        if let Some(c) = &self.contact {
-            if let Some(mu) = c.friction {
-                if !(mu >= 0.0 && mu.is_finite()) {
-                    return Err(Error::scene(
-                        "contact.friction",
-                        format!("must be null or a finite μ ≥ 0, got {mu}"),
-                    ));
-                }
-            }
-        }
-        match (self.time.dt, self.time.dt_factor) {
-            (Some(dt), None) => positive("time.dt", dt)?,
-            (None, Some(f)) => positive("time.dt_factor", f)?,
-            _ => {
-                return Err(Error::scene(
-                    "time.dt",
-                    "give exactly one of `dt` (s, > 0) and `dt_factor` (fraction of Δt_crit, > 0)",
-                ))
-            }
-        }
-        match (self.time.end, self.time.steps) {
-            (Some(end), None) => positive("time.end", end)?,
-            (None, Some(0)) => return Err(Error::scene("time.steps", "must be ≥ 1")),
-            (None, Some(_)) => {}
-            _ => {
-                return Err(Error::scene(
-                    "time.end",
-                    "give exactly one of `end` (s, > 0) and `steps` (≥ 1)",
-                ))
-            }
-        }
-        if self.output.every == 0 {
-            return Err(Error::scene(
-                "output.every",
-                "must be ≥ 1 (steps between history rows)",
-            ));
-        }
-        if self.output.checkpoint_every == Some(0) {
-            return Err(Error::scene(
-                "output.checkpoint_every",
-                "must be ≥ 1 (steps between checkpoints), or absent for none",
-            ));
+        if let Some(ContactSpec {
+            friction: Some(mu), ..
+        }) = self.contact
+        {
+            FRICTION.check("contact.friction", mu)?;
         }
         Ok(())
     }
@@ -1339,6 +1332,7 @@ impl Scene {
         Ok(())
     }
 
+    /// Body `i`: its material named, its mesh, supports, loads, array and initial motion.
     fn validate_body(&self, i: usize, b: &BodySpec) -> Result<()> {
         let at = |k: &str| format!("bodies[{i}].{k}");
         if !self.materials.contains_key(&b.material) {
@@ -1352,184 +1346,15 @@ impl Scene {
                 ),
             ));
         }
-        match &b.mesh {
-            MeshSpec::Grid(GridSpec {
-                origin,
-                size,
-                cells,
-                ..
-            }) => {
-                finite_all(&at("mesh.origin"), origin)?;
-                positive(&at("mesh.size[0]"), size[0])?;
-                positive(&at("mesh.size[1]"), size[1])?;
-                if cells[0] == 0 || cells[1] == 0 || cells[0].saturating_mul(cells[1]) > MAX_CELLS {
-                    return Err(Error::scene(
-                        at("mesh.cells"),
-                        format!(
-                            "both counts must be ≥ 1 \
-                        and their product ≤ {MAX_CELLS}, got {cells:?}"
-                        ),
-                    ));
-                }
-            }
-            MeshSpec::Voronoi(VoronoiSpec {
-                origin,
-                size,
-                sites,
-                lloyd,
-                ..
-            }) => {
-                finite_all(&at("mesh.origin"), origin)?;
-                positive(&at("mesh.size[0]"), size[0])?;
-                positive(&at("mesh.size[1]"), size[1])?;
-                if *sites < 3 || *sites > MAX_CELLS {
-                    return Err(Error::scene(
-                        at("mesh.sites"),
-                        format!(
-                            "must lie in 3..={MAX_CELLS} (the Delaunay triangulation under \
-                            the cells needs three sites), got {sites}"
-                        ),
-                    ));
-                }
-                if *lloyd > 10_000 {
-                    return Err(Error::scene(
-                        at("mesh.lloyd"),
-                        format!("must lie in 0..=10000, got {lloyd}"),
-                    ));
-                }
-            }
-            MeshSpec::Polygons(PolygonsSpec { vertices, cells }) => {
-                if vertices.len() < 3 || cells.is_empty() {
-                    return Err(Error::scene(
-                        at("mesh"),
-                        "needs at least 3 vertices and 1 cell",
-                    ));
-                }
-            }
-            MeshSpec::Gmsh(GmshSpec { path }) => {
-                let problem = match std::fs::metadata(path) {
-                    Ok(m) if m.is_file() => None,
-                    Ok(m) => Some(format!(
-                        "`{}` is not a regular file ({}): give a gmsh mesh file",
-                        path.display(),
-                        kind_of(&m.file_type())
-                    )),
-                    Err(e) if e.kind() == std::io::ErrorKind::NotFound => Some(format!(
-                        "no file `{}` (a relative path starts at the scene file's directory)",
-                        path.display()
-                    )),
-                    Err(e) => Some(format!("`{}`: {e}", path.display())),
-                };
-                if let Some(message) = problem {
-                    return Err(Error::scene(at("mesh.path"), message));
-                }
-            }
-        }
+        b.mesh.validate(&at("mesh"))?;
         for (k, s) in b.supports.iter().enumerate() {
-            match s {
-                SupportSpec::GroundSpring(GroundSpringSpec {
-                    edge,
-                    components,
-                    span,
-                }) => {
-                    if components.is_empty() {
-                        return Err(Error::scene(
-                            at(&format!("supports[{k}].components")),
-                            "must list `n`, `s` or both",
-                        ));
-                    }
-                    check_span(&at(&format!("supports[{k}].span")), edge, span)?;
-                }
-                SupportSpec::Clamp(ClampSpec {
-                    edge,
-                    dofs,
-                    velocity,
-                    ramp,
-                    span,
-                }) => {
-                    check_span(&at(&format!("supports[{k}].span")), edge, span)?;
-                    if let Some(velocity) = velocity {
-                        finite_all(&at(&format!("supports[{k}].velocity")), velocity)?;
-                        for (c, dof) in ["u", "v"].into_iter().enumerate() {
-                            let clamped = dofs.as_ref().is_none_or(|d| d.iter().any(|n| n == dof));
-                            if velocity[c] != 0.0 && !clamped {
-                                return Err(Error::scene(
-                                    at(&format!("supports[{k}].velocity[{c}]")),
-                                    format!("must be 0 unless `dofs` lists `{dof}`"),
-                                ));
-                            }
-                        }
-                    }
-                    if !(*ramp >= 0.0 && ramp.is_finite()) {
-                        return Err(Error::scene(
-                            at(&format!("supports[{k}].ramp")),
-                            format!("must be a finite number ≥ 0 (s), got {ramp}"),
-                        ));
-                    }
-                }
-            }
+            s.validate(&at(&format!("supports[{k}]")))?;
         }
         for (k, l) in b.loads.iter().enumerate() {
-            let (value, amplitude): (&[f64], _) = match l {
-                LoadSpec::Traction(TractionSpec {
-                    value, amplitude, ..
-                }) => (value, amplitude),
-                LoadSpec::Force(ForceSpec {
-                    value, amplitude, ..
-                }) => (value, amplitude),
-            };
-            finite_all(&at(&format!("loads[{k}].value")), value)?;
-            if let Some(a) = amplitude {
-                let field = at(&format!("loads[{k}].amplitude"));
-                if a.is_empty()
-                    || a.windows(2).any(|w| !(w[1][0] > w[0][0]))
-                    || a.iter().any(|p| !p[0].is_finite() || !p[1].is_finite())
-                {
-                    return Err(Error::scene(
-                        field,
-                        "must be a non-empty list of [t, factor] with strictly increasing t",
-                    ));
-                }
-            }
+            l.validate(&at(&format!("loads[{k}]")))?;
         }
         if let Some(a) = &b.array {
-            if a.count[0] == 0
-                || a.count[1] == 0
-                || a.count[0].saturating_mul(a.count[1]) > MAX_BODIES
-            {
-                return Err(Error::scene(
-                    at("array.count"),
-                    format!(
-                        "both counts must be ≥ 1 and their product ≤ {MAX_BODIES}, got {:?}",
-                        a.count
-                    ),
-                ));
-            }
-            if let Some(k) = b.supports.iter().position(|s| {
-                matches!(
-                    s,
-                    SupportSpec::Clamp(ClampSpec {
-                        velocity: Some(_),
-                        ..
-                    })
-                )
-            }) {
-                return Err(Error::scene(
-                    at(&format!("supports[{k}].velocity")),
-                    "a moving clamp's columns of `history.csv` are named after its body, and \
-                     the copies of an `array` are named `name[i,j]`, with a comma: give a \
-                     body with a moving clamp no `array`",
-                ));
-            }
-            finite_all(&at("array.pitch"), &a.pitch)?;
-            finite_all(&at("array.row_offset"), &[a.row_offset])?;
-            if matches!(b.mesh, MeshSpec::Gmsh(_)) {
-                return Err(Error::scene(
-                    at("array"),
-                    "copies need a `grid`, `voronoi` or \
-                    `polygons` mesh (a gmsh mesh cannot be shifted)",
-                ));
-            }
+            b.validate_array(&at, a)?;
         }
         finite_all(&at("initial.velocity"), &b.initial.velocity)?;
         finite_all(
@@ -1541,18 +1366,219 @@ impl Scene {
     }
 }
 
-fn positive(field: &str, x: f64) -> Result<()> {
-    if x.is_normal() && x > 0.0 {
+impl BodySpec {
+    /// The array `a` of this body (whose keys `at` names): its counts and shifts, and a body
+    /// whose copies can be made (no moving clamp, whose columns a copy's name would break; no
+    /// gmsh mesh, which cannot be shifted).
+    fn validate_array(&self, at: &dyn Fn(&str) -> String, a: &ArraySpec) -> Result<()> {
+        COUNT.check_pair(&at("array.count"), a.count)?;
+        if let Some(k) = self.supports.iter().position(|s| {
+            matches!(
+                s,
+                SupportSpec::Clamp(ClampSpec {
+                    velocity: Some(_),
+                    ..
+                })
+            )
+        }) {
+            return Err(Error::scene(
+                at(&format!("supports[{k}].velocity")),
+                "a moving clamp's columns of `history.csv` are named after its body, and \
+                 the copies of an `array` are named `name[i,j]`, with a comma: give a \
+                 body with a moving clamp no `array`",
+            ));
+        }
+        finite_all(&at("array.pitch"), &a.pitch)?;
+        finite_all(&at("array.row_offset"), &[a.row_offset])?;
+        if matches!(self.mesh, MeshSpec::Gmsh(_)) {
+            return Err(Error::scene(
+                at("array"),
+                "copies need a `grid`, `voronoi` or \
+                `polygons` mesh (a gmsh mesh cannot be shifted)",
+            ));
+        }
         Ok(())
-    } else {
-        Err(Error::scene(
-            field,
-            format!(
-                "must be a finite number > 0 (at least {:e}, the smallest \
-            normal double), got {x:e}",
-                f64::MIN_POSITIVE
-            ),
-        ))
+    }
+}
+
+impl MeshSpec {
+    /// Its keys in range, named under `at` (`bodies[0].mesh`); a gmsh file must be there.
+    fn validate(&self, at: &str) -> Result<()> {
+        let key = |k: &str| format!("{at}.{k}");
+        match self {
+            MeshSpec::Grid(GridSpec {
+                origin,
+                size,
+                cells,
+                ..
+            }) => {
+                finite_all(&key("origin"), origin)?;
+                SIZE.check(&key("size[0]"), size[0])?;
+                SIZE.check(&key("size[1]"), size[1])?;
+                CELLS.check_pair(&key("cells"), *cells)?;
+            }
+            MeshSpec::Voronoi(VoronoiSpec {
+                origin,
+                size,
+                sites,
+                lloyd,
+                ..
+            }) => {
+                finite_all(&key("origin"), origin)?;
+                SIZE.check(&key("size[0]"), size[0])?;
+                SIZE.check(&key("size[1]"), size[1])?;
+                SITES.check_count(&key("sites"), *sites as u64)?;
+                LLOYD.check_count(&key("lloyd"), *lloyd as u64)?;
+            }
+            MeshSpec::Polygons(PolygonsSpec { vertices, cells }) => {
+                if vertices.len() < 3 || cells.is_empty() {
+                    return Err(Error::scene(at, "needs at least 3 vertices and 1 cell"));
+                }
+            }
+            MeshSpec::Gmsh(GmshSpec { path }) => mesh_file(&key("path"), path)?,
+        }
+        Ok(())
+    }
+}
+
+/// Refuses a gmsh mesh file `path` (the key `field`) that is not there or not a regular file.
+fn mesh_file(field: &str, path: &Path) -> Result<()> {
+    let problem = match std::fs::metadata(path) {
+        Ok(m) if m.is_file() => return Ok(()),
+        Ok(m) => format!(
+            "`{}` is not a regular file ({}): give a gmsh mesh file",
+            path.display(),
+            kind_of(&m.file_type())
+        ),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => format!(
+            "no file `{}` (a relative path starts at the scene file's directory)",
+            path.display()
+        ),
+        Err(e) => format!("`{}`: {e}", path.display()),
+    };
+    Err(Error::scene(field, problem))
+}
+
+impl SupportSpec {
+    /// Its keys in range, named under `at` (`bodies[0].supports[1]`).
+    fn validate(&self, at: &str) -> Result<()> {
+        let key = |k: &str| format!("{at}.{k}");
+        match self {
+            SupportSpec::GroundSpring(GroundSpringSpec {
+                edge,
+                components,
+                span,
+            }) => {
+                if components.is_empty() {
+                    return Err(Error::scene(
+                        key("components"),
+                        "must list `n`, `s` or both",
+                    ));
+                }
+                check_span(&key("span"), edge, span)
+            }
+            SupportSpec::Clamp(ClampSpec {
+                edge,
+                dofs,
+                velocity,
+                ramp,
+                span,
+            }) => {
+                check_span(&key("span"), edge, span)?;
+                if let Some(velocity) = velocity {
+                    finite_all(&key("velocity"), velocity)?;
+                    for (c, dof) in ["u", "v"].into_iter().enumerate() {
+                        let clamped = dofs.as_ref().is_none_or(|d| d.iter().any(|n| n == dof));
+                        if velocity[c] != 0.0 && !clamped {
+                            return Err(Error::scene(
+                                key(&format!("velocity[{c}]")),
+                                format!("must be 0 unless `dofs` lists `{dof}`"),
+                            ));
+                        }
+                    }
+                }
+                RAMP.check(&key("ramp"), *ramp)
+            }
+        }
+    }
+}
+
+impl LoadSpec {
+    /// Its value finite and its amplitude a function of time, named under `at`
+    /// (`bodies[0].loads[1]`).
+    fn validate(&self, at: &str) -> Result<()> {
+        let (value, amplitude): (&[f64], _) = match self {
+            LoadSpec::Traction(TractionSpec {
+                value, amplitude, ..
+            }) => (value, amplitude),
+            LoadSpec::Force(ForceSpec {
+                value, amplitude, ..
+            }) => (value, amplitude),
+        };
+        finite_all(&format!("{at}.value"), value)?;
+        if let Some(a) = amplitude {
+            if a.is_empty()
+                || a.windows(2).any(|w| !(w[1][0] > w[0][0]))
+                || a.iter().any(|p| !p[0].is_finite() || !p[1].is_finite())
+            {
+                return Err(Error::scene(
+                    format!("{at}.amplitude"),
+                    "must be a non-empty list of [t, factor] with strictly increasing t",
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+impl InterfaceLawSpec {
+    /// A strength in range, named under `at` (`materials.concrete.interface`), and fracture
+    /// energies that give a finite softening.
+    fn validate(&self, at: &str) -> Result<()> {
+        let Some((strength, energies)) = self.strength() else {
+            return Ok(());
+        };
+        let key = |k: &str| format!("{at}.{k}");
+        TENSILE_STRENGTH.check(&key("tensile_strength"), strength.tensile_strength)?;
+        COHESION.check(&key("cohesion"), strength.cohesion)?;
+        FRICTION_ANGLE.check(&key("friction_angle"), strength.friction_angle)?;
+        if let Some([g_f, g_s]) = energies {
+            FRACTURE_ENERGY.check(&key("fracture_energy"), g_f)?;
+            FRACTURE_ENERGY_SHEAR.check(&key("fracture_energy_shear"), g_s)?;
+            let f_t = strength.tensile_strength;
+            softening_slope(&key("fracture_energy"), g_f, "tensile_strength", f_t)?;
+            softening_slope(
+                &key("fracture_energy_shear"),
+                g_s,
+                "cohesion",
+                strength.cohesion,
+            )?;
+        }
+        Ok(())
+    }
+}
+
+impl TimeSpec {
+    /// Exactly one of `dt` and `dt_factor`, one of `end` and `steps`, each in range.
+    fn validate(&self) -> Result<()> {
+        match (self.dt, self.dt_factor) {
+            (Some(dt), None) => DT.check("time.dt", dt)?,
+            (None, Some(f)) => DT_FACTOR.check("time.dt_factor", f)?,
+            _ => {
+                return Err(Error::scene(
+                    "time.dt",
+                    "give exactly one of `dt` (s, > 0) and `dt_factor` (fraction of Δt_crit, > 0)",
+                ))
+            }
+        }
+        match (self.end, self.steps) {
+            (Some(end), None) => END.check("time.end", end),
+            (None, Some(n)) => STEPS.check_count("time.steps", n),
+            _ => Err(Error::scene(
+                "time.end",
+                "give exactly one of `end` (s, > 0) and `steps` (≥ 1)",
+            )),
+        }
     }
 }
 
