@@ -1,10 +1,10 @@
 //! Enums whose values are names (`assembled`, `edge-to-edge`, `dense`): each name written once,
-//! in a [`named!`] list, which gives the enum its serde names (scenes, outputs), its
+//! in a `named!` list, which gives the enum its serde names (scenes, outputs), its
 //! [`Named`] list and its [`FromStr`](std::str::FromStr). The command line, the Python
 //! bindings and `rbsm tradeoff` parse such options through it, so that they accept, and refuse
 //! in the same words, what scenes do.
 
-/// An enum of names, as [`named!`] makes it.
+/// An enum of names, as `named!` (crate-internal) makes it.
 pub trait Named: Copy + Sized + 'static {
     /// Every value, in the order of the list.
     const ALL: &'static [Self];

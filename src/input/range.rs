@@ -20,36 +20,36 @@ struct End {
 pub struct Range {
     min: Option<End>,
     max: Option<End>,
-    /// The unit (`Pa`), or what a count counts (`steps between history rows`), for messages;
-    /// empty for none.
-    unit: &'static str,
+    /// What messages add in parentheses: the unit (`Pa`), what a count counts (`steps between
+    /// history rows`) or a remark; empty for nothing.
+    note: &'static str,
     /// What messages call the value: `number`, or its symbol (`μ`).
     symbol: &'static str,
 }
 
 impl Range {
     /// `> min`.
-    pub const fn above(min: f64, unit: &'static str) -> Range {
+    pub const fn above(min: f64, note: &'static str) -> Range {
         Range {
             min: Some(End {
                 value: min,
                 open: true,
             }),
             max: None,
-            unit,
+            note,
             symbol: "number",
         }
     }
 
     /// `≥ min`.
-    pub const fn at_least(min: f64, unit: &'static str) -> Range {
+    pub const fn at_least(min: f64, note: &'static str) -> Range {
         Range {
             min: Some(End {
                 value: min,
                 open: false,
             }),
             max: None,
-            unit,
+            note,
             symbol: "number",
         }
     }
@@ -123,12 +123,12 @@ impl Range {
         x.is_finite() && self.min.is_none_or(above) && self.max.is_none_or(below)
     }
 
-    /// ` (unit)`, or nothing.
-    fn unit(&self) -> String {
-        if self.unit.is_empty() {
+    /// ` (note)`, or nothing.
+    fn note(&self) -> String {
+        if self.note.is_empty() {
             String::new()
         } else {
-            format!(" ({})", self.unit)
+            format!(" ({})", self.note)
         }
     }
 
@@ -137,7 +137,7 @@ impl Range {
         if self.holds(x) {
             return Ok(());
         }
-        let unit = self.unit();
+        let note = self.note();
         let message = match (self.min, self.max) {
             (
                 Some(End {
@@ -151,20 +151,20 @@ impl Range {
                 f64::MIN_POSITIVE
             ),
             (Some(lo), Some(hi)) => format!(
-                "must lie in {}{}, {}{}{unit}, got {x}",
+                "must lie in {}{}, {}{}{note}, got {x}",
                 if lo.open { '(' } else { '[' },
                 lo.value,
                 hi.value,
                 if hi.open { ')' } else { ']' },
             ),
             (Some(e), None) => format!(
-                "must be a finite {} {} {}{unit}, got {x}",
+                "must be a finite {} {} {}{note}, got {x}",
                 self.symbol,
                 if e.open { ">" } else { "≥" },
                 e.value
             ),
             (None, Some(e)) => format!(
-                "must be a finite {} {} {}{unit}, got {x}",
+                "must be a finite {} {} {}{note}, got {x}",
                 self.symbol,
                 if e.open { "<" } else { "≤" },
                 e.value
@@ -179,14 +179,14 @@ impl Range {
         if self.holds(n as f64) {
             return Ok(());
         }
-        let unit = self.unit();
+        let note = self.note();
         let message = match (self.min, self.max) {
             (Some(lo), Some(hi)) => {
-                format!("must lie in {}..={}{unit}, got {n}", lo.value, hi.value)
+                format!("must lie in {}..={}{note}, got {n}", lo.value, hi.value)
             }
-            (Some(lo), None) => format!("must be ≥ {}{unit}, got {n}", lo.value),
-            (None, Some(hi)) => format!("must be ≤ {}{unit}, got {n}", hi.value),
-            (None, None) => unreachable!("every count holds in no range"),
+            (Some(lo), None) => format!("must be ≥ {}{note}, got {n}", lo.value),
+            (None, Some(hi)) => format!("must be ≤ {}{note}, got {n}", hi.value),
+            (None, None) => unreachable!("a count holds where the range has no end"),
         };
         Err(Error::scene(field, message))
     }
