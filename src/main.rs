@@ -5,6 +5,7 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use rbsm::analysis::run::{self, Monitor};
 use rbsm::analysis::setup::{Overrides, Setup};
 use rbsm::analysis::{check, eigen, stability, statics, tradeoff, Report};
+use rbsm::input::names::Named;
 use rbsm::input::scene::{EvaluatorKind, Scene};
 use rbsm::step::integrator::RunStatus;
 use std::io::IsTerminal;
@@ -12,43 +13,15 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
-/// `--evaluator`: the scene's `evaluator` values.
-#[derive(Clone, Copy, clap::ValueEnum)]
-enum EvaluatorArg {
-    /// Global sparse `K`, `f = K U` (eqs. 7–13).
-    Assembled,
-    /// Per element, the resultant of the tractions on its boundary (eqs. 15–16).
-    ElementWise,
-}
-
-impl From<EvaluatorArg> for EvaluatorKind {
-    fn from(a: EvaluatorArg) -> Self {
-        match a {
-            EvaluatorArg::Assembled => EvaluatorKind::Assembled,
-            EvaluatorArg::ElementWise => EvaluatorKind::ElementWise,
-        }
-    }
-}
-
-/// `eigen --method`.
-#[derive(Clone, Copy, clap::ValueEnum)]
-enum MethodArg {
-    /// Dense up to 500 free DOFs, sparse above.
-    Auto,
-    /// Dense symmetric eigensolver (nalgebra), all modes.
-    Dense,
-    /// Lanczos for `ω_max`, Krylov–Schur shift-invert (faer) for the lowest modes.
-    Sparse,
-}
-
-impl From<MethodArg> for rbsm::analysis::eigen::Method {
-    fn from(a: MethodArg) -> Self {
-        match a {
-            MethodArg::Auto => Self::Auto,
-            MethodArg::Dense => Self::Dense,
-            MethodArg::Sparse => Self::Sparse,
-        }
-    }
+/// A parser of the library's names of `T` (`--evaluator`, `--method`), each listed with its
+/// help in `--help` and in the error that refuses another.
+fn named<T: Named + Send + Sync>() -> impl clap::builder::TypedValueParser<Value = T> {
+    use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
+    let values = T::ALL.iter().map(|v| {
+        // clap's style: help without its final full stop.
+        PossibleValue::new(v.name()).help(v.help().trim_end_matches('.'))
+    });
+    PossibleValuesParser::new(values).try_map(|name| T::from_name(&name))
 }
 
 #[derive(Parser)]
@@ -75,34 +48,7 @@ struct Cli {
 enum Command {
     /// Run a scene with explicit central difference; writes summary.json, history.csv,
     /// final_state.json (and VTK frames when the scene asks) into DIR.
-    Run {
-        /// The scene file (JSON).
-        scene: PathBuf,
-        /// Output directory (created if missing); its earlier run outputs are removed first.
-        #[arg(long, required_unless_present = "resume", conflicts_with = "resume")]
-        out: Option<PathBuf>,
-        /// Go on with the run that stopped in DIR from its last checkpoint
-        /// (`output.checkpoint_every`); give the scene and options it was started with.
-        #[arg(long, value_name = "DIR")]
-        resume: Option<PathBuf>,
-        /// Override the scene's evaluator.
-        #[arg(long, value_enum)]
-        evaluator: Option<EvaluatorArg>,
-        /// Override the time step (s).
-        #[arg(long, conflicts_with = "dt_factor")]
-        dt: Option<f64>,
-        /// Override the time step as a fraction of Δt_crit.
-        #[arg(long)]
-        dt_factor: Option<f64>,
-        /// Override the number of steps.
-        #[arg(long)]
-        steps: Option<u64>,
-        /// Compute Δt_crit to full precision (Lanczos) even when the time step does not need
-        /// it: with --dt or a scene `dt` none is computed, and the step is checked against a
-        /// proven-safe bound; with a `dt_factor` it is computed to about four digits.
-        #[arg(long)]
-        exact_dt_crit: bool,
-    },
+    Run(RunArgs),
     /// Validate a scene without running it and print what it would model: elements,
     /// interfaces, DOFs, supports, loads, contact, Δt_crit, the time step and the memory.
     /// Exit code 0 for a valid scene, 1 for an invalid one, 4 for a valid scene whose time
@@ -111,8 +57,8 @@ enum Command {
         /// The scene file (JSON; see docs/scene.md).
         scene: PathBuf,
         /// Override the scene's evaluator.
-        #[arg(long, value_enum)]
-        evaluator: Option<EvaluatorArg>,
+        #[arg(long, value_parser = named::<EvaluatorKind>())]
+        evaluator: Option<EvaluatorKind>,
         /// Override the time step (s).
         #[arg(long)]
         dt: Option<f64>,
@@ -134,8 +80,8 @@ enum Command {
         #[arg(long, default_value_t = 10)]
         modes: usize,
         /// Dense (all modes) or sparse (Krylov–Schur) solver.
-        #[arg(long, value_enum, default_value = "auto")]
-        method: MethodArg,
+        #[arg(long, value_parser = named::<eigen::Method>(), default_value_t = eigen::Method::Auto)]
+        method: eigen::Method,
         /// Write the mode shapes as VTK into this directory.
         #[arg(long)]
         vtk: Option<PathBuf>,
@@ -199,6 +145,37 @@ enum Command {
     /// key); an editor given it checks and completes scenes. It is JSON already: `--json` is
     /// refused.
     Schema,
+}
+
+/// The options of `rbsm run`.
+#[derive(clap::Args)]
+struct RunArgs {
+    /// The scene file (JSON).
+    scene: PathBuf,
+    /// Output directory (created if missing); its earlier run outputs are removed first.
+    #[arg(long, required_unless_present = "resume", conflicts_with = "resume")]
+    out: Option<PathBuf>,
+    /// Go on with the run that stopped in DIR from its last checkpoint
+    /// (`output.checkpoint_every`); give the scene and options it was started with.
+    #[arg(long, value_name = "DIR")]
+    resume: Option<PathBuf>,
+    /// Override the scene's evaluator.
+    #[arg(long, value_parser = named::<EvaluatorKind>())]
+    evaluator: Option<EvaluatorKind>,
+    /// Override the time step (s).
+    #[arg(long, conflicts_with = "dt_factor")]
+    dt: Option<f64>,
+    /// Override the time step as a fraction of Δt_crit.
+    #[arg(long)]
+    dt_factor: Option<f64>,
+    /// Override the number of steps.
+    #[arg(long)]
+    steps: Option<u64>,
+    /// Compute Δt_crit to full precision (Lanczos) even when the time step does not need
+    /// it: with --dt or a scene `dt` none is computed, and the step is checked against a
+    /// proven-safe bound; with a `dt_factor` it is computed to about four digits.
+    #[arg(long)]
+    exact_dt_crit: bool,
 }
 
 /// Information lines and a progress bar on standard error; the bar appears only on a terminal,
@@ -379,19 +356,12 @@ impl Report for Written {
     }
 }
 
-/// The overrides of an analysis that needs `ω_max` to full precision.
-fn exact() -> Overrides {
-    Overrides {
-        exact_dt_crit: true,
-        ..Default::default()
-    }
-}
-
 /// The setup of the scene file `path` with `overrides`.
 fn setup(path: &Path, overrides: Overrides) -> rbsm::error::Result<Setup> {
     Setup::new(&Scene::from_file(path)?, &overrides)
 }
 
+/// Runs the command of `cli`; the exit code tells how it ended.
 fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
     match &cli.command {
         Command::Schema => {
@@ -404,10 +374,9 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
             dt,
         } => {
             let overrides = Overrides {
-                evaluator: evaluator.map(Into::into),
+                evaluator: *evaluator,
                 dt: *dt,
-                exact_dt_crit: true,
-                ..Default::default()
+                ..Overrides::exact()
             };
             let report = check::check(&setup(scene, overrides)?)?;
             print(cli.json, &report)?;
@@ -415,24 +384,7 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
                 return Ok(ExitCode::from(check::UNSTABLE_EXIT));
             }
         }
-        Command::Draw { scene, out, state } => {
-            let model = rbsm::model::Model::build(&Scene::from_file(scene)?)?;
-            let svg = match state {
-                None => rbsm::output::drawing::model_svg(&model),
-                Some(dir) => {
-                    let path = dir.join("final_state.json");
-                    let state = rbsm::output::read_final_state(&path, &model)?;
-                    rbsm::output::drawing::state_svg(&model, &state)
-                }
-            };
-            rbsm::output::write_atomic(out, svg.as_bytes())?;
-            print(
-                cli.json,
-                &Written {
-                    written: vec![out.clone()],
-                },
-            )?;
-        }
+        Command::Draw { scene, out, state } => draw(cli, scene, out, state.as_deref())?,
         Command::Plot { dir } => {
             let written = rbsm::output::plot::histories(dir)?;
             print(cli.json, &Written { written })?;
@@ -453,10 +405,10 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
             svg,
             out,
         } => {
-            let setup = setup(scene, exact())?;
+            let setup = setup(scene, Overrides::exact())?;
             let params = eigen::EigenParams {
                 modes: *modes,
-                method: (*method).into(),
+                method: *method,
             };
             let r = eigen::analyse(&setup, &params)?;
             let files = eigen::Files {
@@ -477,87 +429,120 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
                 fractions: fractions.clone(),
                 steps: *steps,
             };
-            let r = stability::analyse(&setup(scene, exact())?, &params)?;
+            let r = stability::analyse(&setup(scene, Overrides::exact())?, &params)?;
             if let Some(dir) = out {
                 stability::write_fraction_histories(dir, &r.fractions)?;
             }
             print(cli.json, &r)?;
         }
-        Command::Tradeoff { scene, sweeps, out } => {
-            let sweeps = sweeps
-                .iter()
-                .map(|s| tradeoff::Sweep::parse(s))
-                .collect::<rbsm::error::Result<Vec<_>>>()?;
-            let scene = Scene::from_file(scene)?;
-            let dir = out
-                .clone()
-                .unwrap_or_else(|| tradeoff::default_folder(&scene));
-            let total: usize = sweeps.iter().map(|s| s.values.len()).product();
-            let mut done = 0;
-            let report = tradeoff::sweep(&scene, &sweeps, |p| {
-                done += 1;
-                if !cli.quiet {
-                    tell(&format!(
-                        "[{done}/{total}] {}: {} in {:.3} s, {}",
-                        tradeoff::describe(&p.settings),
-                        rbsm::output::count(p.steps as usize, "step", "steps"),
-                        p.wall_s,
-                        p.status
-                    ));
-                }
-            })?;
-            report.write(&dir)?;
-            print(cli.json, &report)?;
-            if !cli.json {
-                say(&format!(
-                    "written: {}/tradeoff.{{csv,md,svg}}",
-                    dir.display()
-                ))?;
-            }
-        }
-        Command::Run {
-            scene,
-            out,
-            resume,
-            evaluator,
-            dt,
-            dt_factor,
-            steps,
-            exact_dt_crit,
-        } => {
-            let overrides = Overrides {
-                evaluator: evaluator.map(Into::into),
-                dt: *dt,
-                dt_factor: *dt_factor,
-                steps: *steps,
-                exact_dt_crit: *exact_dt_crit,
-            };
-            let params = run::RunParams {
-                resume: resume.is_some(),
-                interrupt: Some(interrupt_flag()?),
-                keep_history: false,
-            };
-            let mut monitor = Terminal {
-                quiet: cli.quiet,
-                bar: None,
-                start: Instant::now(),
-            };
-            let out = resume
-                .as_ref()
-                .or(out.as_ref())
-                .expect("clap requires --out or --resume");
-            let summary = run::run(&setup(scene, overrides)?, &params, out, &mut monitor)?;
-            if let Some(bar) = monitor.bar.take() {
-                bar.finish_and_clear();
-            }
-            print(cli.json, &summary)?;
-            // A diverged or interrupted run kept its outputs; the exit code tells scripts which.
-            return Ok(match summary.status {
-                RunStatus::Ok => ExitCode::SUCCESS,
-                RunStatus::Interrupted => ExitCode::from(130),
-                RunStatus::Diverged => ExitCode::from(3),
-            });
-        }
+        Command::Tradeoff { scene, sweeps, out } => tradeoff(cli, scene, sweeps, out.as_deref())?,
+        Command::Run(args) => return run(cli, args),
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// `rbsm draw`: the model of `scene`, or the final state of the run in `state`, as SVG.
+fn draw(cli: &Cli, scene: &Path, out: &Path, state: Option<&Path>) -> rbsm::error::Result<()> {
+    let model = rbsm::model::Model::build(&Scene::from_file(scene)?)?;
+    let svg = match state {
+        None => rbsm::output::drawing::model_svg(&model),
+        Some(dir) => {
+            let path = dir.join("final_state.json");
+            let state = rbsm::output::read_final_state(&path, &model)?;
+            rbsm::output::drawing::state_svg(&model, &state)
+        }
+    };
+    rbsm::output::write_atomic(out, svg.as_bytes())?;
+    print(
+        cli.json,
+        &Written {
+            written: vec![out.to_path_buf()],
+        },
+    )
+}
+
+/// `rbsm tradeoff`: the sweeps of `scene`, a line per point as it is done, and the report
+/// written into `out` (by default the scene's folder under `out/`).
+fn tradeoff(
+    cli: &Cli,
+    scene: &Path,
+    sweeps: &[String],
+    out: Option<&Path>,
+) -> rbsm::error::Result<()> {
+    let sweeps = sweeps
+        .iter()
+        .map(|s| tradeoff::Sweep::parse(s))
+        .collect::<rbsm::error::Result<Vec<_>>>()?;
+    let scene = Scene::from_file(scene)?;
+    let dir = out.map_or_else(|| tradeoff::default_folder(&scene), Path::to_path_buf);
+    let total: usize = sweeps.iter().map(|s| s.values.len()).product();
+    let mut done = 0;
+    let report = tradeoff::sweep(&scene, &sweeps, |p| {
+        done += 1;
+        if !cli.quiet {
+            tell(&format!(
+                "[{done}/{total}] {}: {} in {:.3} s, {}",
+                tradeoff::describe(&p.settings),
+                rbsm::output::count(p.steps as usize, "step", "steps"),
+                p.wall_s,
+                p.status
+            ));
+        }
+    })?;
+    report.write(&dir)?;
+    print(cli.json, &report)?;
+    if !cli.json {
+        say(&format!(
+            "written: {}/tradeoff.{{csv,md,svg}}",
+            dir.display()
+        ))?;
+    }
+    Ok(())
+}
+
+/// `rbsm run`: the run `args` ask for, with a progress bar on a terminal; the exit code tells
+/// a diverged (3) or interrupted (130) run from a complete one.
+fn run(cli: &Cli, args: &RunArgs) -> rbsm::error::Result<ExitCode> {
+    let RunArgs {
+        scene,
+        out,
+        resume,
+        evaluator,
+        dt,
+        dt_factor,
+        steps,
+        exact_dt_crit,
+    } = args;
+    let overrides = Overrides {
+        evaluator: *evaluator,
+        dt: *dt,
+        dt_factor: *dt_factor,
+        steps: *steps,
+        exact_dt_crit: *exact_dt_crit,
+    };
+    let params = run::RunParams {
+        resume: resume.is_some(),
+        interrupt: Some(interrupt_flag()?),
+        keep_history: false,
+    };
+    let mut monitor = Terminal {
+        quiet: cli.quiet,
+        bar: None,
+        start: Instant::now(),
+    };
+    let out = resume
+        .as_ref()
+        .or(out.as_ref())
+        .expect("clap requires --out or --resume");
+    let summary = run::run(&setup(scene, overrides)?, &params, out, &mut monitor)?;
+    if let Some(bar) = monitor.bar.take() {
+        bar.finish_and_clear();
+    }
+    print(cli.json, &summary)?;
+    // A diverged or interrupted run kept its outputs; the exit code tells scripts which.
+    Ok(match summary.status {
+        RunStatus::Ok => ExitCode::SUCCESS,
+        RunStatus::Interrupted => ExitCode::from(130),
+        RunStatus::Diverged => ExitCode::from(3),
+    })
 }

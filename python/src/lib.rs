@@ -115,19 +115,13 @@ fn scene(
     .map_err(|e| raise_failed(input(e)))
 }
 
+/// The option `key` named `name`, refused as the command line refuses it.
+fn named<T: std::str::FromStr<Err = String>>(key: &str, name: &str) -> PyResult<T> {
+    name.parse().map_err(|why: String| option_error(key, &why))
+}
+
 fn evaluator(name: Option<String>) -> PyResult<Option<EvaluatorKind>> {
-    name.map(|name| {
-        [EvaluatorKind::Assembled, EvaluatorKind::ElementWise]
-            .into_iter()
-            .find(|k| k.name() == name)
-            .ok_or_else(|| {
-                option_error(
-                    "evaluator",
-                    &format!("must be `assembled` or `element-wise`, got `{name}`"),
-                )
-            })
-    })
-    .transpose()
+    name.map(|name| named("evaluator", &name)).transpose()
 }
 
 /// Runs `work` with the GIL released, on `threads` worker threads (all cores by default), while
@@ -355,14 +349,6 @@ fn raise(signal: Option<PyErr>) -> PyResult<()> {
     signal.map_or(Ok(()), Err)
 }
 
-/// The overrides of the analyses that need `ω_max` to full precision.
-fn exact() -> Overrides {
-    Overrides {
-        exact_dt_crit: true,
-        ..Default::default()
-    }
-}
-
 /// `rbsm eigen`: the report (JSON), the mode shapes as `(modes, elements, ndof)` and the
 /// centroids; with `out`, `vtk` or `svg`, the command line's files.
 #[pyfunction]
@@ -381,21 +367,11 @@ fn eigen_py<'py>(
     svg: Option<PathBuf>,
     threads: Option<usize>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let method = match method.as_str() {
-        "auto" => eigen::Method::Auto,
-        "dense" => eigen::Method::Dense,
-        "sparse" => eigen::Method::Sparse,
-        other => {
-            return Err(option_error(
-                "method",
-                &format!("must be `auto`, `dense` or `sparse`, got `{other}`"),
-            ))
-        }
-    };
+    let method: eigen::Method = named("method", &method)?;
     let scene = scene(path, text, base_dir)?;
     let params = eigen::EigenParams { modes, method };
     let (result, signal) = detached(py, threads, None, || {
-        let setup = Setup::new(&scene, &exact()).map_err(input)?;
+        let setup = Setup::new(&scene, &Overrides::exact()).map_err(input)?;
         let report = eigen::analyse(&setup, &params)?;
         let files = eigen::Files {
             out: out.as_deref(),
@@ -440,7 +416,7 @@ fn stability_py<'py>(
     let scene = scene(path, text, base_dir)?;
     let params = stability::StabilityParams { fractions, steps };
     let (result, signal) = detached(py, threads, None, || {
-        let setup = Setup::new(&scene, &exact()).map_err(input)?;
+        let setup = Setup::new(&scene, &Overrides::exact()).map_err(input)?;
         let report = stability::analyse(&setup, &params)?;
         if let Some(dir) = &out {
             stability::write_fraction_histories(dir, &report.fractions)?;
@@ -479,8 +455,7 @@ fn check_py(
     let overrides = Overrides {
         evaluator: self::evaluator(evaluator)?,
         dt,
-        exact_dt_crit: true,
-        ..Default::default()
+        ..Overrides::exact()
     };
     // `check` reads the input and writes nothing: every error is the input's.
     let (result, signal) = detached(py, threads, None, || {

@@ -30,15 +30,17 @@ use std::path::Path;
 /// `n ε (ω_max/ω_1)²`: 7e-7 for the 1920-DOF cantilever), which shift-invert gets to 1e-10.
 pub const DENSE_LIMIT: usize = 500;
 
-/// How to solve.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Method {
-    /// Dense up to 500 free DOFs (`DENSE_LIMIT`), sparse above.
-    Auto,
-    /// Dense symmetric eigensolver (nalgebra), all modes.
-    Dense,
-    /// Lanczos for `ω_max`, Krylov–Schur shift-invert (faer) for the lowest modes.
-    Sparse,
+crate::input::names::named! {
+    /// How to solve (`rbsm eigen --method`).
+    #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+    pub enum Method {
+        /// Dense up to 500 free DOFs (`DENSE_LIMIT`), sparse above.
+        "auto" => Auto,
+        /// Dense symmetric eigensolver (nalgebra), all modes.
+        "dense" => Dense,
+        /// Lanczos for `ω_max`, Krylov–Schur shift-invert (faer) for the lowest modes.
+        "sparse" => Sparse,
+    }
 }
 
 /// The lowest modes and the top of the spectrum.

@@ -33,6 +33,17 @@ pub struct Overrides {
     pub exact_dt_crit: bool,
 }
 
+impl Overrides {
+    /// None of the scene's settings overridden, and `ω_max` to full precision: the setup of the
+    /// analyses that need it (`eigen`, `stability`).
+    pub fn exact() -> Overrides {
+        Overrides {
+            exact_dt_crit: true,
+            ..Default::default()
+        }
+    }
+}
+
 /// A scene ready to analyse: its model, evaluator, mass, loads, contact and time step.
 pub struct Setup {
     /// The scene, as read.
@@ -110,6 +121,7 @@ impl Setup {
         model: Model,
         start: std::time::Instant,
     ) -> Result<Setup> {
+        crate::output::refuse_own_columns(&model, &scene.output.probes)?;
         let kind = scene.evaluator;
         let evaluator = evaluator::build(&model, kind);
         let plastic = failure::build(&model, kind);

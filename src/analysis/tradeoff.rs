@@ -10,6 +10,7 @@
 use crate::analysis::hopping::{lowest_point, Tracker};
 use crate::analysis::setup::{self, Overrides, Setup};
 use crate::error::{Error, Result};
+use crate::input::names;
 use crate::input::scene::{
     ContactModel, EvaluatorKind, FormulationSpec, MeshSpec, ReferenceSpec, Scene,
 };
@@ -55,33 +56,34 @@ const KEYS: [(&str, Key); 8] = [
 ];
 
 impl Key {
-    /// Refuses a value the key cannot take, naming the key and the allowed values.
+    /// Refuses a value the key cannot take, naming the key and the allowed values (the names of
+    /// formulations, evaluators and contact models as scenes write them).
     pub fn check(self, v: &str) -> Result<()> {
-        let ok = match self {
-            Key::Dt | Key::DtFactor | Key::Penalty => {
-                v.parse::<f64>().is_ok_and(|x| x > 0.0 && x.is_finite())
-            }
-            Key::Refine => v.parse::<u32>().is_ok_and(|r| (1..=64).contains(&r)),
-            Key::Formulation => v == "rigid" || v == "hybrid",
-            Key::Evaluator => v == "assembled" || v == "element-wise",
-            Key::Contact => v == "edge-to-edge" || v == "point",
-            Key::Seed => v.parse::<u64>().is_ok(),
+        let within = |ok: bool, allowed: &str| match ok {
+            true => Ok(()),
+            false => Err(format!("must be {allowed}, got `{v}`")),
         };
-        if ok {
-            return Ok(());
-        }
-        let allowed = match self {
-            Key::Dt | Key::DtFactor | Key::Penalty => "a finite number > 0",
-            Key::Refine => "an integer in 1..=64",
-            Key::Formulation => "rigid or hybrid",
-            Key::Evaluator => "assembled or element-wise",
-            Key::Contact => "edge-to-edge or point",
-            Key::Seed => "an integer in 0..=18446744073709551615",
+        let checked = match self {
+            Key::Dt | Key::DtFactor | Key::Penalty => within(
+                v.parse::<f64>().is_ok_and(|x| x > 0.0 && x.is_finite()),
+                "a finite number > 0",
+            ),
+            Key::Refine => within(
+                v.parse::<u32>().is_ok_and(|r| (1..=64).contains(&r)),
+                "an integer in 1..=64",
+            ),
+            Key::Formulation => within(
+                FormulationSpec::KINDS.contains(&v),
+                &names::or_list(FormulationSpec::KINDS),
+            ),
+            Key::Evaluator => v.parse::<EvaluatorKind>().map(|_| ()),
+            Key::Contact => v.parse::<ContactModel>().map(|_| ()),
+            Key::Seed => within(
+                v.parse::<u64>().is_ok(),
+                "an integer in 0..=18446744073709551615",
+            ),
         };
-        Err(Error::scene(
-            format!("--sweep {}", self.name()),
-            format!("must be {allowed}, got `{v}`"),
-        ))
+        checked.map_err(|why| Error::scene(format!("--sweep {}", self.name()), why))
     }
 
     /// The key of `name` as written on the command line, if there is one.
@@ -461,18 +463,13 @@ fn apply(scene: &mut Scene, key: Key, value: &str) -> Result<()> {
         }
         Key::Formulation => {
             scene.formulation = match (value, scene.formulation) {
-                ("rigid", _) => FormulationSpec::Rigid,
+                (rigid, _) if rigid == FormulationSpec::Rigid.kind() => FormulationSpec::Rigid,
                 (_, FormulationSpec::Hybrid { penalty }) => FormulationSpec::Hybrid { penalty },
                 (_, FormulationSpec::Rigid) => FormulationSpec::Hybrid { penalty: 10.0 },
             }
         }
         Key::Penalty => scene.formulation = FormulationSpec::Hybrid { penalty: number() },
-        Key::Evaluator => {
-            scene.evaluator = [EvaluatorKind::Assembled, EvaluatorKind::ElementWise]
-                .into_iter()
-                .find(|e| e.name() == value)
-                .expect("checked by Key::check")
-        }
+        Key::Evaluator => scene.evaluator = value.parse().expect("checked by Key::check"),
         Key::Seed => {
             let seed: u64 = value.parse().expect("checked by Key::check");
             let mut voronoi = 0;
@@ -493,10 +490,7 @@ fn apply(scene: &mut Scene, key: Key, value: &str) -> Result<()> {
             let contact = scene.contact.as_mut().ok_or_else(|| {
                 Error::scene("--sweep contact", "the scene declares no `contact`")
             })?;
-            contact.model = [ContactModel::EdgeToEdge, ContactModel::Point]
-                .into_iter()
-                .find(|m| m.name() == value)
-                .expect("checked by Key::check");
+            contact.model = value.parse().expect("checked by Key::check");
         }
     }
     Ok(())

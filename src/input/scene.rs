@@ -6,11 +6,69 @@
 //! [`Scene::validate`] then checks every value against its allowed range.
 
 use crate::error::{Error, Result};
-use schemars::{json_schema, JsonSchema, Schema, SchemaGenerator};
+use crate::input::kinds::kinds;
+use crate::input::names::named;
+use crate::input::range::Range;
+use schemars::{JsonSchema, Schema};
 use serde::{Deserialize, Serialize};
-use std::borrow::Cow;
 use std::collections::BTreeMap;
 use std::path::Path;
+
+// The range of each number of a scene: its schema (`#[schemars(transform = KEY.schema())]`)
+// and `Scene::validate` read it.
+
+/// `thickness` (m).
+const THICKNESS: Range = Range::above(0.0, "m");
+/// `damping`, `α` (1/s).
+const DAMPING: Range = Range::at_least(0.0, "1/s");
+/// `formulation.penalty`, `p` (dimensionless).
+const PENALTY: Range = Range::above(0.0, "");
+/// A material's `E` (Pa).
+const YOUNG: Range = Range::above(0.0, "Pa");
+/// A material's `nu` (dimensionless).
+const POISSON: Range = Range::above(-1.0, "").below(0.5);
+/// A material's `rho` (kg/m³).
+const DENSITY: Range = Range::above(0.0, "kg/m³");
+/// An interface's `tensile_strength` (Pa).
+const TENSILE_STRENGTH: Range = Range::at_least(0.0, "Pa");
+/// An interface's `cohesion` (Pa).
+const COHESION: Range = Range::at_least(0.0, "Pa");
+/// An interface's `friction_angle` (degrees).
+const FRICTION_ANGLE: Range = Range::at_least(0.0, "degrees").below(90.0);
+/// An interface's `fracture_energy` (J/m²).
+const FRACTURE_ENERGY: Range = Range::above(0.0, "J/m²");
+/// An interface's `fracture_energy_shear` (J/m²).
+const FRACTURE_ENERGY_SHEAR: Range = Range::above(0.0, "J/m²");
+/// Each of a grid's or a Voronoi mesh's `size` (m).
+const SIZE: Range = Range::above(0.0, "m");
+/// Each of a grid's `cells`, and their product.
+const CELLS: Range = Range::at_least(1.0, "").at_most(MAX_CELLS as f64);
+/// A Voronoi mesh's `sites`.
+const SITES: Range = Range::at_least(
+    3.0,
+    "the Delaunay triangulation under the cells needs three sites",
+)
+.at_most(MAX_CELLS as f64);
+/// A Voronoi mesh's `lloyd` iterations.
+const LLOYD: Range = Range::at_least(0.0, "").at_most(10_000.0);
+/// Each of an array's `count`, and their product.
+const COUNT: Range = Range::at_least(1.0, "").at_most(MAX_BODIES as f64);
+/// A clamp's `ramp` (s).
+const RAMP: Range = Range::at_least(0.0, "s");
+/// `contact.friction`, Coulomb's `μ` (dimensionless).
+const FRICTION: Range = Range::at_least(0.0, "or null for no slip limit").called("μ");
+/// `time.dt` (s).
+const DT: Range = Range::above(0.0, "s");
+/// `time.dt_factor` (of `Δt_crit`).
+const DT_FACTOR: Range = Range::above(0.0, "");
+/// `time.end` (s).
+const END: Range = Range::above(0.0, "s");
+/// `time.steps`.
+const STEPS: Range = Range::at_least(1.0, "");
+/// `output.every`.
+const EVERY: Range = Range::at_least(1.0, "steps between history rows");
+/// `output.checkpoint_every`.
+const CHECKPOINT_EVERY: Range = Range::at_least(1.0, "steps between checkpoints; absent for none");
 
 /// A scene of `rbsm` (a 2D Rigid-Bodies-Spring Model run with explicit dynamics): one JSON
 /// object; units SI (m, kg, s, N, Pa). Every key is described in the repository's
@@ -30,7 +88,7 @@ pub struct Scene {
     /// `stress` (default) or `strain`.
     pub plane: Plane,
     /// Out-of-plane thickness `t` (m), > 0.
-    #[schemars(extend("exclusiveMinimum" = 0))]
+    #[schemars(transform = THICKNESS.schema())]
     pub thickness: f64,
     /// `rigid` or `hybrid` with its penalty.
     pub formulation: FormulationSpec,
@@ -42,7 +100,7 @@ pub struct Scene {
     pub gravity: Option<[f64; 2]>,
     /// Mass-proportional damping coefficient `α` (1/s), ≥ 0: `C = α M`. Optional, default none.
     #[serde(default)]
-    #[schemars(range(min = 0))]
+    #[schemars(transform = DAMPING.schema())]
     pub damping: Option<f64>,
     /// Materials by name (at least one).
     #[schemars(extend("minProperties" = 1))]
@@ -67,21 +125,20 @@ pub struct Scene {
     pub reference: Option<ReferenceSpec>,
 }
 
-/// A closed form or theory for the error of `rbsm tradeoff` (`kind`: `hopping-block` or
-/// `bar-step`).
-#[derive(Debug, Clone, PartialEq, Serialize, JsonSchema)]
-#[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
-pub enum ReferenceSpec {
-    /// The first bounce of a body dropped on horizontal ground: its apex returns to the drop
-    /// height (the paper's hopping block, module `hopping`).
-    HoppingBlock,
-    /// An axial bar (the first body, a grid from `origin.x` to `origin.x + size.x`) held by a
-    /// ground spring on its left edge, loaded at `t = 0` by the traction of its right edge: the
-    /// displacement history of the named probe against the bar's modal series.
-    BarStep {
-        /// The probe (a `u` DOF) whose history is compared.
-        probe: String,
-    },
+kinds! {
+    #[derive(Debug, Clone, PartialEq)]
+    pub enum ReferenceSpec: "A closed form or theory for the error of `rbsm tradeoff`" {
+        /// The first bounce of a body dropped on horizontal ground: its apex returns to the drop
+        /// height (the paper's hopping block, module `hopping`).
+        "hopping-block" => HoppingBlock,
+        /// An axial bar (the first body, a grid from `origin.x` to `origin.x + size.x`) held by a
+        /// ground spring on its left edge, loaded at `t = 0` by the traction of its right edge: the
+        /// displacement history of the named probe against the bar's modal series.
+        "bar-step" => BarStep {
+            /// The probe (a `u` DOF) whose history is compared.
+            probe: String,
+        },
+    }
 }
 
 /// Plane stress or plane strain (eq. 12 and its plane-strain form).
@@ -95,86 +152,36 @@ pub enum Plane {
     Strain,
 }
 
-/// Which displacement field an element carries (`kind`: `rigid` or `hybrid`).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, JsonSchema)]
-#[serde(tag = "kind", rename_all = "lowercase", deny_unknown_fields)]
-pub enum FormulationSpec {
-    /// Plain RBSM: `(u, v, θ)` per element (eq. 10).
-    Rigid,
-    /// Rigid plus constant strain (eqs. 5, 8), springs `penalty` times eq. 12.
-    Hybrid {
-        /// The penalty factor `p > 0` (dimensionless): larger is more accurate (error O(1/p))
-        /// and costs time step (`Δt_crit ∝ 1/√p`).
-        #[schemars(extend("exclusiveMinimum" = 0))]
-        penalty: f64,
-    },
-}
-
-/// The keys of a `kind` that has none: an object with only `kind` (serde's internally tagged
-/// unit variants would accept and drop any other key, so `{"kind": "rigid", "penalty": 100}`
-/// would pass silently).
-#[derive(Deserialize, JsonSchema)]
-#[serde(deny_unknown_fields)]
-struct NoKeys {}
-
-/// The keys of `{"kind": "hybrid", ...}`.
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct HybridKeys {
-    penalty: f64,
-}
-
-/// The keys of `{"kind": "bar-step", ...}`.
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct BarStepKeys {
-    probe: String,
-}
-
-impl<'de> Deserialize<'de> for FormulationSpec {
-    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
-        let (kind, rest) = split_kind(d)?;
-        match kind.as_str() {
-            "rigid" => variant(rest).map(|NoKeys {}| FormulationSpec::Rigid),
-            "hybrid" => {
-                variant(rest).map(|HybridKeys { penalty }| FormulationSpec::Hybrid { penalty })
-            }
-            other => Err(unknown_kind(other, &["rigid", "hybrid"])),
-        }
+kinds! {
+    #[derive(Debug, Clone, Copy, PartialEq)]
+    pub enum FormulationSpec: "Which displacement field an element carries" {
+        /// Plain RBSM: `(u, v, θ)` per element (eq. 10).
+        "rigid" => Rigid,
+        /// Rigid plus constant strain (eqs. 5, 8), springs `penalty` times eq. 12.
+        "hybrid" => Hybrid {
+            /// The penalty factor `p > 0` (dimensionless): larger is more accurate (error O(1/p))
+            /// and costs time step (`Δt_crit ∝ 1/√p`).
+            #[schemars(transform = PENALTY.schema())]
+            penalty: f64,
+        },
     }
 }
 
-impl<'de> Deserialize<'de> for ReferenceSpec {
-    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
-        let (kind, rest) = split_kind(d)?;
-        match kind.as_str() {
-            "hopping-block" => variant(rest).map(|NoKeys {}| ReferenceSpec::HoppingBlock),
-            "bar-step" => {
-                variant(rest).map(|BarStepKeys { probe }| ReferenceSpec::BarStep { probe })
-            }
-            other => Err(unknown_kind(other, &["hopping-block", "bar-step"])),
-        }
+named! {
+    /// Which evaluator computes the internal forces (module `evaluator`).
+    #[derive(Debug, Clone, Copy, PartialEq, Eq, JsonSchema)]
+    pub enum EvaluatorKind {
+        /// Global sparse `K`, `f = K U` (eqs. 7–13).
+        "assembled" => Assembled,
+        /// Per element, the resultant of the tractions on its boundary (eqs. 15–16).
+        "element-wise" => ElementWise,
     }
 }
 
-/// Which evaluator computes the internal forces (module `evaluator`).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
-#[serde(rename_all = "kebab-case")]
-pub enum EvaluatorKind {
-    /// Global sparse `K`, `f = K U` (eqs. 7–13).
-    #[default]
-    Assembled,
-    /// Per element, the resultant of the tractions on its boundary (eqs. 15–16).
-    ElementWise,
-}
-
-impl EvaluatorKind {
-    /// The name used in scenes and outputs.
-    pub fn name(self) -> &'static str {
-        match self {
-            EvaluatorKind::Assembled => "assembled",
-            EvaluatorKind::ElementWise => "element-wise",
-        }
+/// `assembled`, the scene's evaluator when it names none.
+impl Default for EvaluatorKind {
+    fn default() -> Self {
+        EvaluatorKind::Assembled
     }
 }
 
@@ -184,31 +191,38 @@ impl EvaluatorKind {
 pub struct MaterialSpec {
     /// Young's modulus (Pa), > 0.
     #[serde(rename = "E")]
-    #[schemars(extend("exclusiveMinimum" = 0))]
+    #[schemars(transform = YOUNG.schema())]
     pub e: f64,
     /// Poisson's ratio (dimensionless), in (−1, 0.5).
-    #[schemars(extend("exclusiveMinimum" = -1, "exclusiveMaximum" = 0.5))]
+    #[schemars(transform = POISSON.schema())]
     pub nu: f64,
     /// Density (kg/m³), > 0.
-    #[schemars(extend("exclusiveMinimum" = 0))]
+    #[schemars(transform = DENSITY.schema())]
     pub rho: f64,
     /// The law of the interfaces between its elements (eq. 11): `elastic` when absent.
     #[serde(default)]
     pub interface: InterfaceLawSpec,
 }
 
-/// The law of a material's interfaces (`kind`: `elastic`, `mohr-coulomb` or `softening`;
-/// `docs/scene.md`, *Interfaces that fail*).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
-#[serde(tag = "kind", rename_all = "kebab-case")]
-pub enum InterfaceLawSpec {
-    /// Springs that never yield.
-    #[default]
-    Elastic,
-    /// Mohr–Coulomb with a tension cut-off, elastic–perfectly plastic.
-    MohrCoulomb(StrengthSpec),
-    /// The same surface, softening with the plastic opening and slip until it is exhausted.
-    Softening(SofteningSpec),
+kinds! {
+    ///
+    /// `docs/scene.md`, *Interfaces that fail*.
+    #[derive(Debug, Clone, Copy, PartialEq)]
+    pub enum InterfaceLawSpec: "The law of a material's interfaces" {
+        /// Springs that never yield.
+        "elastic" => Elastic,
+        /// Mohr–Coulomb with a tension cut-off, elastic–perfectly plastic.
+        "mohr-coulomb" => MohrCoulomb(StrengthSpec),
+        /// The same surface, softening with the plastic opening and slip until it is exhausted.
+        "softening" => Softening(SofteningSpec),
+    }
+}
+
+/// `elastic`, the law of a material that names none.
+impl Default for InterfaceLawSpec {
+    fn default() -> Self {
+        InterfaceLawSpec::Elastic
+    }
 }
 
 /// The strength of an interface: `σ ≤ f_t` and `|τ| ≤ c − σ tan φ` (compression negative).
@@ -216,13 +230,13 @@ pub enum InterfaceLawSpec {
 #[serde(deny_unknown_fields)]
 pub struct StrengthSpec {
     /// Tensile strength `f_t` (Pa), ≥ 0.
-    #[schemars(extend("minimum" = 0))]
+    #[schemars(transform = TENSILE_STRENGTH.schema())]
     pub tensile_strength: f64,
     /// Cohesion `c` (Pa), ≥ 0.
-    #[schemars(extend("minimum" = 0))]
+    #[schemars(transform = COHESION.schema())]
     pub cohesion: f64,
     /// Friction angle `φ` (degrees), in [0, 90).
-    #[schemars(extend("minimum" = 0, "exclusiveMaximum" = 90))]
+    #[schemars(transform = FRICTION_ANGLE.schema())]
     pub friction_angle: f64,
 }
 
@@ -231,19 +245,19 @@ pub struct StrengthSpec {
 #[serde(deny_unknown_fields)]
 pub struct SofteningSpec {
     /// Tensile strength `f_t` (Pa), ≥ 0.
-    #[schemars(extend("minimum" = 0))]
+    #[schemars(transform = TENSILE_STRENGTH.schema())]
     pub tensile_strength: f64,
     /// Cohesion `c` (Pa), ≥ 0.
-    #[schemars(extend("minimum" = 0))]
+    #[schemars(transform = COHESION.schema())]
     pub cohesion: f64,
     /// Friction angle `φ` (degrees), in [0, 90).
-    #[schemars(extend("minimum" = 0, "exclusiveMaximum" = 90))]
+    #[schemars(transform = FRICTION_ANGLE.schema())]
     pub friction_angle: f64,
     /// Mode I fracture energy `G_f` (J/m²), > 0: the work of tension per unit crack area.
-    #[schemars(extend("exclusiveMinimum" = 0))]
+    #[schemars(transform = FRACTURE_ENERGY.schema())]
     pub fracture_energy: f64,
     /// Mode II fracture energy `G_f,II` (J/m²), > 0: the work of cohesion per unit crack area.
-    #[schemars(extend("exclusiveMinimum" = 0))]
+    #[schemars(transform = FRACTURE_ENERGY_SHEAR.schema())]
     pub fracture_energy_shear: f64,
 }
 
@@ -263,42 +277,6 @@ impl InterfaceLawSpec {
                 Some([s.fracture_energy, s.fracture_energy_shear]),
             )),
         }
-    }
-}
-
-impl<'de> Deserialize<'de> for InterfaceLawSpec {
-    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
-        let (kind, rest) = split_kind(d)?;
-        match kind.as_str() {
-            "elastic" => variant(rest).map(|NoKeys {}| InterfaceLawSpec::Elastic),
-            "mohr-coulomb" => variant(rest).map(InterfaceLawSpec::MohrCoulomb),
-            "softening" => variant(rest).map(InterfaceLawSpec::Softening),
-            other => Err(unknown_kind(
-                other,
-                &["elastic", "mohr-coulomb", "softening"],
-            )),
-        }
-    }
-}
-
-/// One object per kind, as [`InterfaceLawSpec`]'s `Deserialize` reads them (keep the two in
-/// step).
-impl JsonSchema for InterfaceLawSpec {
-    fn schema_name() -> Cow<'static, str> {
-        "InterfaceLawSpec".into()
-    }
-
-    fn json_schema(generator: &mut SchemaGenerator) -> Schema {
-        let variants = [
-            kind_variant::<NoKeys>(generator, "elastic"),
-            kind_variant::<StrengthSpec>(generator, "mohr-coulomb"),
-            kind_variant::<SofteningSpec>(generator, "softening"),
-        ];
-        one_of_kinds(
-            "The law of a material's interfaces (`kind`: `elastic`, `mohr-coulomb` or \
-             `softening`).",
-            variants,
-        )
     }
 }
 
@@ -336,7 +314,7 @@ pub struct BodySpec {
 #[serde(deny_unknown_fields)]
 pub struct ArraySpec {
     /// Copies along x and y, each ≥ 1, their product ≤ `MAX_BODIES` (1 000 000).
-    #[schemars(inner(range(min = 1, max = MAX_BODIES)))]
+    #[schemars(transform = COUNT.items())]
     pub count: [usize; 2],
     /// Shift between neighbouring copies along x and y (m).
     pub pitch: [f64; 2],
@@ -347,17 +325,6 @@ pub struct ArraySpec {
 
 /// All DOF names, in the order of `U_e` (as scenes name them: `docs/scene.md`).
 pub const DOF_NAMES: [&str; 6] = ["u", "v", "theta", "ex", "ey", "gxy"];
-
-/// The columns of `history.csv` before the probes (a probe may take none of these names).
-pub const HISTORY_COLUMNS: [&str; 7] = [
-    "t",
-    "kinetic",
-    "elastic",
-    "contact",
-    "potential",
-    "external_work",
-    "total",
-];
 
 /// The longest name (characters) of a scene, a body or a probe.
 pub const MAX_NAME: usize = 256;
@@ -606,22 +573,23 @@ impl BodySpec {
     }
 }
 
-/// How a body is cut into elements (`kind`: `grid`, `voronoi` or `polygons`).
-#[derive(Debug, Clone)]
-pub enum MeshSpec {
-    /// `grid`: rectangles or triangles.
-    Grid(GridSpec),
-    /// `voronoi`: centroidal Voronoi cells.
-    Voronoi(VoronoiSpec),
-    /// `polygons`: explicit cells.
-    Polygons(PolygonsSpec),
-    /// `gmsh`: an MSH 4.1 file.
-    Gmsh(GmshSpec),
+kinds! {
+    #[derive(Debug, Clone)]
+    pub enum MeshSpec: "How a body is cut into elements" {
+        /// Rectangles or triangles.
+        "grid" => Grid(GridSpec),
+        /// Centroidal Voronoi cells.
+        "voronoi" => Voronoi(VoronoiSpec),
+        /// Explicit cells.
+        "polygons" => Polygons(PolygonsSpec),
+        /// An MSH 4.1 file.
+        "gmsh" => Gmsh(GmshSpec),
+    }
 }
 
 /// A gmsh MSH 4.1 file of triangles and quadrilaterals; a relative `path` is taken from the
 /// scene file's directory. Its physical groups of lines name edges for supports and loads.
-#[derive(Debug, Clone, Deserialize, JsonSchema)]
+#[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct GmshSpec {
     /// The MSH file.
@@ -629,16 +597,16 @@ pub struct GmshSpec {
 }
 
 /// `cells = [nx, ny]` rectangles (or twice as many triangles) over `origin .. origin + size`.
-#[derive(Debug, Clone, Deserialize, JsonSchema)]
+#[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct GridSpec {
     /// Lower-left corner (m).
     pub origin: [f64; 2],
     /// Width and height (m), each > 0.
-    #[schemars(transform = items_positive)]
+    #[schemars(transform = SIZE.items())]
     pub size: [f64; 2],
     /// Cells along x and y, each ≥ 1, their product ≤ `MAX_CELLS` (20 000 000).
-    #[schemars(inner(range(min = 1, max = MAX_CELLS)))]
+    #[schemars(transform = CELLS.items())]
     pub cells: [usize; 2],
     #[serde(default = "default_cell")]
     /// `rect` (default) or `tri`.
@@ -646,28 +614,28 @@ pub struct GridSpec {
 }
 
 /// `sites` centroidal Voronoi cells clipped to the rectangle, after `lloyd` iterations.
-#[derive(Debug, Clone, Deserialize, JsonSchema)]
+#[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct VoronoiSpec {
     /// Lower-left corner (m).
     pub origin: [f64; 2],
     /// Width and height (m), each > 0.
-    #[schemars(transform = items_positive)]
+    #[schemars(transform = SIZE.items())]
     pub size: [f64; 2],
     /// Number of cells, 3 to `MAX_CELLS` (20 000 000).
-    #[schemars(range(min = 3, max = MAX_CELLS))]
+    #[schemars(transform = SITES.schema())]
     pub sites: usize,
     #[serde(default)]
     /// Random seed of the sites (default 0).
     pub seed: u64,
     #[serde(default)]
     /// Lloyd iterations towards centroidal cells, 0 to 10 000 (default 0).
-    #[schemars(range(max = 10_000))]
+    #[schemars(transform = LLOYD.schema())]
     pub lloyd: usize,
 }
 
 /// Explicit polygons, vertex lists counter-clockwise.
-#[derive(Debug, Clone, Deserialize, JsonSchema)]
+#[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct PolygonsSpec {
     /// Vertex coordinates `[x, y]` (m), at least 3.
@@ -676,42 +644,6 @@ pub struct PolygonsSpec {
     /// Cells as lists of vertex indices (from 0), counter-clockwise; at least 1.
     #[schemars(length(min = 1))]
     pub cells: Vec<Vec<usize>>,
-}
-
-impl<'de> Deserialize<'de> for MeshSpec {
-    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
-        let (kind, rest) = split_kind(d)?;
-        match kind.as_str() {
-            "grid" => variant(rest).map(MeshSpec::Grid),
-            "voronoi" => variant(rest).map(MeshSpec::Voronoi),
-            "polygons" => variant(rest).map(MeshSpec::Polygons),
-            "gmsh" => variant(rest).map(MeshSpec::Gmsh),
-            other => Err(unknown_kind(
-                other,
-                &["grid", "voronoi", "polygons", "gmsh"],
-            )),
-        }
-    }
-}
-
-/// One object per kind, as [`MeshSpec`]'s `Deserialize` reads them (keep the two in step).
-impl JsonSchema for MeshSpec {
-    fn schema_name() -> Cow<'static, str> {
-        "MeshSpec".into()
-    }
-
-    fn json_schema(generator: &mut SchemaGenerator) -> Schema {
-        let variants = [
-            kind_variant::<GridSpec>(generator, "grid"),
-            kind_variant::<VoronoiSpec>(generator, "voronoi"),
-            kind_variant::<PolygonsSpec>(generator, "polygons"),
-            kind_variant::<GmshSpec>(generator, "gmsh"),
-        ];
-        one_of_kinds(
-            "How a body is cut into elements (`kind`: `grid`, `voronoi`, `polygons` or `gmsh`).",
-            variants,
-        )
-    }
 }
 
 /// The most cells one mesh may have (about 10 GB of model at ~500 bytes per element).
@@ -766,6 +698,13 @@ impl<'de> serde::Deserialize<'de> for EdgeSet {
     }
 }
 
+/// Its name, as scenes write it.
+impl Serialize for EdgeSet {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
+        s.collect_str(self)
+    }
+}
+
 /// A string: a side name or the name of a gmsh physical group (any string parses).
 impl schemars::JsonSchema for EdgeSet {
     fn schema_name() -> std::borrow::Cow<'static, str> {
@@ -796,17 +735,18 @@ fn default_cell() -> Cell {
     Cell::Rect
 }
 
-/// A support on a side of the body's bounding box (`kind`: `ground-spring` or `clamp`).
-#[derive(Debug, Clone)]
-pub enum SupportSpec {
-    /// `ground-spring`.
-    GroundSpring(GroundSpringSpec),
-    /// `clamp`.
-    Clamp(ClampSpec),
+kinds! {
+    #[derive(Debug, Clone)]
+    pub enum SupportSpec: "A support on an edge set of the body" {
+        /// Ground springs.
+        "ground-spring" => GroundSpring(GroundSpringSpec),
+        /// Fixed or moving DOFs.
+        "clamp" => Clamp(ClampSpec),
+    }
 }
 
 /// The edges of a side tied to fixed ground by springs with `h_b = 0`.
-#[derive(Debug, Clone, Deserialize, JsonSchema)]
+#[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct GroundSpringSpec {
     /// Where: a side or a gmsh group.
@@ -822,7 +762,7 @@ pub struct GroundSpringSpec {
 }
 
 /// The listed DOFs (default all) of the elements with an edge on that side are fixed.
-#[derive(Debug, Clone, Deserialize, JsonSchema)]
+#[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ClampSpec {
     /// Where: a side or a gmsh group.
@@ -838,41 +778,12 @@ pub struct ClampSpec {
     pub velocity: Option<[f64; 2]>,
     /// Time over which the velocity rises linearly from zero (s), ≥ 0: a smooth start.
     #[serde(default)]
-    #[schemars(extend("minimum" = 0))]
+    #[schemars(transform = RAMP.schema())]
     pub ramp: f64,
     /// Only the edges of the side whose midpoints lie in `[from, to]` (m) along it: `x` on
     /// `bottom` and `top`, `y` on `left` and `right` (a footing on part of a surface).
     #[serde(default)]
     pub span: Option<[f64; 2]>,
-}
-
-impl<'de> Deserialize<'de> for SupportSpec {
-    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
-        let (kind, rest) = split_kind(d)?;
-        match kind.as_str() {
-            "ground-spring" => variant(rest).map(SupportSpec::GroundSpring),
-            "clamp" => variant(rest).map(SupportSpec::Clamp),
-            other => Err(unknown_kind(other, &["ground-spring", "clamp"])),
-        }
-    }
-}
-
-/// One object per kind, as [`SupportSpec`]'s `Deserialize` reads them (keep the two in step).
-impl JsonSchema for SupportSpec {
-    fn schema_name() -> Cow<'static, str> {
-        "SupportSpec".into()
-    }
-
-    fn json_schema(generator: &mut SchemaGenerator) -> Schema {
-        let variants = [
-            kind_variant::<GroundSpringSpec>(generator, "ground-spring"),
-            kind_variant::<ClampSpec>(generator, "clamp"),
-        ];
-        one_of_kinds(
-            "A support on an edge set of the body (`kind`: `ground-spring` or `clamp`).",
-            variants,
-        )
-    }
 }
 
 fn both_components() -> Vec<Component> {
@@ -889,17 +800,18 @@ pub enum Component {
     S,
 }
 
-/// A load on a body (`kind`: `traction` or `force`).
-#[derive(Debug, Clone)]
-pub enum LoadSpec {
-    /// `traction`.
-    Traction(TractionSpec),
-    /// `force`.
-    Force(ForceSpec),
+kinds! {
+    #[derive(Debug, Clone)]
+    pub enum LoadSpec: "A load on a body" {
+        /// A traction on edges.
+        "traction" => Traction(TractionSpec),
+        /// A force on one element.
+        "force" => Force(ForceSpec),
+    }
 }
 
 /// Uniform traction (N/m², global components) on the edges of one side.
-#[derive(Debug, Clone, Deserialize, JsonSchema)]
+#[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct TractionSpec {
     /// Where: a side or a gmsh group.
@@ -915,7 +827,7 @@ pub struct TractionSpec {
 
 /// `[F_x, F_y, M]` (N, N, N·m) at the centroid of one element of the body (index within
 /// the body).
-#[derive(Debug, Clone, Deserialize, JsonSchema)]
+#[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ForceSpec {
     /// Element index within the body.
@@ -927,76 +839,6 @@ pub struct ForceSpec {
     /// increasing `t`, held constant outside its range; constant 1 when absent.
     #[schemars(length(min = 1))]
     pub amplitude: Option<Vec<[f64; 2]>>,
-}
-
-impl<'de> Deserialize<'de> for LoadSpec {
-    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
-        let (kind, rest) = split_kind(d)?;
-        match kind.as_str() {
-            "traction" => variant(rest).map(LoadSpec::Traction),
-            "force" => variant(rest).map(LoadSpec::Force),
-            other => Err(unknown_kind(other, &["traction", "force"])),
-        }
-    }
-}
-
-/// One object per kind, as [`LoadSpec`]'s `Deserialize` reads them (keep the two in step).
-impl JsonSchema for LoadSpec {
-    fn schema_name() -> Cow<'static, str> {
-        "LoadSpec".into()
-    }
-
-    fn json_schema(generator: &mut SchemaGenerator) -> Schema {
-        let variants = [
-            kind_variant::<TractionSpec>(generator, "traction"),
-            kind_variant::<ForceSpec>(generator, "force"),
-        ];
-        one_of_kinds(
-            "A load on a body (`kind`: `traction` or `force`).",
-            variants,
-        )
-    }
-}
-
-/// The schema of one kind of a `kind`-keyed object (read by [`split_kind`] and [`variant`]):
-/// the variant's own object schema with the key `kind`, a constant, added and required.
-fn kind_variant<T: JsonSchema>(generator: &mut SchemaGenerator, kind: &str) -> Schema {
-    let mut schema = T::json_schema(generator);
-    let object = schema.ensure_object();
-    let properties = object
-        .entry("properties")
-        .or_insert_with(|| serde_json::json!({}));
-    if let Some(properties) = properties.as_object_mut() {
-        properties.insert(
-            "kind".into(),
-            serde_json::json!({"type": "string", "const": kind}),
-        );
-    }
-    let required = object
-        .entry("required")
-        .or_insert_with(|| serde_json::json!([]));
-    if let Some(required) = required.as_array_mut() {
-        required.insert(0, "kind".into());
-    }
-    schema
-}
-
-/// Exactly one of `variants`, each told by its `kind`.
-fn one_of_kinds<const N: usize>(description: &str, variants: [Schema; N]) -> Schema {
-    let variants: Vec<Schema> = variants.into();
-    json_schema!({
-        "description": description,
-        "type": "object",
-        "required": ["kind"],
-        "oneOf": variants,
-    })
-}
-
-/// Every item of an array schema > 0 (`[f64; 2]` sizes).
-fn items_positive(schema: &mut Schema) {
-    if let Some(items) = schema.get_mut("items").and_then(|i| i.as_object_mut()) {
-        items.insert("exclusiveMinimum".into(), 0.into());
-    }
 }
 
 /// Every item of an array schema (or of an array-or-null) one of the DOF names.
@@ -1028,47 +870,6 @@ fn time_exactly_one(schema: &mut Schema) {
 
 fn probe_exactly_one(schema: &mut Schema) {
     exactly_one_of(schema, "element", "at");
-}
-
-/// Splits an object with a `kind` key into the kind and the other keys. Dispatching by hand,
-/// rather than with serde's internally tagged enums, keeps the path of an error inside the
-/// variant (`bodies[0].mesh.cells`), which serde's buffering would lose.
-fn split_kind<'de, D: serde::Deserializer<'de>>(
-    d: D,
-) -> std::result::Result<(String, serde_json::Value), D::Error> {
-    use serde::de::Error as _;
-    let mut value = serde_json::Value::deserialize(d)?;
-    let map = value
-        .as_object_mut()
-        .ok_or_else(|| D::Error::custom("expected an object with a `kind` key"))?;
-    match map.remove("kind") {
-        Some(serde_json::Value::String(kind)) => Ok((kind, value)),
-        Some(other) => Err(D::Error::custom(format!(
-            "`kind` must be a string, got {other}"
-        ))),
-        None => Err(D::Error::missing_field("kind")),
-    }
-}
-
-/// Deserialises the keys of one variant; an error names the key path within the variant.
-fn variant<T: serde::de::DeserializeOwned, E: serde::de::Error>(
-    rest: serde_json::Value,
-) -> std::result::Result<T, E> {
-    serde_path_to_error::deserialize(rest).map_err(|e| {
-        let path = e.path().to_string();
-        E::custom(if path == "." {
-            e.into_inner().to_string()
-        } else {
-            format!("`{path}`: {}", e.into_inner())
-        })
-    })
-}
-
-fn unknown_kind<E: serde::de::Error>(kind: &str, allowed: &[&str]) -> E {
-    E::custom(format!(
-        "unknown kind `{kind}`, expected one of: {}",
-        allowed.join(", ")
-    ))
 }
 
 /// Initial placement and motion of a body.
@@ -1104,27 +905,18 @@ pub struct ContactSpec {
     pub model: ContactModel,
     /// Coulomb friction coefficient `μ ≥ 0` (dimensionless); `null` or absent is no slip limit.
     #[serde(default)]
-    #[schemars(range(min = 0))]
+    #[schemars(transform = FRICTION.schema())]
     pub friction: Option<f64>,
 }
 
-/// The contact model (`contact.model`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
-#[serde(rename_all = "kebab-case")]
-pub enum ContactModel {
-    /// The paper's contact: the penetrating part of the boundary is a temporary interface.
-    EdgeToEdge,
-    /// Classic DEM: a spring at each penetrating vertex.
-    Point,
-}
-
-impl ContactModel {
-    /// The name used in scenes and outputs.
-    pub fn name(self) -> &'static str {
-        match self {
-            ContactModel::EdgeToEdge => "edge-to-edge",
-            ContactModel::Point => "point",
-        }
+named! {
+    /// The contact model (`contact.model`).
+    #[derive(Debug, Clone, Copy, PartialEq, Eq, JsonSchema)]
+    pub enum ContactModel {
+        /// The paper's contact: the penetrating part of the boundary is a temporary interface.
+        "edge-to-edge" => EdgeToEdge,
+        /// Classic DEM: a spring at each penetrating vertex.
+        "point" => Point,
     }
 }
 
@@ -1135,19 +927,19 @@ impl ContactModel {
 pub struct TimeSpec {
     #[serde(default)]
     /// Time step (s), > 0.
-    #[schemars(extend("exclusiveMinimum" = 0))]
+    #[schemars(transform = DT.schema())]
     pub dt: Option<f64>,
     #[serde(default)]
     /// Time step as a fraction of the computed `Δt_crit` (dimensionless), > 0.
-    #[schemars(extend("exclusiveMinimum" = 0))]
+    #[schemars(transform = DT_FACTOR.schema())]
     pub dt_factor: Option<f64>,
     #[serde(default)]
     /// End time (s), > 0.
-    #[schemars(extend("exclusiveMinimum" = 0))]
+    #[schemars(transform = END.schema())]
     pub end: Option<f64>,
     #[serde(default)]
     /// Number of steps, ≥ 1.
-    #[schemars(range(min = 1))]
+    #[schemars(transform = STEPS.schema())]
     pub steps: Option<u64>,
 }
 
@@ -1157,7 +949,7 @@ pub struct TimeSpec {
 pub struct OutputSpec {
     /// A history row (and a VTK frame) every this many steps, ≥ 1 (default 100).
     #[serde(default = "default_every")]
-    #[schemars(range(min = 1))]
+    #[schemars(transform = EVERY.schema())]
     pub every: u64,
     /// ParaView output: VTK XML frames (`.vtu`) and a `.pvd` series.
     #[serde(default)]
@@ -1168,7 +960,7 @@ pub struct OutputSpec {
     /// Steps between checkpoints (`checkpoint.bin`, for `rbsm run --resume`), ≥ 1; none when
     /// absent.
     #[serde(default)]
-    #[schemars(range(min = 1))]
+    #[schemars(transform = CHECKPOINT_EVERY.schema())]
     pub checkpoint_every: Option<u64>,
 }
 
@@ -1367,76 +1159,55 @@ impl Scene {
             .0
     }
 
-    /// Checks every value against its allowed range; the error names the field.
+    /// Checks every value against its allowed range; the error names the field. Section by
+    /// section: the whole scene's numbers, the materials, the output, the bodies, the ground
+    /// and contact, the time. (Whether a probe's column is one of the history's own is the
+    /// output stage's to say: `output::refuse_own_columns`, called by the setup.)
     pub fn validate(&self) -> Result<()> {
         bounded_name("name", &self.name)?;
-        positive("thickness", self.thickness)?;
+        THICKNESS.check("thickness", self.thickness)?;
         if let FormulationSpec::Hybrid { penalty } = self.formulation {
-            positive("formulation.penalty", penalty)?;
+            PENALTY.check("formulation.penalty", penalty)?;
         }
         if let Some(g) = self.gravity {
             finite_all("gravity", &g)?;
         }
         if let Some(alpha) = self.damping {
-            if !(alpha >= 0.0 && alpha.is_finite()) {
-                return Err(Error::scene(
-                    "damping",
-                    format!("must be a finite number ≥ 0 (1/s), got {alpha}"),
-                ));
-            }
+            DAMPING.check("damping", alpha)?;
         }
+        self.validate_materials()?;
+        if self.bodies.is_empty() {
+            return Err(Error::scene("bodies", "at least one body is needed"));
+        }
+        self.validate_output()?;
+        // Duplicates first: a name that repeats an array's copy (`name[i,j]`) is told so.
+        self.refuse_duplicate_bodies()?;
+        for (i, b) in self.bodies.iter().enumerate() {
+            column_name(&format!("bodies[{i}].name"), &b.name)?;
+            self.validate_body(i, b)?;
+        }
+        self.validate_contact()?;
+        self.time.validate()
+    }
+
+    /// At least one material, each in range, its interface law included.
+    fn validate_materials(&self) -> Result<()> {
         if self.materials.is_empty() {
             return Err(Error::scene("materials", "at least one material is needed"));
         }
         for (name, m) in &self.materials {
-            positive(&format!("materials.{name}.E"), m.e)?;
-            positive(&format!("materials.{name}.rho"), m.rho)?;
-            if !(m.nu > -1.0 && m.nu < 0.5) {
-                return Err(Error::scene(
-                    format!("materials.{name}.nu"),
-                    format!("must lie in (-1, 0.5), got {}", m.nu),
-                ));
-            }
-            if let Some((strength, energies)) = m.interface.strength() {
-                let at = |k: &str| format!("materials.{name}.interface.{k}");
-                for (key, x) in [
-                    ("tensile_strength", strength.tensile_strength),
-                    ("cohesion", strength.cohesion),
-                ] {
-                    if !(x >= 0.0 && x.is_finite()) {
-                        return Err(Error::scene(
-                            at(key),
-                            format!("must be a finite number ≥ 0 (Pa), got {x}"),
-                        ));
-                    }
-                }
-                let phi = strength.friction_angle;
-                if !(0.0..90.0).contains(&phi) {
-                    return Err(Error::scene(
-                        at("friction_angle"),
-                        format!("must lie in [0, 90) degrees, got {phi}"),
-                    ));
-                }
-                if let Some([g_f, g_s]) = energies {
-                    positive(&at("fracture_energy"), g_f)?;
-                    positive(&at("fracture_energy_shear"), g_s)?;
-                    for (energy, g, strength, f) in [
-                        (
-                            "fracture_energy",
-                            g_f,
-                            "tensile_strength",
-                            strength.tensile_strength,
-                        ),
-                        ("fracture_energy_shear", g_s, "cohesion", strength.cohesion),
-                    ] {
-                        softening_slope(&at(energy), g, strength, f)?;
-                    }
-                }
-            }
+            let at = |k: &str| format!("materials.{name}.{k}");
+            YOUNG.check(&at("E"), m.e)?;
+            DENSITY.check(&at("rho"), m.rho)?;
+            POISSON.check(&at("nu"), m.nu)?;
+            m.interface.validate(&at("interface"))?;
         }
-        if self.bodies.is_empty() {
-            return Err(Error::scene("bodies", "at least one body is needed"));
-        }
+        Ok(())
+    }
+
+    /// The reference's probe, the probes (placed once, each column named by the rule of
+    /// [`column_name`], no two alike) and how often rows and checkpoints are written.
+    fn validate_output(&self) -> Result<()> {
         if let Some(ReferenceSpec::BarStep { probe }) = &self.reference {
             if !self
                 .output
@@ -1450,31 +1221,8 @@ impl Scene {
                 ));
             }
         }
-        // The history's own columns: the energies, those a model may add, and the moving
-        // clamps'.
-        let mut columns: Vec<String> = HISTORY_COLUMNS
-            .iter()
-            .chain(&["fracture", "friction", "damping"])
-            .map(|c| c.to_string())
-            .collect();
-        for b in &self.bodies {
-            for (k, s) in b.supports.iter().enumerate() {
-                if let SupportSpec::Clamp(ClampSpec {
-                    velocity: Some(_), ..
-                }) = s
-                {
-                    columns.extend(["disp", "force"].map(|c| format!("{}_s{k}_{c}", b.name)));
-                }
-            }
-        }
-        let own = columns.len();
-        // Each column's position, for a search per probe that does not grow with the probes.
-        let mut index: std::collections::HashMap<String, usize> = columns
-            .iter()
-            .enumerate()
-            .rev()
-            .map(|(i, c)| (c.clone(), i))
-            .collect();
+        // Each column's probe, for a search per probe that does not grow with the probes.
+        let mut first = std::collections::HashMap::with_capacity(self.output.probes.len());
         for (k, p) in self.output.probes.iter().enumerate() {
             match (p.element, p.at) {
                 (Some(_), None) => {}
@@ -1488,25 +1236,25 @@ impl Scene {
             }
             let (field, column) = (format!("output.probes[{k}].name"), p.column());
             column_name(&field, &column)?;
-            if let Some(&i) = index.get(&column) {
-                let what = if i < own {
-                    "one of the history's own columns".to_string()
-                } else {
-                    format!("the column of `output.probes[{}]`", i - own)
-                };
+            if let Some(j) = first.insert(column.clone(), k) {
                 return Err(Error::scene(
                     field,
-                    format!("`{column}` is {what}: every column needs its own name"),
+                    format!(
+                        "`{column}` is the column of `output.probes[{j}]`: every column needs \
+                         its own name"
+                    ),
                 ));
             }
-            index.insert(column, own + k);
         }
-        // Duplicates first: a name that repeats an array's copy (`name[i,j]`) is told so.
-        self.refuse_duplicate_bodies()?;
-        for (i, b) in self.bodies.iter().enumerate() {
-            column_name(&format!("bodies[{i}].name"), &b.name)?;
-            self.validate_body(i, b)?;
+        EVERY.check_count("output.every", self.output.every)?;
+        if let Some(n) = self.output.checkpoint_every {
+            CHECKPOINT_EVERY.check_count("output.checkpoint_every", n)?;
         }
+        Ok(())
+    }
+
+    /// The ground's segments, which act only through contact, and the contact's friction.
+    fn validate_contact(&self) -> Result<()> {
         for (i, g) in self.ground.iter().enumerate() {
             finite_all(&format!("ground[{i}].from"), &g.from)?;
             finite_all(&format!("ground[{i}].to"), &g.to)?;
@@ -1524,48 +1272,11 @@ impl Scene {
                 `\"contact\": {\"model\": \"edge-to-edge\"}` (or `point`)",
             ));
         }
-        if let Some(c) = &self.contact {
-            if let Some(mu) = c.friction {
-                if !(mu >= 0.0 && mu.is_finite()) {
-                    return Err(Error::scene(
-                        "contact.friction",
-                        format!("must be null or a finite μ ≥ 0, got {mu}"),
-                    ));
-                }
-            }
-        }
-        match (self.time.dt, self.time.dt_factor) {
-            (Some(dt), None) => positive("time.dt", dt)?,
-            (None, Some(f)) => positive("time.dt_factor", f)?,
-            _ => {
-                return Err(Error::scene(
-                    "time.dt",
-                    "give exactly one of `dt` (s, > 0) and `dt_factor` (fraction of Δt_crit, > 0)",
-                ))
-            }
-        }
-        match (self.time.end, self.time.steps) {
-            (Some(end), None) => positive("time.end", end)?,
-            (None, Some(0)) => return Err(Error::scene("time.steps", "must be ≥ 1")),
-            (None, Some(_)) => {}
-            _ => {
-                return Err(Error::scene(
-                    "time.end",
-                    "give exactly one of `end` (s, > 0) and `steps` (≥ 1)",
-                ))
-            }
-        }
-        if self.output.every == 0 {
-            return Err(Error::scene(
-                "output.every",
-                "must be ≥ 1 (steps between history rows)",
-            ));
-        }
-        if self.output.checkpoint_every == Some(0) {
-            return Err(Error::scene(
-                "output.checkpoint_every",
-                "must be ≥ 1 (steps between checkpoints), or absent for none",
-            ));
+        if let Some(ContactSpec {
+            friction: Some(mu), ..
+        }) = self.contact
+        {
+            FRICTION.check("contact.friction", mu)?;
         }
         Ok(())
     }
@@ -1621,6 +1332,7 @@ impl Scene {
         Ok(())
     }
 
+    /// Body `i`: its material named, its mesh, supports, loads, array and initial motion.
     fn validate_body(&self, i: usize, b: &BodySpec) -> Result<()> {
         let at = |k: &str| format!("bodies[{i}].{k}");
         if !self.materials.contains_key(&b.material) {
@@ -1634,184 +1346,15 @@ impl Scene {
                 ),
             ));
         }
-        match &b.mesh {
-            MeshSpec::Grid(GridSpec {
-                origin,
-                size,
-                cells,
-                ..
-            }) => {
-                finite_all(&at("mesh.origin"), origin)?;
-                positive(&at("mesh.size[0]"), size[0])?;
-                positive(&at("mesh.size[1]"), size[1])?;
-                if cells[0] == 0 || cells[1] == 0 || cells[0].saturating_mul(cells[1]) > MAX_CELLS {
-                    return Err(Error::scene(
-                        at("mesh.cells"),
-                        format!(
-                            "both counts must be ≥ 1 \
-                        and their product ≤ {MAX_CELLS}, got {cells:?}"
-                        ),
-                    ));
-                }
-            }
-            MeshSpec::Voronoi(VoronoiSpec {
-                origin,
-                size,
-                sites,
-                lloyd,
-                ..
-            }) => {
-                finite_all(&at("mesh.origin"), origin)?;
-                positive(&at("mesh.size[0]"), size[0])?;
-                positive(&at("mesh.size[1]"), size[1])?;
-                if *sites < 3 || *sites > MAX_CELLS {
-                    return Err(Error::scene(
-                        at("mesh.sites"),
-                        format!(
-                            "must lie in 3..={MAX_CELLS} (the Delaunay triangulation under \
-                            the cells needs three sites), got {sites}"
-                        ),
-                    ));
-                }
-                if *lloyd > 10_000 {
-                    return Err(Error::scene(
-                        at("mesh.lloyd"),
-                        format!("must lie in 0..=10000, got {lloyd}"),
-                    ));
-                }
-            }
-            MeshSpec::Polygons(PolygonsSpec { vertices, cells }) => {
-                if vertices.len() < 3 || cells.is_empty() {
-                    return Err(Error::scene(
-                        at("mesh"),
-                        "needs at least 3 vertices and 1 cell",
-                    ));
-                }
-            }
-            MeshSpec::Gmsh(GmshSpec { path }) => {
-                let problem = match std::fs::metadata(path) {
-                    Ok(m) if m.is_file() => None,
-                    Ok(m) => Some(format!(
-                        "`{}` is not a regular file ({}): give a gmsh mesh file",
-                        path.display(),
-                        kind_of(&m.file_type())
-                    )),
-                    Err(e) if e.kind() == std::io::ErrorKind::NotFound => Some(format!(
-                        "no file `{}` (a relative path starts at the scene file's directory)",
-                        path.display()
-                    )),
-                    Err(e) => Some(format!("`{}`: {e}", path.display())),
-                };
-                if let Some(message) = problem {
-                    return Err(Error::scene(at("mesh.path"), message));
-                }
-            }
-        }
+        b.mesh.validate(&at("mesh"))?;
         for (k, s) in b.supports.iter().enumerate() {
-            match s {
-                SupportSpec::GroundSpring(GroundSpringSpec {
-                    edge,
-                    components,
-                    span,
-                }) => {
-                    if components.is_empty() {
-                        return Err(Error::scene(
-                            at(&format!("supports[{k}].components")),
-                            "must list `n`, `s` or both",
-                        ));
-                    }
-                    check_span(&at(&format!("supports[{k}].span")), edge, span)?;
-                }
-                SupportSpec::Clamp(ClampSpec {
-                    edge,
-                    dofs,
-                    velocity,
-                    ramp,
-                    span,
-                }) => {
-                    check_span(&at(&format!("supports[{k}].span")), edge, span)?;
-                    if let Some(velocity) = velocity {
-                        finite_all(&at(&format!("supports[{k}].velocity")), velocity)?;
-                        for (c, dof) in ["u", "v"].into_iter().enumerate() {
-                            let clamped = dofs.as_ref().is_none_or(|d| d.iter().any(|n| n == dof));
-                            if velocity[c] != 0.0 && !clamped {
-                                return Err(Error::scene(
-                                    at(&format!("supports[{k}].velocity[{c}]")),
-                                    format!("must be 0 unless `dofs` lists `{dof}`"),
-                                ));
-                            }
-                        }
-                    }
-                    if !(*ramp >= 0.0 && ramp.is_finite()) {
-                        return Err(Error::scene(
-                            at(&format!("supports[{k}].ramp")),
-                            format!("must be a finite number ≥ 0 (s), got {ramp}"),
-                        ));
-                    }
-                }
-            }
+            s.validate(&at(&format!("supports[{k}]")))?;
         }
         for (k, l) in b.loads.iter().enumerate() {
-            let (value, amplitude): (&[f64], _) = match l {
-                LoadSpec::Traction(TractionSpec {
-                    value, amplitude, ..
-                }) => (value, amplitude),
-                LoadSpec::Force(ForceSpec {
-                    value, amplitude, ..
-                }) => (value, amplitude),
-            };
-            finite_all(&at(&format!("loads[{k}].value")), value)?;
-            if let Some(a) = amplitude {
-                let field = at(&format!("loads[{k}].amplitude"));
-                if a.is_empty()
-                    || a.windows(2).any(|w| !(w[1][0] > w[0][0]))
-                    || a.iter().any(|p| !p[0].is_finite() || !p[1].is_finite())
-                {
-                    return Err(Error::scene(
-                        field,
-                        "must be a non-empty list of [t, factor] with strictly increasing t",
-                    ));
-                }
-            }
+            l.validate(&at(&format!("loads[{k}]")))?;
         }
         if let Some(a) = &b.array {
-            if a.count[0] == 0
-                || a.count[1] == 0
-                || a.count[0].saturating_mul(a.count[1]) > MAX_BODIES
-            {
-                return Err(Error::scene(
-                    at("array.count"),
-                    format!(
-                        "both counts must be ≥ 1 and their product ≤ {MAX_BODIES}, got {:?}",
-                        a.count
-                    ),
-                ));
-            }
-            if let Some(k) = b.supports.iter().position(|s| {
-                matches!(
-                    s,
-                    SupportSpec::Clamp(ClampSpec {
-                        velocity: Some(_),
-                        ..
-                    })
-                )
-            }) {
-                return Err(Error::scene(
-                    at(&format!("supports[{k}].velocity")),
-                    "a moving clamp's columns of `history.csv` are named after its body, and \
-                     the copies of an `array` are named `name[i,j]`, with a comma: give a \
-                     body with a moving clamp no `array`",
-                ));
-            }
-            finite_all(&at("array.pitch"), &a.pitch)?;
-            finite_all(&at("array.row_offset"), &[a.row_offset])?;
-            if matches!(b.mesh, MeshSpec::Gmsh(_)) {
-                return Err(Error::scene(
-                    at("array"),
-                    "copies need a `grid`, `voronoi` or \
-                    `polygons` mesh (a gmsh mesh cannot be shifted)",
-                ));
-            }
+            b.validate_array(&at, a)?;
         }
         finite_all(&at("initial.velocity"), &b.initial.velocity)?;
         finite_all(
@@ -1823,18 +1366,219 @@ impl Scene {
     }
 }
 
-fn positive(field: &str, x: f64) -> Result<()> {
-    if x.is_normal() && x > 0.0 {
+impl BodySpec {
+    /// The array `a` of this body (whose keys `at` names): its counts and shifts, and a body
+    /// whose copies can be made (no moving clamp, whose columns a copy's name would break; no
+    /// gmsh mesh, which cannot be shifted).
+    fn validate_array(&self, at: &dyn Fn(&str) -> String, a: &ArraySpec) -> Result<()> {
+        COUNT.check_pair(&at("array.count"), a.count)?;
+        if let Some(k) = self.supports.iter().position(|s| {
+            matches!(
+                s,
+                SupportSpec::Clamp(ClampSpec {
+                    velocity: Some(_),
+                    ..
+                })
+            )
+        }) {
+            return Err(Error::scene(
+                at(&format!("supports[{k}].velocity")),
+                "a moving clamp's columns of `history.csv` are named after its body, and \
+                 the copies of an `array` are named `name[i,j]`, with a comma: give a \
+                 body with a moving clamp no `array`",
+            ));
+        }
+        finite_all(&at("array.pitch"), &a.pitch)?;
+        finite_all(&at("array.row_offset"), &[a.row_offset])?;
+        if matches!(self.mesh, MeshSpec::Gmsh(_)) {
+            return Err(Error::scene(
+                at("array"),
+                "copies need a `grid`, `voronoi` or \
+                `polygons` mesh (a gmsh mesh cannot be shifted)",
+            ));
+        }
         Ok(())
-    } else {
-        Err(Error::scene(
-            field,
-            format!(
-                "must be a finite number > 0 (at least {:e}, the smallest \
-            normal double), got {x:e}",
-                f64::MIN_POSITIVE
-            ),
-        ))
+    }
+}
+
+impl MeshSpec {
+    /// Its keys in range, named under `at` (`bodies[0].mesh`); a gmsh file must be there.
+    fn validate(&self, at: &str) -> Result<()> {
+        let key = |k: &str| format!("{at}.{k}");
+        match self {
+            MeshSpec::Grid(GridSpec {
+                origin,
+                size,
+                cells,
+                ..
+            }) => {
+                finite_all(&key("origin"), origin)?;
+                SIZE.check(&key("size[0]"), size[0])?;
+                SIZE.check(&key("size[1]"), size[1])?;
+                CELLS.check_pair(&key("cells"), *cells)?;
+            }
+            MeshSpec::Voronoi(VoronoiSpec {
+                origin,
+                size,
+                sites,
+                lloyd,
+                ..
+            }) => {
+                finite_all(&key("origin"), origin)?;
+                SIZE.check(&key("size[0]"), size[0])?;
+                SIZE.check(&key("size[1]"), size[1])?;
+                SITES.check_count(&key("sites"), *sites as u64)?;
+                LLOYD.check_count(&key("lloyd"), *lloyd as u64)?;
+            }
+            MeshSpec::Polygons(PolygonsSpec { vertices, cells }) => {
+                if vertices.len() < 3 || cells.is_empty() {
+                    return Err(Error::scene(at, "needs at least 3 vertices and 1 cell"));
+                }
+            }
+            MeshSpec::Gmsh(GmshSpec { path }) => mesh_file(&key("path"), path)?,
+        }
+        Ok(())
+    }
+}
+
+/// Refuses a gmsh mesh file `path` (the key `field`) that is not there or not a regular file.
+fn mesh_file(field: &str, path: &Path) -> Result<()> {
+    let problem = match std::fs::metadata(path) {
+        Ok(m) if m.is_file() => return Ok(()),
+        Ok(m) => format!(
+            "`{}` is not a regular file ({}): give a gmsh mesh file",
+            path.display(),
+            kind_of(&m.file_type())
+        ),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => format!(
+            "no file `{}` (a relative path starts at the scene file's directory)",
+            path.display()
+        ),
+        Err(e) => format!("`{}`: {e}", path.display()),
+    };
+    Err(Error::scene(field, problem))
+}
+
+impl SupportSpec {
+    /// Its keys in range, named under `at` (`bodies[0].supports[1]`).
+    fn validate(&self, at: &str) -> Result<()> {
+        let key = |k: &str| format!("{at}.{k}");
+        match self {
+            SupportSpec::GroundSpring(GroundSpringSpec {
+                edge,
+                components,
+                span,
+            }) => {
+                if components.is_empty() {
+                    return Err(Error::scene(
+                        key("components"),
+                        "must list `n`, `s` or both",
+                    ));
+                }
+                check_span(&key("span"), edge, span)
+            }
+            SupportSpec::Clamp(ClampSpec {
+                edge,
+                dofs,
+                velocity,
+                ramp,
+                span,
+            }) => {
+                check_span(&key("span"), edge, span)?;
+                if let Some(velocity) = velocity {
+                    finite_all(&key("velocity"), velocity)?;
+                    for (c, dof) in ["u", "v"].into_iter().enumerate() {
+                        let clamped = dofs.as_ref().is_none_or(|d| d.iter().any(|n| n == dof));
+                        if velocity[c] != 0.0 && !clamped {
+                            return Err(Error::scene(
+                                key(&format!("velocity[{c}]")),
+                                format!("must be 0 unless `dofs` lists `{dof}`"),
+                            ));
+                        }
+                    }
+                }
+                RAMP.check(&key("ramp"), *ramp)
+            }
+        }
+    }
+}
+
+impl LoadSpec {
+    /// Its value finite and its amplitude a function of time, named under `at`
+    /// (`bodies[0].loads[1]`).
+    fn validate(&self, at: &str) -> Result<()> {
+        let (value, amplitude): (&[f64], _) = match self {
+            LoadSpec::Traction(TractionSpec {
+                value, amplitude, ..
+            }) => (value, amplitude),
+            LoadSpec::Force(ForceSpec {
+                value, amplitude, ..
+            }) => (value, amplitude),
+        };
+        finite_all(&format!("{at}.value"), value)?;
+        if let Some(a) = amplitude {
+            if a.is_empty()
+                || a.windows(2).any(|w| !(w[1][0] > w[0][0]))
+                || a.iter().any(|p| !p[0].is_finite() || !p[1].is_finite())
+            {
+                return Err(Error::scene(
+                    format!("{at}.amplitude"),
+                    "must be a non-empty list of [t, factor] with strictly increasing t",
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+impl InterfaceLawSpec {
+    /// A strength in range, named under `at` (`materials.concrete.interface`), and fracture
+    /// energies that give a finite softening.
+    fn validate(&self, at: &str) -> Result<()> {
+        let Some((strength, energies)) = self.strength() else {
+            return Ok(());
+        };
+        let key = |k: &str| format!("{at}.{k}");
+        TENSILE_STRENGTH.check(&key("tensile_strength"), strength.tensile_strength)?;
+        COHESION.check(&key("cohesion"), strength.cohesion)?;
+        FRICTION_ANGLE.check(&key("friction_angle"), strength.friction_angle)?;
+        if let Some([g_f, g_s]) = energies {
+            FRACTURE_ENERGY.check(&key("fracture_energy"), g_f)?;
+            FRACTURE_ENERGY_SHEAR.check(&key("fracture_energy_shear"), g_s)?;
+            let f_t = strength.tensile_strength;
+            softening_slope(&key("fracture_energy"), g_f, "tensile_strength", f_t)?;
+            softening_slope(
+                &key("fracture_energy_shear"),
+                g_s,
+                "cohesion",
+                strength.cohesion,
+            )?;
+        }
+        Ok(())
+    }
+}
+
+impl TimeSpec {
+    /// Exactly one of `dt` and `dt_factor`, one of `end` and `steps`, each in range.
+    fn validate(&self) -> Result<()> {
+        match (self.dt, self.dt_factor) {
+            (Some(dt), None) => DT.check("time.dt", dt)?,
+            (None, Some(f)) => DT_FACTOR.check("time.dt_factor", f)?,
+            _ => {
+                return Err(Error::scene(
+                    "time.dt",
+                    "give exactly one of `dt` (s, > 0) and `dt_factor` (fraction of Δt_crit, > 0)",
+                ))
+            }
+        }
+        match (self.end, self.steps) {
+            (Some(end), None) => END.check("time.end", end),
+            (None, Some(n)) => STEPS.check_count("time.steps", n),
+            _ => Err(Error::scene(
+                "time.end",
+                "give exactly one of `end` (s, > 0) and `steps` (≥ 1)",
+            )),
+        }
     }
 }
 

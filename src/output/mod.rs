@@ -128,7 +128,63 @@ pub struct ClampSummary {
     pub displacement_at_peak: f64,
 }
 
-/// The columns of `history.csv` beyond the seven energies, as the model asks for them.
+/// The columns every history has, in this order: the time and the energies (J) of
+/// [`Energy`], as [`History::write`] writes them.
+pub const HISTORY_COLUMNS: [&str; 7] = [
+    "t",
+    "kinetic",
+    "elastic",
+    "contact",
+    "potential",
+    "external_work",
+    "total",
+];
+
+/// The works of failing interfaces (J), after [`HISTORY_COLUMNS`] when a material's interfaces
+/// can fail.
+const FAILURE_COLUMNS: [&str; 2] = ["fracture", "friction"];
+
+/// The work of damping (J), after them when the model is damped.
+const DAMPING_COLUMN: &str = "damping";
+
+/// The columns of a moving clamp, after its name (`<body>_s<k>_disp`): its displacement along
+/// its velocity (m) and its reaction (N).
+const CLAMP_COLUMNS: [&str; 2] = ["disp", "force"];
+
+/// The columns of a moving clamp named `name` ([`crate::model::Prescribed::name`]).
+fn clamp_columns(name: &str) -> [String; 2] {
+    CLAMP_COLUMNS.map(|c| format!("{name}_{c}"))
+}
+
+/// Refuses a probe of `probes` (the scene's `output.probes`, of which `model` is the model)
+/// whose column is one of the history's own: [`HISTORY_COLUMNS`], those a model may add
+/// (whether or not this one does, so that a probe's name does not depend on the damping or the
+/// interface law) and `model`'s moving clamps'. The error names the probe's key; the scene
+/// checked the rest of the rule (`Scene::validate`).
+pub fn refuse_own_columns(model: &Model, probes: &[crate::input::scene::ProbeSpec]) -> Result<()> {
+    let own: std::collections::HashSet<String> = HISTORY_COLUMNS
+        .iter()
+        .chain(&FAILURE_COLUMNS)
+        .chain(&[DAMPING_COLUMN])
+        .map(|c| c.to_string())
+        .chain(model.prescribed.iter().flat_map(|p| clamp_columns(&p.name)))
+        .collect();
+    for (k, p) in probes.iter().enumerate() {
+        let column = p.column();
+        if own.contains(&column) {
+            return Err(Error::scene(
+                format!("output.probes[{k}].name"),
+                format!(
+                    "`{column}` is one of the history's own columns: every column needs its own \
+                     name"
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// The columns of `history.csv` after [`HISTORY_COLUMNS`], as the model asks for them.
 #[derive(Debug, Clone, Default)]
 pub struct Columns {
     /// `fracture` and `friction`, when interfaces can fail.
@@ -152,17 +208,17 @@ impl Columns {
         }
     }
 
-    /// The header after the seven energies.
+    /// The header after [`HISTORY_COLUMNS`].
     fn header(&self) -> Vec<String> {
         let mut h: Vec<String> = Vec::new();
         if self.failure {
-            h.extend(["fracture".into(), "friction".into()]);
+            h.extend(FAILURE_COLUMNS.map(String::from));
         }
         if self.damping {
-            h.push("damping".into());
+            h.push(DAMPING_COLUMN.into());
         }
         for c in &self.clamps {
-            h.extend([format!("{}_disp", c.name), format!("{}_force", c.name)]);
+            h.extend(clamp_columns(&c.name));
         }
         h.extend(self.probes.iter().map(|p| p.name.clone()));
         h
@@ -337,12 +393,9 @@ impl History {
         })
     }
 
-    /// The column names: [`crate::input::scene::HISTORY_COLUMNS`], then those of the model.
+    /// The column names: [`HISTORY_COLUMNS`], then those of the model.
     pub fn header(&self) -> Vec<String> {
-        let mut h: Vec<String> = crate::input::scene::HISTORY_COLUMNS
-            .iter()
-            .map(|c| c.to_string())
-            .collect();
+        let mut h: Vec<String> = HISTORY_COLUMNS.iter().map(|c| c.to_string()).collect();
         h.extend(self.columns.header());
         h
     }

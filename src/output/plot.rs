@@ -336,15 +336,9 @@ fn svg_file(
     crate::output::write_atomic(path, text.as_bytes())
 }
 
-/// The columns of a run's `history.csv` that are energies (J), the rest being probes.
-const ENERGIES: [&str; 6] = [
-    "kinetic",
-    "elastic",
-    "contact",
-    "potential",
-    "external_work",
-    "total",
-];
+/// The columns of a run's `history.csv` that are energies (J), the rest being probes: those
+/// of [`crate::output::HISTORY_COLUMNS`] after `t`.
+const ENERGIES: &[&str] = crate::output::HISTORY_COLUMNS.split_at(1).1;
 
 /// Draws the histories that runs left in `dir`, as SVG beside them, and returns the files written:
 /// - `history.csv` of `rbsm run`: `energies.svg` (each energy that is not zero throughout, J,
