@@ -67,6 +67,12 @@ pub struct Outcome {
     pub status: InterfaceStatus,
 }
 
+/// Runs the pair for every step of the scene and compares each step's traction with the
+/// closed form.
+///
+/// # Panics
+/// Never: the scene is the example's own, valid, with one interface that can fail, and the
+/// run's observer cannot fail.
 pub fn compute() -> Outcome {
     let setup = Setup::new(&scene(), &Overrides::default()).expect("the setup builds");
     let face = setup.model.interfaces[0];

@@ -79,6 +79,10 @@ pub const UNSTABLE_EXIT: u8 = 4;
 
 /// Checks everything a run of the setup would build (mesh, model, probes, `Δt_crit`, the time
 /// step; the setup has built the rest) without stepping.
+///
+/// # Errors
+/// A probe of the scene names an element outside the model, a point `at` in no element or a DOF the
+/// formulation does not have ([`Setup::probes`]).
 pub fn check(p: &Setup) -> Result<CheckReport> {
     p.probes()?;
     let m = &p.model;

@@ -57,6 +57,10 @@ pub struct Modes {
 }
 
 /// `n_modes` lowest modes and `ω_max` of a system.
+///
+/// # Errors
+/// By the sparse method only (`Method::Sparse`, or `Method::Auto` above [`DENSE_LIMIT`] free DOFs),
+/// when the shifted stiffness cannot be factored ([`lowest_modes`]).
 pub fn modes(
     sys: &FreeSystem,
     evaluator: &dyn Evaluator,
@@ -86,6 +90,9 @@ pub fn modes(
 /// Every mode of `L⁻¹ K_ff L⁻ᵀ` (`M_ff = L Lᵀ`, element by element; `M^{−½} K M^{−½}` for a
 /// lumped mass), densely; returns the lowest `n_modes` and `ω_max`. Shapes are `φ = L⁻ᵀ y`,
 /// `M`-normalised.
+///
+/// # Errors
+/// Never: the `Result` is that of [`modes`], whose sparse method can fail.
 pub fn dense_modes(sys: &FreeSystem, mass: &Mass, n_modes: usize) -> Result<Modes> {
     let n = sys.n();
     let mut k = DMatrix::<f64>::zeros(n, n);
@@ -266,6 +273,10 @@ impl LinOp<f64> for ShiftInvert<'_> {
 /// positive definite (the rigid modes then come out at `ω ≈ 0`); a shift that large would
 /// crowd the lowest modes of a stiff supported model (large penalties), so it is used only
 /// there. Shapes are `φ = L⁻ᵀ y`, `M`-normalised.
+///
+/// # Errors
+/// Neither `K_ff` nor the shifted `K − σ M` can be factored by sparse Cholesky (an error at the
+/// scene key `eigen`).
 pub fn lowest_modes(
     sys: &FreeSystem,
     mass: &Mass,
@@ -336,6 +347,9 @@ pub struct EigenParams {
 
 /// The lowest modes of a setup's `K φ = ω² M φ` (without contact), with `ω_max` and
 /// `Δt_crit` of the setup (contact included when the scene has contact: the run's limit).
+///
+/// # Errors
+/// As [`modes`]: the sparse method cannot factor the shifted stiffness.
 pub fn analyse(setup: &Setup, params: &EigenParams) -> Result<EigenReport> {
     let sys = FreeSystem::new(&setup.model, &setup.mass);
     let modes = modes(
@@ -389,6 +403,11 @@ pub struct Files<'a> {
 
 impl Files<'_> {
     /// Writes the files asked for.
+    ///
+    /// # Errors
+    /// A folder asked for cannot be created or a file written in it, or, with `out`, a probe of the
+    /// scene names an element outside the model, a point `at` in no element or a DOF the
+    /// formulation does not have (as [`write()`]).
     pub fn write(&self, setup: &Setup, report: &EigenReport) -> Result<()> {
         let modes = &report.modes;
         if let Some(dir) = self.out {
@@ -412,6 +431,10 @@ impl Files<'_> {
 /// Writes what `rbsm eigen --out DIR` gives: `summary.json` (the report), the shapes as
 /// `mode_NNN.vtu` with `modes.pvd`, and `probes.csv` (per mode its number, frequency and each
 /// probe of the `M`-normalised shape).
+///
+/// # Errors
+/// `dir` cannot be created or a file written in it, or a probe of the scene names an element
+/// outside the model, a point `at` in no element or a DOF the formulation does not have.
 pub fn write(dir: &Path, setup: &Setup, report: &EigenReport) -> Result<()> {
     let modes = &report.modes;
     crate::output::vtk::write_mode_shapes(dir, &setup.model, &modes.shapes)?;

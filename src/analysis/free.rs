@@ -24,6 +24,10 @@ pub struct FreeSystem {
 
 impl FreeSystem {
     /// Assembles `K_ff` and `M_ff` of a model.
+    ///
+    /// # Panics
+    /// Only when memory runs out while `K_ff` or `M_ff` is built (faer reports it where a `Vec`
+    /// would abort): their entries are filtered to the free DOFs, so none is out of range.
     pub fn new(model: &Model, mass: &Mass) -> FreeSystem {
         let n = model.n_dofs();
         let mut index = vec![0usize; n];
@@ -64,6 +68,10 @@ impl FreeSystem {
     }
 
     /// `K_ff − σ M_ff`.
+    ///
+    /// # Panics
+    /// Only when memory runs out, as [`FreeSystem::new`]: the entries are those of `K_ff` and
+    /// `M_ff`, all in range.
     pub fn shifted(&self, sigma: f64) -> SparseColMat<usize, f64> {
         let mut t = Vec::with_capacity(self.k.compute_nnz() + self.m.compute_nnz());
         for (mat, scale) in [(&self.k, 1.0), (&self.m, -sigma)] {

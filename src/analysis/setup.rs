@@ -232,6 +232,11 @@ impl Setup {
     }
 
     /// The history columns the scene asks for, each checked against the model's DOFs.
+    ///
+    /// # Errors
+    /// A probe names an element outside the model (`output.probes[k].element`), a point in no
+    /// element (`output.probes[k].at`) or a DOF the formulation does not have
+    /// (`output.probes[k].dof`).
     pub fn probes(&self) -> Result<Vec<Probe>> {
         probes(&self.scene, &self.model)
     }
@@ -280,6 +285,9 @@ fn check_finite(scene: &Scene, omega: f64) -> Result<()> {
 
 /// The history columns `scene` asks for in `model` (the scene's), each checked against the
 /// model's DOFs: what [`Setup::probes`] gives, without the rest of the setup.
+///
+/// # Errors
+/// As [`Setup::probes`].
 pub fn probes(scene: &Scene, model: &Model) -> Result<Vec<Probe>> {
     let nd = model.formulation.ndof();
     let elements = model.probe_elements(&scene.output.probes)?;

@@ -216,17 +216,18 @@ pub fn run_at_fraction(setup: &Setup, fraction: f64, steps: u64) -> FractionRun 
         (steps / 200).max(1)
     };
     let mut history = Vec::new();
-    let status = cd
-        .run(
-            steps,
-            every,
-            |_, e| {
-                history.push((e.t, e.total, e.kinetic + e.elastic));
-                Ok(())
-            },
-            |_| {},
-        )
-        .expect("the observer cannot fail");
+    // `run` fails only when its observer does, and this one cannot.
+    let Ok(status) = cd.run(
+        steps,
+        every,
+        |_, e| {
+            history.push((e.t, e.total, e.kinetic + e.elastic));
+            Ok(())
+        },
+        |_| {},
+    ) else {
+        unreachable!("the observer cannot fail")
+    };
     // No interrupt flag is set: a run ends or diverges.
     let reason = status.detail();
     FractionRun {
@@ -263,6 +264,9 @@ pub fn empirical_limit(setup: &Setup, steps: u64, tol: f64) -> (f64, f64) {
 }
 
 /// Writes `fraction_F.csv` (`t,total,stored`: s, J, J) for each run of a stability analysis.
+///
+/// # Errors
+/// `dir` cannot be created, or a `fraction_F.csv` cannot be written in it.
 pub fn write_fraction_histories(
     dir: &std::path::Path,
     runs: &[FractionRun],
@@ -314,6 +318,9 @@ pub struct StabilityParams {
 
 /// The setup's `Δt_crit` (the one every command uses), the cheap bounds, the empirical limit
 /// (bisection to `1e-4`) and undamped runs at the given fractions of `Δt_crit`.
+///
+/// # Errors
+/// A fraction of `params.fractions` is not a finite number > 0 (`--fractions`).
 pub fn analyse(setup: &Setup, params: &StabilityParams) -> Result<StabilityReport> {
     if let Some(f) = params
         .fractions

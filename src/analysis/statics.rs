@@ -27,6 +27,10 @@ pub struct StaticSolution {
 }
 
 /// Solves `K U = P` for the model's loads at their full value (gravity included).
+///
+/// # Errors
+/// The model is a mechanism: it has free rigid modes, named in the error (`bodies[].supports`); or
+/// `K_ff` is not positive definite although no free rigid mode was found.
 pub fn solve(model: &Model) -> Result<StaticSolution> {
     let ev = evaluator::build(model, EvaluatorKind::Assembled);
     let modes = free_modes(model, ev.as_ref());
@@ -127,6 +131,9 @@ pub struct StaticReport {
 }
 
 /// The static analysis of a setup: `U`, per element and interface, and the strain energy.
+///
+/// # Errors
+/// As [`solve`]: the model is a mechanism, or `K_ff` is not positive definite.
 pub fn analyse(setup: &Setup) -> Result<StaticReport> {
     let model = &setup.model;
     let sol = solve(model)?;
@@ -202,6 +209,10 @@ impl Report for StaticReport {
 /// Writes what `rbsm static --out DIR` gives: `summary.json` (the report), `final_state.json`
 /// (`U`, zero `V`), `probes.csv` (`probe,value,unit` for the scene's probes) and the frame
 /// `static.vtu` with its collection `series.pvd`.
+///
+/// # Errors
+/// `dir` cannot be created or a file written in it, or a probe of the scene names an element
+/// outside the model, a point `at` in no element or a DOF the formulation does not have.
 pub fn write(dir: &Path, setup: &Setup, report: &StaticReport) -> Result<()> {
     let (model, u) = (&setup.model, report.u.as_slice());
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;

@@ -58,6 +58,11 @@ const KEYS: [(&str, Key); 8] = [
 impl Key {
     /// Refuses a value the key cannot take, naming the key and the allowed values (the names of
     /// formulations, evaluators and contact models as scenes write them).
+    ///
+    /// # Errors
+    /// `v` is not a value of the key: a finite number > 0 (`dt`, `dt_factor`, `penalty`), an
+    /// integer in 1..=64 (`refine`), a formulation, evaluator or contact model by its name, or
+    /// an unsigned 64-bit integer (`seed`).
     pub fn check(self, v: &str) -> Result<()> {
         let within = |ok: bool, allowed: &str| match ok {
             true => Ok(()),
@@ -87,6 +92,10 @@ impl Key {
     }
 
     /// The key of `name` as written on the command line, if there is one.
+    ///
+    /// # Errors
+    /// `name`, trimmed, is none of `dt`, `dt_factor`, `refine`, `formulation`, `penalty`,
+    /// `evaluator`, `contact` and `seed`.
     pub fn named(name: &str) -> Result<Key> {
         KEYS.iter()
             .find(|k| k.0 == name.trim())
@@ -119,6 +128,10 @@ pub struct Sweep {
 
 impl Sweep {
     /// Parses `KEY=V1,V2,...`; the error names the key or value and what is allowed.
+    ///
+    /// # Errors
+    /// `text` has no `=`, names an unknown key ([`Key::named`]), lists no value, or lists a value
+    /// the key does not take ([`Key::check`]).
     pub fn parse(text: &str) -> Result<Sweep> {
         let field = "--sweep";
         let (key, values) = text
@@ -305,6 +318,10 @@ pub fn default_folder(scene: &Scene) -> std::path::PathBuf {
 /// Runs `scene` (read and validated, as [`Scene::from_file`] gives it) at every combination
 /// of `sweeps`, calling `progress` with each finished point. The errors compare the histories
 /// of the scene's probes, the columns `rbsm run` writes.
+///
+/// # Errors
+/// As [`Study::new`] for `scene`, [`Study::point`] for each combination of `sweeps` (the first that
+/// fails stops the sweep) and [`Study::report`] for the errors.
 pub fn sweep(
     scene: &Scene,
     sweeps: &[Sweep],
@@ -341,6 +358,11 @@ pub struct Measured {
 impl Study {
     /// The study of `scene` (read and validated): refuses a scene with neither a probe nor a
     /// closed-form reference, which leaves nothing to compare.
+    ///
+    /// # Errors
+    /// The scene's model cannot be built ([`Model::build`]), a probe of the scene names an element
+    /// outside the model, a point `at` in no element or a DOF the formulation does not have, or the
+    /// scene has neither a probe nor a `reference` with a closed form.
     pub fn new(scene: &Scene) -> Result<Study> {
         let model = Model::build(scene)?;
         let scene = probes_by_point(scene, &model)?;
@@ -356,6 +378,12 @@ impl Study {
 
     /// Runs the point `settings` (each value checked by [`Key::check`]), again until its stepping
     /// adds up to 0.2 s (at most 25 runs); its times are the medians of those runs.
+    ///
+    /// # Errors
+    /// A value is refused by [`Key::check`] or does not apply to the scene (`refine` of a polygons
+    /// or gmsh mesh, `seed` without a Voronoi mesh, `contact` without a `contact`); or the point's
+    /// scene is invalid, cannot be set up ([`Setup::new`]), or has a probe in no element of its
+    /// model.
     pub fn point(&self, settings: Vec<(Key, String)>) -> Result<Measured> {
         let mut point_scene = self.scene.clone();
         for (key, value) in &settings {
@@ -378,6 +406,10 @@ impl Study {
 
     /// The report of the points `runs`, in the order given: each error against the reference,
     /// and the Pareto front.
+    ///
+    /// # Errors
+    /// Without a closed-form reference, every run diverged, leaving none to compare with; with
+    /// `bar-step`, the first body is not on a grid mesh or has no traction on its right side.
     pub fn report(&self, runs: Vec<Measured>) -> Result<TradeoffReport> {
         let mut runs: Vec<(Point, Measure)> =
             runs.into_iter().map(|m| (m.point, m.measure)).collect();
@@ -851,6 +883,10 @@ impl crate::analysis::Report for TradeoffReport {
 
 impl TradeoffReport {
     /// Writes `tradeoff.csv`, `tradeoff.md` and `tradeoff.svg` into `dir`.
+    ///
+    /// # Errors
+    /// `dir` cannot be created, `tradeoff.csv` or `tradeoff.md` cannot be written in it, or
+    /// `tradeoff.svg` cannot be drawn or written.
     pub fn write(&self, dir: &Path) -> Result<()> {
         std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
         let (csv, md) = self.tables();

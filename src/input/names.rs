@@ -15,7 +15,10 @@ pub trait Named: Copy + Sized + 'static {
     /// What `self` is: its doc comment, on one line (the command line's help lists it).
     fn help(self) -> &'static str;
 
-    /// The value named `name`; an error says what the names are.
+    /// The value named `name`.
+    ///
+    /// # Errors
+    /// `name` is none of [`Named::ALL`]'s names; the message lists them.
     fn from_name(name: &str) -> Result<Self, String> {
         Self::ALL
             .iter()

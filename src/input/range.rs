@@ -133,6 +133,9 @@ impl Range {
     }
 
     /// Refuses a number `x` out of the range, naming its key `field`.
+    ///
+    /// # Errors
+    /// `x` is not finite or lies outside the range; the message gives the range and `x`.
     pub fn check(&self, field: &str, x: f64) -> Result<()> {
         if self.holds(x) {
             return Ok(());
@@ -175,6 +178,12 @@ impl Range {
     }
 
     /// Refuses a count `n` out of the range (whose ends are whole and closed), naming its key.
+    ///
+    /// # Errors
+    /// `n` lies outside the range.
+    ///
+    /// # Panics
+    /// Never for a range with an end: a range with none holds every count.
     pub fn check_count(&self, field: &str, n: u64) -> Result<()> {
         if self.holds(n as f64) {
             return Ok(());
@@ -193,6 +202,9 @@ impl Range {
 
     /// Refuses a pair of counts (`[nx, ny]`) either of which is below the range or whose
     /// product is above it, naming its key.
+    ///
+    /// # Errors
+    /// A count is below the range's least value, or their product above its most.
     pub fn check_pair(&self, field: &str, pair: [usize; 2]) -> Result<()> {
         let product = pair[0].saturating_mul(pair[1]);
         if pair.iter().all(|&n| n as f64 >= self.least()) && product as f64 <= self.most() {

@@ -1025,6 +1025,11 @@ pub fn schema() -> serde_json::Value {
 
 impl Scene {
     /// Reads and validates a scene file.
+    ///
+    /// # Errors
+    /// The file cannot be read or is larger than `MAX_SCENE_BYTES`, is not JSON, repeats a key,
+    /// has a key the scene does not know or a value of the wrong type (the error names its JSON
+    /// path), or a value out of its range ([`Scene::validate`]).
     pub fn from_file(path: impl AsRef<Path>) -> Result<Scene> {
         let path = path.as_ref();
         let text = read_text_limited(path, MAX_SCENE_BYTES, "a scene file")?;
@@ -1036,11 +1041,17 @@ impl Scene {
 
     /// Parses and validates a scene from JSON text; mesh files are found from the working
     /// directory.
+    ///
+    /// # Errors
+    /// As [`Scene::from_file`], the reading of the file aside.
     pub fn from_json(text: &str) -> Result<Scene> {
         Scene::parse(text, None)
     }
 
     /// Parses and validates a scene whose relative mesh paths start at `dir`.
+    ///
+    /// # Errors
+    /// As [`Scene::from_json`].
     pub fn from_json_in(text: &str, dir: &Path) -> Result<Scene> {
         Scene::parse(text, Some(dir))
     }
@@ -1163,6 +1174,10 @@ impl Scene {
     /// section: the whole scene's numbers, the materials, the output, the bodies, the ground
     /// and contact, the time. (Whether a probe's column is one of the history's own is the
     /// output stage's to say: `output::refuse_own_columns`, called by the setup.)
+    ///
+    /// # Errors
+    /// The first value out of its range, by its key's path (`bodies[0].mesh.sites`), with the
+    /// range it must lie in; a material, side, mesh file or probe that names nothing.
     pub fn validate(&self) -> Result<()> {
         bounded_name("name", &self.name)?;
         THICKNESS.check("thickness", self.thickness)?;

@@ -25,6 +25,12 @@ pub struct EdgeGroup {
 pub const MAX_MESH_BYTES: u64 = 2 << 30;
 
 /// Reads the mesh of body `body` from the MSH 4.1 file `path`.
+///
+/// # Errors
+/// `path` cannot be read, is not a regular file or is larger than [`MAX_MESH_BYTES`]; it is not an
+/// MSH 4.1 file with 8-byte data, of 3-node triangles and 4-node quadrilaterals with 2-node lines
+/// for groups; or its cells do not form a valid mesh (as [`Mesh::from_polygons`] checks), or a
+/// group's line is not an edge of a cell.
 pub fn read(body: &str, path: &Path) -> Result<Mesh> {
     let bytes = crate::input::scene::read_limited(path, MAX_MESH_BYTES, "a mesh file")?;
     let field = format!("mesh `{body}` ({})", path.display());

@@ -8,6 +8,10 @@ use crate::mesh::geometry::Vec2;
 
 /// A grid of `nx × ny` cells covering `origin .. origin + size`, numbered row by row from the
 /// lower-left (`c = i + nx·j`; with triangles, elements `2c` and `2c + 1`).
+///
+/// # Errors
+/// `nx` or `ny` is zero, or `origin` and `size` give cells of no area, clockwise cells (`size`
+/// negative in one direction) or coordinates that are not finite.
 pub fn grid(
     body: &str,
     origin: Vec2,

@@ -90,6 +90,10 @@ pub fn cells_of(mesh: &MeshSpec) -> Option<u64> {
 
 impl Mesh {
     /// The mesh a body's scene entry asks for (the one place that reads `mesh.kind`).
+    ///
+    /// # Errors
+    /// As the generator the entry names: [`grid::grid`], [`voronoi::voronoi`],
+    /// [`Mesh::from_polygons`] or [`gmsh::read`].
     pub fn from_spec(body: &str, spec: &MeshSpec) -> Result<Mesh> {
         let v = |p: &[f64; 2]| Vec2::new(p[0], p[1]);
         match spec {
@@ -143,6 +147,11 @@ impl Mesh {
     }
 
     /// The boundary edges in `set`, in boundary order; `Err` with the reason when there are none.
+    ///
+    /// # Errors
+    /// `set` is a group the mesh does not have (the message lists those it has), or holds no
+    /// boundary edge: no edge lies on that side of the bounding box, or none of the group's edges
+    /// is on the boundary.
     pub fn edges_in(&self, set: &EdgeSet) -> std::result::Result<Vec<&BoundaryEdge>, String> {
         let edges: Vec<&BoundaryEdge> = match set {
             EdgeSet::Side(side) => self
@@ -191,6 +200,12 @@ impl Mesh {
     ///
     /// Cells must be counter-clockwise, non-degenerate, simple, non-overlapping and conforming
     /// (no vertex of one cell in the middle of another cell's edge); each error names the cell.
+    ///
+    /// # Errors
+    /// There are no cells, a vertex index is out of range or a coordinate is not finite; a cell
+    /// has fewer than 3 vertices, repeats one, has no area, is clockwise, crosses or touches
+    /// itself; or cells overlap, lie inside one another, share an edge among more than two, or
+    /// do not conform. The error names the cell.
     pub fn from_polygons(body: &str, vertices: Vec<Vec2>, cells: &[Vec<usize>]) -> Result<Self> {
         for (c, cell) in cells.iter().enumerate() {
             if let Some(&v) = cell.iter().find(|&&v| v >= vertices.len()) {

@@ -11,6 +11,11 @@ use voronoice::{BoundingBox, Point, VoronoiBuilder};
 
 /// `sites` cells in the rectangle `origin .. origin + size`, after `lloyd` centroid iterations;
 /// the same `seed` gives the same mesh on every machine (ChaCha8 generator).
+///
+/// # Errors
+/// The diagram of the sites cannot be built, loses sites, or has a cell that is degenerate or has
+/// no area (too few or coincident sites, or sites nearly on one line in an extreme rectangle); or
+/// the welded cells do not form a valid mesh.
 pub fn voronoi(
     body: &str,
     origin: Vec2,

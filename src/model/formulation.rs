@@ -258,7 +258,11 @@ pub enum Formulation {
 }
 
 impl Formulation {
-    /// The formulation of a scene; hybrid is refused until it is implemented.
+    /// The formulation of a scene.
+    ///
+    /// # Errors
+    /// Never: both formulations a scene can name are implemented (hybrid was refused here
+    /// before it was).
     pub fn from_spec(spec: FormulationSpec) -> crate::error::Result<Self> {
         match spec {
             FormulationSpec::Rigid => Ok(Formulation::Rigid),
@@ -304,6 +308,9 @@ impl Formulation {
     }
 
     /// `f += N_e(d)ᵀ F` on the `ndof` entries of one element (no allocation).
+    ///
+    /// # Panics
+    /// `f.len()` is not [`Formulation::ndof`]: 3 for rigid, 6 for hybrid.
     pub fn add_point_force(self, f: &mut [f64], d: Vec2, force: Vec2) {
         match self {
             Formulation::Rigid => {
@@ -316,6 +323,9 @@ impl Formulation {
     }
 
     /// `N_e(d) U_e`: the displacement at offset `d` of an element with DOFs `u`.
+    ///
+    /// # Panics
+    /// `u.len()` is not [`Formulation::ndof`]: 3 for rigid, 6 for hybrid.
     pub fn displacement(self, u: &[f64], d: Vec2) -> Vec2 {
         match self {
             Formulation::Rigid => {

@@ -101,6 +101,11 @@ fn reserved(threads: usize) -> u64 {
 /// Refuses `scene` when a model of `elements` elements needs more address space than is left
 /// under `ulimit -v`, or more memory (the estimate without `reserved`) than is free or left
 /// under the cgroup's limit (see `room`), with the two figures that do not fit.
+///
+/// # Errors
+/// The estimate for `elements` is more than the room left under `ulimit -v`, or, without the
+/// reserved address space, more than the free memory or the room under the cgroup's limit. Never
+/// where neither can be read (not Linux).
 pub fn ensure_fits(scene: &Scene, elements: u64) -> Result<()> {
     let threads = rayon::current_num_threads();
     let need = estimate(scene, elements, threads);

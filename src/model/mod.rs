@@ -726,6 +726,10 @@ impl Model {
 
     /// The element of each probe of `probes` (`output.probes`): its `element`, checked, or the
     /// one containing its `at`, all found in one search ([`Model::elements_at`]).
+    ///
+    /// # Errors
+    /// A probe's `at` lies in no element, or a probe without `at` has no `element` or one outside
+    /// the model (`output.probes[k]`).
     pub fn probe_elements(&self, probes: &[crate::input::scene::ProbeSpec]) -> Result<Vec<usize>> {
         let points: Vec<Vec2> = probes
             .iter()
@@ -770,6 +774,9 @@ impl Model {
 }
 
 /// The global index of DOF `name` within an element, checked against the formulation.
+///
+/// # Errors
+/// `name` is none of the formulation's DOFs ([`Formulation::dof_names`]); the error names `field`.
 pub fn dof_index(name: &str, formulation: Formulation, field: &str) -> Result<usize> {
     formulation
         .dof_names()

@@ -386,6 +386,9 @@ pub fn state_svg(model: &Model, state: &crate::output::FinalState) -> String {
 
 /// Writes `mode_001.svg`, ... into `dir`: each mode shape drawn by [`displaced_svg`], captioned
 /// with its frequency (Hz); `omega` are the circular frequencies (rad/s) of the `shapes`.
+///
+/// # Errors
+/// `dir` cannot be created, or a `mode_NNN.svg` cannot be written in it.
 pub fn write_mode_shapes(
     dir: &std::path::Path,
     model: &Model,

@@ -161,6 +161,9 @@ fn clamp_columns(name: &str) -> [String; 2] {
 /// (whether or not this one does, so that a probe's name does not depend on the damping or the
 /// interface law) and `model`'s moving clamps'. The error names the probe's key; the scene
 /// checked the rest of the rule (`Scene::validate`).
+///
+/// # Errors
+/// A probe's name is one of those columns.
 pub fn refuse_own_columns(model: &Model, probes: &[crate::input::scene::ProbeSpec]) -> Result<()> {
     let own: std::collections::HashSet<String> = HISTORY_COLUMNS
         .iter()
@@ -328,6 +331,10 @@ impl History {
     /// Creates `history.csv` in `dir` (a new file renamed into place: a symbolic link there is
     /// replaced, not written through) and writes the header; the rows are kept in memory too
     /// when `keep` is set.
+    ///
+    /// # Errors
+    /// `dir/history.csv` cannot be created or its header written (no folder `dir`, no permission,
+    /// disk full).
     pub fn create(dir: &Path, columns: Columns, keep: bool) -> Result<History> {
         let path = dir.join("history.csv");
         let file = write_atomic_open(&path, &[])?;
@@ -343,6 +350,10 @@ impl History {
     /// Opens the history of an earlier run to go on after its first `len` bytes (the rows up to
     /// a checkpoint); the rest is cut off. Rows kept in memory start at the checkpoint. A
     /// symbolic link in its place is replaced by a file of those bytes, its target left alone.
+    ///
+    /// # Errors
+    /// `dir/history.csv` is missing, is neither a file nor a symbolic link, holds fewer than `len`
+    /// bytes, or cannot be read, cut back to `len` bytes or (in place of a link) written.
     pub fn resume(dir: &Path, columns: Columns, len: u64, keep: bool) -> Result<History> {
         use std::io::{Read, Seek};
         let path = dir.join("history.csv");
@@ -418,6 +429,10 @@ impl History {
 
     /// Records the row of one recorded step. `history.csv` writes each value in the shortest
     /// form that reads back to the same bits.
+    ///
+    /// # Errors
+    /// The row cannot be appended to `history.csv`, which is then cut back to its whole rows. A
+    /// history in memory only never fails.
     pub fn write(&mut self, s: &Snapshot, e: &Energy) -> Result<()> {
         let mut row = vec![
             e.t,
@@ -494,6 +509,12 @@ pub fn element_stress(model: &Model, e: usize, u: &[f64]) -> Option<[f64; 3]> {
 
 /// Writes `final_state.json`: per element its reference centroid, `U` and `V`.
 /// `interfaces` lists the failing interfaces' state, written only when the model has any.
+///
+/// # Errors
+/// `dir/final_state.json` cannot be written.
+///
+/// # Panics
+/// `u` or `v` is shorter than `ndof × elements`.
 pub fn write_final_state(
     dir: &Path,
     model: &Model,
@@ -571,10 +592,12 @@ struct StateInterface {
     dissipated: f64,
 }
 
-/// Reads `path`, the `final_state.json` of a run of `model`'s scene. Refuses, naming the file,
-/// a state that is not one (missing, not JSON, keys missing) or that belongs to another scene:
-/// another number of elements or of DOFs per element, centroids elsewhere, interfaces that
-/// the model does not have or that cannot fail.
+/// Reads `path`, the `final_state.json` of a run of `model`'s scene.
+///
+/// # Errors
+/// A state that is not one (missing, not JSON, keys missing) or that belongs to another scene:
+/// another number of elements or of DOFs per element, centroids elsewhere, interfaces that the
+/// model does not have or that cannot fail; the error names the file.
 /// A file larger than the final state of `model` could be (1 KiB per element, 512 B per
 /// interface and 1 MiB, where `rbsm run` writes about 0.6 kB and 0.2 kB), or not a regular
 /// file, is refused before it is read.
@@ -658,6 +681,9 @@ pub fn read_final_state(path: &Path, model: &Model) -> Result<FinalState> {
 }
 
 /// Writes any serialisable value as pretty JSON, atomically ([`write_atomic`]).
+///
+/// # Errors
+/// `value` does not serialise to JSON, or `path` cannot be written as [`write_atomic`] says.
 pub fn write_json(path: &Path, value: &impl Serialize) -> Result<()> {
     // Streamed to the file: the text of a large final state is never whole in memory (it
     // was 67 MB in a vector of twice its room for 10⁵ elements).
@@ -684,6 +710,10 @@ pub fn temporary(path: &Path) -> PathBuf {
 /// a process killed half way, see the old file whole or the new one whole. Nothing is written
 /// through a symbolic link: one at `path` is replaced by the file (its target left alone), and
 /// the temporary file is created anew ([`create_fresh`]).
+///
+/// # Errors
+/// The temporary file beside `path` cannot be created (no folder, no permission, or what is at that
+/// name cannot be removed) or written, or cannot be renamed over `path`; it is then removed.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     write_atomic_open(path, bytes).map(drop)
 }
@@ -691,6 +721,9 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
 /// [`write_atomic`], returning the file written, open for writing at its end: a file that
 /// grows (`history.csv`, the collections of VTK frames) goes on through this handle, never
 /// through whatever the name may later point to.
+///
+/// # Errors
+/// As [`write_atomic`].
 pub fn write_atomic_open(path: &Path, bytes: &[u8]) -> Result<std::fs::File> {
     write_atomic_with(path, |file| file.write_all(bytes))
 }
@@ -714,6 +747,10 @@ fn write_atomic_with(
 /// Creates the file `path` anew for writing: what is there (a file, a symbolic link) is removed
 /// first, and the file is created only if nothing is there then (`O_EXCL`, which follows no
 /// link), so that the write cannot land in a link's target.
+///
+/// # Errors
+/// What is at `path` cannot be removed, or the file cannot be created: no folder, no permission, or
+/// something was put at `path` in between.
 pub fn create_fresh(path: &Path) -> std::io::Result<std::fs::File> {
     match std::fs::remove_file(path) {
         Err(e) if e.kind() != std::io::ErrorKind::NotFound => return Err(e),
@@ -727,6 +764,9 @@ pub fn create_fresh(path: &Path) -> std::io::Result<std::fs::File> {
 
 /// `probes.csv`: the columns `keys`, then one column per probe (its unit in the
 /// header, `name (m)`), a row per `(key values, displacements)`.
+///
+/// # Errors
+/// `dir/probes.csv` cannot be written; never when `probes` is empty.
 pub fn write_probe_rows(
     dir: &Path,
     probes: &[Probe],

@@ -22,6 +22,9 @@ fn range(values: impl Iterator<Item = f64>, factor: f64) -> std::ops::Range<f64>
 
 /// Named series of `(x, y)` as lines with markers on log–log axes (non-positive points are
 /// left out).
+///
+/// # Errors
+/// plotters cannot draw the chart, or `path` cannot be written.
 pub fn log_log(
     path: &Path,
     title: &str,
@@ -79,6 +82,9 @@ pub fn log_log(
 
 /// Error against wall time of the points `(wall_s, error, on_front, label)`: every point as a
 /// grey dot, the Pareto front as a line through red diamonds labelled with their settings.
+///
+/// # Errors
+/// plotters cannot draw the chart, or `path` cannot be written.
 pub fn pareto(path: &Path, title: &str, points: &[(f64, f64, bool, String)]) -> Result<()> {
     svg_file(path, (820, 540), |root| {
         let mut chart = ChartBuilder::on(root)
@@ -161,6 +167,11 @@ pub const MAX_CSV_BYTES: u64 = 1 << 30;
 
 /// Reads a CSV file of numbers under one header line, as the runs write them; a file that is
 /// not a regular one or is larger than [`MAX_CSV_BYTES`] is refused before it is read.
+///
+/// # Errors
+/// `path` cannot be read, is not a regular file, is larger than [`MAX_CSV_BYTES`] or is not UTF-8;
+/// or it has no header line, a row with another number of fields than the header, or a field that
+/// is not a number (the error names the line).
 pub fn read_csv(path: &Path) -> Result<Vec<Column>> {
     let text = crate::input::scene::read_text_limited(path, MAX_CSV_BYTES, "a CSV file to plot")?;
     let bad = |line: usize, message: String| invalid(path, &format!("line {line}: {message}"));
@@ -346,6 +357,11 @@ const ENERGIES: &[&str] = crate::output::HISTORY_COLUMNS.split_at(1).1;
 /// - `fraction_F.csv` of `rbsm stability --out`: `stability.svg`, the stored (kinetic +
 ///   elastic) energy of each run relative to the first it stored, on a log scale: bounded below
 ///   `Δt_crit`, growing geometrically (a straight line) above it until the guard stops the run.
+///
+/// # Errors
+/// `dir` cannot be listed or holds neither `history.csv` nor a `fraction_F.csv`; the history is not
+/// a CSV of numbers ([`read_csv`]) with `t` as first column, or a fraction series has no `stored`
+/// column; or a plot cannot be drawn or written.
 pub fn histories(dir: &Path) -> Result<Vec<std::path::PathBuf>> {
     let mut written = Vec::new();
     let history = dir.join("history.csv");

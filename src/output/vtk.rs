@@ -111,12 +111,20 @@ fn prune(dir: &Path, keep: &std::collections::HashSet<String>) -> Result<()> {
 impl<'a> VtkSeries<'a> {
     /// Creates `DIR/vtk/` and an empty collection; with `plastic` (a model whose interfaces can
     /// fail) also `DIR/cracks/` and its empty collection.
+    ///
+    /// # Errors
+    /// As [`VtkSeries::resume`] with no frames: the folders cannot be created or cleared of an
+    /// earlier run's frames, or a collection cannot be written.
     pub fn create(dir: &Path, plastic: Option<&'a dyn PlasticForces>) -> Result<VtkSeries<'a>> {
         Self::resume(dir, Vec::new(), plastic)
     }
 
     /// Goes on with the frames `frames` (time, name under `DIR`) of an earlier run: removes the
     /// frames it wrote after them (and their cracks) and writes the collections of these.
+    ///
+    /// # Errors
+    /// `DIR/vtk/` or `DIR/cracks/` cannot be created, listed or cleared of the later frames, or
+    /// `DIR/series.pvd` or `DIR/cracks.pvd` cannot be written.
     pub fn resume(
         dir: &Path,
         frames: Vec<(f64, String)>,
@@ -154,6 +162,10 @@ impl<'a> VtkSeries<'a> {
 
     /// Writes the frame of one recorded step (and its cracks), then adds it to the
     /// collection(s).
+    ///
+    /// # Errors
+    /// The frame or its cracks cannot be written, or a collection cannot gain its entry (it is then
+    /// left whole, without it).
     pub fn write(&mut self, model: &Model, s: &Snapshot) -> Result<()> {
         let name = format!("vtk/step_{:09}.vtu", s.step);
         write_frame(&self.dir.join(&name), model, s.u, s.v, Placement::Current)?;
@@ -234,6 +246,12 @@ pub fn status_code(status: InterfaceStatus) -> i32 {
 /// Writes one VTK XML unstructured grid (`.vtu`) of the elements placed by `placement`, with
 /// cell data `displacement`, `velocity`, `rotation` and `body` (hybrid: `strain`, `stress`).
 /// Cells of 3 and 4 vertices are written as VTK triangles and quadrilaterals, others as polygons.
+///
+/// # Errors
+/// vtkio cannot encode the grid, or `path` cannot be written.
+///
+/// # Panics
+/// `u` or `v` is shorter than `ndof × elements`.
 pub fn write_frame(
     path: &Path,
     model: &Model,
@@ -294,6 +312,12 @@ pub fn write_frame(
 /// and `interface` (its index in `Model::interfaces`, as in `final_state.json`). Every frame
 /// has the same lines, so that cell `k` is the same interface throughout a run, and none is
 /// empty (meshio 5.3 cannot read a grid without cells).
+///
+/// # Errors
+/// vtkio cannot encode the grid, or `path` cannot be written.
+///
+/// # Panics
+/// `report` names an interface the model does not have, or `u` is shorter than `ndof × elements`.
 pub fn write_cracks(
     path: &Path,
     model: &Model,
@@ -390,6 +414,12 @@ fn write_grid(
 /// Writes each mode shape as `DIR/mode_NNN.vtu` and the collection `DIR/modes.pvd` (one time
 /// step per mode: its number), scaled so that the largest translation is a tenth of
 /// the model's size (shapes are `M`-normalised, their scale is arbitrary).
+///
+/// # Errors
+/// `dir` cannot be created, or a `mode_NNN.vtu` or `modes.pvd` cannot be written in it.
+///
+/// # Panics
+/// A shape is shorter than `ndof × elements`.
 pub fn write_mode_shapes(dir: &Path, model: &Model, shapes: &[Vec<f64>]) -> Result<()> {
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
     let (mut lo, mut hi) = (
@@ -424,6 +454,9 @@ pub fn write_mode_shapes(dir: &Path, model: &Model, shapes: &[Vec<f64>]) -> Resu
 }
 
 /// Writes a collection listing `frames` (time, file name relative to the collection).
+///
+/// # Errors
+/// `path` cannot be written ([`crate::output::write_atomic`]).
 pub fn write_collection(path: &Path, frames: &[(f64, String)]) -> Result<()> {
     crate::output::write_atomic(path, collection_xml(frames).as_bytes())
 }

@@ -594,6 +594,10 @@ impl<'a> CentralDifference<'a> {
 
     /// The state at the end of the last `run` that ended `Ok` (after its last record), from
     /// which [`CentralDifference::restore`] goes on bit for bit.
+    ///
+    /// # Panics
+    /// The integrator is not at the end of a run: it is new, its last `run` diverged, or it has
+    /// stepped on since ([`CentralDifference::step_only`]).
     pub fn state(&self) -> State {
         assert!(
             self.pending,
@@ -614,6 +618,11 @@ impl<'a> CentralDifference<'a> {
 
     /// Goes on from `state`, taken by [`CentralDifference::state`] from a run of the same model
     /// at the same time step; `Err` names what differs.
+    ///
+    /// # Errors
+    /// `state` has another time step, number of DOFs, contact (one of the two has none, or
+    /// [`Contact::check_saved`] refuses it), moving clamps or failing interfaces; the integrator is
+    /// then left as it was.
     pub fn restore(&mut self, state: State) -> std::result::Result<(), String> {
         if state.dt.to_bits() != self.dt.to_bits() {
             return Err(format!(
@@ -692,6 +701,10 @@ impl<'a> CentralDifference<'a> {
     /// and at the last one, and `progress` with the step number at every guard check. Stops
     /// early, with the reason, when the guard finds a NaN or runaway energy; the state is then
     /// rolled back to the last one that passed the guard.
+    ///
+    /// # Errors
+    /// `observer` returns an error: the run stops at that step and passes it on. A run that
+    /// diverges or is interrupted is no error but a [`Status`].
     pub fn run(
         &mut self,
         steps: u64,
@@ -891,6 +904,9 @@ impl<'a> CentralDifference<'a> {
     /// Runs `steps` steps in chunks of `every`, calling `each` with the integrator (its contact
     /// state included) and the energies at the end of every chunk; returns at the first chunk
     /// that does not end `Ok`.
+    ///
+    /// # Errors
+    /// Never: its observer cannot fail; the `Result` is that of [`CentralDifference::run`].
     pub fn run_chunks(
         &mut self,
         steps: u64,

@@ -84,6 +84,10 @@ impl Checkpoint {
     }
 
     /// Writes `DIR/checkpoint.bin` atomically.
+    ///
+    /// # Errors
+    /// `DIR/checkpoint.bin` cannot be written (no folder `DIR`, no permission, disk full), or the
+    /// state cannot be encoded.
     pub fn write(&self, dir: &Path) -> Result<()> {
         let path = dir.join(FILE);
         let mut bytes = postcard::to_stdvec(self)
@@ -94,6 +98,11 @@ impl Checkpoint {
     }
 
     /// Reads `DIR/checkpoint.bin` and checks that it belongs to a run of `scene` with `opts`.
+    ///
+    /// # Errors
+    /// `DIR/checkpoint.bin` is missing or cannot be read; it is damaged (its checksum does not
+    /// match), of another format of rbsm, or written by a run of another scene or other overrides
+    /// (another [`fingerprint`]).
     pub fn read(dir: &Path, scene: &Scene, opts: &Overrides) -> Result<Checkpoint> {
         let path: PathBuf = dir.join(FILE);
         let bytes = std::fs::read(&path).map_err(|e| match e.kind() {

@@ -113,6 +113,9 @@ impl Monitor for Silent {
 }
 
 /// Runs the setup's scene and writes its outputs into `out`; returns the summary (also written).
+///
+/// # Errors
+/// As [`simulate`] with a folder.
 pub fn run(
     setup: &Setup,
     params: &RunParams,
@@ -124,6 +127,14 @@ pub fn run(
 
 /// Runs the setup's scene; with a folder `out`, writes its outputs there as [`run`] does;
 /// without, writes nothing and keeps the history in memory. Returns what the run ends with.
+///
+/// # Errors
+/// A probe of the scene names an element outside the model, a point `at` in no element or a DOF the
+/// formulation does not have; with `out`, the folder cannot be created, cleared of an earlier run's
+/// outputs or written; with [`RunParams::resume`], there is no `out`, or its checkpoint is missing,
+/// damaged or of another scene or options ([`Checkpoint::read`]), or its `history.csv` is shorter
+/// than the checkpoint counts. A run that diverges or is interrupted is no error: its
+/// [`Summary::status`] says so.
 pub fn simulate(
     setup: &Setup,
     params: &RunParams,

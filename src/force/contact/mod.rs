@@ -178,6 +178,11 @@ impl Contact {
     /// its initial state): the same settings, boundary and contact model, and every index it
     /// holds (contacts, neighbour lists, pieces, forces) within them. `Err` says what is off.
     /// A checkpoint that passes is restored by assignment: it holds the whole contact state.
+    ///
+    /// # Errors
+    /// `saved` has other settings, contact vertices and edges, or contact model than this contact,
+    /// or holds an index (contact, neighbour list, piece, force) outside them; the message says
+    /// which.
     pub fn check_saved(&self, saved: &Contact) -> std::result::Result<(), String> {
         if !same(&self.settings, &saved.settings) || self.extent != saved.extent {
             return Err("its contact vertices and edges are not this model's".into());

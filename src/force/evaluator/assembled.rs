@@ -64,6 +64,9 @@ pub struct BlockCsr<const N: usize> {
 
 impl<const N: usize> BlockCsr<N> {
     /// Sums block triplets `(row, col, block)` into compressed rows (duplicates added).
+    ///
+    /// # Panics
+    /// A triplet's row is `n_rows` or more.
     pub fn from_triplets(n_rows: usize, mut triplets: Vec<(u32, u32, SMatrix<f64, N, N>)>) -> Self {
         triplets.sort_by_key(|&(r, c, _)| (r, c));
         let mut row_start = vec![0u32; n_rows + 1];
@@ -71,8 +74,8 @@ impl<const N: usize> BlockCsr<N> {
         let mut blocks: Vec<[[f64; N]; N]> = Vec::with_capacity(triplets.len());
         let mut last = None;
         for (r, c, b) in triplets {
-            if last == Some((r, c)) {
-                let top = blocks.last_mut().expect("a block was pushed for this key");
+            // The key of the last block pushed: add to that block.
+            if let (true, Some(top)) = (last == Some((r, c)), blocks.last_mut()) {
                 for i in 0..N {
                     for j in 0..N {
                         top[i][j] += b[(i, j)];
