@@ -1,5 +1,5 @@
-//! Quasi-static solution control (`rbsm::step::local`): Cundall's local non-viscous damping
-//! brings a suddenly loaded body to its static solution, the energy books close with the work it
+//! Quasi-static solution control (`rbsm::step::local`, the scene's `local_damping`): Cundall's
+//! local non-viscous damping brings a suddenly loaded body to its static solution, the energy books close with the work it
 //! takes, and the run does not depend on the thread count.
 
 mod common;
@@ -15,6 +15,7 @@ use rbsm::model::Model;
 fn cantilever(mesh: &str, alpha: f64, steps: u64, dt_factor: f64) -> (Model, Outcome) {
     let json = format!(
         r#"{{"name": "settle", "thickness": 0.1, "formulation": {{"kind": "rigid"}},
+        "local_damping": {alpha},
         "materials": {{"m": {{"E": 2.0e10, "nu": 0.2, "rho": 2400.0}}}},
         "bodies": [{{"name": "b", "material": "m", "mesh": {mesh},
             "supports": [{{"kind": "ground-spring", "edge": "left"}}],
@@ -22,11 +23,10 @@ fn cantilever(mesh: &str, alpha: f64, steps: u64, dt_factor: f64) -> (Model, Out
         "time": {{"dt_factor": {dt_factor}, "steps": {steps}}}, "output": {{"every": {steps}}}}}"#
     );
     let scene = Scene::from_json(&json).unwrap();
-    let mut model = Model::build(&scene).unwrap();
-    model.local_damping = alpha;
-    let setup = Setup::with_model(&scene, &Overrides::default(), model.clone()).unwrap();
+    let setup = Setup::new(&scene, &Overrides::default()).unwrap();
+    assert_eq!(setup.model.local_damping, alpha);
     let outcome = run::simulate(&setup, &RunParams::default(), None, &mut Silent).unwrap();
-    (model, outcome)
+    (setup.model.clone(), outcome)
 }
 
 /// Relative distance of `u` from the static solution of `model`.

@@ -54,6 +54,7 @@ fn extras() -> Vec<(String, Value)> {
     all["evaluator"] = json!("element-wise");
     all["gravity"] = json!([0.0, -9.80665]);
     all["damping"] = json!(0.5);
+    all["local_damping"] = json!(0.7);
     all["time"] = json!({"dt": 1e-6, "steps": 10});
     all["output"] = json!({
         "every": 5, "vtk": true, "checkpoint_every": 5,

@@ -193,6 +193,70 @@ pub fn failure(r: &mut Report) {
     compression(r);
     prandtl(r);
     fragments(r);
+    quasi_static(r);
+}
+
+/// Local non-viscous damping on the tension bar (800 Voronoi sites): today's run (mass-
+/// proportional damping, the clamp at 0.05 m/s) against local damping at the same speed and
+/// at three and five times it, in proportionally fewer steps.
+fn quasi_static(r: &mut Report) {
+    r.line("### 11.5 Quasi-static control: local damping\n");
+    r.line(
+        "`\"local_damping\": α` (`docs/scene.md`, *Quasi-static runs*) reduces each free DOF's \
+        unbalanced force by `α |F|` against its velocity's sign. On the 800-site tension bar of \
+        11.1, with no mass-proportional damping, against today's run (α = 2000 1/s mass-\
+        proportional, 0.05 m/s); a faster clamp ends at the same 0.15 mm in proportionally \
+        fewer steps, its ramp kept at 0.2 ms.\n",
+    );
+    r.line("| damping | clamp speed | steps | peak / f_t | peak / today's − 1 |");
+    r.line("|---|---|---|---|---|");
+    let today = run(
+        &bar(voronoi([0.2, 0.05], 800)),
+        EvaluatorKind::ElementWise,
+        100,
+    );
+    let reference = today.peak();
+    r.line(&format!(
+        "| mass-proportional 2000 1/s | 0.05 m/s | {} | {:.4} | |",
+        today.steps,
+        reference / 0.05 / F_T
+    ));
+    for speed in [1.0, 3.0, 5.0] {
+        let mut scene = bar(voronoi([0.2, 0.05], 800));
+        scene["damping"] = json!(0);
+        scene["local_damping"] = json!(0.8);
+        scene["bodies"][0]["supports"][1]["velocity"] = json!([0.05 * speed, 0]);
+        scene["time"]["end"] = json!(3e-3 / speed);
+        let run = run(&scene, EvaluatorKind::ElementWise, 100);
+        let change = run.peak() / reference - 1.0;
+        r.line(&format!(
+            "| local α = 0.8 | {:.2} m/s | {} | {:.4} | {change:+.2e} |",
+            0.05 * speed,
+            run.steps,
+            run.peak() / 0.05 / F_T
+        ));
+        r.timing(&format!(
+            "- local damping, clamp × {speed}: {:.2} s",
+            run.wall_s
+        ));
+        if speed == 1.0 {
+            r.bound(
+                "quasi-static: local damping at today's speed, |peak / today's - 1|",
+                change.abs(),
+                0.015,
+            );
+        }
+    }
+    r.line(
+        "\nAt today's speed local damping finds today's peak within 1 %; loaded faster, the peak \
+        rises with the speed (the reaction carries the bar's inertia and the cracks run \
+        dynamically), so fewer steps at the same accuracy are not reached by the damping alone: \
+        the clamp's speed is bounded by the stress wave it sends, `ρ c v` (0.42 MPa at 0.05 m/s, \
+        14 % of `f_t`), not by how the damping takes the energy out. Local damping pays where the \
+        load is applied at once and the state must settle (`tests/quasi_static.rs`: a cantilever \
+        under a sudden load reaches its static solution to 1e-9 on a grid and 4e-7 on Voronoi cells in 4,000 steps, where \
+        mass-proportional damping must be tuned to its lowest mode).\n",
+    );
 }
 
 /// The bundled fragmentation scene, by both evaluators: the energy balance while the beam

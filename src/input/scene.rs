@@ -21,6 +21,8 @@ use std::path::Path;
 const THICKNESS: Range = Range::above(0.0, "m");
 /// `damping`, `α` (1/s).
 const DAMPING: Range = Range::at_least(0.0, "1/s");
+/// `local_damping`, `α` (dimensionless).
+const LOCAL_DAMPING: Range = Range::at_least(0.0, "").below(1.0);
 /// `formulation.penalty`, `p` (dimensionless).
 const PENALTY: Range = Range::above(0.0, "");
 /// A material's `E` (Pa).
@@ -102,6 +104,12 @@ pub struct Scene {
     #[serde(default)]
     #[schemars(transform = DAMPING.schema())]
     pub damping: Option<f64>,
+    /// Local non-viscous damping `α` in [0, 1) (Cundall's, of the DEM codes; for quasi-static
+    /// runs): each free DOF's unbalanced force is reduced by `α |F|` against the sign of its
+    /// velocity. Optional, default none.
+    #[serde(default)]
+    #[schemars(transform = LOCAL_DAMPING.schema())]
+    pub local_damping: Option<f64>,
     /// Materials by name (at least one).
     #[schemars(extend("minProperties" = 1))]
     pub materials: BTreeMap<String, MaterialSpec>,
@@ -1189,6 +1197,9 @@ impl Scene {
         }
         if let Some(alpha) = self.damping {
             DAMPING.check("damping", alpha)?;
+        }
+        if let Some(alpha) = self.local_damping {
+            LOCAL_DAMPING.check("local_damping", alpha)?;
         }
         self.validate_materials()?;
         if self.bodies.is_empty() {

@@ -321,7 +321,7 @@ impl Model {
                 .map(|g| Vec2::new(g[0], g[1]))
                 .unwrap_or_else(Vec2::zeros),
             damping: scene.damping.unwrap_or(0.0),
-            local_damping: 0.0,
+            local_damping: scene.local_damping.unwrap_or(0.0),
             initial_velocity: Vec::new(),
             contact: scene.contact,
             ground: scene
