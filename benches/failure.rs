@@ -11,6 +11,9 @@
 //! forces, the step through the net force), which is what a scene with such a law pays whether
 //! or not its interfaces yield.
 
+#[path = "common/section.rs"]
+mod section;
+
 use criterion::Criterion;
 use rbsm::force::{evaluator, failure};
 use rbsm::input::scene::{EvaluatorKind, Scene};
@@ -23,8 +26,6 @@ use std::fmt::Write as _;
 use std::time::{Duration, Instant};
 
 const ELEMENTS: usize = 100_000;
-const START: &str = "<!-- failure: cargo bench --bench failure -->";
-const END: &str = "<!-- /failure -->";
 
 fn scene(law: &str) -> Scene {
     let json = format!(
@@ -109,7 +110,7 @@ fn main() {
         return;
     }
     let mut section = format!(
-        "{START}\n## Interfaces that fail\n\nA 10⁵-element Voronoi panel (rigid), elastic \
+        "## Interfaces that fail\n\nA 10⁵-element Voronoi panel (rigid), elastic \
         interfaces against a softening law that stays elastic under the load (the whole failure \
         work is done: state update, plastic forces, step through the net force). ns per \
         element-step, median of {} samples with the quartiles, all measured in one run of \
@@ -139,14 +140,6 @@ fn main() {
             );
         }
     }
-    section.push_str(END);
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("benches/summary.md");
-    let old = std::fs::read_to_string(&path).unwrap_or_default();
-    let kept = match (old.find(START), old.find(END)) {
-        (Some(a), Some(b)) => format!("{}{}", &old[..a], &old[b + END.len()..]),
-        _ => old,
-    };
-    std::fs::write(&path, format!("{}\n\n{section}\n", kept.trim_end()))
-        .expect("benches/summary.md is written");
+    section::write("failure", &section);
     println!("{section}");
 }

@@ -16,6 +16,9 @@
 //! (`cargo bench --bench step -- grid/rigid`) runs only the matching cases: a quick look, after
 //! which the summary is left as it was.
 
+#[path = "common/section.rs"]
+mod section;
+
 use criterion::{Criterion, SamplingMode};
 use rbsm::analysis::run::{self, RunParams, Silent};
 use rbsm::analysis::setup::{Overrides, Setup};
@@ -481,18 +484,11 @@ fn main() {
     let path = run_path();
     let mut summary = render(&bandwidths, &rows, &builds, &extras);
     summary.push_str(&render_user(&rows, &peers, &path));
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/benches/summary.md");
-    // The section that `cargo bench --bench failure` writes stays.
-    let old = std::fs::read_to_string(path).unwrap_or_default();
-    if let (Some(a), Some(b)) = (old.find("<!-- failure:"), old.find("<!-- /failure -->")) {
-        summary = format!(
-            "{}\n\n{}\n",
-            summary.trim_end(),
-            &old[a..b + "<!-- /failure -->".len()]
-        );
-    }
-    std::fs::write(path, summary).expect("benches/summary.md is writable");
-    eprintln!("wrote {path}");
+    // The sections that `cargo bench --bench failure` and `--bench wall` write stay.
+    let summary = section::keep_owned(summary);
+    let path = section::path();
+    std::fs::write(&path, summary).expect("benches/summary.md is writable");
+    eprintln!("wrote {}", path.display());
 }
 
 /// Figures measured once (they take seconds each): memory per element of a ready 10⁶ rigid

@@ -4,9 +4,13 @@
 //! impulse solver) run by `benches/peer_pymunk.py` in the same harness, round after round; and
 //! the share of the hopping block's step spent in contact.
 //!
-//! `cargo bench --bench wall` rewrites `benches/wall_summary.md` (about 2 minutes). The peer
+//! `cargo bench --bench wall` rewrites the section *Contact at DEM scale* of
+//! `benches/summary.md` (about 2 minutes; `cargo bench --bench step` keeps it). The peer
 //! needs `pip install pymunk`; without it the peer's column says so. `RBSM_WALL=30` runs a
 //! 30 × 30 wall instead, for a quick look (the summary is then left as it was).
+
+#[path = "common/section.rs"]
+mod section;
 
 use rbsm::analysis::setup::{Overrides, Setup};
 use rbsm::input::scene::Scene;
@@ -216,7 +220,5 @@ fn main() {
         100.0 * share
     )
     .unwrap();
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/benches/wall_summary.md");
-    std::fs::write(path, md).expect("write the summary");
-    println!("wrote {path}");
+    section::write("wall", &md);
 }
