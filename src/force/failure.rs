@@ -52,6 +52,11 @@ pub struct FailureState {
     pub handover: f64,
     /// Whether the last update released an interface (contact must be told).
     pub changed: bool,
+    /// Whether any point has a plastic displacement after the last update: until one has, the
+    /// plastic forces and the energy offset are zero and are not computed. Set by every update,
+    /// so not saved.
+    #[serde(skip)]
+    pub plastic: bool,
 }
 
 impl FailureState {
@@ -61,6 +66,7 @@ impl FailureState {
         self.released.clone_from(&other.released);
         self.handover = other.handover;
         self.changed = other.changed;
+        self.plastic = other.plastic;
     }
 }
 
@@ -144,6 +150,7 @@ pub trait PlasticForces: Send + Sync {
             released: vec![false; self.interfaces().len()],
             handover: 0.0,
             changed: false,
+            plastic: false,
         }
     }
     /// The return mapping at every Gauss point for the displacements `u`.
@@ -333,20 +340,24 @@ impl<K: Kinematics<N>, const N: usize> PlasticForces for Points<K, N> {
     fn update(&self, u: &[f64], state: &mut FailureState) {
         let (u, _) = u.as_chunks::<N>();
         let released = &state.released;
-        state
+        // Whether any point is plastic after its update: summed without short cut, so that
+        // every point is updated.
+        state.plastic = state
             .points
             .par_iter_mut()
             .zip(self.points.par_iter())
             .enumerate()
             .with_min_len(4096)
-            .for_each(|(j, (s, p))| {
+            .map(|(j, (s, p))| {
                 let delta = p.delta::<K, N>(u);
                 if released[j / 2] {
                     s.p = delta;
                 } else {
                     self.laws[p.law as usize].update(p.k, delta, s);
                 }
-            });
+                s.p != [0.0; 2]
+            })
+            .reduce(|| false, |a, b| a | b);
         // Hand-over: broken interfaces whose elements moved apart beyond their range.
         state.changed = false;
         for (k, &range) in self.release.iter().enumerate() {
@@ -370,11 +381,15 @@ impl<K: Kinematics<N>, const N: usize> PlasticForces for Points<K, N> {
                 }
                 state.released[k] = true;
                 state.changed = true;
+                state.plastic = true;
             }
         }
     }
 
     fn subtract_plastic(&self, state: &FailureState, f: &mut [f64]) {
+        if !state.plastic {
+            return;
+        }
         let (f, _) = f.as_chunks_mut::<N>();
         let state = &state.points;
         for_each_chunk(f, |first, rows| {
@@ -403,6 +418,9 @@ impl<K: Kinematics<N>, const N: usize> PlasticForces for Points<K, N> {
     }
 
     fn energy_offset(&self, u: &[f64], state: &FailureState) -> f64 {
+        if !state.plastic {
+            return 0.0;
+        }
         let (u, _) = u.as_chunks::<N>();
         self.points
             .iter()
