@@ -66,6 +66,24 @@ fn failure_steps() {
         // The bar yields from about step 800 and cracks through by step 2500.
         assert_eq!(allocations(&p, 1000, 1500), 0, "{}", evaluator.name());
     }
+    // The same bar under local damping instead of mass-proportional.
+    let text = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/examples/scenes/tension_bar.json"
+    ))
+    .unwrap();
+    let mut json: serde_json::Value = serde_json::from_str(&text).unwrap();
+    json["damping"] = serde_json::json!(0);
+    json["local_damping"] = serde_json::json!(0.8);
+    let p = setup(
+        &Scene::from_json_in(
+            &json.to_string(),
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")),
+        )
+        .unwrap(),
+        EvaluatorKind::ElementWise,
+    );
+    assert_eq!(allocations(&p, 1000, 1500), 0, "local damping");
 }
 
 fn plain_steps() {
