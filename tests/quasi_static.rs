@@ -10,10 +10,9 @@ use rbsm::analysis::statics;
 use rbsm::input::scene::Scene;
 use rbsm::model::Model;
 
-/// A cantilever of `mesh`, held on its left edge by ground springs, under an end traction
-/// applied at `t = 0`, with local damping `alpha`, run for `steps` steps at `dt_factor Δt_crit`.
-fn cantilever(mesh: &str, alpha: f64, steps: u64, dt_factor: f64) -> (Model, Outcome) {
-    let json = format!(
+/// The scene of [`cantilever`].
+fn rbsm_scene(mesh: &str, alpha: f64, steps: u64, dt_factor: f64) -> String {
+    format!(
         r#"{{"name": "settle", "thickness": 0.1, "formulation": {{"kind": "rigid"}},
         "local_damping": {alpha},
         "materials": {{"m": {{"E": 2.0e10, "nu": 0.2, "rho": 2400.0}}}},
@@ -21,7 +20,13 @@ fn cantilever(mesh: &str, alpha: f64, steps: u64, dt_factor: f64) -> (Model, Out
             "supports": [{{"kind": "ground-spring", "edge": "left"}}],
             "loads": [{{"kind": "traction", "edge": "right", "value": [1e5, -1e6]}}]}}],
         "time": {{"dt_factor": {dt_factor}, "steps": {steps}}}, "output": {{"every": {steps}}}}}"#
-    );
+    )
+}
+
+/// A cantilever of `mesh`, held on its left edge by ground springs, under an end traction
+/// applied at `t = 0`, with local damping `alpha`, run for `steps` steps at `dt_factor Δt_crit`.
+fn cantilever(mesh: &str, alpha: f64, steps: u64, dt_factor: f64) -> (Model, Outcome) {
+    let json = rbsm_scene(mesh, alpha, steps, dt_factor);
     let scene = Scene::from_json(&json).unwrap();
     let setup = Setup::new(&scene, &Overrides::default()).unwrap();
     assert_eq!(setup.model.local_damping, alpha);
@@ -40,11 +45,11 @@ fn from_static(model: &Model, u: &[f64]) -> f64 {
 #[test]
 fn local_damping_settles_on_the_static_solution() {
     for mesh in [RECT, VORONOI] {
-        let (model, damped) = cantilever(mesh, 0.8, 4000, 0.5);
-        let (_, free) = cantilever(mesh, 0.0, 4000, 0.5);
+        let (model, damped) = cantilever(mesh, 0.8, 8000, 0.5);
+        let (_, free) = cantilever(mesh, 0.0, 8000, 0.5);
         let (settled, swinging) = (from_static(&model, &damped.u), from_static(&model, &free.u));
         eprintln!("{mesh}: {settled:.2e} from the static solution damped, {swinging:.2e} undamped");
-        assert!(settled < 1e-4, "{mesh}: {settled:e}");
+        assert!(settled < 1e-6, "{mesh}: {settled:e}");
         assert!(swinging > 0.05, "{mesh}: {swinging:e}");
     }
 }
@@ -74,9 +79,10 @@ fn the_books_close_with_local_damping() {
     );
 }
 
-/// The same bits on one thread and on two.
+/// The same bits on one thread and on two, on a model of several parallel chunks (3,600 DOFs).
 #[test]
 fn local_damping_does_not_depend_on_the_threads() {
+    const BIG: &str = r#"{"kind": "grid", "origin": [0, 0], "size": [3, 1], "cells": [60, 20]}"#;
     let runs: Vec<Vec<f64>> = [1, 2]
         .iter()
         .map(|&threads| {
@@ -84,8 +90,46 @@ fn local_damping_does_not_depend_on_the_threads() {
                 .num_threads(threads)
                 .build()
                 .unwrap();
-            pool.install(|| cantilever(VORONOI, 0.7, 500, 0.5).1.u)
+            pool.install(|| cantilever(BIG, 0.7, 500, 0.5).1.u)
         })
         .collect();
+    assert!(runs[0].len() > rbsm::parallel::CHUNK);
     assert_eq!(runs[0], runs[1]);
+}
+
+/// Local damping stiffens the highest mode by `1 + α` (its force has the sign of the elastic
+/// one there), so the setup's `Δt_crit` is the undamped one over `√(1 + α)`, and a run at
+/// 0.9 of it stays stable; the undamped scheme's limit would diverge.
+#[test]
+fn local_damping_lowers_the_stable_step() {
+    let (model, run) = cantilever(RECT, 0.8, 2000, 0.9);
+    let undamped = Setup::new(
+        &Scene::from_json(&rbsm_scene(RECT, 0.0, 10, 0.9)).unwrap(),
+        &Overrides::default(),
+    )
+    .unwrap();
+    let damped = Setup::new(
+        &Scene::from_json(&rbsm_scene(RECT, 0.8, 10, 0.9)).unwrap(),
+        &Overrides::default(),
+    )
+    .unwrap();
+    let ratio = undamped.dt_crit() / damped.dt_crit();
+    assert!((ratio - 1.8f64.sqrt()).abs() < 1e-12, "{ratio}");
+    assert_eq!(run.summary.status, rbsm::step::integrator::RunStatus::Ok);
+    assert!(from_static(&model, &run.u) < 1e-3);
+    // At 0.9 of the undamped limit the damped scheme is unstable: the guard stops it.
+    let over = Overrides {
+        dt: Some(0.9 * undamped.dt_crit()),
+        ..Overrides::default()
+    };
+    let setup = Setup::new(
+        &Scene::from_json(&rbsm_scene(RECT, 0.8, 2000, 0.9)).unwrap(),
+        &over,
+    )
+    .unwrap();
+    let o = run::simulate(&setup, &RunParams::default(), None, &mut Silent).unwrap();
+    assert_eq!(
+        o.summary.status,
+        rbsm::step::integrator::RunStatus::Diverged
+    );
 }

@@ -704,6 +704,11 @@ pub struct Limit {
     /// The tolerance it was settled to ([`crate::analysis::limit::EXACT`] or
     /// [`crate::analysis::limit::FOR_STEP`]).
     pub tolerance: Option<f64>,
+    /// `√(1 + α)` of the model's local damping `α` (1 without): in the highest mode the local
+    /// damping force has the sign of the elastic one and stiffens it by `1 + α`, so every step
+    /// limit here is `2 / (ω √(1 + α))` (`step::local`).
+    #[serde(skip)]
+    pub stiffening: f64,
 }
 
 impl Limit {
@@ -718,22 +723,29 @@ impl Limit {
             bound: (2.0 * top).sqrt(),
             omega_max: None,
             tolerance: None,
+            stiffening: (1.0 + model.local_damping).sqrt(),
         }
     }
 
-    /// `Δt_crit = 2/ω_max` (s), when `ω_max` was computed.
+    /// The stability limit of a run's step for a highest frequency `omega`:
+    /// `2 / (ω √(1 + α))` with the local damping `α` ([`Limit::stiffening`]).
+    pub fn step_limit(&self, omega: f64) -> f64 {
+        critical_time_step(omega) / self.stiffening
+    }
+
+    /// `Δt_crit = 2/ω_max` (s; over `√(1 + α)` with local damping), when `ω_max` was computed.
     pub fn dt_crit(&self) -> Option<f64> {
-        self.omega_max.map(critical_time_step)
+        self.omega_max.map(|w| self.step_limit(w))
     }
 
     /// `2/bound`: a step proven stable (s), at most `Δt_crit`.
     pub fn dt_safe(&self) -> f64 {
-        critical_time_step(self.bound)
+        self.step_limit(self.bound)
     }
 
     /// `2/floor`: an upper bound of `Δt_crit` (s); above it a run is proven unstable.
     pub fn dt_ceiling(&self) -> f64 {
-        critical_time_step(self.floor)
+        self.step_limit(self.floor)
     }
 
     /// `Δt_crit` when `ω_max` was computed, else the proven-safe step: a lower bound of it.

@@ -218,9 +218,10 @@ impl Setup {
         })
     }
 
-    /// `Δt_crit = 2/ω_max` (s) to full precision (see [`Setup::omega_max`]).
+    /// `Δt_crit = 2/ω_max` (s) to full precision (see [`Setup::omega_max`]), over `√(1 + α)`
+    /// with local damping `α` ([`Limit::stiffening`]).
     pub fn dt_crit(&self) -> f64 {
-        limit::critical_time_step(self.omega_max())
+        self.limit.step_limit(self.omega_max())
     }
 
     /// What the checks found: extreme inputs (`model::checks::warnings`) and a time step

@@ -168,11 +168,7 @@ pub trait PlasticForces: Send + Sync {
 
 /// The plastic forces of `model` for the evaluator `kind`; `None` when no interface can fail.
 pub fn build(model: &Model, kind: EvaluatorKind) -> Option<Box<dyn PlasticForces>> {
-    if !model
-        .interfaces
-        .iter()
-        .any(|i| i.b != GROUND && model.fails(i))
-    {
+    if !model.any_fails() {
         return None;
     }
     Some(match model.formulation {
@@ -252,10 +248,14 @@ impl<K: Kinematics<N>, const N: usize> Points<K, N> {
             .map(|b| model.fragments(b))
             .collect();
         for (k, i) in model.interfaces.iter().enumerate() {
-            if i.b == GROUND || !model.fails(i) {
+            if !model.fails(i) {
                 continue;
             }
-            let law = i.law.min(model.laws.len() as u32);
+            // The model's laws, then its default law (`laws`).
+            let law = match i.law {
+                crate::model::DEFAULT_LAW => model.laws.len() as u32,
+                k => k,
+            };
             interfaces.push(k as u32);
             let body = model.elements[i.a as usize].body as usize;
             release.push(if fragments[body] && i.b != GROUND {

@@ -220,11 +220,9 @@ impl Model {
         let body = &self.bodies[bi];
         self.contact
             .is_some_and(|c| c.model == crate::input::scene::ContactModel::EdgeToEdge)
-            && !body.mesh.shared.is_empty()
-            && self
-                .interfaces
-                .get(body.first_interface)
-                .is_some_and(|i| self.fails(i))
+            && self.interfaces[body.first_interface..][..body.mesh.shared.len()]
+                .iter()
+                .any(|i| self.fails(i))
     }
 
     /// The law of interface `i` (eq. 11).
@@ -235,9 +233,10 @@ impl Model {
         }
     }
 
-    /// Whether interface `i` can fail: its law is not linear, so its Gauss points have a state.
+    /// Whether interface `i` can fail: it joins two elements and its law is not linear, so its
+    /// Gauss points have a state (supports keep their law's springs).
     pub fn fails(&self, i: &Interface) -> bool {
-        !self.law_of(i).is_linear()
+        i.b != GROUND && !self.law_of(i).is_linear()
     }
 
     /// Whether any interface can fail.

@@ -361,7 +361,8 @@ impl<'a> CentralDifference<'a> {
         if s.contact.is_none() {
             s.loaded = loads.loaded_elements();
         }
-        s.groups = Groups::new(evaluator, mass, n, s.damping == 0.0, s.loaded.is_some());
+        let undamped = s.damping == 0.0 && s.local.is_none();
+        s.groups = Groups::new(evaluator, mass, n, undamped, s.loaded.is_some());
         s.net_force(false);
         mass.advance(&s.force, &mut s.v, &mut [], -0.5 * dt, (1.0, 1.0));
         s
@@ -566,10 +567,11 @@ impl<'a> CentralDifference<'a> {
         self.loads.subtract(self.t, &mut self.force);
     }
 
-    /// Steps without the model's mass-proportional damping (the stability analysis measures
-    /// the undamped scheme).
+    /// Steps without the model's damping, mass-proportional and local (the stability analysis
+    /// measures the undamped scheme).
     pub fn undamped(mut self) -> Self {
         self.damping = 0.0;
+        self.local = None;
         self
     }
 
@@ -664,7 +666,9 @@ impl<'a> CentralDifference<'a> {
         if let (Some(c), Some(saved)) = (self.contact.as_mut(), state.contact) {
             *c = saved;
         }
-        if let (Some((_, s)), Some(saved)) = (self.failure.as_mut(), state.failure) {
+        if let (Some((_, s)), Some(mut saved)) = (self.failure.as_mut(), state.failure) {
+            // Not saved: whether any point is plastic, which the steps read.
+            saved.plastic = saved.points.iter().any(|p| p.p != [0.0; 2]);
             self.good_failure.copy_from(&saved);
             *s = saved;
         }
