@@ -28,7 +28,7 @@ use crate::input::scene::EvaluatorKind;
 use crate::mesh::geometry::Vec2;
 use crate::model::formulation::{Formulation, Hybrid, Kinematics, Rigid};
 use crate::model::law::{InterfaceLaw, LawPoint};
-use crate::model::{Model, GROUND};
+use crate::model::Model;
 use crate::parallel::for_each_chunk;
 use rayon::prelude::*;
 use std::marker::PhantomData;
@@ -181,7 +181,7 @@ pub fn build(model: &Model, kind: EvaluatorKind) -> Option<Box<dyn PlasticForces
 #[derive(Debug, Clone, Copy)]
 struct Point {
     a: u32,
-    /// The other element, or [`GROUND`] (not used yet: supports stay elastic).
+    /// The other element (supports have no points: `Model::fails`).
     b: u32,
     /// The point from the centroids of `a` and `b` (m).
     da: Vec2,
@@ -201,9 +201,7 @@ impl Point {
     #[inline]
     fn delta<K: Kinematics<N>, const N: usize>(&self, u: &[[f64; N]]) -> [f64; 2] {
         let mut d = -K::displacement(&u[self.a as usize], self.da);
-        if self.b != GROUND {
-            d += K::displacement(&u[self.b as usize], self.db);
-        }
+        d += K::displacement(&u[self.b as usize], self.db);
         [self.normal.dot(&d), self.tangent.dot(&d)]
     }
 
@@ -258,7 +256,7 @@ impl<K: Kinematics<N>, const N: usize> Points<K, N> {
             };
             interfaces.push(k as u32);
             let body = model.elements[i.a as usize].body as usize;
-            release.push(if fragments[body] && i.b != GROUND {
+            release.push(if fragments[body] {
                 RELEASE * i.length
             } else {
                 f64::INFINITY
@@ -269,11 +267,7 @@ impl<K: Kinematics<N>, const N: usize> Points<K, N> {
                     a: i.a,
                     b: i.b,
                     da: x - centroid(i.a),
-                    db: if i.b == GROUND {
-                        Vec2::zeros()
-                    } else {
-                        x - centroid(i.b)
-                    },
+                    db: x - centroid(i.b),
                     normal: i.normal,
                     tangent: i.tangent,
                     k: laws[law as usize].springs([i.k_n, i.k_s]),
@@ -287,9 +281,7 @@ impl<K: Kinematics<N>, const N: usize> Points<K, N> {
         let mut entries: Vec<(u32, u32, f64, Vec2)> = Vec::with_capacity(2 * points.len());
         for (j, p) in points.iter().enumerate() {
             entries.push((p.a, j as u32, 1.0, p.da));
-            if p.b != GROUND {
-                entries.push((p.b, j as u32, -1.0, p.db));
-            }
+            entries.push((p.b, j as u32, -1.0, p.db));
         }
         entries.sort_by_key(|&(e, j, _, _)| (e, j));
         let mut row_start = vec![0u32; model.elements.len() + 1];

@@ -357,6 +357,10 @@ impl Model {
             }
             let first = model.add_elements(bi, spec, &material, &mut mesh, scene.plane);
             let first_interface = model.interfaces.len();
+            let law = own_law
+                .get(spec.material.as_str())
+                .copied()
+                .unwrap_or(DEFAULT_LAW);
             for e in &mesh.shared {
                 let iface = model
                     .interface(
@@ -368,13 +372,7 @@ impl Model {
                         &material,
                     )
                     .map_err(|m| Error::mesh(&spec.name, e.a as usize, m))?;
-                model.interfaces.push(Interface {
-                    law: own_law
-                        .get(spec.material.as_str())
-                        .copied()
-                        .unwrap_or(DEFAULT_LAW),
-                    ..iface
-                });
+                model.interfaces.push(Interface { law, ..iface });
             }
             model.add_supports(bi, spec, &mesh, &material, first)?;
             model.add_loads(bi, spec, &mesh, first)?;
