@@ -133,3 +133,37 @@ fn local_damping_lowers_the_stable_step() {
         rbsm::step::integrator::RunStatus::Diverged
     );
 }
+
+/// With `time.stop_ratio` a run stops at the first check whose unbalanced-force ratio is below
+/// it: the locally damped cantilever settles long before its planned steps, on the static
+/// solution to the ratio's order; undamped, it never settles and goes to its end.
+#[test]
+fn a_run_stops_once_balanced() {
+    let stop = |alpha: f64| {
+        let mut json: serde_json::Value =
+            serde_json::from_str(&rbsm_scene(RECT, alpha, 20_000, 0.5)).unwrap();
+        json["time"]["stop_ratio"] = serde_json::json!(1e-6);
+        let scene = Scene::from_json(&json.to_string()).unwrap();
+        let setup = Setup::new(&scene, &Overrides::default()).unwrap();
+        let o = run::simulate(&setup, &RunParams::default(), None, &mut Silent).unwrap();
+        (setup.model.clone(), o)
+    };
+    let (model, damped) = stop(0.8);
+    let balance = damped.summary.balance.clone().unwrap();
+    let at = balance.settled_at_step.expect("settles");
+    let error = from_static(&model, &damped.u);
+    eprintln!(
+        "settled at step {at} (ratio {:.2e}), {error:.2e} from the static solution",
+        balance.ratio
+    );
+    assert!(balance.ratio < 1e-6 && at < 20_000 && damped.summary.steps == at);
+    assert_eq!(damped.summary.status, rbsm::step::integrator::RunStatus::Ok);
+    assert!(error < 1e-5, "{error:e}");
+    let (_, free) = stop(0.0);
+    let balance = free.summary.balance.unwrap();
+    assert!(
+        balance.settled_at_step.is_none() && balance.ratio > 1e-2,
+        "{balance:?}"
+    );
+    assert_eq!(free.summary.steps, 20_000);
+}

@@ -55,7 +55,7 @@ fn extras() -> Vec<(String, Value)> {
     all["gravity"] = json!([0.0, -9.80665]);
     all["damping"] = json!(0.5);
     all["local_damping"] = json!(0.7);
-    all["time"] = json!({"dt": 1e-6, "steps": 10});
+    all["time"] = json!({"dt": 1e-6, "steps": 10, "stop_ratio": 1e-6});
     all["output"] = json!({
         "every": 5, "vtk": true, "checkpoint_every": 5,
         "probes": [{"name": "tip_v", "element": 79, "dof": "v"}, {"at": [1.0, 0.1], "dof": "u"}]

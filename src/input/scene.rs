@@ -21,6 +21,8 @@ use std::path::Path;
 const THICKNESS: Range = Range::above(0.0, "m");
 /// `damping`, `α` (1/s).
 const DAMPING: Range = Range::at_least(0.0, "1/s");
+/// `time.stop_ratio` (dimensionless).
+const STOP_RATIO: Range = Range::above(0.0, "").below(1.0);
 /// `local_damping`, `α` (dimensionless).
 const LOCAL_DAMPING: Range = Range::at_least(0.0, "").below(1.0);
 /// `formulation.penalty`, `p` (dimensionless).
@@ -949,6 +951,13 @@ pub struct TimeSpec {
     /// Number of steps, ≥ 1.
     #[schemars(transform = STEPS.schema())]
     pub steps: Option<u64>,
+    #[serde(default)]
+    /// Stop once the unbalanced-force ratio falls below this, in (0, 1): the largest
+    /// unbalanced force on a free translation over the mean internal force on them, read at
+    /// every check of the run (every 100 steps or `output.every`). Optional, default none: the
+    /// run goes to `end` or `steps`.
+    #[schemars(transform = STOP_RATIO.schema())]
+    pub stop_ratio: Option<f64>,
 }
 
 /// What a run writes.
@@ -1596,6 +1605,9 @@ impl TimeSpec {
                     "give exactly one of `dt` (s, > 0) and `dt_factor` (fraction of Δt_crit, > 0)",
                 ))
             }
+        }
+        if let Some(r) = self.stop_ratio {
+            STOP_RATIO.check("time.stop_ratio", r)?;
         }
         match (self.end, self.steps) {
             (Some(end), None) => END.check("time.end", end),

@@ -164,6 +164,8 @@ pub struct Model {
     pub damping: f64,
     /// Local non-viscous damping `α` in [0, 1) (the step stage's `local` module); 0 for none.
     pub local_damping: f64,
+    /// The unbalanced-force ratio below which a run stops (`time.stop_ratio`), if any.
+    pub stop_ratio: Option<f64>,
     /// Initial velocity of every DOF (`ndof` per element).
     pub initial_velocity: Vec<f64>,
     /// Contact between bodies and with the ground; `None` when the scene has none.
@@ -321,6 +323,7 @@ impl Model {
                 .unwrap_or_else(Vec2::zeros),
             damping: scene.damping.unwrap_or(0.0),
             local_damping: scene.local_damping.unwrap_or(0.0),
+            stop_ratio: scene.time.stop_ratio,
             initial_velocity: Vec::new(),
             contact: scene.contact,
             ground: scene

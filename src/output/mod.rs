@@ -77,6 +77,9 @@ pub struct Summary {
     /// load–displacement curve in `history.csv`).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub clamps: Vec<ClampSummary>,
+    /// Where a run with `time.stop_ratio` stopped, settled; only for such a run.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub balance: Option<BalanceSummary>,
     /// The folder the run wrote into (not in `summary.json`; empty for a run without one).
     #[serde(skip)]
     pub dir: PathBuf,
@@ -268,6 +271,15 @@ pub struct EnergySummary {
     pub final_: f64,
     /// Largest `|total − initial|` divided by the largest energy seen in the run.
     pub max_relative_drift: f64,
+}
+
+/// The unbalanced-force ratio of a run with `time.stop_ratio` (`step::balance`).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct BalanceSummary {
+    /// The ratio at the last check.
+    pub ratio: f64,
+    /// The step at which it fell below `time.stop_ratio`, when it did (the run stopped there).
+    pub settled_at_step: Option<u64>,
 }
 
 /// One history column beyond the energies: DOF `dof` of element `element`, and for `u`, `v`

@@ -16,6 +16,7 @@ use crate::model::loads::Loads;
 use crate::model::mass::{Mass, Update};
 use crate::model::{Model, Prescribed};
 use crate::parallel::for_each_chunk;
+use crate::step::balance::Balance;
 use crate::step::grouped::{Groups, MIN_STRETCH};
 use crate::step::local::LocalDamping;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -123,6 +124,11 @@ pub struct CentralDifference<'a> {
     damping: f64,
     /// Local non-viscous damping, when the model has it ([`crate::step::local`]).
     local: Option<LocalDamping>,
+    /// The unbalanced-force ratio and its stop, when the model has one
+    /// ([`crate::step::balance`]).
+    balance: Option<Balance>,
+    /// The step and time at which the run settled below its ratio, once it has.
+    settled: Option<(u64, f64)>,
     /// Time step `Δt` (s), fixed at construction.
     dt: f64,
     /// Time `t_n` of the current state (s).
@@ -329,6 +335,8 @@ impl<'a> CentralDifference<'a> {
             loads,
             damping: model.damping,
             local: LocalDamping::new(model.local_damping, n, &model.fixed),
+            balance: Balance::new(model.stop_ratio, model.formulation.ndof(), n, &model.fixed),
+            settled: None,
             dt,
             t: 0.0,
             step: 0,
@@ -548,7 +556,14 @@ impl<'a> CentralDifference<'a> {
         } else {
             0.0
         };
+        // At a check, the unbalanced-force ratio: `force` holds `f_int`, then the net force.
+        if let Some(b) = self.balance.as_mut().filter(|_| energy) {
+            b.internal(&self.force);
+        }
         self.subtract_external();
+        if let Some(b) = self.balance.as_mut().filter(|_| energy) {
+            b.measure(&self.force);
+        }
         elastic
     }
 
@@ -586,6 +601,17 @@ impl<'a> CentralDifference<'a> {
     /// and `run` returns [`Status::Interrupted`].
     pub fn stop_on(&mut self, flag: Arc<AtomicBool>) {
         self.interrupt = Some(flag);
+    }
+
+    /// The step and time at which the run stopped, settled below its unbalanced-force ratio
+    /// (`time.stop_ratio`), if it has.
+    pub fn settled(&self) -> Option<(u64, f64)> {
+        self.settled
+    }
+
+    /// The unbalanced-force ratio at the last check, when the run has a stop on it.
+    pub fn unbalanced_ratio(&self) -> Option<f64> {
+        self.balance.as_ref().map(Balance::ratio)
     }
 
     fn interrupted(&self) -> bool {
@@ -744,6 +770,9 @@ impl<'a> CentralDifference<'a> {
             }
             self.ungroup();
             let elastic = self.net_force(true);
+            // A run that has settled below its unbalanced-force ratio ends here, recorded.
+            let settled = self.balance.as_ref().is_some_and(Balance::reached);
+            let record = record || settled;
             self.scratch.copy_from_slice(&self.v);
             self.damp_locally();
             self.mass
@@ -788,9 +817,12 @@ impl<'a> CentralDifference<'a> {
             if let Some((_, s)) = &self.failure {
                 self.good_failure.copy_from(s);
             }
-            if last || interrupted {
+            if settled {
+                self.settled = Some((self.step, self.t));
+            }
+            if last || interrupted || settled {
                 self.pending = true;
-                return Ok(if last {
+                return Ok(if last || settled {
                     Status::Ok
                 } else {
                     Status::Interrupted {

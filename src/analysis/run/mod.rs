@@ -10,8 +10,8 @@ use crate::input::scene::Scene;
 use crate::model::Model;
 use crate::output::vtk::VtkSeries;
 use crate::output::{
-    self, count, ClampSummary, Columns, ContactSummary, EnergySummary, FailureSummary, History,
-    ProbeColumn, Summary,
+    self, count, BalanceSummary, ClampSummary, Columns, ContactSummary, EnergySummary,
+    FailureSummary, History, ProbeColumn, Summary,
 };
 use crate::step::integrator::{CentralDifference, Energy, RunStatus, Snapshot, Status};
 use std::path::Path;
@@ -233,6 +233,10 @@ pub fn simulate(
                 displacement_at_peak,
             })
             .collect(),
+        balance: cd.unbalanced_ratio().map(|ratio| BalanceSummary {
+            ratio,
+            settled_at_step: cd.settled().map(|(step, _)| step),
+        }),
         dir: out.map(Path::to_path_buf).unwrap_or_default(),
     };
     if let Some(out) = out {
@@ -274,12 +278,22 @@ impl crate::analysis::Report for Summary {
             }
             None => format!(
                 "{}: ok, {} (t = {:.6e} s) in {:.3} s; energy drift {:.3e} of the largest \
-                    energy; outputs in {}",
+                    energy;{} outputs in {}",
                 self.scene,
                 count(self.steps as usize, "step", "steps"),
                 self.t_end,
                 self.wall_time_s,
                 self.energy.max_relative_drift,
+                match &self.balance {
+                    Some(BalanceSummary {
+                        ratio,
+                        settled_at_step: Some(_),
+                    }) => format!(" settled: unbalanced-force ratio {ratio:.3e};"),
+                    Some(BalanceSummary { ratio, .. }) => {
+                        format!(" unbalanced-force ratio {ratio:.3e}, not settled;")
+                    }
+                    None => String::new(),
+                },
                 self.dir.display()
             ),
         }
@@ -511,7 +525,7 @@ fn step_through(
             },
             |step| monitor.progress(step, p.steps),
         )?;
-        if status != Status::Ok || next == end {
+        if status != Status::Ok || next == end || cd.settled().is_some() {
             return Ok(status);
         }
         let Some(out) = out else {
