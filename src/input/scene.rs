@@ -953,7 +953,8 @@ pub struct TimeSpec {
     pub steps: Option<u64>,
     #[serde(default)]
     /// Stop once the unbalanced-force ratio falls below this, in (0, 1): the largest
-    /// unbalanced force on a free translation over the mean internal force on them, read at
+    /// unbalanced force on a free translation over the mean applied force (loads on the free
+    /// translations, clamps' reactions on the fixed ones), read at
     /// every check of the run (every 100 steps or `output.every`). Optional, default none: the
     /// run goes to `end` or `steps`.
     #[schemars(transform = STOP_RATIO.schema())]

@@ -1,48 +1,67 @@
 //! The unbalanced-force ratio of a run and its stop (`time.stop_ratio`), as the DEM codes
 //! control a quasi-static run: at every check, the largest unbalanced force on a free
-//! translation, `max_i |P_i + f_c,i − f_int,i|`, over the mean internal force on them,
-//! `mean_i |f_int,i|` (both in N). A run that has settled under its loads, the local damping's
-//! work done (`step::local`), has a small ratio; the run stops at the first check below the
-//! scene's threshold.
+//! translation, `max_i |P_i + f_c,i − f_int,i|`, over the mean applied force, `mean |P_i|` over
+//! the loaded free translations and the clamps' reactions on the fixed ones (all in N). A run
+//! that has settled under its loads, the local damping's work done (`step::local`), has a small
+//! ratio; the run stops at the first check below the scene's threshold.
 
-/// The ratio's state: the free translations, the last mean internal force and ratio.
+use crate::model::loads::Loads;
+
+/// The ratio's state: the free and the fixed translations, room for `P`, the last ratio.
 #[derive(Debug, Clone)]
 pub struct Balance {
     /// Stop below this ratio.
     tol: f64,
     /// The free translational DOFs (`u`, `v` of every element not fixed).
     free: Vec<u32>,
-    /// `mean |f_int|` over them at the last check (N).
-    internal: f64,
+    /// The fixed translational DOFs, whose net force is a clamp's reaction.
+    fixed: Vec<u32>,
+    /// `−P(t)` of the check under way.
+    load: Vec<f64>,
     /// The ratio at the last check; infinite before the first.
     ratio: f64,
 }
 
 impl Balance {
-    /// The stop of a model with `dofs` DOFs, `nd` per element, of which `fixed` are fixed, at
-    /// the ratio `tol`; `None` without one.
+    /// The stop of a model with `dofs` DOFs, `nd` per element, of which `fixed` are fixed
+    /// (sorted), at the ratio `tol`; `None` without one.
     pub fn new(tol: Option<f64>, nd: usize, dofs: usize, fixed: &[usize]) -> Option<Balance> {
         let tol = tol?;
-        let mut free: Vec<u32> = (0..dofs).filter(|d| d % nd < 2).map(|d| d as u32).collect();
-        free.retain(|d| fixed.binary_search(&(*d as usize)).is_err());
+        let (mut free, mut held) = (Vec::new(), Vec::new());
+        for d in (0..dofs).filter(|d| d % nd < 2) {
+            match fixed.binary_search(&d) {
+                Ok(_) => held.push(d as u32),
+                Err(_) => free.push(d as u32),
+            }
+        }
         Some(Balance {
             tol,
             free,
-            internal: 0.0,
+            fixed: held,
+            load: vec![0.0; dofs],
             ratio: f64::INFINITY,
         })
     }
 
-    /// Takes `mean |f_int|` from `f_int`, the internal forces of the check under way.
-    pub fn internal(&mut self, f_int: &[f64]) {
-        let sum: f64 = self.free.iter().map(|&d| f_int[d as usize].abs()).sum();
-        self.internal = sum / self.free.len().max(1) as f64;
-    }
-
-    /// The ratio of the check under way from its net force `force` (`f_int − f_c − P`, minus
-    /// the unbalanced force): 0 when nothing is unbalanced, infinite when something is and no
-    /// internal force acts.
-    pub fn measure(&mut self, force: &[f64]) {
+    /// The ratio of the check at time `t` from its net force `force` (`f_int − f_c − P`, minus
+    /// the unbalanced force on the free DOFs and the reaction on the fixed ones): 0 when nothing
+    /// is unbalanced, infinite when something is and no force is applied. No allocation.
+    pub fn measure(&mut self, force: &[f64], loads: &Loads, t: f64) {
+        self.load.fill(0.0);
+        loads.subtract(t, &mut self.load);
+        let (mut sum, mut count) = (0.0, 0usize);
+        for (&d, source) in self
+            .free
+            .iter()
+            .map(|d| (d, &self.load[..]))
+            .chain(self.fixed.iter().map(|d| (d, force)))
+        {
+            let f = source[d as usize].abs();
+            if f > 0.0 {
+                sum += f;
+                count += 1;
+            }
+        }
         let largest = self
             .free
             .iter()
@@ -51,7 +70,7 @@ impl Balance {
         self.ratio = if largest == 0.0 {
             0.0
         } else {
-            largest / self.internal
+            largest / (sum / count.max(1) as f64)
         };
     }
 

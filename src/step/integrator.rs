@@ -556,13 +556,10 @@ impl<'a> CentralDifference<'a> {
         } else {
             0.0
         };
-        // At a check, the unbalanced-force ratio: `force` holds `f_int`, then the net force.
-        if let Some(b) = self.balance.as_mut().filter(|_| energy) {
-            b.internal(&self.force);
-        }
+        // At a check, the unbalanced-force ratio of the net force.
         self.subtract_external();
         if let Some(b) = self.balance.as_mut().filter(|_| energy) {
-            b.measure(&self.force);
+            b.measure(&self.force, self.loads, self.t);
         }
         elastic
     }
