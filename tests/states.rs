@@ -26,7 +26,7 @@ fn a_run_status_is_written_as_its_lowercase_name() {
 #[test]
 fn an_interface_status_is_written_as_its_name_and_parsed_back() {
     let names = ["elastic", "yielding", "broken", "released"];
-    for (status, text) in InterfaceStatus::ALL.into_iter().zip(names) {
+    for (status, text) in InterfaceStatus::ALL.iter().copied().zip(names) {
         assert_eq!(
             serde_json::to_string(&status).unwrap(),
             format!("\"{text}\"")

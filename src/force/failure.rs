@@ -24,6 +24,7 @@
 //! ([`FailureState::handover`]); both sides' forces stay equal and opposite, so momentum is
 //! kept.
 
+use crate::input::names::named;
 use crate::input::scene::EvaluatorKind;
 use crate::mesh::geometry::Vec2;
 use crate::model::formulation::{Formulation, Hybrid, Kinematics, Rigid};
@@ -70,56 +71,20 @@ impl FailureState {
     }
 }
 
-/// The state of a failing interface, from its two Gauss points; serialised (in
-/// `final_state.json`) as its lowercase name.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum InterfaceStatus {
-    /// No plastic displacement.
-    Elastic,
-    /// Plastic displacement, strength left.
-    Yielding,
-    /// Strength exhausted at both Gauss points.
-    Broken,
-    /// Broken and handed over to contact.
-    Released,
-}
-
-impl InterfaceStatus {
-    /// Every status, in the order of their crack-frame codes (`output::vtk::status_code`).
-    pub const ALL: [InterfaceStatus; 4] = [
-        InterfaceStatus::Elastic,
-        InterfaceStatus::Yielding,
-        InterfaceStatus::Broken,
-        InterfaceStatus::Released,
-    ];
-
-    /// `elastic`, `yielding`, `broken` or `released`, as serialised.
-    pub fn name(self) -> &'static str {
-        match self {
-            InterfaceStatus::Elastic => "elastic",
-            InterfaceStatus::Yielding => "yielding",
-            InterfaceStatus::Broken => "broken",
-            InterfaceStatus::Released => "released",
-        }
-    }
-}
-
-impl std::fmt::Display for InterfaceStatus {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.name())
-    }
-}
-
-impl std::str::FromStr for InterfaceStatus {
-    type Err = String;
-
-    /// The status named `name`, or why it is none.
-    fn from_str(name: &str) -> Result<Self, String> {
-        Self::ALL
-            .into_iter()
-            .find(|s| s.name() == name)
-            .ok_or_else(|| format!("status `{name}` is not elastic, yielding, broken or released"))
+named! {
+    /// The state of a failing interface, from its two Gauss points; serialised (in
+    /// `final_state.json`) as its name. `ALL` is in the order of the crack-frame codes
+    /// (`output::vtk::status_code`).
+    #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+    pub enum InterfaceStatus {
+        /// No plastic displacement.
+        "elastic" => Elastic,
+        /// Plastic displacement, strength left.
+        "yielding" => Yielding,
+        /// Strength exhausted at both Gauss points.
+        "broken" => Broken,
+        /// Broken and handed over to contact.
+        "released" => Released,
     }
 }
 

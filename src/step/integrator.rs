@@ -11,6 +11,7 @@ use crate::error::Result;
 use crate::force::contact::Contact;
 use crate::force::evaluator::{Evaluator, GroupedStep};
 use crate::force::failure::{FailureState, PlasticForces};
+use crate::input::names::named;
 use crate::model::law::InterfaceLaw;
 use crate::model::loads::Loads;
 use crate::model::mass::{Mass, Update};
@@ -178,33 +179,17 @@ pub struct CentralDifference<'a> {
     groups: Option<Groups>,
 }
 
-/// How a run ended, without where or why: the `status` of `summary.json` (`ok`, `interrupted`
-/// or `diverged`, the README's *Outputs*).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum RunStatus {
-    /// Every step was taken.
-    Ok,
-    /// Stopped by the interrupt flag.
-    Interrupted,
-    /// Stopped by the guard.
-    Diverged,
-}
-
-impl RunStatus {
-    /// `ok`, `interrupted` or `diverged`, as serialised.
-    pub fn name(self) -> &'static str {
-        match self {
-            RunStatus::Ok => "ok",
-            RunStatus::Interrupted => "interrupted",
-            RunStatus::Diverged => "diverged",
-        }
-    }
-}
-
-impl std::fmt::Display for RunStatus {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.name())
+named! {
+    /// How a run ended, without where or why: the `status` of `summary.json` (`ok`,
+    /// `interrupted` or `diverged`, the README's *Outputs*).
+    #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+    pub enum RunStatus {
+        /// Every step was taken.
+        "ok" => Ok,
+        /// Stopped by the interrupt flag.
+        "interrupted" => Interrupted,
+        /// Stopped by the guard.
+        "diverged" => Diverged,
     }
 }
 
