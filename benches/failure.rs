@@ -1,15 +1,18 @@
-//! What failing interfaces cost a step: a 10⁵-element Voronoi panel, rigid, stepped by both
-//! evaluators with elastic interfaces and with a softening law (`materials.*.interface`), on 1
-//! and 2 threads, as ns per element-step (the median of criterion's samples, with the quartiles),
+//! What failing interfaces cost a step: Voronoi panels of 10⁴, 10⁵ and 10⁶ elements, rigid and
+//! hybrid, stepped by both evaluators on 1 and 2 threads with elastic interfaces, with a
+//! softening law that stays elastic under the load, and with the same law on a panel that
+//! cracks; as ns per element-step (the median of criterion's samples, with the quartiles),
 //! measured in one run so that the ratios are the figures to read.
 //!
 //! `cargo bench --bench failure` measures and rewrites the section *Interfaces that fail* of
-//! `benches/summary.md` (between its markers; `cargo bench --bench step` keeps it).
+//! `benches/summary.md` (between its markers; `cargo bench --bench step` keeps it);
+//! `RBSM_BENCH_MAX=100000` stops at 10⁵ elements and leaves the summary as it was.
 //!
-//! The softening law is strong enough that the panel stays elastic under its load: the step
-//! still does the state update at every Gauss point and steps through the net force, which is
-//! what a scene with such a law pays before its interfaces yield (the plastic forces join once
-//! a point has; this bench does not measure a panel that cracks).
+//! The panel that stays elastic pays what a failing scene pays before it yields: the return
+//! mapping of every Gauss point in the sweep. The panel that cracks starts stretched to twice
+//! its cracking strain, so that every interface in tension yields in the first step and, with
+//! a small fracture energy, breaks: then every step reads and writes the state of those points
+//! and applies their plastic forces.
 
 #[path = "common/section.rs"]
 mod section;
@@ -25,14 +28,22 @@ use std::cell::RefCell;
 use std::fmt::Write as _;
 use std::time::{Duration, Instant};
 
-const ELEMENTS: usize = 100_000;
+const SIZES: [usize; 3] = [10_000, 100_000, 1_000_000];
+/// Rigid, and hybrid with the penalty `p = 10` of `benches/step.rs`.
+const FORMULATIONS: [&str; 2] = ["rigid", "hybrid"];
+const E: f64 = 3e10;
+const F_T: f64 = 3e6;
 
-fn scene(law: &str) -> Scene {
+fn scene(elements: usize, formulation: &str, law: &str) -> Scene {
+    let formulation = match formulation {
+        "rigid" => r#"{"kind": "rigid"}"#,
+        _ => r#"{"kind": "hybrid", "penalty": 10}"#,
+    };
     let json = format!(
-        r#"{{"name": "bench", "thickness": 1.0, "formulation": {{"kind": "rigid"}},
-            "materials": {{"m": {{"E": 3e10, "nu": 0.2, "rho": 2400{law}}}}},
+        r#"{{"name": "bench", "thickness": 1.0, "formulation": {formulation},
+            "materials": {{"m": {{"E": {E}, "nu": 0.2, "rho": 2400{law}}}}},
             "bodies": [{{"name": "b", "material": "m",
-                "mesh": {{"kind": "voronoi", "origin": [0, 0], "size": [1, 1], "sites": {ELEMENTS}, "seed": 1, "lloyd": 2}},
+                "mesh": {{"kind": "voronoi", "origin": [0, 0], "size": [1, 1], "sites": {elements}, "seed": 1, "lloyd": 2}},
                 "supports": [{{"edge": "left", "kind": "ground-spring"}}],
                 "loads": [{{"kind": "traction", "edge": "right", "value": [1e6, 1e5]}}]}}],
             "time": {{"dt": 1e-9, "steps": 1}}}}"#
@@ -40,12 +51,20 @@ fn scene(law: &str) -> Scene {
     Scene::from_json(&json).expect("the bench scene is valid")
 }
 
-const LAWS: [(&str, &str); 2] = [
-    ("elastic", ""),
+/// (name, the material's interface law, the stretch `ε` of the start `u = ε x`).
+const LAWS: [(&str, &str, f64); 3] = [
+    ("elastic", "", 0.0),
     (
-        "softening",
+        "stays elastic",
         r#", "interface": {"kind": "softening", "tensile_strength": 1e9, "cohesion": 1e9,
             "friction_angle": 30, "fracture_energy": 100, "fracture_energy_shear": 1000}"#,
+        0.0,
+    ),
+    (
+        "cracks",
+        r#", "interface": {"kind": "softening", "tensile_strength": 3e6, "cohesion": 6e6,
+            "friction_angle": 30, "fracture_energy": 0.1, "fracture_energy_shear": 1}"#,
+        2.0 * F_T / E,
     ),
 ];
 
@@ -55,90 +74,154 @@ fn main() {
         .measurement_time(Duration::from_secs(3))
         .warm_up_time(Duration::from_secs(1))
         .configure_from_args();
-    // (law, evaluator, threads) → [q1, median, q3] ns per element-step.
-    let mut rows: Vec<(&str, &str, usize, [f64; 3])> = Vec::new();
-    for (law, json) in LAWS {
-        let model = Model::build(&scene(json)).expect("the bench model builds");
-        let (mass, loads) = (Mass::new(&model), Loads::new(&model));
-        for kind in [EvaluatorKind::Assembled, EvaluatorKind::ElementWise] {
-            let ev = evaluator::build(&model, kind);
-            let plastic = failure::build(&model, kind);
-            assert_eq!(plastic.is_some(), law == "softening");
-            for threads in [1, 2] {
-                let pool = rayon::ThreadPoolBuilder::new()
-                    .num_threads(threads)
-                    .build()
-                    .expect("a thread pool");
-                let samples = RefCell::new(Vec::new());
-                let name = format!("failure/{law}/{}/{threads}thr", kind.name());
-                c.bench_function(&name, |b| {
-                    b.iter_custom(|iters| {
-                        let e = pool.install(|| {
-                            let mut cd = CentralDifference::new(
-                                &model,
-                                ev.as_ref(),
-                                &mass,
-                                &loads,
-                                None,
-                                1e-9,
-                            );
-                            if let Some(p) = &plastic {
-                                cd = cd.with_failure(p.as_ref());
-                            }
-                            let t0 = Instant::now();
-                            cd.step_only(iters);
-                            t0.elapsed()
-                        });
-                        samples
-                            .borrow_mut()
-                            .push(e.as_secs_f64() / iters as f64 / ELEMENTS as f64 * 1e9);
-                        e
-                    })
-                });
-                let mut s = samples.borrow().clone();
-                if s.is_empty() {
-                    continue; // filtered out on the command line
+    // (elements, formulation, law, evaluator, threads) → [q1, median, q3] ns per element-step.
+    type Row = (
+        usize,
+        &'static str,
+        &'static str,
+        &'static str,
+        usize,
+        [f64; 3],
+    );
+    let mut rows: Vec<Row> = Vec::new();
+    let mut cracked = Vec::new();
+    // `RBSM_BENCH_MAX=100000` stops at 10⁵ elements (a partial run, as a filter makes one).
+    let max: usize = std::env::var("RBSM_BENCH_MAX")
+        .ok()
+        .and_then(|m| m.parse().ok())
+        .unwrap_or(usize::MAX);
+    for n in SIZES.into_iter().filter(|&n| n <= max) {
+        for formulation in FORMULATIONS {
+            for (law, json, stretch) in LAWS {
+                let model = Model::build(&scene(n, formulation, json)).expect("the model builds");
+                let (mass, loads) = (Mass::new(&model), Loads::new(&model));
+                let nd = model.formulation.ndof();
+                let mut u0 = vec![0.0; model.n_dofs()];
+                for (e, el) in model.elements.iter().enumerate() {
+                    u0[e * nd] = stretch * el.props.centroid.x;
                 }
-                s.sort_by(f64::total_cmp);
-                let q = [1, 2, 3].map(|k| s[(k * s.len() / 4).min(s.len() - 1)]);
-                rows.push((law, kind.name(), threads, q));
+                let plastic = failure::build(&model);
+                assert_eq!(plastic.is_some(), law != "elastic");
+                for kind in [EvaluatorKind::Assembled, EvaluatorKind::ElementWise] {
+                    let ev = evaluator::build(&model, kind);
+                    for threads in [1, 2] {
+                        let pool = rayon::ThreadPoolBuilder::new()
+                            .num_threads(threads)
+                            .build()
+                            .expect("a thread pool");
+                        let samples = RefCell::new(Vec::new());
+                        let name = format!(
+                            "failure/{n}/{formulation}/{}/{}/{threads}thr",
+                            law.replace(' ', "-"),
+                            kind.name()
+                        );
+                        c.bench_function(&name, |b| {
+                            b.iter_custom(|iters| {
+                                let (e, broken) = pool.install(|| {
+                                    let mut cd = CentralDifference::from_state(
+                                        &model,
+                                        ev.as_ref(),
+                                        &mass,
+                                        &loads,
+                                        None,
+                                        1e-9,
+                                        u0.clone(),
+                                        vec![0.0; u0.len()],
+                                    );
+                                    if let Some(p) = &plastic {
+                                        cd = cd.with_failure(p.as_ref());
+                                    }
+                                    let t0 = Instant::now();
+                                    cd.step_only(iters);
+                                    let e = t0.elapsed();
+                                    let broken = plastic.as_ref().map_or(0, |p| {
+                                        let state = cd.failure().expect("a failing model");
+                                        p.report(state)
+                                            .iter()
+                                            .filter(|i| {
+                                                i.status == failure::InterfaceStatus::Broken
+                                            })
+                                            .count()
+                                    });
+                                    (e, broken)
+                                });
+                                samples
+                                    .borrow_mut()
+                                    .push(e.as_secs_f64() / iters as f64 / n as f64 * 1e9);
+                                if law == "cracks" {
+                                    cracked.push((n, formulation, broken));
+                                }
+                                e
+                            })
+                        });
+                        let mut s = samples.borrow().clone();
+                        if s.is_empty() {
+                            continue; // filtered out on the command line
+                        }
+                        s.sort_by(f64::total_cmp);
+                        let q = [1, 2, 3].map(|k| s[(k * s.len() / 4).min(s.len() - 1)]);
+                        rows.push((n, formulation, law, kind.name(), threads, q));
+                    }
+                }
             }
         }
     }
-    if rows.len() < 8 {
-        println!("a filtered run: benches/summary.md left as it was");
+    if rows.len() < SIZES.len() * FORMULATIONS.len() * LAWS.len() * 4 {
+        println!("a partial run (RBSM_BENCH_MAX or a filter): benches/summary.md left as it was");
         return;
     }
-    let mut section = format!(
-        "## Interfaces that fail\n\nA 10⁵-element Voronoi panel (rigid), elastic \
-        interfaces against a softening law that stays elastic under the load (the failure work \
-        an elastic state needs: the state update at every Gauss point, the step through the net \
-        force; the plastic forces only once a point has yielded). ns per \
-        element-step, median of {} samples with the quartiles, all measured in one run of \
-        `cargo bench --bench failure`.\n\n| evaluator | threads | elastic ns | softening ns | \
-        softening / elastic |\n|---|---:|---:|---:|---:|\n",
-        10
+    let broken = |n: usize, f: &str| {
+        cracked
+            .iter()
+            .filter(|c| c.0 == n && c.1 == f)
+            .map(|c| c.2)
+            .min()
+            .unwrap_or(0)
+    };
+    let mut section = String::from(
+        "## Interfaces that fail\n\nVoronoi panels (unit square, left edge on ground springs, a \
+        traction on the right), elastic interfaces against a softening law: one strong enough \
+        that the panel stays elastic (what a failing scene pays before it yields: the return \
+        mapping of every Gauss point, in the sweep), and one on a panel stretched at the start \
+        to twice its cracking strain, so that the interfaces in tension yield in the first step \
+        and break (the state read and written, the plastic forces applied, at every step). ns \
+        per element-step, median of 10 samples with the quartiles, all measured in one run of \
+        `cargo bench --bench failure`; the ratios are to the elastic step of the same mesh.\n\n\
+        | elements | formulation | evaluator | threads | elastic ns | stays elastic ns | ratio | \
+        cracks ns | ratio | broken interfaces |\n|---:|---|---|---:|---:|---:|---:|---:|---:|---:|\n",
     );
-    for kind in ["assembled", "element-wise"] {
-        for threads in [1, 2] {
-            let get = |law: &str| {
-                rows.iter()
-                    .find(|r| r.0 == law && r.1 == kind && r.2 == threads)
-                    .map(|r| r.3)
-                    .expect("every case was measured")
-            };
-            let (e, s) = (get("elastic"), get("softening"));
-            let _ = writeln!(
-                section,
-                "| {kind} | {threads} | {:.1} ({:.1}–{:.1}) | {:.1} ({:.1}–{:.1}) | {:.2} |",
-                e[1],
-                e[0],
-                e[2],
-                s[1],
-                s[0],
-                s[2],
-                s[1] / e[1]
-            );
+    for n in SIZES {
+        for formulation in FORMULATIONS {
+            for kind in ["assembled", "element-wise"] {
+                for threads in [1, 2] {
+                    let get = |law: &str| {
+                        rows.iter()
+                            .find(|r| {
+                                (r.0, r.1, r.2, r.3, r.4) == (n, formulation, law, kind, threads)
+                            })
+                            .map(|r| r.5)
+                            .expect("every case was measured")
+                    };
+                    let (e, s, k) = (get("elastic"), get("stays elastic"), get("cracks"));
+                    let _ = writeln!(
+                        section,
+                        "| {n} | {formulation} | {kind} | {threads} | {:.1} ({:.1}–{:.1}) | \
+                        {:.1} ({:.1}–{:.1}) | {:.2} | {:.1} ({:.1}–{:.1}) | {:.2} | {} |",
+                        e[1],
+                        e[0],
+                        e[2],
+                        s[1],
+                        s[0],
+                        s[2],
+                        s[1] / e[1],
+                        k[1],
+                        k[0],
+                        k[2],
+                        k[1] / e[1],
+                        broken(n, formulation)
+                    );
+                }
+            }
         }
     }
     section::write("failure", &section);

@@ -131,9 +131,9 @@ fn a_broken_interface_keeps_compression_and_friction_only() {
 }
 
 /// The tension bar (`examples/scenes/tension_bar.json`) cracks: its interfaces yield and
-/// break. The two evaluators compute the same plastic forces (the assembled one with the stored
-/// `G δ_p`, the element-wise one from each element's edges) and follow the same trajectory to
-/// round-off, and the energy balance closes.
+/// break. The two evaluators (the assembled one with its blocks `K_ab`, the element-wise one
+/// with each interface's tractions, both with the plastic forces of the failing interfaces
+/// they carry) follow the same trajectory to round-off, and the energy balance closes.
 #[test]
 fn both_evaluators_agree_while_a_bar_cracks_and_the_energy_balance_closes() {
     let scene = bundled("tension_bar.json");
@@ -235,7 +235,7 @@ fn a_resumed_run_keeps_the_interfaces_state() {
         .unwrap()
         .points
         .iter()
-        .any(|p| p.p != [0.0; 2]));
+        .any(|p| p.get().p != [0.0; 2]));
 }
 
 /// A scene whose materials are elastic has no failure state, no plastic forces and no extra
@@ -682,4 +682,84 @@ fn a_damaged_or_foreign_checkpoint_is_refused() {
     let mut cd2 = s2.integrator(s.dt);
     let err = cd2.restore(state).expect_err("another ground");
     assert!(err.contains("not this model's"), "{err}");
+}
+
+/// A bar pulled by a traction cracks with no clamp moving, so its steps are fused: each coupling
+/// of the sweep return-maps the Gauss points of the failing interfaces it carries and adds
+/// their plastic forces as it advances the elements. An evaluator seen through its evaluation
+/// only (which adds the failing interfaces one after the other after it,
+/// `PlasticForces::add_plastic`, and steps in two passes) follows the same trajectory to
+/// round-off, rigid and hybrid, in both evaluators; and the fused step gives the same bits on
+/// one and two threads.
+#[test]
+fn a_fused_cracking_step_matches_two_passes_and_any_thread_count() {
+    use rbsm::force::evaluator::Evaluator;
+    /// The same evaluator, seen through its evaluation only.
+    struct TwoPass<'a>(&'a dyn Evaluator);
+    impl Evaluator for TwoPass<'_> {
+        fn kind(&self) -> EvaluatorKind {
+            self.0.kind()
+        }
+        fn internal_force(&self, u: &[f64], f: &mut [f64]) {
+            self.0.internal_force(u, f)
+        }
+        fn bytes(&self) -> usize {
+            self.0.bytes()
+        }
+    }
+    for formulation in [
+        json!({"kind": "rigid"}),
+        json!({"kind": "hybrid", "penalty": 10}),
+    ] {
+        let mut scene = bundled("tension_bar.json");
+        scene["formulation"] = formulation.clone();
+        scene["bodies"][0]["supports"] = json!([{"kind": "clamp", "edge": "left"}]);
+        scene["bodies"][0]["loads"] =
+            json!([{"kind": "traction", "edge": "right", "value": [4e6, 0]}]);
+        scene["time"]["end"] = json!(2e-4);
+        for kind in [EvaluatorKind::Assembled, EvaluatorKind::ElementWise] {
+            let s = setup(&scene, kind);
+            assert!(s.evaluator.fused().is_some());
+            let run = |ev: &dyn Evaluator, threads: usize| {
+                let pool = rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .unwrap();
+                pool.install(|| {
+                    let mut cd = rbsm::step::integrator::CentralDifference::new(
+                        &s.model, ev, &s.mass, &s.loads, None, s.dt,
+                    )
+                    .with_failure(s.plastic.as_deref().unwrap());
+                    cd.step_only(s.steps);
+                    let report = s.plastic.as_ref().unwrap().report(cd.failure().unwrap());
+                    let broken = report
+                        .iter()
+                        .filter(|i| i.status == InterfaceStatus::Broken)
+                        .count();
+                    (cd.u.clone(), broken)
+                })
+            };
+            let (fused, broken) = run(s.evaluator.as_ref(), 1);
+            let (two, broken_two) = run(&TwoPass(s.evaluator.as_ref()), 1);
+            assert!(broken >= 5, "{formulation} {kind:?}: only {broken} broken");
+            assert_eq!(broken, broken_two, "{formulation} {kind:?}");
+            let scale = fused.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+            let diff = fused
+                .iter()
+                .zip(&two)
+                .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+            assert!(
+                diff <= 1e-9 * scale,
+                "{formulation} {kind:?}: |ΔU| = {diff:e} of {scale:e}"
+            );
+            let (threads2, _) = run(s.evaluator.as_ref(), 2);
+            assert!(
+                fused
+                    .iter()
+                    .zip(&threads2)
+                    .all(|(a, b)| a.to_bits() == b.to_bits()),
+                "{formulation} {kind:?}: 1 and 2 threads differ"
+            );
+        }
+    }
 }

@@ -491,7 +491,8 @@ fn tension(r: &mut Report) {
     r.line(&format!(
         "Both evaluators on the 200-site bar, {} steps, while {} interfaces break: final \
         displacements differ by {:.2e} of the largest; fracture works {:.10e} J (assembled, \
-        `K U − G δ_p`) and {:.10e} J (element-wise, each element's own edges).\n",
+        the blocks `K_ab` and the plastic forces of each pair's interfaces) and {:.10e} J \
+        (element-wise, each interface's tractions).\n",
         a.steps,
         a.count(InterfaceStatus::Broken),
         diff / scale,

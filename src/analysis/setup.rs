@@ -124,7 +124,7 @@ impl Setup {
         crate::output::refuse_own_columns(&model, &scene.output.probes)?;
         let kind = scene.evaluator;
         let evaluator = evaluator::build(&model, kind);
-        let plastic = failure::build(&model, kind);
+        let plastic = failure::build(&model);
         let mass = Mass::new(&model);
         let loads = Loads::new(&model);
         let contact = Contact::new(&model);

@@ -3,48 +3,61 @@
 //!
 //! The traction at a Gauss point is `λ = diag(k_n, k_s) (δ − δ_p)`, so the internal forces
 //! split into the elastic ones of the evaluator and a plastic correction:
-//! `f_int = f_el(U) − f_p`, `f_p = Σ_gp t w Bᵀ diag(k_n, k_s) δ_p` (eq. 7 with the plastic
-//! relative displacements as eigen-displacements). The evaluators keep their elastic hot loops
-//! untouched; the correction is computed in their own manner: the assembled evaluator stores
-//! `G = Σ t w Bᵀ diag(k)` as blocks per element and multiplies `f_p = G δ_p`; the element-wise
-//! one forms each element's share from its own edges' Gauss points, `±N_e(x)ᵀ T_p`, with no
-//! stored matrix (eq. 15). Both update the state the same way, [`PlasticForces::update`]: the
-//! relative displacement `δ = N_b U_b − N_a U_a` at each Gauss point and the return mapping of
-//! its law ([`InterfaceLaw::update`]), once per evaluation, that is once per time step.
+//! `f_int = f_el(U) − f_p`, `f_p = Σ_gp t w Nᵀ diag(k_n, k_s) δ_p` (eq. 7 with the plastic
+//! relative displacements as eigen-displacements). The evaluators keep their elastic couplings
+//! (an interface's tractions, or a block of `K`) and add, in the same pass of their sweep, the
+//! failing interfaces of each coupling ([`FailingInterfaces::couple`]): the relative
+//! displacement `δ = N_b U_b − N_a U_a` at each of its two Gauss points, the return mapping of
+//! its law ([`InterfaceLaw::update`]) and, once a point has flowed, its share `±N_e(x)ᵀ T_p`
+//! of `f_p` (eq. 15), with no stored matrix. One pass computes the relative displacement once,
+//! in both evaluators, and a time step fuses it with the update of the elements
+//! (`evaluator::FusedStep`).
 //!
-//! Only the interfaces between elements whose law is not linear have points; ground springs
-//! (supports) keep their law's springs.
+//! A point that has never flowed is in the law's initial state, which the step then does not
+//! read: it return-maps a fresh state and keeps it only if the point flows
+//! ([`FailureState::touched`], one byte per interface). While a failing scene stays elastic, a
+//! step reads the interfaces' geometry and that byte, and writes nothing.
+//!
+//! Only the interfaces between elements whose law is not linear have points, kept in the order
+//! of the sweep ([`Model::failing_interfaces`]); ground springs (supports) keep their law's
+//! springs.
 //!
 //! **Hand-over to contact.** In a scene with edge-to-edge contact a broken interface whose
 //! elements have moved apart by more than [`RELEASE`] of its length (in opening or in slip),
 //! beyond the range where its linear kinematics hold, is *released*: its springs stop acting
 //! (`δ_p` follows `δ`, the traction is zero) and its two elements touch through edge-to-edge
 //! contact from then on, so that the fragments the released interfaces cut out collide as
-//! blocks (`force::contact`, where every element of a body that fragments is a contact body). The elastic energy the interface still held goes to the contact account
+//! blocks (`force::contact`, where every element of a body that fragments is a contact body).
+//! The elastic energy the interface still held goes to the contact account
 //! ([`FailureState::handover`]); both sides' forces stay equal and opposite, so momentum is
 //! kept.
 
 use crate::input::names::named;
-use crate::input::scene::EvaluatorKind;
 use crate::mesh::geometry::Vec2;
 use crate::model::formulation::{Formulation, Hybrid, Kinematics, Rigid};
 use crate::model::law::{InterfaceLaw, LawPoint};
 use crate::model::Model;
-use crate::parallel::for_each_chunk;
-use rayon::prelude::*;
+use std::any::Any;
 use std::marker::PhantomData;
+use std::sync::atomic::Ordering::Relaxed;
+use std::sync::atomic::{AtomicBool, AtomicU64};
 use std::sync::Arc;
+
+/// How far ahead of its use a sweep asks for a failing interface: a stream of 80-byte records
+/// crosses a 4 KiB page, where the hardware prefetchers stop, every 51 interfaces.
+const PREFETCH_AHEAD: usize = 48;
 
 /// A broken interface is released to contact once its elements have moved apart by more than
 /// this fraction of its length.
 pub const RELEASE: f64 = 0.01;
 
 /// The state of every Gauss point of the failing interfaces: two per interface, in the order of
-/// [`PlasticForces::interfaces`].
+/// [`PlasticForces::interfaces`]. A sweep updates it in place through a shared reference, each
+/// interface by the one coupling that carries it ([`PointCell`]).
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct FailureState {
     /// One per Gauss point.
-    pub points: Vec<LawPoint>,
+    pub points: Vec<PointCell>,
     /// Per failing interface, whether it has been released to contact (only in scenes whose
     /// fragments collide, else all false).
     pub released: Vec<bool>,
@@ -53,11 +66,11 @@ pub struct FailureState {
     pub handover: f64,
     /// Whether the last update released an interface (contact must be told).
     pub changed: bool,
-    /// Whether any point has a plastic displacement after the last update: until one has, the
-    /// plastic forces and the energy offset are zero and are not computed. Set by every update,
-    /// so not saved.
+    /// Per failing interface, whether a point of it has left the law's initial state: until
+    /// then a step does not read its points (they are `LawPoint::default()`). Follows from
+    /// `points`, so not saved ([`FailureState::retouch`]).
     #[serde(skip)]
-    pub plastic: bool,
+    pub touched: Vec<Flag>,
 }
 
 impl FailureState {
@@ -65,9 +78,132 @@ impl FailureState {
     pub fn copy_from(&mut self, other: &FailureState) {
         self.points.clone_from(&other.points);
         self.released.clone_from(&other.released);
+        self.touched.clone_from(&other.touched);
         self.handover = other.handover;
         self.changed = other.changed;
-        self.plastic = other.plastic;
+    }
+
+    /// Sets [`FailureState::touched`] from the points (a state read back from a checkpoint).
+    pub fn retouch(&mut self) {
+        let fresh = LawPoint::default();
+        self.touched = self
+            .points
+            .chunks(2)
+            .map(|p| Flag::new(p.iter().any(|p| p.get() != fresh)))
+            .collect();
+    }
+}
+
+/// A Gauss point's [`LawPoint`] in cells that a parallel sweep updates through a shared
+/// reference: relaxed atomics, which are plain loads and stores, since one thread alone reaches
+/// a point in a sweep. Saved and compared as its `LawPoint`.
+#[derive(Default)]
+pub struct PointCell([AtomicU64; 6]);
+
+impl PointCell {
+    /// A cell holding `p`.
+    pub fn new(p: &LawPoint) -> Self {
+        let cell = PointCell::default();
+        cell.set(p);
+        cell
+    }
+    /// The point's state.
+    #[inline(always)]
+    pub fn get(&self) -> LawPoint {
+        let x = self.0.each_ref().map(|x| f64::from_bits(x.load(Relaxed)));
+        LawPoint {
+            p: [x[0], x[1]],
+            kappa: [x[2], x[3]],
+            fracture: x[4],
+            friction: x[5],
+        }
+    }
+    /// Sets the point's state.
+    #[inline(always)]
+    pub fn set(&self, p: &LawPoint) {
+        let x = [
+            p.p[0], p.p[1], p.kappa[0], p.kappa[1], p.fracture, p.friction,
+        ];
+        for (cell, x) in self.0.iter().zip(x) {
+            cell.store(x.to_bits(), Relaxed);
+        }
+    }
+    /// Sets its plastic relative displacement `δ_p`.
+    #[inline(always)]
+    fn set_p(&self, p: [f64; 2]) {
+        self.0[0].store(p[0].to_bits(), Relaxed);
+        self.0[1].store(p[1].to_bits(), Relaxed);
+    }
+}
+
+impl Clone for PointCell {
+    fn clone(&self) -> Self {
+        PointCell::new(&self.get())
+    }
+    fn clone_from(&mut self, other: &Self) {
+        self.set(&other.get());
+    }
+}
+
+impl PartialEq for PointCell {
+    fn eq(&self, other: &Self) -> bool {
+        self.get() == other.get()
+    }
+}
+
+impl std::fmt::Debug for PointCell {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        self.get().fmt(f)
+    }
+}
+
+impl serde::Serialize for PointCell {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        self.get().serialize(s)
+    }
+}
+
+impl<'de> serde::Deserialize<'de> for PointCell {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        LawPoint::deserialize(d).map(|p| PointCell::new(&p))
+    }
+}
+
+/// A flag that a parallel sweep sets through a shared reference ([`PointCell`]).
+#[derive(Default)]
+pub struct Flag(AtomicBool);
+
+impl Flag {
+    /// A flag set to `x`.
+    pub fn new(x: bool) -> Self {
+        Flag(AtomicBool::new(x))
+    }
+    /// Whether it is set.
+    #[inline(always)]
+    pub fn get(&self) -> bool {
+        self.0.load(Relaxed)
+    }
+    #[inline(always)]
+    fn set(&self) {
+        self.0.store(true, Relaxed);
+    }
+}
+
+impl Clone for Flag {
+    fn clone(&self) -> Self {
+        Flag::new(self.get())
+    }
+}
+
+impl PartialEq for Flag {
+    fn eq(&self, other: &Self) -> bool {
+        self.get() == other.get()
+    }
+}
+
+impl std::fmt::Debug for Flag {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        self.get().fmt(f)
     }
 }
 
@@ -103,25 +239,34 @@ pub struct InterfaceFailure {
     pub dissipated: f64,
 }
 
-/// The plastic correction of the internal forces and the state update, for one model and one
-/// evaluator kind.
+/// The failing interfaces of a model: their Gauss points' state, its update and what follows
+/// from it, for one formulation.
 pub trait PlasticForces: Send + Sync {
-    /// The failing interfaces (indices in `Model::interfaces`), two Gauss points each.
+    /// The failing interfaces (indices in `Model::interfaces`), two Gauss points each, in the
+    /// order of [`Model::failing_interfaces`].
     fn interfaces(&self) -> &[u32];
     /// A state with every point elastic.
     fn initial(&self) -> FailureState {
+        let n = self.interfaces().len();
         FailureState {
-            points: vec![LawPoint::default(); 2 * self.interfaces().len()],
-            released: vec![false; self.interfaces().len()],
+            points: vec![PointCell::default(); 2 * n],
+            released: vec![false; n],
             handover: 0.0,
             changed: false,
-            plastic: false,
+            touched: vec![Flag::default(); n],
         }
     }
-    /// The return mapping at every Gauss point for the displacements `u`.
-    fn update(&self, u: &[f64], state: &mut FailureState);
-    /// `f −= f_p`: with `f = f_el(U)`, the internal forces `f_int = f_el − f_p`.
-    fn subtract_plastic(&self, state: &FailureState, f: &mut [f64]);
+    /// `f −= f_p` at `u`, the Gauss points return-mapped at `u` in `state`: the failing
+    /// interfaces one after the other, for an evaluator that does not carry them in its own
+    /// pass (`evaluator::Evaluator::internal_force_failing`).
+    fn add_plastic(&self, u: &[f64], state: &mut FailureState, f: &mut [f64]);
+    /// Whether a step must look for interfaces to release ([`PlasticForces::release`]): some
+    /// body fragments.
+    fn releases(&self) -> bool;
+    /// Hands over to contact the broken interfaces whose elements have moved apart beyond their
+    /// range at `u`, the displacements their state was just updated at, setting
+    /// [`FailureState::changed`]; `f`, the internal forces at `u`, loses their tractions.
+    fn release(&self, u: &[f64], state: &mut FailureState, f: &mut [f64]);
     /// `½ Uᵀ f_int` minus the elastic energy `½ Σ t w (δ − δ_p)ᵀ k (δ − δ_p)` of the failing
     /// interfaces: `½ Σ t w (δ − δ_p)ᵀ k δ_p` (J).
     fn energy_offset(&self, u: &[f64], state: &FailureState) -> f64;
@@ -129,288 +274,356 @@ pub trait PlasticForces: Send + Sync {
     fn dissipated(&self, state: &FailureState) -> [f64; 2];
     /// Each failing interface's status, openings and dissipated work.
     fn report(&self, state: &FailureState) -> Vec<InterfaceFailure>;
+    /// Itself, for an evaluator to find its [`FailingInterfaces`] of its own formulation.
+    fn as_any(&self) -> &dyn Any;
 }
 
-/// The plastic forces of `model` for the evaluator `kind`; `None` when no interface can fail.
-pub fn build(model: &Model, kind: EvaluatorKind) -> Option<Box<dyn PlasticForces>> {
+/// The failing interfaces of `model`; `None` when no interface can fail.
+pub fn build(model: &Model) -> Option<Box<dyn PlasticForces>> {
     if !model.any_fails() {
         return None;
     }
     Some(match model.formulation {
-        Formulation::Rigid => Box::new(Points::<Rigid, 3>::new(model, kind)),
-        Formulation::Hybrid { .. } => Box::new(Points::<Hybrid, 6>::new(model, kind)),
+        Formulation::Rigid => Box::new(FailingInterfaces::<Rigid, 3>::new(model)),
+        Formulation::Hybrid { .. } => Box::new(FailingInterfaces::<Hybrid, 6>::new(model)),
     })
 }
 
-/// One Gauss point of a failing interface.
+/// A failing interface, seen from its lower element `a` (the sides of a model interface with
+/// `b < a` are swapped, and its axes turned with them: `δ_n` and `δ_s` are the same); 80
+/// bytes, which a step reads (the coupling that carries it knows `a` and `b`).
 #[derive(Debug, Clone, Copy)]
-struct Point {
-    a: u32,
-    /// The other element (supports have no points: `Model::fails`).
-    b: u32,
-    /// The point from the centroids of `a` and `b` (m).
+struct Failing {
+    /// Its law, in `FailingInterfaces::laws` (an index: the interfaces stay small).
+    law: u32,
+    /// The edge's midpoint from the centroids of `a` and `b` (m).
     da: Vec2,
     db: Vec2,
+    /// Unit normal from `a` to `b`; the tangent `s` is `(n_y, −n_x)` (`n = ẑ × s`).
     normal: Vec2,
-    tangent: Vec2,
     /// Elastic springs `(k_n, k_s)` (Pa/m).
     k: [f64; 2],
     /// `t w`: thickness times the Gauss weight `L/2` (m²).
     tw: f64,
-    /// Its law, in `Points::laws` (an index: the points stay small).
-    law: u32,
 }
 
-impl Point {
-    /// `δ = N_b U_b − N_a U_a` on the interface's axes, `(δ_n, δ_s)`.
-    #[inline]
-    fn delta<K: Kinematics<N>, const N: usize>(&self, u: &[[f64; N]]) -> [f64; 2] {
-        let mut d = -K::displacement(&u[self.a as usize], self.da);
-        d += K::displacement(&u[self.b as usize], self.db);
-        [self.normal.dot(&d), self.tangent.dot(&d)]
+impl Failing {
+    #[inline(always)]
+    fn tangent(&self) -> Vec2 {
+        Vec2::new(self.normal.y, -self.normal.x)
+    }
+
+    /// The offsets of Gauss point `g` (0 or 1) from the two centroids: the midpoint `∓ L/(2√3) s`.
+    #[inline(always)]
+    fn offsets(&self, g: usize, half_per_tw: f64) -> (Vec2, Vec2) {
+        let side = if g == 0 { -half_per_tw } else { half_per_tw };
+        let o = (side * self.tw) * self.tangent();
+        (self.da + o, self.db + o)
+    }
+
+    /// `δ = N_b U_b − N_a U_a` at offsets `(da, db)`, on the interface's axes `(δ_n, δ_s)`.
+    #[inline(always)]
+    fn delta<K: Kinematics<N>, const N: usize>(
+        &self,
+        (da, db): (Vec2, Vec2),
+        ua: &[f64; N],
+        ub: &[f64; N],
+    ) -> [f64; 2] {
+        let d = K::displacement(ub, db) - K::displacement(ua, da);
+        [self.normal.dot(&d), self.tangent().dot(&d)]
+    }
+
+    /// [`Failing::delta`] at both Gauss points, from the jump at the midpoint and its linear
+    /// part over the Gauss offset: `δ₀ ∓ δ₁` (the jump is affine along the edge).
+    #[inline(always)]
+    fn deltas<K: Kinematics<N>, const N: usize>(
+        &self,
+        half_per_tw: f64,
+        ua: &[f64; N],
+        ub: &[f64; N],
+    ) -> [[f64; 2]; 2] {
+        let (n, s) = (self.normal, self.tangent());
+        let g = (half_per_tw * self.tw) * s;
+        let d0 = K::displacement(ub, self.db) - K::displacement(ua, self.da);
+        let d1 = K::gradient(ub, g) - K::gradient(ua, g);
+        let (d0, d1) = ([n.dot(&d0), s.dot(&d0)], [n.dot(&d1), s.dot(&d1)]);
+        [
+            [d0[0] - d1[0], d0[1] - d1[1]],
+            [d0[0] + d1[0], d0[1] + d1[1]],
+        ]
     }
 
     /// `T_p = t w (k_n δ_p,n n + k_s δ_p,s s)`: the traction that `δ_p` relieves, as a force.
-    #[inline]
+    #[inline(always)]
     fn plastic_force(&self, p: &[f64; 2]) -> Vec2 {
-        self.tw * (self.k[0] * p[0] * self.normal + self.k[1] * p[1] * self.tangent)
+        self.tw * (self.k[0] * p[0] * self.normal + self.k[1] * p[1] * self.tangent())
     }
 }
 
-/// How an evaluator forms `f_p`: per element, its Gauss points with a sign and an offset
-/// (element-wise), or the blocks `G_ej` of `f_p = G δ_p` (assembled).
-enum Correction<const N: usize> {
-    ElementWise(Vec<(u32, f64, Vec2)>),
-    Assembled(Vec<(u32, [[f64; 2]; N])>),
-}
-
-struct Points<K: Kinematics<N>, const N: usize> {
-    points: Vec<Point>,
+/// The failing interfaces of a model with kinematics `K`, in the order of
+/// [`Model::failing_interfaces`].
+pub struct FailingInterfaces<K: Kinematics<N>, const N: usize> {
+    failing: Vec<Failing>,
+    /// The lower and higher element of each.
+    pairs: Vec<[u32; 2]>,
     /// The model's laws ([`Model::laws`]), then its default law.
     laws: Vec<Arc<dyn InterfaceLaw>>,
+    /// Each law's [`InterfaceLaw::initial_region`], or one that holds no traction.
+    regions: Vec<[f64; 3]>,
     interfaces: Vec<u32>,
+    /// `L/(2√3)` over `t w`: the Gauss offset from the weight.
+    half_per_tw: f64,
     /// Per failing interface, the separation beyond which a broken one is released (m):
     /// [`RELEASE`] of its length where its body fragments (`Model::fragments`), else infinite;
     /// empty when no body fragments (then no step looks for releases).
     release: Vec<f64>,
-    /// Entries of element `e` are `row_start[e] .. row_start[e + 1]` of `correction`.
-    row_start: Vec<u32>,
-    correction: Correction<N>,
     kinematics: PhantomData<K>,
 }
 
-impl<K: Kinematics<N>, const N: usize> Points<K, N> {
-    fn new(model: &Model, kind: EvaluatorKind) -> Self {
-        let mut points = Vec::new();
+impl<K: Kinematics<N>, const N: usize> FailingInterfaces<K, N> {
+    fn new(model: &Model) -> Self {
         let mut laws = model.laws.clone();
         laws.push(model.law.clone());
-        let mut interfaces = Vec::new();
-        let mut release = Vec::new();
+        let interfaces = model.failing_interfaces();
         let centroid = |e: u32| model.elements[e as usize].props.centroid;
         let fragments: Vec<bool> = (0..model.bodies.len())
             .map(|b| model.fragments(b))
             .collect();
-        for (k, i) in model.interfaces.iter().enumerate() {
-            if !model.fails(i) {
-                continue;
-            }
-            // The model's laws, then its default law (`laws`).
-            let law = match i.law {
-                crate::model::DEFAULT_LAW => model.laws.len() as u32,
-                k => k,
-            };
-            interfaces.push(k as u32);
-            let body = model.elements[i.a as usize].body as usize;
-            release.push(if fragments[body] {
-                RELEASE * i.length
-            } else {
-                f64::INFINITY
-            });
-            let (gauss, w) = i.gauss_points();
-            for x in gauss {
-                points.push(Point {
-                    a: i.a,
-                    b: i.b,
-                    da: x - centroid(i.a),
-                    db: x - centroid(i.b),
-                    normal: i.normal,
-                    tangent: i.tangent,
-                    k: laws[law as usize].springs([i.k_n, i.k_s]),
-                    tw: model.thickness * w,
-                    law,
+        let mut release = Vec::with_capacity(interfaces.len());
+        let mut pairs = Vec::with_capacity(interfaces.len());
+        let failing = interfaces
+            .iter()
+            .map(|&k| {
+                let i = &model.interfaces[k as usize];
+                // The model's laws, then its default law (`laws`).
+                let law = match i.law {
+                    crate::model::DEFAULT_LAW => model.laws.len() as u32,
+                    k => k,
+                };
+                let body = model.elements[i.a as usize].body as usize;
+                release.push(if fragments[body] {
+                    RELEASE * i.length
+                } else {
+                    f64::INFINITY
                 });
-            }
-        }
-        // Each element's entries: its points as side `a` (f_int gains `N_aᵀ T_p`) and as side
-        // `b` (loses `N_bᵀ T_p`), in point order.
-        let mut entries: Vec<(u32, u32, f64, Vec2)> = Vec::with_capacity(2 * points.len());
-        for (j, p) in points.iter().enumerate() {
-            entries.push((p.a, j as u32, 1.0, p.da));
-            entries.push((p.b, j as u32, -1.0, p.db));
-        }
-        entries.sort_by_key(|&(e, j, _, _)| (e, j));
-        let mut row_start = vec![0u32; model.elements.len() + 1];
-        for &(e, ..) in &entries {
-            row_start[e as usize + 1] += 1;
-        }
-        for e in 0..model.elements.len() {
-            row_start[e + 1] += row_start[e];
-        }
-        let correction = match kind {
-            EvaluatorKind::ElementWise => {
-                Correction::ElementWise(entries.iter().map(|&(_, j, s, d)| (j, s, d)).collect())
-            }
-            EvaluatorKind::Assembled => Correction::Assembled(
-                entries
-                    .iter()
-                    .map(|&(_, j, sign, d)| {
-                        let p = &points[j as usize];
-                        // Column c of the block: N(d)ᵀ of the unit plastic force of δ_p,c.
-                        let mut cols = [[0.0; N]; 2];
-                        K::add_force(&mut cols[0], d, sign * p.tw * p.k[0] * p.normal);
-                        K::add_force(&mut cols[1], d, sign * p.tw * p.k[1] * p.tangent);
-                        (j, std::array::from_fn(|r| [cols[0][r], cols[1][r]]))
-                    })
-                    .collect(),
-            ),
-        };
+                let (a, b, normal) = if i.a < i.b {
+                    (i.a, i.b, i.normal)
+                } else {
+                    (i.b, i.a, -i.normal)
+                };
+                let mid = i.midpoint();
+                pairs.push([a, b]);
+                Failing {
+                    law,
+                    da: mid - centroid(a),
+                    db: mid - centroid(b),
+                    normal,
+                    k: laws[law as usize].springs([i.k_n, i.k_s]),
+                    tw: model.thickness * 0.5 * i.length,
+                }
+            })
+            .collect();
         if release.iter().all(|r| r.is_infinite()) {
             release.clear();
         }
-        Points {
-            points,
+        FailingInterfaces {
+            failing,
+            pairs,
+            regions: laws
+                .iter()
+                .map(|l| l.initial_region().unwrap_or([f64::NEG_INFINITY, 0.0, 0.0]))
+                .collect(),
             laws,
             interfaces,
+            half_per_tw: 1.0 / (3f64.sqrt() * model.thickness),
             release,
-            row_start,
-            correction,
             kinematics: PhantomData,
+        }
+    }
+
+    /// The failing interfaces `range` of one coupling between `a` (DOFs `ua`) and `b` (`ub`),
+    /// `a < b`, in `state`: each Gauss point's relative displacement, the return mapping of its
+    /// law, and `f_int,a += N_aᵀ T_p`, `f_int,b −= N_bᵀ T_p` for the points that have flowed.
+    /// A sweep calls it once per interface, from one thread: the points of `range` are its
+    /// alone ([`PointCell`]).
+    #[inline(always)]
+    pub fn couple(
+        &self,
+        range: std::ops::Range<usize>,
+        state: &FailureState,
+        (ua, ub): (&[f64; N], &[f64; N]),
+        fa: &mut [f64; N],
+        fb: &mut [f64; N],
+    ) {
+        #[cfg(target_arch = "x86_64")]
+        if let Some(ahead) = self.failing.get(range.start + PREFETCH_AHEAD) {
+            safe_arch::prefetch_t0(ahead);
+        }
+        for j in range {
+            let f = &self.failing[j];
+            let delta = f.deltas::<K, N>(self.half_per_tw, ua, ub);
+            // A fresh interface inside its law's initial region at both points stays fresh:
+            // nothing to read, write or add.
+            if !state.touched[j].get() && (self.release.is_empty() || !state.released[j]) {
+                let [cap, c, tan_phi] = self.regions[f.law as usize];
+                let inside = |d: &[f64; 2]| {
+                    let (sigma, tau) = (f.k[0] * d[0], f.k[1] * d[1]);
+                    sigma <= cap && tau.abs() <= c - sigma * tan_phi
+                };
+                if inside(&delta[0]) && inside(&delta[1]) {
+                    continue;
+                }
+            }
+            self.flow(j, delta, state, fa, fb);
+        }
+    }
+
+    /// [`FailingInterfaces::couple`] for interface `j` at relative displacements `delta`
+    /// outside the quick test: the return mapping of its points and their plastic forces.
+    #[inline(never)]
+    fn flow(
+        &self,
+        j: usize,
+        delta: [[f64; 2]; 2],
+        state: &FailureState,
+        fa: &mut [f64; N],
+        fb: &mut [f64; N],
+    ) {
+        let f = &self.failing[j];
+        let (cells, touched) = (&state.points[2 * j..2 * j + 2], &state.touched[j]);
+        let law = &*self.laws[f.law as usize];
+        let mut p = [[0.0; 2]; 2];
+        if !self.release.is_empty() && state.released[j] {
+            p = delta;
+            for g in 0..2 {
+                cells[g].set_p(p[g]);
+            }
+        } else if touched.get() {
+            for g in 0..2 {
+                let mut point = cells[g].get();
+                if law.update(f.k, delta[g], &mut point).1 {
+                    cells[g].set(&point);
+                }
+                p[g] = point.p;
+            }
+        } else {
+            for g in 0..2 {
+                let mut point = LawPoint::default();
+                if law.update(f.k, delta[g], &mut point).1 {
+                    cells[g].set(&point);
+                    touched.set();
+                }
+                p[g] = point.p;
+            }
+            if !touched.get() {
+                return;
+            }
+        }
+        for g in 0..2 {
+            let (da, db) = f.offsets(g, self.half_per_tw);
+            let t = f.plastic_force(&p[g]);
+            K::add_force(fa, da, t);
+            K::add_force(fb, db, -t);
         }
     }
 }
 
-impl<K: Kinematics<N>, const N: usize> PlasticForces for Points<K, N> {
+impl<K: Kinematics<N>, const N: usize> PlasticForces for FailingInterfaces<K, N> {
     fn interfaces(&self) -> &[u32] {
         &self.interfaces
     }
 
-    fn update(&self, u: &[f64], state: &mut FailureState) {
+    fn releases(&self) -> bool {
+        !self.release.is_empty()
+    }
+
+    fn add_plastic(&self, u: &[f64], state: &mut FailureState, f: &mut [f64]) {
         let (u, _) = u.as_chunks::<N>();
-        let released = &state.released;
-        // Whether any point is plastic after its update: summed without short cut, so that
-        // every point is updated.
-        state.plastic = state
-            .points
-            .par_iter_mut()
-            .zip(self.points.par_iter())
-            .enumerate()
-            .with_min_len(4096)
-            .map(|(j, (s, p))| {
-                let delta = p.delta::<K, N>(u);
-                if released[j / 2] {
-                    s.p = delta;
-                } else {
-                    self.laws[p.law as usize].update(p.k, delta, s);
-                }
-                s.p != [0.0; 2]
-            })
-            .reduce(|| false, |a, b| a | b);
-        // Hand-over: broken interfaces whose elements moved apart beyond their range.
+        let (f, _) = f.as_chunks_mut::<N>();
+        for (j, &[a, b]) in self.pairs.iter().enumerate() {
+            let (a, b) = (a as usize, b as usize);
+            let (mut fa, mut fb) = ([0.0; N], [0.0; N]);
+            self.couple(j..j + 1, state, (&u[a], &u[b]), &mut fa, &mut fb);
+            for r in 0..N {
+                f[a][r] += fa[r];
+                f[b][r] += fb[r];
+            }
+        }
+    }
+
+    fn release(&self, u: &[f64], state: &mut FailureState, f: &mut [f64]) {
+        let (u, _) = u.as_chunks::<N>();
+        let (f, _) = f.as_chunks_mut::<N>();
         state.changed = false;
         for (k, &range) in self.release.iter().enumerate() {
             if range.is_infinite() || state.released[k] {
                 continue;
             }
-            let (p, s) = (
-                &self.points[2 * k..2 * k + 2],
-                &mut state.points[2 * k..2 * k + 2],
-            );
-            if !(0..2).all(|g| self.laws[p[g].law as usize].is_broken(&s[g])) {
+            let (i, s) = (&self.failing[k], &state.points[2 * k..2 * k + 2]);
+            let law = &*self.laws[i.law as usize];
+            if !s.iter().all(|s| law.is_broken(&s.get())) {
                 continue;
             }
-            let d = [0, 1].map(|g| p[g].delta::<K, N>(u));
+            let [a, b] = self.pairs[k].map(|e| e as usize);
+            let (ua, ub) = (&u[a], &u[b]);
+            let offsets = [0, 1].map(|g| i.offsets(g, self.half_per_tw));
+            let d = offsets.map(|o| i.delta::<K, N>(o, ua, ub));
             if (0..2).any(|c| (0.5 * (d[0][c] + d[1][c])).abs() > range) {
                 for g in 0..2 {
-                    let e = [d[g][0] - s[g].p[0], d[g][1] - s[g].p[1]];
-                    state.handover +=
-                        0.5 * p[g].tw * (p[g].k[0] * e[0] * e[0] + p[g].k[1] * e[1] * e[1]);
-                    s[g].p = d[g];
+                    let p = s[g].get().p;
+                    let e = [d[g][0] - p[0], d[g][1] - p[1]];
+                    state.handover += 0.5 * i.tw * (i.k[0] * e[0] * e[0] + i.k[1] * e[1] * e[1]);
+                    s[g].set_p(d[g]);
+                    // `δ_p` goes from `p` to `δ`: the plastic forces grow by those of `e`.
+                    let t = i.plastic_force(&e);
+                    K::add_force(&mut f[a], offsets[g].0, t);
+                    K::add_force(&mut f[b], offsets[g].1, -t);
                 }
                 state.released[k] = true;
+                state.touched[k].set();
                 state.changed = true;
-                state.plastic = true;
             }
         }
-    }
-
-    fn subtract_plastic(&self, state: &FailureState, f: &mut [f64]) {
-        if !state.plastic {
-            return;
-        }
-        let (f, _) = f.as_chunks_mut::<N>();
-        let state = &state.points;
-        for_each_chunk(f, |first, rows| {
-            for (i, fe) in rows.iter_mut().enumerate() {
-                let e = first + i;
-                let range = self.row_start[e] as usize..self.row_start[e + 1] as usize;
-                match &self.correction {
-                    Correction::ElementWise(entries) => {
-                        for &(j, sign, d) in &entries[range] {
-                            let j = j as usize;
-                            let t = self.points[j].plastic_force(&state[j].p);
-                            K::add_force(fe, d, sign * t);
-                        }
-                    }
-                    Correction::Assembled(blocks) => {
-                        for (j, g) in &blocks[range] {
-                            let p = &state[*j as usize].p;
-                            for r in 0..N {
-                                fe[r] += g[r][0] * p[0] + g[r][1] * p[1];
-                            }
-                        }
-                    }
-                }
-            }
-        });
     }
 
     fn energy_offset(&self, u: &[f64], state: &FailureState) -> f64 {
-        if !state.plastic {
-            return 0.0;
-        }
         let (u, _) = u.as_chunks::<N>();
-        self.points
-            .iter()
-            .zip(&state.points)
-            .map(|(p, s)| {
-                let d = p.delta::<K, N>(u);
-                0.5 * p.tw
-                    * (0..2)
-                        .map(|c| (d[c] - s.p[c]) * p.k[c] * s.p[c])
-                        .sum::<f64>()
-            })
-            .sum()
+        let mut offset = 0.0;
+        for (k, f) in self.failing.iter().enumerate() {
+            if !state.touched[k].get() {
+                continue;
+            }
+            let [a, b] = self.pairs[k].map(|e| e as usize);
+            let (ua, ub) = (&u[a], &u[b]);
+            for g in 0..2 {
+                let d = f.delta::<K, N>(f.offsets(g, self.half_per_tw), ua, ub);
+                let p = state.points[2 * k + g].get().p;
+                offset += 0.5 * f.tw * (0..2).map(|c| (d[c] - p[c]) * f.k[c] * p[c]).sum::<f64>();
+            }
+        }
+        offset
     }
 
     fn dissipated(&self, state: &FailureState) -> [f64; 2] {
-        self.points
-            .iter()
-            .zip(&state.points)
-            .fold([0.0; 2], |[a, b], (p, s)| {
-                [a + p.tw * s.fracture, b + p.tw * s.friction]
+        state
+            .points
+            .chunks(2)
+            .zip(&self.failing)
+            .flat_map(|(s, f)| s.iter().map(move |s| (f.tw, s.get())))
+            .fold([0.0; 2], |[a, b], (tw, s)| {
+                [a + tw * s.fracture, b + tw * s.friction]
             })
     }
 
     fn report(&self, state: &FailureState) -> Vec<InterfaceFailure> {
         self.interfaces
             .iter()
+            .zip(&self.failing)
             .enumerate()
-            .map(|(k, &i)| {
-                let (p, s) = (
-                    &self.points[2 * k..2 * k + 2],
-                    &state.points[2 * k..2 * k + 2],
-                );
-                let broken = (0..2).all(|g| self.laws[p[g].law as usize].is_broken(&s[g]));
+            .map(|(k, (&i, f))| {
+                let s = [0, 1].map(|g| state.points[2 * k + g].get());
+                let law = &*self.laws[f.law as usize];
+                let broken = s.iter().all(|s| law.is_broken(s));
                 let plastic = s.iter().any(|s| s.p != [0.0; 2]);
                 InterfaceFailure {
                     interface: i as usize,
@@ -425,11 +638,13 @@ impl<K: Kinematics<N>, const N: usize> PlasticForces for Points<K, N> {
                     },
                     opening: 0.5 * (s[0].p[0] + s[1].p[0]),
                     slip: 0.5 * (s[0].p[1] + s[1].p[1]),
-                    dissipated: (0..2)
-                        .map(|g| p[g].tw * (s[g].fracture + s[g].friction))
-                        .sum(),
+                    dissipated: s.iter().map(|s| f.tw * (s.fracture + s.friction)).sum(),
                 }
             })
             .collect()
+    }
+
+    fn as_any(&self) -> &dyn Any {
+        self
     }
 }

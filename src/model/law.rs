@@ -14,8 +14,9 @@
 //! and `δ_p` the point's [`LawPoint::p`], which [`InterfaceLaw::update`] keeps (any traction
 //! can be written so). That is what lets the evaluators keep their elastic hot loops for every
 //! law: they assemble a constant `K` (or split the Gauss rule of an edge into `δ₀ ± δ₁`,
-//! `force::evaluator::ElementWise`) from the springs, and `force::failure` subtracts the
-//! plastic part `G δ_p` for the interfaces whose law is not [linear](InterfaceLaw::is_linear).
+//! `force::evaluator::ElementWise`) from the springs, and `force::failure` adds the plastic
+//! forces `−Σ t w Nᵀ diag(k) δ_p` of the interfaces whose law is not
+//! [linear](InterfaceLaw::is_linear), in the same pass.
 //! A linear law has no state: no point of it is stored or updated.
 
 use std::fmt::Debug;
@@ -51,6 +52,15 @@ pub trait InterfaceLaw: Send + Sync + Debug {
             ],
             false,
         )
+    }
+    /// A region where a point in the initial state ([`LawPoint::default`]) stays elastic, for
+    /// a quick test before [`update`](InterfaceLaw::update): `Some([σ_max, c, tan φ])` says
+    /// that at a trial traction `(σ, τ) = (k_n δ_n, k_s δ_s)` with `σ ≤ σ_max` and
+    /// `|τ| ≤ c − σ tan φ` (a Mohr–Coulomb region inside the law's own, evaluated in that
+    /// order of operations) `update` would not flow, so the steps leave it out there. `None`,
+    /// the default, asks for `update` at every point.
+    fn initial_region(&self) -> Option<[f64; 3]> {
+        None
     }
     /// The tangent `dλ/dδ` (Pa/m) at `δ` in the state `point`, on the springs `k` as in
     /// [`update`](InterfaceLaw::update), row by row:
@@ -152,6 +162,15 @@ impl Strength {
         })
     }
 
+    /// The cut-off, lowered to the apex of the shear surface when that comes first (Pa).
+    fn cap(&self) -> f64 {
+        if self.tan_phi > 0.0 {
+            self.f_t.min(self.c / self.tan_phi)
+        } else {
+            self.f_t
+        }
+    }
+
     /// How much of the strength is spent, `ξ` in [0, 1].
     pub fn softening(&self, point: &LawPoint) -> f64 {
         (point.kappa[0] / self.w_n + point.kappa[1] / self.w_s).min(1.0)
@@ -167,6 +186,11 @@ impl InterfaceLaw for Strength {
     fn is_linear(&self) -> bool {
         false
     }
+    /// Its own surface unsoftened: the cut-off `σ ≤ cap` and `|τ| ≤ c − σ tan φ`, which
+    /// [`update`](InterfaceLaw::update) tests on a fresh point with the same operations.
+    fn initial_region(&self) -> Option<[f64; 3]> {
+        Some([self.cap(), self.c, self.tan_phi])
+    }
     /// The return mapping at relative displacement `δ` with elastic springs `k` (Pa/m): the
     /// traction `(σ, τ)` (Pa), with the point's plastic displacement, softening and dissipated
     /// work updated. Backward Euler: the tension cut-off returns to the surface softened by its
@@ -178,21 +202,22 @@ impl InterfaceLaw for Strength {
     /// flowed.
     #[inline]
     fn update(&self, k: [f64; 2], delta: [f64; 2], point: &mut LawPoint) -> ([f64; 2], bool) {
-        let xi = self.softening(point);
-        // The cut-off, lowered to the apex of the shear surface when that comes first; both
-        // scale with `1 − ξ`.
-        let cap = if self.tan_phi > 0.0 {
-            self.f_t.min(self.c / self.tan_phi)
+        // A point that has not flowed has spent nothing (and costs no division).
+        let xi = if point.kappa == [0.0; 2] {
+            0.0
         } else {
-            self.f_t
+            self.softening(point)
         };
+        // The cut-off scales with `1 − ξ` and is not negative: compression never reaches it.
+        let cap = || self.cap();
         let mut sigma = k[0] * (delta[0] - point.p[0]);
         let mut dp_n = 0.0;
         let mut spent = xi;
         // The work of the flow: the area under the (linear) softening curve it followed, from
         // the surface at the start to the traction at the end.
         let mut work = 0.0;
-        if sigma > cap * (1.0 - xi) {
+        if sigma > 0.0 && sigma > cap() * (1.0 - xi) {
+            let cap = cap();
             let slope = cap / self.w_n;
             dp_n = if k[0] > slope {
                 (sigma - cap * (1.0 - xi)) / (k[0] - slope)

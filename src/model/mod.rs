@@ -246,6 +246,21 @@ impl Model {
         self.interfaces.iter().any(|i| self.fails(i))
     }
 
+    /// The interfaces that can fail (indices in [`Model::interfaces`]) in the order of the
+    /// evaluators' sweep: by their lower element, then their higher one, then their index. The
+    /// state of their Gauss points is kept in this order (`force::failure`), so that a sweep
+    /// meets it in turn.
+    pub fn failing_interfaces(&self) -> Vec<u32> {
+        let mut failing: Vec<u32> = (0..self.interfaces.len() as u32)
+            .filter(|&k| self.fails(&self.interfaces[k as usize]))
+            .collect();
+        failing.sort_by_key(|&k| {
+            let i = &self.interfaces[k as usize];
+            (i.a.min(i.b), i.a.max(i.b), k)
+        });
+        failing
+    }
+
     /// Gives the interfaces between elements for which `which` holds the law `law` (a law the
     /// scene cannot name: the seam of eq. 11 from code). Supports keep theirs.
     pub fn set_law(&mut self, law: Arc<dyn InterfaceLaw>, which: impl Fn(&Interface) -> bool) {

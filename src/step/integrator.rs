@@ -497,9 +497,12 @@ impl<'a> CentralDifference<'a> {
     }
 
     /// Whether a step must go through the net force vector: the fused step has no place for
-    /// the plastic forces or the clamps' reactions (it books the damping's work itself).
+    /// the clamps' reactions, the local damping or the hand-over of broken interfaces to
+    /// contact (it books the damping's work itself, and return-maps failing interfaces).
     fn needs_net_force(&self) -> bool {
-        self.failure.is_some() || !self.prescribed.is_empty() || self.local.is_some()
+        self.failure.as_ref().is_some_and(|(p, _)| p.releases())
+            || !self.prescribed.is_empty()
+            || self.local.is_some()
     }
 
     /// Damps `force` locally against `v = v^{n−½}`, when the run has local damping.
@@ -521,15 +524,18 @@ impl<'a> CentralDifference<'a> {
     /// energy `½ Uᵀ f_int` (less the plastic part of the failing interfaces) when `energy` is
     /// asked for (a pass over the vectors), else 0.
     fn net_force(&mut self, energy: bool) -> f64 {
-        self.evaluator.internal_force(&self.u, &mut self.force);
-        if let Some((plastic, state)) = self.failure.as_mut() {
-            plastic.update(&self.u, state);
-            plastic.subtract_plastic(state, &mut self.force);
-            if state.changed {
-                if let Some(c) = self.contact.as_mut() {
-                    c.release(*plastic, state);
+        match self.failure.as_mut() {
+            Some((plastic, state)) => {
+                self.evaluator
+                    .internal_force_failing(&self.u, &mut self.force, (*plastic, state));
+                if plastic.releases() {
+                    plastic.release(&self.u, state, &mut self.force);
+                    if let (true, Some(c)) = (state.changed, self.contact.as_mut()) {
+                        c.release(*plastic, state);
+                    }
                 }
             }
+            None => self.evaluator.internal_force(&self.u, &mut self.force),
         }
         self.force_clear = false;
         let elastic = if energy {
@@ -675,8 +681,8 @@ impl<'a> CentralDifference<'a> {
             *c = saved;
         }
         if let (Some((_, s)), Some(mut saved)) = (self.failure.as_mut(), state.failure) {
-            // Not saved: whether any point is plastic, which the steps read.
-            saved.plastic = saved.points.iter().any(|p| p.p != [0.0; 2]);
+            // Not saved: which interfaces have left the initial state, which the steps read.
+            saved.retouch();
             self.good_failure.copy_from(&saved);
             *s = saved;
         }
@@ -863,13 +869,14 @@ impl<'a> CentralDifference<'a> {
                     dt,
                     damping,
                 };
-                let power = fused.advance(
-                    &mut self.u,
-                    &mut self.v,
-                    &mut self.force,
-                    self.loaded.as_deref(),
-                    &update,
-                );
+                let (u, v, force) = (&mut self.u, &mut self.v, &mut self.force);
+                let loaded = self.loaded.as_deref();
+                let power = match self.failure.as_mut() {
+                    Some((plastic, state)) => {
+                        fused.advance_failing(u, v, force, loaded, &update, (*plastic, state))
+                    }
+                    None => fused.advance(u, v, force, loaded, &update),
+                };
                 self.force_clear = true;
                 self.ledger.damping += self.damping * dt * power;
             }

@@ -9,8 +9,9 @@
 //! `K U` is complete, so that `K` and the vectors are read once per step and no force vector is
 //! written.
 
+use super::failing::{Carried, WithFailure};
 use super::sweep::{Couplings, Face, Sweep};
-use super::{Evaluator, FusedStep};
+use super::{Evaluator, Failure, FusedStep};
 use crate::input::scene::EvaluatorKind;
 use crate::lanes::Lanes;
 use crate::model::formulation::Kinematics;
@@ -173,6 +174,8 @@ pub struct Assembled<K: Kinematics<N>, const N: usize> {
     /// `K_ee` of each element, its upper triangle row after row ([`Assembled::PACKED`] numbers).
     diagonal: Vec<f64>,
     sweep: Sweep<N>,
+    /// Where interfaces fail: the failing interfaces of each pair ([`Carried`]).
+    carried: Option<Carried>,
     kinematics: PhantomData<K>,
 }
 
@@ -214,10 +217,14 @@ impl<K: Kinematics<N>, const N: usize> Assembled<K, N> {
             }
         }
         let sweep = Sweep::new(n, &mut pairs);
+        let carried = model
+            .any_fails()
+            .then(|| Carried::new(model, &pairs, |_| None));
         Assembled {
             pairs,
             diagonal,
             sweep,
+            carried,
             kinematics: PhantomData,
         }
     }
@@ -302,6 +309,15 @@ impl<K: Kinematics<N>, const N: usize> Evaluator for Assembled<K, N> {
         self.sweep.evaluate(self, u, f);
     }
 
+    fn internal_force_failing(&self, u: &[f64], f: &mut [f64], (plastic, state): Failure<'_>) {
+        let carried = self
+            .carried
+            .as_ref()
+            .expect("a model whose interfaces fail");
+        let pairs = WithFailure::<_, K, N>::new(self, carried, plastic, state);
+        self.sweep.evaluate(&pairs, u, f);
+    }
+
     fn fused(&self) -> Option<&dyn FusedStep> {
         Some(self)
     }
@@ -317,6 +333,23 @@ impl<K: Kinematics<N>, const N: usize> FusedStep for Assembled<K, N> {
         update: &Update,
     ) -> f64 {
         self.sweep.advance(self, u, v, force, loaded, update)
+    }
+
+    fn advance_failing(
+        &self,
+        u: &mut [f64],
+        v: &mut [f64],
+        force: &mut [f64],
+        loaded: Option<&[u32]>,
+        update: &Update,
+        (plastic, state): Failure<'_>,
+    ) -> f64 {
+        let carried = self
+            .carried
+            .as_ref()
+            .expect("a model whose interfaces fail");
+        let pairs = WithFailure::<_, K, N>::new(self, carried, plastic, state);
+        self.sweep.advance(&pairs, u, v, force, loaded, update)
     }
 }
 

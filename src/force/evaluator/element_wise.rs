@@ -25,8 +25,9 @@
 //! fewer instructions than the record takes. An irregular mesh keeps its records inline
 //! ([`Inline`]): a map per interface would double the bytes a step reads.
 
+use super::failing::{Carried, WithFailure};
 use super::sweep::{Couplings, Face, Higher, Sweep};
-use super::{Evaluator, FusedStep, GroupedStep};
+use super::{Evaluator, Failure, FusedStep, GroupedStep};
 use crate::input::scene::EvaluatorKind;
 use crate::lanes::{spread, Lanes, Wide};
 use crate::mesh::geometry::Vec2;
@@ -523,17 +524,20 @@ pub struct ElementWise<K: Kernel<N>, const N: usize> {
     faces: Store<K, N>,
     /// The blocks and the interfaces that cross them ([`Sweep`]).
     sweep: Sweep<N>,
+    /// Where interfaces fail: which interface of `faces` fails ([`Carried`]).
+    carried: Option<Carried>,
 }
 
 impl<K: Kernel<N>, const N: usize> ElementWise<K, N> {
     /// Face records, blocks and crossing interfaces from the model's interfaces, with the
     /// springs of their laws (`force::failure` adds the plastic part of a law that is not linear).
     pub fn new(model: &Model) -> Self {
-        Self::build(model, true, true)
+        Self::build(model, true, !model.any_fails())
     }
 
     /// [`ElementWise::new`], with shared records only if `share` ([`Store::new`]), and runs of
-    /// them only if `runs` ([`Sweep::find_runs`]).
+    /// them only if `runs` ([`Sweep::find_runs`]; never where interfaces fail, whose couplings
+    /// the sweep meets one by one, `super::failing`).
     fn build(model: &Model, share: bool, runs: bool) -> Self {
         let t = model.thickness;
         // Each interface's record and the key of the records it may share ([`share_key`]).
@@ -579,6 +583,9 @@ impl<K: Kernel<N>, const N: usize> ElementWise<K, N> {
             })
             .collect();
         let mut sweep = Sweep::new(model.elements.len(), &mut faces);
+        let carried = model
+            .any_fails()
+            .then(|| Carried::new(model, &faces, |f| Some(f.record)));
         let interior = Interior(if K::HAS_INTERIOR {
             model
                 .elements
@@ -589,10 +596,14 @@ impl<K: Kernel<N>, const N: usize> ElementWise<K, N> {
             Vec::new()
         });
         let mut faces = Store::new(faces, &records, &keys, interior, share);
-        if let (Store::Shared(shared), true) = (&mut faces, runs) {
+        if let (Store::Shared(shared), true) = (&mut faces, runs && carried.is_none()) {
             sweep.find_runs(&mut shared.faces);
         }
-        ElementWise { faces, sweep }
+        ElementWise {
+            faces,
+            sweep,
+            carried,
+        }
     }
 }
 
@@ -616,6 +627,23 @@ impl<K: Kernel<N>, const N: usize> Evaluator for ElementWise<K, N> {
         }
     }
 
+    fn internal_force_failing(&self, u: &[f64], f: &mut [f64], (plastic, state): Failure<'_>) {
+        let carried = self
+            .carried
+            .as_ref()
+            .expect("a model whose interfaces fail");
+        match &self.faces {
+            Store::Inline(faces) => {
+                let faces = WithFailure::<_, K, N>::new(faces, carried, plastic, state);
+                self.sweep.evaluate(&faces, u, f);
+            }
+            Store::Shared(faces) => {
+                let faces = WithFailure::<_, K, N>::new(faces, carried, plastic, state);
+                self.sweep.evaluate(&faces, u, f);
+            }
+        }
+    }
+
     fn fused(&self) -> Option<&dyn FusedStep> {
         Some(self)
     }
@@ -633,6 +661,31 @@ impl<K: Kernel<N>, const N: usize> FusedStep for ElementWise<K, N> {
         match &self.faces {
             Store::Inline(faces) => self.sweep.advance(faces, u, v, force, loaded, update),
             Store::Shared(faces) => self.sweep.advance(faces, u, v, force, loaded, update),
+        }
+    }
+
+    fn advance_failing(
+        &self,
+        u: &mut [f64],
+        v: &mut [f64],
+        force: &mut [f64],
+        loaded: Option<&[u32]>,
+        update: &Update,
+        (plastic, state): Failure<'_>,
+    ) -> f64 {
+        let carried = self
+            .carried
+            .as_ref()
+            .expect("a model whose interfaces fail");
+        match &self.faces {
+            Store::Inline(faces) => {
+                let faces = WithFailure::<_, K, N>::new(faces, carried, plastic, state);
+                self.sweep.advance(&faces, u, v, force, loaded, update)
+            }
+            Store::Shared(faces) => {
+                let faces = WithFailure::<_, K, N>::new(faces, carried, plastic, state);
+                self.sweep.advance(&faces, u, v, force, loaded, update)
+            }
         }
     }
 

@@ -7,11 +7,13 @@
 
 mod assembled;
 mod element_wise;
+mod failing;
 mod sweep;
 
 pub use assembled::{assemble, interface_stiffness, Assembled, BlockCsr};
 pub use element_wise::ElementWise;
 
+use crate::force::failure::{FailureState, PlasticForces};
 use crate::input::scene::EvaluatorKind;
 use crate::model::formulation::{Formulation, Hybrid, Rigid};
 use crate::model::mass::Update;
@@ -24,6 +26,20 @@ pub trait Evaluator: Send + Sync {
     /// `f = f_int(u)`; both slices hold `ndof` entries per element, element after element.
     /// Allocation-free; parallel over elements; the result does not depend on the thread count.
     fn internal_force(&self, u: &[f64], f: &mut [f64]);
+    /// [`Evaluator::internal_force`] of a model whose interfaces fail: `f = f_el(u) − f_p`, the
+    /// Gauss points of the failing interfaces `plastic` return-mapped at `u` in `state` in the
+    /// same pass (`force::failure`).
+    ///
+    /// The default adds the failing interfaces in a second pass
+    /// ([`PlasticForces::add_plastic`]); the evaluators of the crate do it in their sweep.
+    ///
+    /// # Panics
+    /// If the evaluator was built for a model whose interfaces do not fail, or `plastic` for
+    /// another formulation.
+    fn internal_force_failing(&self, u: &[f64], f: &mut [f64], (plastic, state): Failure<'_>) {
+        self.internal_force(u, f);
+        plastic.add_plastic(u, state, f);
+    }
     /// The bytes of data it holds, all of which one evaluation reads.
     fn bytes(&self) -> usize;
     /// The evaluator's fused step, when it has one; the integrator then steps through it
@@ -51,6 +67,19 @@ pub trait FusedStep {
         update: &Update,
     ) -> f64;
 
+    /// [`FusedStep::advance`] of a model whose interfaces fail: the Gauss points of `failure`
+    /// return-mapped at `U^n` and their plastic forces added in the same pass
+    /// ([`Evaluator::internal_force_failing`], whose panics it shares).
+    fn advance_failing(
+        &self,
+        u: &mut [f64],
+        v: &mut [f64],
+        force: &mut [f64],
+        loaded: Option<&[u32]>,
+        update: &Update,
+        failure: Failure<'_>,
+    ) -> f64;
+
     /// The same step on the state stored in groups of four elements, where that is faster:
     /// the sweep goes four elements at a time in lanes.
     fn grouped(&self) -> Option<&dyn GroupedStep> {
@@ -73,6 +102,9 @@ pub trait GroupedStep {
         dt: f64,
     );
 }
+
+/// The failing interfaces of a model and their state, for an evaluation that updates it.
+pub type Failure<'a> = (&'a dyn PlasticForces, &'a mut FailureState);
 
 /// The global stiffness `K` of eq. 7 as scalar triplets `(row, col, value)` over all DOFs.
 pub fn stiffness_triplets(model: &Model) -> Vec<(usize, usize, f64)> {
