@@ -16,8 +16,9 @@ use std::path::{Path, PathBuf};
 /// The file's name in the output folder.
 pub const FILE: &str = "checkpoint.bin";
 
-/// Bumped when the layout changes: an older checkpoint is then refused, not misread.
-const FORMAT: u32 = 3;
+/// Bumped when the layout changes: an older checkpoint is then refused, not misread (4: the
+/// failing interfaces' points in the order of the sweep, `Model::failing_interfaces`).
+const FORMAT: u32 = 4;
 
 /// What a run needs to go on from a checkpoint.
 #[derive(Debug, Clone, Serialize, Deserialize)]
