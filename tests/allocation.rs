@@ -1,6 +1,7 @@
 //! No allocation inside a step: a counting global allocator watches the time loop once it is
 //! warm, for both evaluators and formulations, on a model large enough to run in parallel, on
-//! the contact scene, and on a bar whose interfaces crack under a moving, damped clamp.
+//! the contact scene, and on a bar whose interfaces crack under a moving, damped clamp or a
+//! traction (then in the fused step).
 
 use rbsm::analysis::setup::{Overrides, Setup};
 use rbsm::input::scene::{EvaluatorKind, Scene};
@@ -86,6 +87,26 @@ fn failure_steps() {
         EvaluatorKind::ElementWise,
     );
     assert_eq!(allocations(&p, 1000, 1500), 0, "local damping");
+    // The same bar pulled by a traction, no clamp moving: its steps are fused, the failing
+    // interfaces return-mapped in the sweep while it cracks.
+    json["damping"] = serde_json::json!(2000);
+    json["local_damping"] = serde_json::Value::Null;
+    json["time"]["stop_ratio"] = serde_json::Value::Null;
+    json["bodies"][0]["supports"] = serde_json::json!([{"kind": "clamp", "edge": "left"}]);
+    json["bodies"][0]["loads"] =
+        serde_json::json!([{"kind": "traction", "edge": "right", "value": [4e6, 0]}]);
+    for evaluator in [EvaluatorKind::Assembled, EvaluatorKind::ElementWise] {
+        let p = setup(
+            &Scene::from_json_in(
+                &json.to_string(),
+                std::path::Path::new(env!("CARGO_MANIFEST_DIR")),
+            )
+            .unwrap(),
+            evaluator,
+        );
+        assert!(p.evaluator.fused().is_some() && p.model.prescribed.is_empty());
+        assert_eq!(allocations(&p, 1000, 1500), 0, "fused, {}", evaluator.name());
+    }
 }
 
 fn plain_steps() {
