@@ -20,13 +20,13 @@ mod section;
 use criterion::Criterion;
 use rbsm::force::{evaluator, failure};
 use rbsm::input::scene::{EvaluatorKind, Scene};
+use rbsm::model::law::{InterfaceLaw, Strength};
 use rbsm::model::loads::Loads;
 use rbsm::model::mass::Mass;
 use rbsm::model::Model;
 use rbsm::step::integrator::CentralDifference;
 use std::cell::RefCell;
 use std::fmt::Write as _;
-use rbsm::model::law::{InterfaceLaw, Strength};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 

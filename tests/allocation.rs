@@ -105,7 +105,12 @@ fn failure_steps() {
             evaluator,
         );
         assert!(p.evaluator.fused().is_some() && p.model.prescribed.is_empty());
-        assert_eq!(allocations(&p, 1000, 1500), 0, "fused, {}", evaluator.name());
+        assert_eq!(
+            allocations(&p, 1000, 1500),
+            0,
+            "fused, {}",
+            evaluator.name()
+        );
     }
 }
 

@@ -24,6 +24,8 @@ struct Run {
     u: Vec<f64>,
     elements: usize,
     steps: u64,
+    /// The step at which the last clamp's reaction, checked at every step, peaked.
+    peak_step: u64,
     wall_s: f64,
 }
 
@@ -37,7 +39,7 @@ fn run(scene: &Value, evaluator: EvaluatorKind, every: u64) -> Run {
     let setup = Setup::new(&scene, &overrides).unwrap();
     let clamp = setup.model.prescribed.last().unwrap().clone();
     let mut cd = setup.integrator(setup.dt);
-    let (mut curve, mut rows) = (Vec::new(), Vec::new());
+    let (mut curve, mut rows, mut peak_t) = (Vec::new(), Vec::new(), 0.0);
     let status = cd
         .run(
             setup.steps,
@@ -45,6 +47,7 @@ fn run(scene: &Value, evaluator: EvaluatorKind, every: u64) -> Run {
             |s, e| {
                 let d = clamp.velocity.norm() * clamp.travel(s.t);
                 curve.push((d, *s.reactions.last().unwrap()));
+                peak_t = s.peaks.last().unwrap()[1];
                 rows.push(*e);
                 Ok(())
             },
@@ -65,6 +68,7 @@ fn run(scene: &Value, evaluator: EvaluatorKind, every: u64) -> Run {
         u: cd.u.clone(),
         elements: setup.model.elements.len(),
         steps: cd.step,
+        peak_step: (peak_t / setup.dt).round() as u64,
         wall_s: start.elapsed().as_secs_f64(),
     }
 }
@@ -198,19 +202,23 @@ pub fn failure(r: &mut Report) {
 
 /// Local non-viscous damping on the tension bar (800 Voronoi sites): today's run (mass-
 /// proportional damping, the clamp at 0.05 m/s) against local damping at the same speed and
-/// at three and five times it, in proportionally fewer steps.
+/// at three and five times it, in proportionally fewer steps, and at five times it reached
+/// over a longer ramp.
 fn quasi_static(r: &mut Report) {
     r.line("### 11.5 Quasi-static control: local damping\n");
     r.line(
         "`\"local_damping\": α` (`docs/scene.md`, *Quasi-static runs*) reduces each free DOF's \
         unbalanced force by `α |F|` against its velocity's sign. On the 800-site tension bar of \
         11.1, with no mass-proportional damping, against today's run (α = 2000 1/s mass-\
-        proportional, 0.05 m/s); a faster clamp runs for a proportionally shorter time, its ramp \
-        kept at 0.2 ms (so it ends 5, 15 and 25 µm short of 0.15 mm at 1, 3 and 5 times the speed). \
+        proportional, 0.05 m/s); a faster clamp runs for a proportionally shorter time after its \
+        ramp, which takes 0.2 ms unless the table says otherwise. *Steps to the peak* counts \
+        the steps to the largest reaction, checked at every step. \
         Every run is at 0.5 Δt_crit, which local damping lowers by √(1 + α).\n",
     );
-    r.line("| damping | clamp speed | steps | peak / f_t | peak / today's − 1 |");
-    r.line("|---|---|---|---|---|");
+    r.line(
+        "| damping | clamp speed | steps | steps to the peak | peak / f_t | peak / today's − 1 |",
+    );
+    r.line("|---|---|---|---|---|---|");
     let today = run(
         &bar(voronoi([0.2, 0.05], 800)),
         EvaluatorKind::ElementWise,
@@ -218,29 +226,35 @@ fn quasi_static(r: &mut Report) {
     );
     let reference = today.peak();
     r.line(&format!(
-        "| mass-proportional 2000 1/s | 0.05 m/s | {} | {:.4} | |",
+        "| mass-proportional 2000 1/s | 0.05 m/s | {} | {} | {:.4} | |",
         today.steps,
+        today.peak_step,
         reference / 0.05 / F_T
     ));
-    for speed in [1.0, 3.0, 5.0] {
+    // (speed, ramp): a faster clamp, then a five times faster one that reaches its speed over
+    // 1 ms, about 18 times the bar's wave transit time, instead of 0.2 ms.
+    for (speed, ramp) in [(1.0, 2e-4), (3.0, 2e-4), (5.0, 2e-4), (5.0, 1e-3)] {
         let mut scene = bar(voronoi([0.2, 0.05], 800));
         scene["damping"] = json!(0);
         scene["local_damping"] = json!(0.8);
         scene["bodies"][0]["supports"][1]["velocity"] = json!([0.05 * speed, 0]);
-        scene["time"]["end"] = json!(3e-3 / speed);
+        scene["bodies"][0]["supports"][1]["ramp"] = json!(ramp);
+        scene["time"]["end"] = json!((3e-3 - 2e-4) / speed + ramp);
         let run = run(&scene, EvaluatorKind::ElementWise, 100);
         let change = run.peak() / reference - 1.0;
         r.line(&format!(
-            "| local α = 0.8 | {:.2} m/s | {} | {:.4} | {change:+.2e} |",
+            "| local α = 0.8 | {:.2} m/s, ramp {:.1} ms | {} | {} | {:.4} | {change:+.2e} |",
             0.05 * speed,
+            ramp * 1e3,
             run.steps,
+            run.peak_step,
             run.peak() / 0.05 / F_T
         ));
         r.timing(&format!(
-            "- local damping, clamp × {speed}: {:.2} s",
+            "- local damping, clamp × {speed}, ramp {ramp:e} s: {:.2} s",
             run.wall_s
         ));
-        if speed == 1.0 {
+        if speed == 1.0 && ramp == 2e-4 {
             r.bound(
                 "quasi-static: local damping at today's speed, |peak / today's - 1|",
                 change.abs(),
@@ -253,7 +267,12 @@ fn quasi_static(r: &mut Report) {
         rises with the speed (the reaction carries the bar's inertia and the cracks run \
         dynamically), so fewer steps at the same accuracy are not reached by the damping alone: \
         the clamp's speed is bounded by the stress wave it sends, `ρ c v` (0.42 MPa at 0.05 m/s, \
-        14 % of `f_t`), not by how the damping takes the energy out. Local damping pays where the \
+        14 % of `f_t`), not by how the damping takes the energy out. A ramp five times as long \
+        does not bring the peak down: the excess is the rate of the cracking, not the start. \
+        Near the peak a crack takes several transit times to form while the clamp keeps \
+        stretching the bar, so the peak is within 1 % only where the clamp is as slow as \
+        today's while the bar cracks; what a quasi-static test can gain is a faster approach to \
+        the first cracks. Local damping pays where the \
         load is applied at once and the state must settle (`tests/quasi_static.rs`: a cantilever \
         under a sudden load reaches its static solution to 2e-12 on a grid and 2e-10 on Voronoi cells in 8,000 steps, where \
         mass-proportional damping must be tuned to its lowest mode).\n",
