@@ -66,8 +66,12 @@ fn softening(f_t: f64, g_f: f64) -> Arc<dyn InterfaceLaw> {
     })
 }
 
-/// (name, the interfaces' law (none: elastic), the stretch `ε` of the start `u = ε x`).
-fn laws() -> [(&'static str, Option<Arc<dyn InterfaceLaw>>, f64); 3] {
+/// A case: its name, the interfaces' law (none: elastic), the stretch `ε` of the start
+/// `u = ε x`.
+type Case = (&'static str, Option<Arc<dyn InterfaceLaw>>, f64);
+
+/// The cases measured on each mesh.
+fn laws() -> [Case; 3] {
     [
         ("elastic", None, 0.0),
         ("stays elastic", Some(softening(1e9, 100.0)), 0.0),
