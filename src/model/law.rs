@@ -25,8 +25,10 @@ use std::fmt::Debug;
 ///
 /// A linear law implements [`springs`](InterfaceLaw::springs) and
 /// [`is_linear`](InterfaceLaw::is_linear) (`true`); a law with a state per Gauss point also
-/// [`update`](InterfaceLaw::update), and [`is_broken`](InterfaceLaw::is_broken) when its
-/// interfaces can be handed over to contact.
+/// [`update`](InterfaceLaw::update), [`is_broken`](InterfaceLaw::is_broken) when its
+/// interfaces can be handed over to contact, and
+/// [`initial_region`](InterfaceLaw::initial_region) to spare the steps its `update` where a
+/// fresh point stays elastic.
 pub trait InterfaceLaw: Send + Sync + Debug {
     /// The springs `(k_n', k_s')` (Pa/m) of an interface with elastic moduli `k = (k_n, k_s)`
     /// (eq. 12): `λ = diag(k_n', k_s') (δ − δ_p)`. `(k_n, k_s)` for [`Elastic`].
