@@ -373,3 +373,117 @@ fn a_run_with_a_law_of_its_own() {
     let plain = run::simulate(&elastic, &params, None, &mut Silent).unwrap();
     assert!(plain.summary.failure.is_none() && elastic.plastic.is_none());
 }
+
+/// `Strength` with its `initial_region` or without it (the steps then return-map every point),
+/// counting the calls of `update`.
+#[derive(Debug)]
+struct Counted {
+    strength: rbsm::model::law::Strength,
+    region: bool,
+    calls: std::sync::atomic::AtomicUsize,
+}
+
+impl InterfaceLaw for Counted {
+    fn springs(&self, k: [f64; 2]) -> [f64; 2] {
+        self.strength.springs(k)
+    }
+    fn is_linear(&self) -> bool {
+        false
+    }
+    fn update(&self, k: [f64; 2], delta: [f64; 2], point: &mut LawPoint) -> ([f64; 2], bool) {
+        self.calls
+            .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        self.strength.update(k, delta, point)
+    }
+    fn is_broken(&self, point: &LawPoint) -> bool {
+        self.strength.is_broken(point)
+    }
+    fn initial_region(&self) -> Option<[f64; 3]> {
+        self.region
+            .then(|| self.strength.initial_region())
+            .flatten()
+    }
+}
+
+/// The quick test of a law's initial region is exact: a bar that cracks under a traction (the
+/// bundled tension bar's softening law, its clamp on the right replaced by the load) follows
+/// the same trajectory to the bit whether the steps test `Strength::initial_region` first or
+/// return-map every point, in both evaluators, with fewer calls of `update`; and more than a
+/// few of its interfaces break. Under a load below the strength it calls `update` not once.
+#[test]
+fn the_initial_region_spares_update_calls_and_changes_no_bit() {
+    let path = format!(
+        "{}/examples/scenes/tension_bar.json",
+        env!("CARGO_MANIFEST_DIR")
+    );
+    let mut json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+    json["bodies"][0]["supports"] = serde_json::json!([{"kind": "clamp", "edge": "left"}]);
+    json["time"]["end"] = serde_json::json!(3e-4);
+    let mut pulled = |traction: f64| {
+        json["bodies"][0]["loads"] =
+            serde_json::json!([{"kind": "traction", "edge": "right", "value": [traction, 0]}]);
+        Scene::from_json(&json.to_string()).unwrap()
+    };
+    let (cracks, holds) = (pulled(4e6), pulled(1e6));
+    // The scene's law, as `Strength::from_spec` forms it.
+    let strength = rbsm::model::law::Strength {
+        f_t: 3e6,
+        c: 6e6,
+        tan_phi: 30f64.to_radians().tan(),
+        w_n: 2.0 * 100.0 / 3e6,
+        w_s: 2.0 * 1000.0 / 6e6,
+    };
+    for kind in [EvaluatorKind::Assembled, EvaluatorKind::ElementWise] {
+        let overrides = Overrides {
+            evaluator: Some(kind),
+            ..Overrides::default()
+        };
+        let run = |scene: &Scene, region: bool| {
+            let law = Arc::new(Counted {
+                strength,
+                region,
+                calls: Default::default(),
+            });
+            let mut model = Model::build(scene).unwrap();
+            model.set_law(law.clone(), |_| true);
+            let s = Setup::with_model(scene, &overrides, model).unwrap();
+            let mut cd = s.integrator(s.dt);
+            cd.step_only(s.steps);
+            let broken = s
+                .plastic
+                .as_ref()
+                .unwrap()
+                .report(cd.failure().unwrap())
+                .iter()
+                .filter(|i| i.status == InterfaceStatus::Broken)
+                .count();
+            (
+                cd.u,
+                broken,
+                law.calls.load(std::sync::atomic::Ordering::Relaxed),
+            )
+        };
+        let (quick, broken, spared) = run(&cracks, true);
+        let (every, _, calls) = run(&cracks, false);
+        assert!(broken >= 5, "{kind:?}: only {broken} broken");
+        assert!(
+            quick
+                .iter()
+                .zip(&every)
+                .all(|(a, b)| a.to_bits() == b.to_bits()),
+            "{kind:?}: the quick test changed the trajectory"
+        );
+        assert!(
+            spared < calls,
+            "{kind:?}: {spared} calls of update with the quick test, {calls} without"
+        );
+        let ((_, broken, spared), (_, _, calls)) = (run(&holds, true), run(&holds, false));
+        assert_eq!(
+            (broken, spared),
+            (0, 0),
+            "{kind:?}: a bar within its strength"
+        );
+        assert!(calls > 0);
+    }
+}
