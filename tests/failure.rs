@@ -694,19 +694,6 @@ fn a_damaged_or_foreign_checkpoint_is_refused() {
 #[test]
 fn a_fused_cracking_step_matches_two_passes_and_any_thread_count() {
     use rbsm::force::evaluator::Evaluator;
-    /// The same evaluator, seen through its evaluation only.
-    struct TwoPass<'a>(&'a dyn Evaluator);
-    impl Evaluator for TwoPass<'_> {
-        fn kind(&self) -> EvaluatorKind {
-            self.0.kind()
-        }
-        fn internal_force(&self, u: &[f64], f: &mut [f64]) {
-            self.0.internal_force(u, f)
-        }
-        fn bytes(&self) -> usize {
-            self.0.bytes()
-        }
-    }
     for formulation in [
         json!({"kind": "rigid"}),
         json!({"kind": "hybrid", "penalty": 10}),
@@ -740,7 +727,7 @@ fn a_fused_cracking_step_matches_two_passes_and_any_thread_count() {
                 })
             };
             let (fused, broken) = run(s.evaluator.as_ref(), 1);
-            let (two, broken_two) = run(&TwoPass(s.evaluator.as_ref()), 1);
+            let (two, broken_two) = run(&common::TwoPass(s.evaluator.as_ref()), 1);
             assert!(broken >= 5, "{formulation} {kind:?}: only {broken} broken");
             assert_eq!(broken, broken_two, "{formulation} {kind:?}");
             let scale = fused.iter().fold(0.0f64, |m, x| m.max(x.abs()));

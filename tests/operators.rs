@@ -231,19 +231,6 @@ fn the_fused_step_matches_evaluation_then_update() {
     use rbsm::model::loads::Loads;
     use rbsm::model::mass::Mass;
     use rbsm::step::integrator::CentralDifference;
-    /// The same evaluator, seen through its two-pass interface only.
-    struct TwoPass(Box<dyn evaluator::Evaluator>);
-    impl evaluator::Evaluator for TwoPass {
-        fn kind(&self) -> EvaluatorKind {
-            self.0.kind()
-        }
-        fn internal_force(&self, u: &[f64], f: &mut [f64]) {
-            self.0.internal_force(u, f)
-        }
-        fn bytes(&self) -> usize {
-            self.0.bytes()
-        }
-    }
     let cases = [
         r#"{"kind": "rigid"}"#,
         r#"{"kind": "hybrid", "penalty": 10}"#,
@@ -289,7 +276,7 @@ fn the_fused_step_matches_evaluation_then_update() {
             (EvaluatorKind::Assembled, EvaluatorKind::ElementWise),
         ] {
             let fused = evaluator::build(&model, kind);
-            let two_pass = TwoPass(evaluator::build(&model, kind));
+            let two_pass = TwoPass(fused.as_ref());
             let other = evaluator::build(&model, other);
             assert!(fused.fused().is_some() && two_pass.fused().is_none());
             let (u, v, work, ..) = run(fused.as_ref(), 1);

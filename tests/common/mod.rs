@@ -76,3 +76,20 @@ pub fn run_into(scene: &Scene, steps: Option<u64>, dir: &std::path::Path) -> Sum
     let setup = Setup::new(scene, &overrides).expect("the scene sets up");
     run::run(&setup, &Default::default(), dir, &mut run::Silent).expect("the run writes")
 }
+
+/// An evaluator seen through its evaluation only: a time step then evaluates and updates in
+/// two passes, and failing interfaces are added after the evaluation
+/// (`PlasticForces::add_plastic`), not in its sweep.
+pub struct TwoPass<'a>(pub &'a dyn rbsm::force::evaluator::Evaluator);
+
+impl rbsm::force::evaluator::Evaluator for TwoPass<'_> {
+    fn kind(&self) -> rbsm::input::scene::EvaluatorKind {
+        self.0.kind()
+    }
+    fn internal_force(&self, u: &[f64], f: &mut [f64]) {
+        self.0.internal_force(u, f)
+    }
+    fn bytes(&self) -> usize {
+        self.0.bytes()
+    }
+}
