@@ -321,20 +321,9 @@ impl Failing {
         (self.da + o, self.db + o)
     }
 
-    /// `δ = N_b U_b − N_a U_a` at offsets `(da, db)`, on the interface's axes `(δ_n, δ_s)`.
-    #[inline(always)]
-    fn delta<K: Kinematics<N>, const N: usize>(
-        &self,
-        (da, db): (Vec2, Vec2),
-        ua: &[f64; N],
-        ub: &[f64; N],
-    ) -> [f64; 2] {
-        let d = K::displacement(ub, db) - K::displacement(ua, da);
-        [self.normal.dot(&d), self.tangent().dot(&d)]
-    }
-
-    /// [`Failing::delta`] at both Gauss points, from the jump at the midpoint and its linear
-    /// part over the Gauss offset: `δ₀ ∓ δ₁` (the jump is affine along the edge).
+    /// `δ = N_b U_b − N_a U_a` at both Gauss points on the interface's axes `(δ_n, δ_s)`, from
+    /// the jump at the midpoint and its linear part over the Gauss offset: `δ₀ ∓ δ₁` (the jump
+    /// is affine along the edge).
     #[inline(always)]
     fn deltas<K: Kinematics<N>, const N: usize>(
         &self,
@@ -567,7 +556,7 @@ impl<K: Kinematics<N>, const N: usize> PlasticForces for FailingInterfaces<K, N>
             let [a, b] = self.pairs[k].map(|e| e as usize);
             let (ua, ub) = (&u[a], &u[b]);
             let offsets = [0, 1].map(|g| i.offsets(g, self.half_per_tw));
-            let d = offsets.map(|o| i.delta::<K, N>(o, ua, ub));
+            let d = i.deltas::<K, N>(self.half_per_tw, ua, ub);
             if (0..2).any(|c| (0.5 * (d[0][c] + d[1][c])).abs() > range) {
                 for g in 0..2 {
                     let p = s[g].get().p;
@@ -595,8 +584,8 @@ impl<K: Kinematics<N>, const N: usize> PlasticForces for FailingInterfaces<K, N>
             }
             let [a, b] = self.pairs[k].map(|e| e as usize);
             let (ua, ub) = (&u[a], &u[b]);
-            for g in 0..2 {
-                let d = f.delta::<K, N>(f.offsets(g, self.half_per_tw), ua, ub);
+            let deltas = f.deltas::<K, N>(self.half_per_tw, ua, ub);
+            for (g, d) in deltas.iter().enumerate() {
                 let p = state.points[2 * k + g].get().p;
                 offset += 0.5 * f.tw * (0..2).map(|c| (d[c] - p[c]) * f.k[c] * p[c]).sum::<f64>();
             }
