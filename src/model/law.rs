@@ -210,16 +210,16 @@ impl InterfaceLaw for Strength {
         } else {
             self.softening(point)
         };
-        // The cut-off scales with `1 − ξ` and is not negative: compression never reaches it.
-        let cap = || self.cap();
         let mut sigma = k[0] * (delta[0] - point.p[0]);
+        // The cut-off scales with `1 − ξ` and is not negative: compression never reaches it, so
+        // its division is needed in tension only.
+        let cap = if sigma > 0.0 { self.cap() } else { 0.0 };
         let mut dp_n = 0.0;
         let mut spent = xi;
         // The work of the flow: the area under the (linear) softening curve it followed, from
         // the surface at the start to the traction at the end.
         let mut work = 0.0;
-        if sigma > 0.0 && sigma > cap() * (1.0 - xi) {
-            let cap = cap();
+        if sigma > 0.0 && sigma > cap * (1.0 - xi) {
             let slope = cap / self.w_n;
             dp_n = if k[0] > slope {
                 (sigma - cap * (1.0 - xi)) / (k[0] - slope)

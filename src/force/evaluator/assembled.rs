@@ -310,10 +310,7 @@ impl<K: Kinematics<N>, const N: usize> Evaluator for Assembled<K, N> {
     }
 
     fn internal_force_failing(&self, u: &[f64], f: &mut [f64], (plastic, state): Failure<'_>) {
-        let carried = self
-            .carried
-            .as_ref()
-            .expect("a model whose interfaces fail");
+        let carried = self.carried.as_ref();
         let pairs = WithFailure::<_, K, N>::new(self, carried, plastic, state);
         self.sweep.evaluate(&pairs, u, f);
     }
@@ -344,10 +341,7 @@ impl<K: Kinematics<N>, const N: usize> FusedStep for Assembled<K, N> {
         update: &Update,
         (plastic, state): Failure<'_>,
     ) -> f64 {
-        let carried = self
-            .carried
-            .as_ref()
-            .expect("a model whose interfaces fail");
+        let carried = self.carried.as_ref();
         let pairs = WithFailure::<_, K, N>::new(self, carried, plastic, state);
         self.sweep.advance(&pairs, u, v, force, loaded, update)
     }

@@ -532,7 +532,7 @@ impl<K: Kernel<N>, const N: usize> ElementWise<K, N> {
     /// Face records, blocks and crossing interfaces from the model's interfaces, with the
     /// springs of their laws (`force::failure` adds the plastic part of a law that is not linear).
     pub fn new(model: &Model) -> Self {
-        Self::build(model, true, !model.any_fails())
+        Self::build(model, true, true)
     }
 
     /// [`ElementWise::new`], with shared records only if `share` ([`Store::new`]), and runs of
@@ -628,10 +628,7 @@ impl<K: Kernel<N>, const N: usize> Evaluator for ElementWise<K, N> {
     }
 
     fn internal_force_failing(&self, u: &[f64], f: &mut [f64], (plastic, state): Failure<'_>) {
-        let carried = self
-            .carried
-            .as_ref()
-            .expect("a model whose interfaces fail");
+        let carried = self.carried.as_ref();
         match &self.faces {
             Store::Inline(faces) => {
                 let faces = WithFailure::<_, K, N>::new(faces, carried, plastic, state);
@@ -673,10 +670,7 @@ impl<K: Kernel<N>, const N: usize> FusedStep for ElementWise<K, N> {
         update: &Update,
         (plastic, state): Failure<'_>,
     ) -> f64 {
-        let carried = self
-            .carried
-            .as_ref()
-            .expect("a model whose interfaces fail");
+        let carried = self.carried.as_ref();
         match &self.faces {
             Store::Inline(faces) => {
                 let faces = WithFailure::<_, K, N>::new(faces, carried, plastic, state);

@@ -93,10 +93,11 @@ impl<'a, C: Couplings<N>, K: Kinematics<N>, const N: usize> WithFailure<'a, C, K
     /// `K`) in `state`.
     ///
     /// # Panics
-    /// If `plastic` is not of the formulation `K`, or `carried` not of `couplings`.
+    /// If the evaluator was built for a model whose interfaces do not fail (no `carried`), or
+    /// `plastic` is not of the formulation `K`, or `carried` not of `couplings`.
     pub(super) fn new(
         couplings: &'a C,
-        carried: &'a Carried,
+        carried: Option<&'a Carried>,
         plastic: &'a dyn PlasticForces,
         state: &'a mut FailureState,
     ) -> Self {
@@ -104,6 +105,7 @@ impl<'a, C: Couplings<N>, K: Kinematics<N>, const N: usize> WithFailure<'a, C, K
             .as_any()
             .downcast_ref::<FailingInterfaces<K, N>>()
             .expect("the failing interfaces of the evaluator's formulation");
+        let carried = carried.expect("an evaluator built for a model whose interfaces fail");
         assert_eq!(carried.0.len(), couplings.faces().len());
         WithFailure {
             couplings,
