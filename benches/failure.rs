@@ -61,8 +61,8 @@ fn softening(f_t: f64, g_f: f64) -> Arc<dyn InterfaceLaw> {
         f_t,
         c: 2.0 * f_t,
         tan_phi: 30f64.to_radians().tan(),
-        w_n: 2.0 * g_f / f_t,
-        w_s: 2.0 * 10.0 * g_f / (2.0 * f_t),
+        per_w_n: f_t / (2.0 * g_f),
+        per_w_s: 2.0 * f_t / (2.0 * 10.0 * g_f),
     })
 }
 

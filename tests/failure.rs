@@ -74,8 +74,8 @@ fn strength(phi_deg: f64, energies: Option<[f64; 2]>) -> Strength {
         f_t,
         c,
         tan_phi: phi_deg.to_radians().tan(),
-        w_n: energies.map_or(f64::INFINITY, |e| 2.0 * e[0] / f_t),
-        w_s: energies.map_or(f64::INFINITY, |e| 2.0 * e[1] / c),
+        per_w_n: energies.map_or(0.0, |e| f_t / (2.0 * e[0])),
+        per_w_s: energies.map_or(0.0, |e| c / (2.0 * e[1])),
     }
 }
 

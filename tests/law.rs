@@ -431,8 +431,8 @@ fn the_initial_region_spares_update_calls_and_changes_no_bit() {
         f_t: 3e6,
         c: 6e6,
         tan_phi: 30f64.to_radians().tan(),
-        w_n: 2.0 * 100.0 / 3e6,
-        w_s: 2.0 * 1000.0 / 6e6,
+        per_w_n: 3e6 / (2.0 * 100.0),
+        per_w_s: 6e6 / (2.0 * 1000.0),
     };
     for kind in [EvaluatorKind::Assembled, EvaluatorKind::ElementWise] {
         let overrides = Overrides {

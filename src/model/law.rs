@@ -129,7 +129,8 @@ pub fn from_spec(
 /// where `κ_n` and `κ_s` are the plastic opening and slip accumulated on the cut-off and on the
 /// shear surface, and `w_n = 2 G_f / f_t`, `w_s = 2 G_f,II / c` the opening and slip at which
 /// linear softening has spent `G_f` and `G_f,II` per unit area: written in displacement, the
-/// dissipated energy does not depend on the element size. An interface with `ξ = 1` is broken:
+/// dissipated energy does not depend on the element size. The law keeps `1 / w_n` and
+/// `1 / w_s`, so that its return mapping multiplies where it would divide. An interface with `ξ = 1` is broken:
 /// it keeps compression and Coulomb friction, `|τ| ≤ −σ tan φ`, and nothing else.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Strength {
@@ -139,28 +140,30 @@ pub struct Strength {
     pub c: f64,
     /// `tan φ` of the friction angle.
     pub tan_phi: f64,
-    /// Plastic opening `w_n = 2 G_f / f_t` (m) that exhausts the strength in tension; infinite
-    /// for perfect plasticity.
-    pub w_n: f64,
-    /// Plastic slip `w_s = 2 G_f,II / c` (m) that exhausts it in shear; infinite for perfect
+    /// `1 / w_n` (1/m), with `w_n = 2 G_f / f_t` the plastic opening that exhausts the
+    /// strength in tension: the share of it each metre of opening spends; 0 for perfect
     /// plasticity.
-    pub w_s: f64,
+    pub per_w_n: f64,
+    /// `1 / w_s` (1/m), with `w_s = 2 G_f,II / c` the plastic slip that exhausts it in shear; 0
+    /// for perfect plasticity.
+    pub per_w_s: f64,
 }
 
 impl Strength {
     /// The strength of a scene's law, `None` for an elastic one.
     pub fn from_spec(spec: &crate::input::scene::InterfaceLawSpec) -> Option<Strength> {
         let (s, energies) = spec.strength()?;
-        let exhaust = |g: Option<f64>, strength: f64| match g {
-            Some(g) if strength > 0.0 => 2.0 * g / strength,
-            _ => f64::INFINITY,
+        // `1 / w` with `w = 2 G / strength`, the displacement that exhausts a strength.
+        let per_w = |g: Option<f64>, strength: f64| match g {
+            Some(g) if strength > 0.0 => strength / (2.0 * g),
+            _ => 0.0,
         };
         Some(Strength {
             f_t: s.tensile_strength,
             c: s.cohesion,
             tan_phi: s.friction_angle.to_radians().tan(),
-            w_n: exhaust(energies.map(|e| e[0]), s.tensile_strength),
-            w_s: exhaust(energies.map(|e| e[1]), s.cohesion),
+            per_w_n: per_w(energies.map(|e| e[0]), s.tensile_strength),
+            per_w_s: per_w(energies.map(|e| e[1]), s.cohesion),
         })
     }
 
@@ -173,9 +176,21 @@ impl Strength {
         }
     }
 
+    /// The part of a plastic displacement `d` (m) along which a strength spent by `xi` softens
+    /// at `per_w` (1/m), `min(d, (1 − ξ) w)`: all of it, or what exhausts the strength (none
+    /// once it is exhausted).
+    #[inline(always)]
+    fn softening_part(d: f64, xi: f64, per_w: f64) -> f64 {
+        if d * per_w > 1.0 - xi {
+            (1.0 - xi) / per_w
+        } else {
+            d
+        }
+    }
+
     /// How much of the strength is spent, `ξ` in [0, 1].
     pub fn softening(&self, point: &LawPoint) -> f64 {
-        (point.kappa[0] / self.w_n + point.kappa[1] / self.w_s).min(1.0)
+        (point.kappa[0] * self.per_w_n + point.kappa[1] * self.per_w_s).min(1.0)
     }
 }
 
@@ -201,7 +216,7 @@ impl InterfaceLaw for Strength {
     /// increment exhausts the strength, the traction returns to the broken surface instead.
     /// Where the softening is steeper than the spring (`k < f_t / w_n`, a snap-back at the
     /// point) the strength of the start of the update is used. Returns whether the point
-    /// flowed.
+    /// flowed. Its divisions are the two returns, by `k − slope` (or `k`); the rest multiplies.
     #[inline]
     fn update(&self, k: [f64; 2], delta: [f64; 2], point: &mut LawPoint) -> ([f64; 2], bool) {
         // A point that has not flowed has spent nothing (and costs no division).
@@ -220,33 +235,33 @@ impl InterfaceLaw for Strength {
         // the surface at the start to the traction at the end.
         let mut work = 0.0;
         if sigma > 0.0 && sigma > cap * (1.0 - xi) {
-            let slope = cap / self.w_n;
+            let slope = cap * self.per_w_n;
             dp_n = if k[0] > slope {
                 (sigma - cap * (1.0 - xi)) / (k[0] - slope)
             } else {
                 (sigma - cap * (1.0 - xi)) / k[0]
             };
-            spent = (xi + dp_n / self.w_n).min(1.0);
+            spent = (xi + dp_n * self.per_w_n).min(1.0);
             if spent >= 1.0 {
                 dp_n = sigma / k[0];
             }
             sigma -= k[0] * dp_n;
             // The softening part of the opening, then none: a broken cut-off does no work.
-            let softening = dp_n.min((1.0 - xi) * self.w_n);
-            work += 0.5 * cap * (2.0 * (1.0 - xi) - softening / self.w_n) * softening;
+            let softening = Self::softening_part(dp_n, xi, self.per_w_n);
+            work += 0.5 * cap * (2.0 * (1.0 - xi) - softening * self.per_w_n) * softening;
         }
         let friction_limit = (-sigma * self.tan_phi).max(0.0);
         let limit = (self.c * (1.0 - spent) - sigma * self.tan_phi).max(0.0);
         let mut tau = k[1] * (delta[1] - point.p[1]);
         let mut dp_s = 0.0;
         if tau.abs() > limit {
-            let slope = self.c / self.w_s;
+            let slope = self.c * self.per_w_s;
             let mut slide = if k[1] > slope && limit > friction_limit {
                 (tau.abs() - limit) / (k[1] - slope)
             } else {
                 (tau.abs() - limit) / k[1]
             };
-            if spent + slide / self.w_s >= 1.0 && self.c > 0.0 {
+            if spent + slide * self.per_w_s >= 1.0 && self.c > 0.0 {
                 slide = ((tau.abs() - friction_limit) / k[1]).max(0.0);
             }
             dp_s = slide.copysign(tau);
@@ -254,12 +269,12 @@ impl InterfaceLaw for Strength {
             // Friction over the whole slide; the cohesion, softening, over its part of it.
             let cohesion = |xi: f64| (self.c * (1.0 - xi) - sigma.max(0.0) * self.tan_phi).max(0.0);
             let softening = if self.c > 0.0 {
-                slide.min((1.0 - spent) * self.w_s)
+                Self::softening_part(slide, spent, self.per_w_s)
             } else {
                 0.0
             };
             work += friction_limit * slide
-                + 0.5 * (cohesion(spent) + cohesion(spent + softening / self.w_s)) * softening;
+                + 0.5 * (cohesion(spent) + cohesion(spent + softening * self.per_w_s)) * softening;
         }
         let flowed = dp_n != 0.0 || dp_s != 0.0;
         if flowed {
