@@ -843,12 +843,19 @@ fn controls(r: &mut Report, today: &[Today]) {
                     (q / e - 1.0).abs(),
                     1e-4,
                 ),
-                // A Voronoi bar under local damping cracks by thresholds that flip with the
-                // sign of velocities: a change at round-off in the law moved its peak by 1.6e-4.
-                _ if t.test == "tension" && t.exact.is_none() => {
-                    r.figure(&format!("{key}: q"), q, 1e-3)
+                // Local damping turns with the sign of every velocity, which amplifies
+                // round-off: changes of the tractions' arithmetic at round-off moved the Voronoi
+                // bar's peak by 1.6e-4, the fast runs by up to 3e-4, the φ = 30° squeeze at ten
+                // times the speed, which has not settled, by 9e-3, and the slow runs by 6e-6.
+                _ => {
+                    let tolerance = match (speed == 1.0, t.test.as_str()) {
+                        (_, "tension") if t.exact.is_none() => 1e-3,
+                        (true, _) => 1e-5,
+                        (false, "compression, φ = 30°") if speed == 10.0 => 2e-2,
+                        (false, _) => 1e-3,
+                    };
+                    r.figure(&format!("{key}: q"), q, tolerance)
                 }
-                _ => r.figure(&format!("{key}: q"), q, 1e-6),
             }
         }
     }
@@ -881,12 +888,13 @@ fn controls(r: &mut Report, today: &[Today]) {
     r.line(
         "Where the load levels off without friction in the mechanism (the φ = 0° squeeze, the \
         footings), the clamp ten times as fast reaches it in 7.45 times fewer steps, within \
-        0.1 % of the exact collapse load on the aligned meshes and within 0.1 % of today's on \
+        0.2 % of the exact collapse load on the aligned meshes and within 0.1 % of today's on \
         the Voronoi footing: the 5× goal of fewer steps at 1 % is met there. Against today's \
-        reading of the squeezes the difference is that drag (−1.1 % on the triangles, −1.0 % on \
+        reading of the squeezes the difference is that drag (−1.0 % on the triangles and on \
         the Voronoi cells, whose load has not levelled off). With friction (the φ = 30° squeeze) \
         five times the speed still finds the closed form within 0.1 %, in 3.7 times fewer \
-        steps; at ten times the reaction has not settled by the end of the travel (9 % high). \
+        steps; at ten times the reaction has not settled by the end of the travel and reads \
+        several per cent high. \
         The softening bar is read at its peak. The grid bar, whose sections all reach `f_t` at \
         once, peaks within 0.2 % of `f_t` at ten times the speed too. On the Voronoi bar, \
         whose cracks form one after another, the clamp's speed raises the peak (11.5): +0.9 % \

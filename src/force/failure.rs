@@ -4,12 +4,14 @@
 //! The traction at a Gauss point is `λ = diag(k_n, k_s) (δ − δ_p)`, so the internal forces
 //! split into the elastic ones of the evaluator and a plastic correction:
 //! `f_int = f_el(U) − f_p`, `f_p = Σ_gp t w Nᵀ diag(k_n, k_s) δ_p` (eq. 7 with the plastic
-//! relative displacements as eigen-displacements). The evaluators keep their elastic couplings
-//! (an interface's tractions, or a block of `K`) and add, in the same pass of their sweep, the
-//! failing interfaces of each coupling ([`FailingInterfaces::couple`]): the relative
-//! displacement `δ = N_b U_b − N_a U_a` at each of its two Gauss points, the return mapping of
-//! its law ([`InterfaceLaw::update`]) and, once a point has flowed, its share `±N_e(x)ᵀ T_p`
-//! of `f_p` (eq. 15), with no stored matrix. One pass computes the relative displacement once,
+//! relative displacements as eigen-displacements). The assembled evaluator keeps its blocks of
+//! `K` and adds, in the same pass of its sweep, the failing interfaces of each block
+//! ([`FailingInterfaces::couple`]): the relative displacement `δ = N_b U_b − N_a U_a` at each
+//! of their two Gauss points, the return mapping of their law ([`InterfaceLaw::update`]) and,
+//! once a point has flowed, its share `±N_e(x)ᵀ T_p` of `f_p` (eq. 15), with no stored
+//! matrix. The element-wise evaluator has a failing interface give its whole traction
+//! `k (δ − δ_p)` the same way ([`FailingInterfaces::couple_whole`]), in place of its elastic
+//! record. One pass computes the relative displacement once,
 //! in both evaluators, and a time step fuses it with the update of the elements
 //! (`evaluator::FusedStep`).
 //!
@@ -313,12 +315,10 @@ impl Failing {
         Vec2::new(self.normal.y, -self.normal.x)
     }
 
-    /// The offsets of Gauss point `g` (0 or 1) from the two centroids: the midpoint `∓ L/(2√3) s`.
+    /// The Gauss offset `g = L/(2√3) s`: the Gauss points are at the midpoint `∓ g`.
     #[inline(always)]
-    fn offsets(&self, g: usize, half_per_tw: f64) -> (Vec2, Vec2) {
-        let side = if g == 0 { -half_per_tw } else { half_per_tw };
-        let o = (side * self.tw) * self.tangent();
-        (self.da + o, self.db + o)
+    fn gauss_offset(&self, half_per_tw: f64) -> Vec2 {
+        (half_per_tw * self.tw) * self.tangent()
     }
 
     /// `δ = N_b U_b − N_a U_a` at both Gauss points on the interface's axes `(δ_n, δ_s)`, from
@@ -331,8 +331,7 @@ impl Failing {
         ua: &[f64; N],
         ub: &[f64; N],
     ) -> [[f64; 2]; 2] {
-        let (n, s) = (self.normal, self.tangent());
-        let g = (half_per_tw * self.tw) * s;
+        let (n, s, g) = (self.normal, self.tangent(), self.gauss_offset(half_per_tw));
         let d0 = K::displacement(ub, self.db) - K::displacement(ua, self.da);
         let d1 = K::gradient(ub, g) - K::gradient(ua, g);
         let (d0, d1) = ([n.dot(&d0), s.dot(&d0)], [n.dot(&d1), s.dot(&d1)]);
@@ -342,10 +341,11 @@ impl Failing {
         ]
     }
 
-    /// `T_p = t w (k_n δ_p,n n + k_s δ_p,s s)`: the traction that `δ_p` relieves, as a force.
+    /// `T = t w (k_n e_n n + k_s e_s s)`: the force of the springs at a relative displacement
+    /// `e` on the interface's axes (`δ − δ_p`, or `−δ_p` for the plastic part alone).
     #[inline(always)]
-    fn plastic_force(&self, p: &[f64; 2]) -> Vec2 {
-        self.tw * (self.k[0] * p[0] * self.normal + self.k[1] * p[1] * self.tangent())
+    fn traction(&self, e: &[f64; 2]) -> Vec2 {
+        self.tw * (self.k[0] * e[0] * self.normal + self.k[1] * e[1] * self.tangent())
     }
 }
 
@@ -444,40 +444,95 @@ impl<K: Kinematics<N>, const N: usize> FailingInterfaces<K, N> {
         fa: &mut [f64; N],
         fb: &mut [f64; N],
     ) {
-        #[cfg(target_arch = "x86_64")]
-        if let Some(ahead) = self.failing.get(range.start + PREFETCH_AHEAD) {
-            safe_arch::prefetch_t0(ahead);
-        }
+        self.prefetch(range.start);
         for j in range {
             let f = &self.failing[j];
             let delta = f.deltas::<K, N>(self.half_per_tw, ua, ub);
-            // A fresh interface inside its law's initial region at both points stays fresh:
-            // nothing to read, write or add.
-            if !state.touched[j].get() && (self.release.is_empty() || !state.released[j]) {
-                let [cap, c, tan_phi] = self.regions[f.law as usize];
-                let inside = |d: &[f64; 2]| {
-                    let (sigma, tau) = (f.k[0] * d[0], f.k[1] * d[1]);
-                    sigma <= cap && tau.abs() <= c - sigma * tan_phi
-                };
-                if inside(&delta[0]) && inside(&delta[1]) {
-                    continue;
-                }
+            if let Some(p) = self.plastic(j, delta, state) {
+                self.add_forces(f, p.map(|p| [-p[0], -p[1]]), fa, fb);
             }
-            self.flow(j, delta, state, fa, fb);
         }
     }
 
-    /// [`FailingInterfaces::couple`] for interface `j` at relative displacements `delta`
-    /// outside the quick test: the return mapping of its points and their plastic forces.
-    #[inline(never)]
-    fn flow(
+    /// The whole traction of failing interface `j` between `a` (DOFs `ua`) and `b` (`ub`),
+    /// `a < b`, in `state`: `f_int,a −= N_aᵀ T`, `f_int,b += N_bᵀ T` with
+    /// `T = t w diag(k_n, k_s) (δ − δ_p)` at each Gauss point, the elastic and the plastic part
+    /// of [`FailingInterfaces::couple`] in one, for a sweep that keeps no elastic record of the
+    /// interface (element-wise). Called as `couple`.
+    #[inline(always)]
+    pub fn couple_whole(
+        &self,
+        j: usize,
+        state: &FailureState,
+        (ua, ub): (&[f64; N], &[f64; N]),
+        fa: &mut [f64; N],
+        fb: &mut [f64; N],
+    ) {
+        self.prefetch(j);
+        let f = &self.failing[j];
+        let delta = f.deltas::<K, N>(self.half_per_tw, ua, ub);
+        let elastic = match self.plastic(j, delta, state) {
+            // `δ − 0` is `δ` to the bit: a point in its initial region is not return-mapped,
+            // and gives the same forces as one that is and does not flow.
+            None => delta,
+            Some(p) => [0, 1].map(|g| [delta[g][0] - p[g][0], delta[g][1] - p[g][1]]),
+        };
+        self.add_forces(f, elastic, fa, fb);
+    }
+
+    /// Asks for the failing interface [`PREFETCH_AHEAD`] after `j`.
+    #[inline(always)]
+    fn prefetch(&self, _j: usize) {
+        #[cfg(target_arch = "x86_64")]
+        if let Some(ahead) = self.failing.get(_j + PREFETCH_AHEAD) {
+            safe_arch::prefetch_t0(ahead);
+        }
+    }
+
+    /// `f_int,a −= N_aᵀ T`, `f_int,b += N_bᵀ T` with `T = t w diag(k_n, k_s) e` at the Gauss
+    /// points of `f`, for a relative displacement `e` on its axes at each. `N` is affine in the
+    /// offset, so over the points `d ∓ g` the sum is `N(d)ᵀ (T₀ + T₁) + (N(g) − N(0))ᵀ (T₁ − T₀)`.
+    #[inline(always)]
+    fn add_forces(&self, f: &Failing, e: [[f64; 2]; 2], fa: &mut [f64; N], fb: &mut [f64; N]) {
+        let (t0, t1) = (f.traction(&e[0]), f.traction(&e[1]));
+        let (sum, odd) = (t0 + t1, t1 - t0);
+        let g = f.gauss_offset(self.half_per_tw);
+        K::add_force(fa, f.da, -sum);
+        K::add_linear(fa, g, -odd);
+        K::add_force(fb, f.db, sum);
+        K::add_linear(fb, g, odd);
+    }
+
+    /// The plastic relative displacements of failing interface `j` at relative displacements
+    /// `delta`, its points return-mapped and their state updated; `None` while both points are
+    /// in the initial state and stay there: a fresh interface inside its law's initial region
+    /// at both points (the quick test: nothing to read, write or add), or one whose fresh
+    /// points the law leaves elastic.
+    #[inline(always)]
+    fn plastic(
         &self,
         j: usize,
         delta: [[f64; 2]; 2],
         state: &FailureState,
-        fa: &mut [f64; N],
-        fb: &mut [f64; N],
-    ) {
+    ) -> Option<[[f64; 2]; 2]> {
+        if !state.touched[j].get() && (self.release.is_empty() || !state.released[j]) {
+            let f = &self.failing[j];
+            let [cap, c, tan_phi] = self.regions[f.law as usize];
+            let inside = |d: &[f64; 2]| {
+                let (sigma, tau) = (f.k[0] * d[0], f.k[1] * d[1]);
+                sigma <= cap && tau.abs() <= c - sigma * tan_phi
+            };
+            if inside(&delta[0]) && inside(&delta[1]) {
+                return None;
+            }
+        }
+        self.flow(j, delta, state)
+    }
+
+    /// [`FailingInterfaces::plastic`] outside the quick test: the return mapping of the points
+    /// of interface `j` at relative displacements `delta`.
+    #[inline(never)]
+    fn flow(&self, j: usize, delta: [[f64; 2]; 2], state: &FailureState) -> Option<[[f64; 2]; 2]> {
         let f = &self.failing[j];
         let (cells, touched) = (&state.points[2 * j..2 * j + 2], &state.touched[j]);
         let law = &*self.laws[f.law as usize];
@@ -505,15 +560,10 @@ impl<K: Kinematics<N>, const N: usize> FailingInterfaces<K, N> {
                 p[g] = point.p;
             }
             if !touched.get() {
-                return;
+                return None;
             }
         }
-        for g in 0..2 {
-            let (da, db) = f.offsets(g, self.half_per_tw);
-            let t = f.plastic_force(&p[g]);
-            K::add_force(fa, da, t);
-            K::add_force(fb, db, -t);
-        }
+        Some(p)
     }
 }
 
@@ -554,20 +604,19 @@ impl<K: Kinematics<N>, const N: usize> PlasticForces for FailingInterfaces<K, N>
                 continue;
             }
             let [a, b] = self.pairs[k].map(|e| e as usize);
-            let (ua, ub) = (&u[a], &u[b]);
-            let offsets = [0, 1].map(|g| i.offsets(g, self.half_per_tw));
-            let d = i.deltas::<K, N>(self.half_per_tw, ua, ub);
+            let d = i.deltas::<K, N>(self.half_per_tw, &u[a], &u[b]);
             if (0..2).any(|c| (0.5 * (d[0][c] + d[1][c])).abs() > range) {
+                // `δ_p` goes from `p` to `δ`: the plastic forces grow by those of `e = δ − p`.
+                let mut grow = [[0.0; 2]; 2];
                 for g in 0..2 {
                     let p = s[g].get().p;
                     let e = [d[g][0] - p[0], d[g][1] - p[1]];
                     state.handover += 0.5 * i.tw * (i.k[0] * e[0] * e[0] + i.k[1] * e[1] * e[1]);
                     s[g].set_p(d[g]);
-                    // `δ_p` goes from `p` to `δ`: the plastic forces grow by those of `e`.
-                    let t = i.plastic_force(&e);
-                    K::add_force(&mut f[a], offsets[g].0, t);
-                    K::add_force(&mut f[b], offsets[g].1, -t);
+                    grow[g] = [-e[0], -e[1]];
                 }
+                let (below, from_b) = f.split_at_mut(b);
+                self.add_forces(i, grow, &mut below[a], &mut from_b[0]);
                 state.released[k] = true;
                 state.touched[k].set();
                 state.changed = true;

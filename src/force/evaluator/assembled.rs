@@ -217,9 +217,7 @@ impl<K: Kinematics<N>, const N: usize> Assembled<K, N> {
             }
         }
         let sweep = Sweep::new(n, &mut pairs);
-        let carried = model
-            .any_fails()
-            .then(|| Carried::new(model, &pairs, |_| None));
+        let carried = model.any_fails().then(|| Carried::new(model, &pairs));
         Assembled {
             pairs,
             diagonal,

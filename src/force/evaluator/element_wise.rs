@@ -25,9 +25,10 @@
 //! fewer instructions than the record takes. An irregular mesh keeps its records inline
 //! ([`Inline`]): a map per interface would double the bytes a step reads.
 
-use super::failing::{Carried, WithFailure};
+use super::failing::failing_of;
 use super::sweep::{Couplings, Face, Higher, Sweep};
 use super::{Evaluator, Failure, FusedStep, GroupedStep};
+use crate::force::failure::{FailingInterfaces, FailureState};
 use crate::input::scene::EvaluatorKind;
 use crate::lanes::{spread, Lanes, Wide};
 use crate::mesh::geometry::Vec2;
@@ -164,6 +165,118 @@ impl<K: Kernel<N>, const N: usize> Couplings<N> for Shared<K, N> {
         sub(fa, &K::face_forces(record, ua, None)[0]);
     }
     const OWN: bool = K::HAS_INTERIOR;
+    #[inline(always)]
+    fn add_own(&self, e: usize, ue: &[f64; N], f: &mut [f64; N]) {
+        self.interior.add::<K, N>(e, ue, f);
+    }
+}
+
+/// Where interfaces fail, the faces of the sweeps that step them. A failing interface names
+/// its place in [`Model::failing_interfaces`] (marked [`BY_LAW`]) and gives its whole traction
+/// through its law ([`FailingInterfaces::couple_whole`]): its step reads a face of 12 bytes and
+/// the failing interface's 80, not an elastic record as well. The others name their record in
+/// `records`.
+struct ByLaw<K: Kernel<N>, const N: usize> {
+    faces: Vec<Face<u32>>,
+    records: Vec<Record<K, N>>,
+}
+
+/// The mark of a [`ByLaw`] face whose interface fails.
+const BY_LAW: u32 = 1 << 31;
+
+/// Records and failing interfaces are read by index this many faces ahead of their use.
+const BY_LAW_AHEAD: usize = 48;
+
+impl<K: Kernel<N>, const N: usize> ByLaw<K, N> {
+    /// The faces in sweep order, each naming its interface in the model, with their `records`.
+    fn new(model: &Model, faces: &[Face<u32>], records: &[Record<K, N>]) -> Self {
+        let mut rank = vec![u32::MAX; model.interfaces.len()];
+        for (j, &k) in model.failing_interfaces().iter().enumerate() {
+            rank[k as usize] = j as u32 | BY_LAW;
+        }
+        let mut kept = Vec::new();
+        let faces = faces
+            .iter()
+            .map(|f| {
+                let record = match rank[f.record as usize] {
+                    u32::MAX => {
+                        kept.push(records[f.record as usize]);
+                        kept.len() as u32 - 1
+                    }
+                    j => j,
+                };
+                Face {
+                    a: f.a,
+                    b: f.b,
+                    record,
+                }
+            })
+            .collect();
+        ByLaw {
+            faces,
+            records: kept,
+        }
+    }
+}
+
+/// [`ByLaw`] in one sweep that updates the failing interfaces' `state`.
+struct ByLawSweep<'a, K: Kernel<N>, const N: usize> {
+    by_law: &'a ByLaw<K, N>,
+    interior: &'a Interior,
+    failing: &'a FailingInterfaces<K, N>,
+    state: &'a FailureState,
+}
+
+impl<K: Kernel<N>, const N: usize> Couplings<N> for ByLawSweep<'_, K, N> {
+    type Ref = u32;
+    /// The sweep asks for the faces and `U` ahead; the records and the failing interfaces,
+    /// read by index, are asked for by [`Couplings::add_pair`].
+    const PREFETCH: bool = true;
+    const RUNS: bool = false;
+    const WIDE: bool = false;
+    const OWN: bool = K::HAS_INTERIOR;
+    #[inline(always)]
+    fn faces(&self) -> &[Face<u32>] {
+        &self.by_law.faces
+    }
+    type Coupling<'b>
+        = u32
+    where
+        Self: 'b;
+    #[inline(always)]
+    fn coupling(&self, face: &Face<u32>) -> u32 {
+        face.record
+    }
+    /// A sweep computes each face once: the points of a failing interface are its alone.
+    #[inline(always)]
+    fn add_pair(
+        &self,
+        _: impl Lanes,
+        record: u32,
+        ua: &[f64; N],
+        ub: &[f64; N],
+        fa: &mut [f64; N],
+        fb: &mut [f64; N],
+    ) {
+        if record & BY_LAW != 0 {
+            let j = (record & !BY_LAW) as usize;
+            self.failing.couple_whole(j, self.state, (ua, ub), fa, fb);
+        } else {
+            let records = &self.by_law.records;
+            #[cfg(target_arch = "x86_64")]
+            if let Some(ahead) = records.get(record as usize + BY_LAW_AHEAD) {
+                safe_arch::prefetch_t0(ahead);
+            }
+            let [on_a, on_b] = K::face_forces(&records[record as usize], ua, Some(ub));
+            sub(fa, &on_a);
+            sub(fb, &on_b);
+        }
+    }
+    #[inline(always)]
+    fn add_ground(&self, face: &Face<u32>, ua: &[f64; N], fa: &mut [f64; N]) {
+        let record = &self.by_law.records[face.record as usize];
+        sub(fa, &K::face_forces(record, ua, None)[0]);
+    }
     #[inline(always)]
     fn add_own(&self, e: usize, ue: &[f64; N], f: &mut [f64; N]) {
         self.interior.add::<K, N>(e, ue, f);
@@ -524,8 +637,8 @@ pub struct ElementWise<K: Kernel<N>, const N: usize> {
     faces: Store<K, N>,
     /// The blocks and the interfaces that cross them ([`Sweep`]).
     sweep: Sweep<N>,
-    /// Where interfaces fail: which interface of `faces` fails ([`Carried`]).
-    carried: Option<Carried>,
+    /// Where interfaces fail, the faces of the sweeps that step them ([`ByLaw`]).
+    by_law: Option<ByLaw<K, N>>,
 }
 
 impl<K: Kernel<N>, const N: usize> ElementWise<K, N> {
@@ -583,9 +696,9 @@ impl<K: Kernel<N>, const N: usize> ElementWise<K, N> {
             })
             .collect();
         let mut sweep = Sweep::new(model.elements.len(), &mut faces);
-        let carried = model
+        let by_law = model
             .any_fails()
-            .then(|| Carried::new(model, &faces, |f| Some(f.record)));
+            .then(|| ByLaw::new(model, &faces, &records));
         let interior = Interior(if K::HAS_INTERIOR {
             model
                 .elements
@@ -596,13 +709,39 @@ impl<K: Kernel<N>, const N: usize> ElementWise<K, N> {
             Vec::new()
         });
         let mut faces = Store::new(faces, &records, &keys, interior, share);
-        if let (Store::Shared(shared), true) = (&mut faces, runs && carried.is_none()) {
+        if let (Store::Shared(shared), true) = (&mut faces, runs && by_law.is_none()) {
             sweep.find_runs(&mut shared.faces);
         }
         ElementWise {
             faces,
             sweep,
-            carried,
+            by_law,
+        }
+    }
+}
+
+impl<K: Kernel<N>, const N: usize> ElementWise<K, N> {
+    fn interior(&self) -> &Interior {
+        match &self.faces {
+            Store::Inline(s) => &s.interior,
+            Store::Shared(s) => &s.interior,
+        }
+    }
+
+    /// The faces of a sweep that updates the failing interfaces `plastic` in `state`.
+    ///
+    /// # Panics
+    /// If the evaluator was built for a model whose interfaces do not fail, or `plastic` is not
+    /// of the formulation `K`.
+    fn by_law_sweep<'a>(&'a self, (plastic, state): Failure<'a>) -> ByLawSweep<'a, K, N> {
+        ByLawSweep {
+            by_law: self
+                .by_law
+                .as_ref()
+                .expect("an evaluator built for a model whose interfaces fail"),
+            interior: self.interior(),
+            failing: failing_of::<K, N>(plastic),
+            state,
         }
     }
 }
@@ -613,11 +752,11 @@ impl<K: Kernel<N>, const N: usize> Evaluator for ElementWise<K, N> {
     }
 
     fn bytes(&self) -> usize {
-        let interior = match &self.faces {
-            Store::Inline(s) => &s.interior,
-            Store::Shared(s) => &s.interior,
-        };
-        self.faces.bytes() + std::mem::size_of_val(&interior.0[..]) + self.sweep.bytes()
+        use std::mem::size_of_val;
+        let by_law = self.by_law.as_ref().map_or(0, |b| {
+            size_of_val(&b.faces[..]) + size_of_val(&b.records[..])
+        });
+        self.faces.bytes() + size_of_val(&self.interior().0[..]) + self.sweep.bytes() + by_law
     }
 
     fn internal_force(&self, u: &[f64], f: &mut [f64]) {
@@ -627,18 +766,8 @@ impl<K: Kernel<N>, const N: usize> Evaluator for ElementWise<K, N> {
         }
     }
 
-    fn internal_force_failing(&self, u: &[f64], f: &mut [f64], (plastic, state): Failure<'_>) {
-        let carried = self.carried.as_ref();
-        match &self.faces {
-            Store::Inline(faces) => {
-                let faces = WithFailure::<_, K, N>::new(faces, carried, plastic, state);
-                self.sweep.evaluate(&faces, u, f);
-            }
-            Store::Shared(faces) => {
-                let faces = WithFailure::<_, K, N>::new(faces, carried, plastic, state);
-                self.sweep.evaluate(&faces, u, f);
-            }
-        }
+    fn internal_force_failing(&self, u: &[f64], f: &mut [f64], failure: Failure<'_>) {
+        self.sweep.evaluate(&self.by_law_sweep(failure), u, f);
     }
 
     fn fused(&self) -> Option<&dyn FusedStep> {
@@ -668,19 +797,10 @@ impl<K: Kernel<N>, const N: usize> FusedStep for ElementWise<K, N> {
         force: &mut [f64],
         loaded: Option<&[u32]>,
         update: &Update,
-        (plastic, state): Failure<'_>,
+        failure: Failure<'_>,
     ) -> f64 {
-        let carried = self.carried.as_ref();
-        match &self.faces {
-            Store::Inline(faces) => {
-                let faces = WithFailure::<_, K, N>::new(faces, carried, plastic, state);
-                self.sweep.advance(&faces, u, v, force, loaded, update)
-            }
-            Store::Shared(faces) => {
-                let faces = WithFailure::<_, K, N>::new(faces, carried, plastic, state);
-                self.sweep.advance(&faces, u, v, force, loaded, update)
-            }
-        }
+        let faces = self.by_law_sweep(failure);
+        self.sweep.advance(&faces, u, v, force, loaded, update)
     }
 
     fn grouped(&self) -> Option<&dyn GroupedStep> {

@@ -1,8 +1,9 @@
-//! An evaluator's couplings with the failing interfaces they carry (`force::failure`): each
-//! coupling adds its elastic forces, then return-maps the Gauss points of its failing interfaces
-//! and adds their plastic part, in one pass of the sweep ([`super::sweep`]), evaluating or
-//! stepping. An element-wise coupling carries its own interface when that one fails; an
-//! assembled one (a block `K_ab`) the failing interfaces between its two elements.
+//! The assembled evaluator's couplings with the failing interfaces they carry
+//! (`force::failure`): each block `K_ab` adds its elastic forces, then return-maps the Gauss
+//! points of the failing interfaces between its two elements and adds their plastic part, in
+//! one pass of the sweep ([`super::sweep`]), evaluating or stepping. (The element-wise
+//! evaluator gives a failing interface its whole traction through its law instead,
+//! `super::element_wise`.)
 
 use super::sweep::{Couplings, Face};
 use crate::force::failure::{FailingInterfaces, FailureState, PlasticForces};
@@ -10,63 +11,41 @@ use crate::lanes::Lanes;
 use crate::model::formulation::Kinematics;
 use crate::model::Model;
 
-/// Per coupling of an evaluator (in the order of its sweep), the failing interfaces it carries:
-/// a range of [`Model::failing_interfaces`].
+/// Per coupling of the assembled evaluator (in the order of its sweep), the failing interfaces
+/// it carries: a range of [`Model::failing_interfaces`].
 pub(super) struct Carried(Vec<[u32; 2]>);
 
 impl Carried {
-    /// The failing interfaces of each coupling between elements `(a, b)`, `a < b`, whose
-    /// `interface` names the model interface it is (element-wise) or `None` for all those
-    /// between its elements (assembled). Each failing interface goes to one coupling, the first
-    /// that carries it.
+    /// The failing interfaces between the elements `(a, b)`, `a < b`, of each coupling (a
+    /// block `K_ab`).
     ///
     /// # Panics
-    /// If a failing interface has no coupling: an evaluator that left out an interface between
-    /// two elements.
-    pub(super) fn new<R>(
-        model: &Model,
-        faces: &[Face<R>],
-        interface: impl Fn(&Face<R>) -> Option<u32>,
-    ) -> Self {
-        let failing = model.failing_interfaces();
-        let mut rank = vec![u32::MAX; model.interfaces.len()];
-        for (j, &k) in failing.iter().enumerate() {
-            rank[k as usize] = j as u32;
-        }
-        let pairs: Vec<(u32, u32)> = failing
+    /// If a failing interface has no coupling: an evaluator that left out a pair of elements
+    /// with an interface between them.
+    pub(super) fn new<R>(model: &Model, faces: &[Face<R>]) -> Self {
+        let pairs: Vec<(u32, u32)> = model
+            .failing_interfaces()
             .iter()
             .map(|&k| {
                 let i = &model.interfaces[k as usize];
                 (i.a.min(i.b), i.a.max(i.b))
             })
             .collect();
-        let mut taken = vec![false; failing.len()];
+        let mut taken = vec![false; pairs.len()];
         let ranges = faces
             .iter()
             .map(|f| {
-                let range = match interface(f) {
-                    Some(k) => match rank[k as usize] {
-                        u32::MAX => [0, 0],
-                        j => [j, j + 1],
-                    },
-                    None => {
-                        // The failing interfaces are sorted by their elements.
-                        let start = pairs.partition_point(|&p| p < (f.a, f.b));
-                        let end = start
-                            + pairs[start..]
-                                .iter()
-                                .take_while(|&&p| p == (f.a, f.b))
-                                .count();
-                        [start as u32, end as u32]
-                    }
-                };
-                let range = if taken[range[0] as usize..range[1] as usize]
-                    .iter()
-                    .any(|&t| t)
-                {
+                // The failing interfaces are sorted by their elements.
+                let start = pairs.partition_point(|&p| p < (f.a, f.b));
+                let end = start
+                    + pairs[start..]
+                        .iter()
+                        .take_while(|&&p| p == (f.a, f.b))
+                        .count();
+                let range = if taken[start..end].iter().any(|&t| t) {
                     [0, 0]
                 } else {
-                    range
+                    [start as u32, end as u32]
                 };
                 taken[range[0] as usize..range[1] as usize].fill(true);
                 range
@@ -78,6 +57,19 @@ impl Carried {
         );
         Carried(ranges)
     }
+}
+
+/// The failing interfaces `plastic` as those of the formulation `K`.
+///
+/// # Panics
+/// If they are of another formulation.
+pub(super) fn failing_of<K: Kinematics<N>, const N: usize>(
+    plastic: &dyn PlasticForces,
+) -> &FailingInterfaces<K, N> {
+    plastic
+        .as_any()
+        .downcast_ref::<FailingInterfaces<K, N>>()
+        .expect("the failing interfaces of the evaluator's formulation")
 }
 
 /// Couplings `C` with the failing interfaces they carry, for one sweep that updates `state`.
@@ -101,10 +93,7 @@ impl<'a, C: Couplings<N>, K: Kinematics<N>, const N: usize> WithFailure<'a, C, K
         plastic: &'a dyn PlasticForces,
         state: &'a mut FailureState,
     ) -> Self {
-        let failing = plastic
-            .as_any()
-            .downcast_ref::<FailingInterfaces<K, N>>()
-            .expect("the failing interfaces of the evaluator's formulation");
+        let failing = failing_of::<K, N>(plastic);
         let carried = carried.expect("an evaluator built for a model whose interfaces fail");
         assert_eq!(carried.0.len(), couplings.faces().len());
         WithFailure {
