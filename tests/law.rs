@@ -407,9 +407,11 @@ impl InterfaceLaw for Counted {
 
 /// The quick test of a law's initial region is exact: a bar that cracks under a traction (the
 /// bundled tension bar's softening law, its clamp on the right replaced by the load) follows
-/// the same trajectory to the bit whether the steps test `Strength::initial_region` first or
-/// return-map every point, in both evaluators, with fewer calls of `update`; and more than a
-/// few of its interfaces break. Under a load below the strength it calls `update` not once.
+/// the same trajectory whether the steps test `Strength::initial_region` first or return-map
+/// every point (to the bit in the assembled evaluator, to round-off in the element-wise one,
+/// whose screen computes an elastic traction another way), with fewer calls of `update`; and
+/// more than a few of its interfaces break. Under a load below the strength it calls `update`
+/// not once.
 #[test]
 fn the_initial_region_spares_update_calls_and_changes_no_bit() {
     let path = format!(
@@ -467,12 +469,22 @@ fn the_initial_region_spares_update_calls_and_changes_no_bit() {
         let (quick, broken, spared) = run(&cracks, true);
         let (every, _, calls) = run(&cracks, false);
         assert!(broken >= 5, "{kind:?}: only {broken} broken");
+        // The element-wise sweep of a rigid model first screens a fresh interface on its
+        // elastic record (`Kernel::screened`): a disc inside the initial region, where the
+        // traction is the elastic one computed another way, so the two agree to round-off;
+        // the assembled sweep tests the region alone, to the bit.
+        let scale = every.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        let apart = quick
+            .iter()
+            .zip(&every)
+            .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+        let bound = match kind {
+            EvaluatorKind::Assembled => 0.0,
+            _ => 1e-12 * scale,
+        };
         assert!(
-            quick
-                .iter()
-                .zip(&every)
-                .all(|(a, b)| a.to_bits() == b.to_bits()),
-            "{kind:?}: the quick test changed the trajectory"
+            apart <= bound,
+            "{kind:?}: the quick test changed the trajectory by {apart:e} of {scale:e}"
         );
         assert!(
             spared < calls,

@@ -468,7 +468,6 @@ impl<K: Kinematics<N>, const N: usize> FailingInterfaces<K, N> {
         fa: &mut [f64; N],
         fb: &mut [f64; N],
     ) {
-        self.prefetch(j);
         let f = &self.failing[j];
         let delta = f.deltas::<K, N>(self.half_per_tw, ua, ub);
         let elastic = match self.plastic(j, delta, state) {
@@ -480,9 +479,16 @@ impl<K: Kinematics<N>, const N: usize> FailingInterfaces<K, N> {
         self.add_forces(f, elastic, fa, fb);
     }
 
-    /// Asks for the failing interface [`PREFETCH_AHEAD`] after `j`.
+    /// Whether failing interface `j` is in its initial state in `state`: never flowed, not
+    /// released.
     #[inline(always)]
-    fn prefetch(&self, _j: usize) {
+    pub(crate) fn is_fresh(&self, j: usize, state: &FailureState) -> bool {
+        !state.touched[j].get() && (self.release.is_empty() || !state.released[j])
+    }
+
+    /// Asks for the failing interface `PREFETCH_AHEAD` after `j`.
+    #[inline(always)]
+    pub(crate) fn prefetch(&self, _j: usize) {
         #[cfg(target_arch = "x86_64")]
         if let Some(ahead) = self.failing.get(_j + PREFETCH_AHEAD) {
             safe_arch::prefetch_t0(ahead);
@@ -515,7 +521,7 @@ impl<K: Kinematics<N>, const N: usize> FailingInterfaces<K, N> {
         delta: [[f64; 2]; 2],
         state: &FailureState,
     ) -> Option<[[f64; 2]; 2]> {
-        if !state.touched[j].get() && (self.release.is_empty() || !state.released[j]) {
+        if self.is_fresh(j, state) {
             let f = &self.failing[j];
             let [cap, c, tan_phi] = self.regions[f.law as usize];
             let inside = |d: &[f64; 2]| {

@@ -175,10 +175,13 @@ impl<K: Kernel<N>, const N: usize> Couplings<N> for Shared<K, N> {
 /// its place in [`Model::failing_interfaces`] (marked [`BY_LAW`]) and gives its whole traction
 /// through its law ([`FailingInterfaces::couple_whole`]): its step reads a face of 12 bytes and
 /// the failing interface's 80, not an elastic record as well. The others name their record in
-/// `records`.
+/// `records`. Where `K` [screens](Kernel::SCREENS), a failing interface in its initial state
+/// whose traction passes its screen takes its elastic record instead, and reads nothing else.
 struct ByLaw<K: Kernel<N>, const N: usize> {
     faces: Vec<Face<u32>>,
     records: Vec<Record<K, N>>,
+    /// Per failing interface, its elastic record and its [`Screen`]; empty unless `K` screens.
+    screens: Vec<(Record<K, N>, Screen)>,
 }
 
 /// The mark of a [`ByLaw`] face whose interface fails.
@@ -212,9 +215,31 @@ impl<K: Kernel<N>, const N: usize> ByLaw<K, N> {
                 }
             })
             .collect();
+        let screens = if K::SCREENS {
+            let failing = model.failing_interfaces();
+            failing
+                .iter()
+                .map(|&k| {
+                    let i = &model.interfaces[k as usize];
+                    // The largest disc about the origin inside the region `σ ≤ cap`,
+                    // `|τ| ≤ c − σ tan φ`, narrowed by 1e-9 against the round-off of the two
+                    // ways of computing a traction.
+                    let r = model
+                        .law_of(i)
+                        .initial_region()
+                        .map_or(-1.0, |[cap, c, tan]| cap.min(c / (1.0 + tan * tan).sqrt()));
+                    let h = i.length / (2.0 * 3f64.sqrt());
+                    let reach = model.thickness * i.length * r * (1.0 - 1e-9);
+                    (records[k as usize], [(1.0 + 1e-9) / h, reach])
+                })
+                .collect()
+        } else {
+            Vec::new()
+        };
         ByLaw {
             faces,
             records: kept,
+            screens,
         }
     }
 }
@@ -260,6 +285,23 @@ impl<K: Kernel<N>, const N: usize> Couplings<N> for ByLawSweep<'_, K, N> {
     ) {
         if record & BY_LAW != 0 {
             let j = (record & !BY_LAW) as usize;
+            if K::SCREENS {
+                let screens = &self.by_law.screens;
+                #[cfg(target_arch = "x86_64")]
+                if let Some(ahead) = screens.get(j + BY_LAW_AHEAD) {
+                    safe_arch::prefetch_t0(ahead);
+                }
+                if self.failing.is_fresh(j, self.state) {
+                    let (record, screen) = &screens[j];
+                    if let Some([on_a, on_b]) = K::screened(record, ua, ub, screen) {
+                        sub(fa, &on_a);
+                        sub(fb, &on_b);
+                        return;
+                    }
+                }
+            } else {
+                self.failing.prefetch(j);
+            }
             self.failing.couple_whole(j, self.state, (ua, ub), fa, fb);
         } else {
             let records = &self.by_law.records;
@@ -322,7 +364,28 @@ pub trait Kernel<const N: usize>: Kinematics<N> + Sized {
     fn face_forces(f: &Record<Self, N>, ua: &[f64; N], ub: Option<&[f64; N]>) -> [[f64; N]; 2] {
         gauss_forces(f, ua, ub)
     }
+    /// Whether a failing interface of `K` in its initial state is first screened on its elastic
+    /// record ([`Kernel::screened`]).
+    const SCREENS: bool = false;
+    /// [`Kernel::face_forces`] of an interface between two elements when its tractions at both
+    /// Gauss points lie in the disc `|λ| ≤ r` (a [`Screen`]), else `None`: for a failing
+    /// interface in its initial state, a disc inside its law's initial region, where the law
+    /// leaves it elastic. `None` for a `K` that does not [screen](Kernel::SCREENS).
+    #[inline(always)]
+    fn screened(
+        _f: &Record<Self, N>,
+        _ua: &[f64; N],
+        _ub: &[f64; N],
+        _screen: &Screen,
+    ) -> Option<[[f64; N]; 2]> {
+        None
+    }
 }
+
+/// A disc of tractions `|λ| ≤ r` about the origin for an edge of length `L`, as
+/// [`Kernel::screened`] tests it on a rigid record: `[1/h, t L r]` with `h = L/(2√3)` the Gauss
+/// offset; a negative `t L r` where the law gives no disc.
+pub type Screen = [f64; 2];
 
 /// The generalised forces that an interface with record `f` puts on its sides `a` and `b`
 /// (`ub = None` on ground): `± t L [N(m)ᵀ λ(δ₀) + (N(g) − N(0))ᵀ λ(δ₁)]` with
@@ -368,6 +431,21 @@ impl Kernel<3> for Rigid {
         let t = f.springs.apply(delta);
         let w = f.odd * (ub[2] - ua[2]);
         [[t.x, t.y, ra.dot(&t) + w], [-t.x, -t.y, -(rb.dot(&t) + w)]]
+    }
+    const SCREENS: bool = true;
+    /// The tractions at the Gauss points are `λ₀ ∓ λ₁`, with `t L λ₀ = S δ₀` the force on `a`
+    /// and `λ₁ = k_n h Δθ n`, `t L |λ₁| = k_θ |Δθ| / h`: the test is
+    /// `|S δ₀|₁ + k_θ |Δθ| / h ≤ t L r`, which bounds `|λ₀| + |λ₁|`.
+    #[inline(always)]
+    fn screened(
+        f: &Record<Self, 3>,
+        ua: &[f64; 3],
+        ub: &[f64; 3],
+        &[per_h, reach]: &Screen,
+    ) -> Option<[[f64; 3]; 2]> {
+        let [on_a, on_b] = Self::face_forces(f, ua, Some(ub));
+        let w = f.odd * (ub[2] - ua[2]);
+        (on_a[0].abs() + on_a[1].abs() + w.abs() * per_h <= reach).then_some([on_a, on_b])
     }
 }
 
@@ -754,7 +832,7 @@ impl<K: Kernel<N>, const N: usize> Evaluator for ElementWise<K, N> {
     fn bytes(&self) -> usize {
         use std::mem::size_of_val;
         let by_law = self.by_law.as_ref().map_or(0, |b| {
-            size_of_val(&b.faces[..]) + size_of_val(&b.records[..])
+            size_of_val(&b.faces[..]) + size_of_val(&b.records[..]) + size_of_val(&b.screens[..])
         });
         self.faces.bytes() + size_of_val(&self.interior().0[..]) + self.sweep.bytes() + by_law
     }
