@@ -893,7 +893,7 @@ fn controls(r: &mut Report, today: &[Today]) {
         the Voronoi footing: the 5× goal of fewer steps at 1 % is met there. Against today's \
         reading of the squeezes the difference is that drag (−1.0 % on the triangles and on \
         the Voronoi cells, whose load has not levelled off). With friction (the φ = 30° squeeze) \
-        five times the speed still finds the closed form within 0.1 %, in 3.7 times fewer \
+        five times the speed still finds the closed form within 0.2 %, in 3.7 times fewer \
         steps; at ten times the reaction has not settled by the end of the travel and reads \
         several per cent high. \
         The softening bar is read at its peak. The grid bar, whose sections all reach `f_t` at \
