@@ -193,8 +193,9 @@ const BY_LAW_AHEAD: usize = 48;
 impl<K: Kernel<N>, const N: usize> ByLaw<K, N> {
     /// The faces in sweep order, each naming its interface in the model, with their `records`.
     fn new(model: &Model, faces: &[Face<u32>], records: &[Record<K, N>]) -> Self {
+        let failing = model.failing_interfaces();
         let mut rank = vec![u32::MAX; model.interfaces.len()];
-        for (j, &k) in model.failing_interfaces().iter().enumerate() {
+        for (j, &k) in failing.iter().enumerate() {
             rank[k as usize] = j as u32 | BY_LAW;
         }
         let mut kept = Vec::new();
@@ -216,7 +217,6 @@ impl<K: Kernel<N>, const N: usize> ByLaw<K, N> {
             })
             .collect();
         let screens = if K::SCREENS {
-            let failing = model.failing_interfaces();
             failing
                 .iter()
                 .map(|&k| {
