@@ -130,8 +130,9 @@ pub fn from_spec(
 /// shear surface, and `w_n = 2 G_f / f_t`, `w_s = 2 G_f,II / c` the opening and slip at which
 /// linear softening has spent `G_f` and `G_f,II` per unit area: written in displacement, the
 /// dissipated energy does not depend on the element size. The law keeps `1 / w_n` and
-/// `1 / w_s`, so that its return mapping multiplies where it would divide. An interface with `ξ = 1` is broken:
-/// it keeps compression and Coulomb friction, `|τ| ≤ −σ tan φ`, and nothing else.
+/// `1 / w_s`, so that its return mapping multiplies where it would divide. An interface with
+/// `ξ = 1` is broken: it keeps compression and Coulomb friction, `|τ| ≤ −σ tan φ`, and
+/// nothing else.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Strength {
     /// Tensile strength `f_t` (Pa).
@@ -216,7 +217,8 @@ impl InterfaceLaw for Strength {
     /// increment exhausts the strength, the traction returns to the broken surface instead.
     /// Where the softening is steeper than the spring (`k < f_t / w_n`, a snap-back at the
     /// point) the strength of the start of the update is used. Returns whether the point
-    /// flowed. Its divisions are the two returns, by `k − slope` (or `k`); the rest multiplies.
+    /// flowed. It divides in its two returns, by `k − slope` (or `k`), for the cut-off's apex
+    /// `c / tan φ` in tension, and where an increment exhausts a strength; the rest multiplies.
     #[inline]
     fn update(&self, k: [f64; 2], delta: [f64; 2], point: &mut LawPoint) -> ([f64; 2], bool) {
         // A point that has not flowed has spent nothing (and costs no division).
