@@ -53,6 +53,17 @@ const PREFETCH_AHEAD: usize = 48;
 /// this fraction of its length.
 pub const RELEASE: f64 = 0.01;
 
+/// The radius `r` of the largest disc of tractions `|λ| ≤ r` about the origin inside `law`'s
+/// [initial region](InterfaceLaw::initial_region) `σ ≤ cap`, `|τ| ≤ c − σ tan φ`, narrowed by
+/// 1e-9 of itself against the round-off of the two ways of computing a traction (its own
+/// springs', and the evaluators' records or blocks); negative where the law gives no region.
+/// The evaluators screen a fresh interface on it: inside it, its law leaves it elastic.
+pub(crate) fn initial_disc(law: &dyn InterfaceLaw) -> f64 {
+    law.initial_region().map_or(-1.0, |[cap, c, tan_phi]| {
+        cap.min(c / (1.0 + tan_phi * tan_phi).sqrt()) * (1.0 - 1e-9)
+    })
+}
+
 /// The state of every Gauss point of the failing interfaces: two per interface, in the order of
 /// [`PlasticForces::interfaces`]. A sweep updates it in place through a shared reference, each
 /// interface by the one coupling that carries it ([`PointCell`]).

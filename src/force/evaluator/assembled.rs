@@ -9,7 +9,7 @@
 //! `K U` is complete, so that `K` and the vectors are read once per step and no force vector is
 //! written.
 
-use super::failing::{Carried, WithFailure};
+use super::failing::{Carried, Screened, WithFailure};
 use super::sweep::{Couplings, Face, Sweep};
 use super::{Evaluator, Failure, FusedStep};
 use crate::input::scene::EvaluatorKind;
@@ -165,21 +165,21 @@ pub fn assemble<K: Kinematics<N>, const N: usize>(model: &Model) -> BlockCsr<N> 
 }
 
 /// An `N × N` block, row-major.
-type Block<const N: usize> = [[f64; N]; N];
+pub(super) type Block<const N: usize> = [[f64; N]; N];
 
 /// The assembled evaluator: `f_int = K U`, with `K` in symmetric block storage.
-pub struct Assembled<K: Kinematics<N>, const N: usize> {
+pub struct Assembled<K: Screened<N>, const N: usize> {
     /// `K_ab` of each pair `a < b` of coupled elements, in the order of the sweep.
     pairs: Vec<Face<Block<N>>>,
     /// `K_ee` of each element, its upper triangle row after row ([`Assembled::PACKED`] numbers).
     diagonal: Vec<f64>,
     sweep: Sweep<N>,
     /// Where interfaces fail: the failing interfaces of each pair ([`Carried`]).
-    carried: Option<Carried>,
+    carried: Option<Carried<K::Screen>>,
     kinematics: PhantomData<K>,
 }
 
-impl<K: Kinematics<N>, const N: usize> Assembled<K, N> {
+impl<K: Screened<N>, const N: usize> Assembled<K, N> {
     /// The numbers of a symmetric `N × N` block's upper triangle.
     const PACKED: usize = N * (N + 1) / 2;
 
@@ -217,7 +217,9 @@ impl<K: Kinematics<N>, const N: usize> Assembled<K, N> {
             }
         }
         let sweep = Sweep::new(n, &mut pairs);
-        let carried = model.any_fails().then(|| Carried::new(model, &pairs));
+        let carried = model
+            .any_fails()
+            .then(|| Carried::new::<K, N, _>(model, &pairs));
         Assembled {
             pairs,
             diagonal,
@@ -228,7 +230,30 @@ impl<K: Kinematics<N>, const N: usize> Assembled<K, N> {
     }
 }
 
-impl<K: Kinematics<N>, const N: usize> Couplings<N> for Assembled<K, N> {
+impl<K: Screened<N>, const N: usize> Assembled<K, N> {
+    /// A pair's forces, `K_ab U_b` on `a` and `K_abᵀ U_a` on `b`.
+    #[inline(always)]
+    pub(super) fn products(k: &Block<N>, ua: &[f64; N], ub: &[f64; N]) -> [[f64; N]; 2] {
+        let mut out = [[0.0; N]; 2];
+        for p in 0..N {
+            let mut s = k[p][0] * ub[0];
+            for q in 1..N {
+                s += k[p][q] * ub[q];
+            }
+            out[0][p] = s;
+        }
+        for q in 0..N {
+            let mut s = k[0][q] * ua[0];
+            for p in 1..N {
+                s += k[p][q] * ua[p];
+            }
+            out[1][q] = s;
+        }
+        out
+    }
+}
+
+impl<K: Screened<N>, const N: usize> Couplings<N> for Assembled<K, N> {
     type Ref = Block<N>;
     /// A rigid pair is 80 bytes (`K_ab` and its two elements), more than an element-wise inline
     /// record (10⁶-element rigid grid, one thread: 15.9 and 15.7 ns per element-step with,
@@ -258,19 +283,10 @@ impl<K: Kinematics<N>, const N: usize> Couplings<N> for Assembled<K, N> {
         fa: &mut [f64; N],
         fb: &mut [f64; N],
     ) {
+        let [on_a, on_b] = Self::products(k, ua, ub);
         for p in 0..N {
-            let mut s = k[p][0] * ub[0];
-            for q in 1..N {
-                s += k[p][q] * ub[q];
-            }
-            fa[p] += s;
-        }
-        for q in 0..N {
-            let mut s = k[0][q] * ua[0];
-            for p in 1..N {
-                s += k[p][q] * ua[p];
-            }
-            fb[q] += s;
+            fa[p] += on_a[p];
+            fb[p] += on_b[p];
         }
     }
     /// `K` holds the ground springs in its diagonal blocks: no pair is to the ground.
@@ -292,7 +308,7 @@ impl<K: Kinematics<N>, const N: usize> Couplings<N> for Assembled<K, N> {
     }
 }
 
-impl<K: Kinematics<N>, const N: usize> Evaluator for Assembled<K, N> {
+impl<K: Screened<N>, const N: usize> Evaluator for Assembled<K, N> {
     fn kind(&self) -> EvaluatorKind {
         EvaluatorKind::Assembled
     }
@@ -309,7 +325,7 @@ impl<K: Kinematics<N>, const N: usize> Evaluator for Assembled<K, N> {
 
     fn internal_force_failing(&self, u: &[f64], f: &mut [f64], (plastic, state): Failure<'_>) {
         let carried = self.carried.as_ref();
-        let pairs = WithFailure::<_, K, N>::new(self, carried, plastic, state);
+        let pairs = WithFailure::<K, N>::new(self, carried, plastic, state);
         self.sweep.evaluate(&pairs, u, f);
     }
 
@@ -318,7 +334,7 @@ impl<K: Kinematics<N>, const N: usize> Evaluator for Assembled<K, N> {
     }
 }
 
-impl<K: Kinematics<N>, const N: usize> FusedStep for Assembled<K, N> {
+impl<K: Screened<N>, const N: usize> FusedStep for Assembled<K, N> {
     fn advance(
         &self,
         u: &mut [f64],
@@ -340,7 +356,7 @@ impl<K: Kinematics<N>, const N: usize> FusedStep for Assembled<K, N> {
         (plastic, state): Failure<'_>,
     ) -> f64 {
         let carried = self.carried.as_ref();
-        let pairs = WithFailure::<_, K, N>::new(self, carried, plastic, state);
+        let pairs = WithFailure::<K, N>::new(self, carried, plastic, state);
         self.sweep.advance(&pairs, u, v, force, loaded, update)
     }
 }
@@ -356,7 +372,7 @@ mod tests {
     /// of the pair blocks; and the AVX2 sweep gives the plain bits.
     #[test]
     fn the_upper_blocks_give_k_u() {
-        fn check<K: Kinematics<N>, const N: usize>(model: &Model) {
+        fn check<K: Screened<N>, const N: usize>(model: &Model) {
             let (k, ev) = (assemble::<K, N>(model), Assembled::<K, N>::new(model));
             let n = model.elements.len();
             assert!(ev.sweep.blocks.len() >= 3 && !ev.sweep.crossing.is_empty());

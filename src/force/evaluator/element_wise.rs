@@ -221,15 +221,9 @@ impl<K: Kernel<N>, const N: usize> ByLaw<K, N> {
                 .iter()
                 .map(|&k| {
                     let i = &model.interfaces[k as usize];
-                    // The largest disc about the origin inside the region `σ ≤ cap`,
-                    // `|τ| ≤ c − σ tan φ`, narrowed by 1e-9 against the round-off of the two
-                    // ways of computing a traction.
-                    let r = model
-                        .law_of(i)
-                        .initial_region()
-                        .map_or(-1.0, |[cap, c, tan]| cap.min(c / (1.0 + tan * tan).sqrt()));
+                    let r = crate::force::failure::initial_disc(model.law_of(i));
                     let h = i.length / (2.0 * 3f64.sqrt());
-                    let reach = model.thickness * i.length * r * (1.0 - 1e-9);
+                    let reach = model.thickness * i.length * r;
                     (records[k as usize], [(1.0 + 1e-9) / h, reach])
                 })
                 .collect()
