@@ -107,7 +107,7 @@ fn mohr_coulomb_caps_the_shear_at_c_minus_sigma_tan_phi() {
 }
 
 /// Pure shear at zero normal traction exhausts the cohesion after `G_f,II` per unit area; the
-/// broken point then carries compression and Coulomb friction only.
+/// broken point then carries compression and Coulomb friction only, and opens freely.
 #[test]
 fn a_broken_interface_keeps_compression_and_friction_only() {
     let s = strength(30.0, Some([100.0, 400.0]));
@@ -121,9 +121,27 @@ fn a_broken_interface_keeps_compression_and_friction_only() {
         "shear fracture work {} J/m², expected G_f,II = 400",
         point.fracture
     );
-    // Tension: nothing. Compression: the elastic spring on δ − δ_p. Shear: friction only.
+    // Tension: nothing, and nothing dissipated: δ_p follows δ, the opening and slip add to κ.
     let at = |d: [f64; 2]| s.update(K, d, &mut point.clone()).0;
     let ds = point.p[1];
+    let mut opened = point;
+    assert_eq!(
+        s.update(K, [1e-5, ds - 3e-6], &mut opened),
+        ([0.0; 2], true)
+    );
+    assert_eq!(opened.p, [1e-5, ds - 3e-6]);
+    assert_eq!(
+        opened.kappa,
+        [
+            point.kappa[0] + (1e-5 - point.p[0]),
+            point.kappa[1] + ((ds - 3e-6) - ds).abs()
+        ]
+    );
+    assert_eq!(
+        [opened.fracture, opened.friction],
+        [point.fracture, point.friction]
+    );
+    // Compression: the elastic spring on δ − δ_p. Shear: friction only.
     assert_eq!(at([1e-5, ds])[0], 0.0);
     let [sigma, tau] = at([-1e-6, ds + 1e-5]);
     assert!((sigma + K[0] * 1e-6).abs() < 1e-6 * K[0] * 1e-6);

@@ -77,6 +77,11 @@ pub trait InterfaceLaw: Send + Sync + Debug {
     fn is_broken(&self, _point: &LawPoint) -> bool {
         false
     }
+    /// This law as the crate's [`Strength`], which the steps then return-map in line rather
+    /// than through the seam; `None`, the default, for any other law.
+    fn as_strength(&self) -> Option<&Strength> {
+        None
+    }
 }
 
 /// The state of one Gauss point of an interface whose law is not linear (two per interface,
@@ -216,10 +221,12 @@ impl InterfaceLaw for Strength {
     /// traction lies on the softening curve and the work booked is the work done; when an
     /// increment exhausts the strength, the traction returns to the broken surface instead.
     /// Where the softening is steeper than the spring (`k < f_t / w_n`, a snap-back at the
-    /// point) the strength of the start of the update is used. Returns whether the point
-    /// flowed. It divides in its two returns, by `k − slope` (or `k`), for the cut-off's apex
-    /// `c / tan φ` in tension, and where an increment exhausts a strength; the rest multiplies.
-    #[inline]
+    /// point) the strength of the start of the update is used. An exhausted point that opens
+    /// carries nothing and dissipates nothing: its `δ_p` follows `δ`, with no return. Returns
+    /// whether the point flowed. It divides in its two returns, by `k − slope` (or `k`), for the
+    /// cut-off's apex `c / tan φ` in tension, and where an increment exhausts a strength; the
+    /// rest multiplies.
+    #[inline(always)]
     fn update(&self, k: [f64; 2], delta: [f64; 2], point: &mut LawPoint) -> ([f64; 2], bool) {
         // A point that has not flowed has spent nothing (and costs no division).
         let xi = if point.kappa == [0.0; 2] {
@@ -228,6 +235,15 @@ impl InterfaceLaw for Strength {
             self.softening(point)
         };
         let mut sigma = k[0] * (delta[0] - point.p[0]);
+        if xi >= 1.0 && sigma > 0.0 {
+            // Exhausted and open: it carries nothing, `δ_p` follows `δ` (what the returns below
+            // give, to round-off, with no division and no work).
+            let dp = [delta[0] - point.p[0], delta[1] - point.p[1]];
+            point.p = delta;
+            point.kappa[0] += dp[0];
+            point.kappa[1] += dp[1].abs();
+            return ([0.0; 2], dp != [0.0; 2]);
+        }
         // The cut-off scales with `1 − ξ` and is not negative: compression never reaches it, so
         // its division is needed in tension only.
         let cap = if sigma > 0.0 { self.cap() } else { 0.0 };
@@ -293,5 +309,8 @@ impl InterfaceLaw for Strength {
     /// Whether the point's strength is exhausted.
     fn is_broken(&self, point: &LawPoint) -> bool {
         self.softening(point) >= 1.0 && (self.f_t > 0.0 || self.c > 0.0)
+    }
+    fn as_strength(&self) -> Option<&Strength> {
+        Some(self)
     }
 }
