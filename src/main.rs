@@ -63,6 +63,16 @@ enum Command {
         #[arg(long)]
         dt: Option<f64>,
     },
+    /// The collapse load of the scene's discrete model by linear programming (limit analysis).
+    Limit {
+        /// Scene file.
+        scene: PathBuf,
+        /// What grows until collapse: `loads` (gravity held), `gravity` (loads held) or
+        /// `clamps` (the moving clamp's reaction); the scene's clamp, else its loads, else its
+        /// gravity when absent.
+        #[arg(long, value_parser = ["loads", "gravity", "clamps"])]
+        on: Option<String>,
+    },
     /// Static solution K_ff U_f = P_f (sparse Cholesky); loads at their full value.
     Static {
         /// Write summary.json, final_state.json, probes.csv and static.vtu with series.pvd
@@ -388,6 +398,16 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
         Command::Plot { dir } => {
             let written = rbsm::output::plot::histories(dir)?;
             print(cli.json, &Written { written })?;
+        }
+        Command::Limit { scene, on } => {
+            use rbsm::analysis::collapse::{self, Multiplier};
+            let on = on.as_deref().map(|on| match on {
+                "loads" => Multiplier::Loads,
+                "gravity" => Multiplier::Gravity,
+                _ => Multiplier::Clamps,
+            });
+            let r = collapse::analyse(&setup(scene, Overrides::default())?, on)?;
+            print(cli.json, &r)?;
         }
         Command::Static { scene, out } => {
             let setup = setup(scene, Overrides::default())?;

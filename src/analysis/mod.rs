@@ -3,6 +3,7 @@
 //! speed–accuracy [`tradeoff`].
 
 pub mod check;
+pub mod collapse;
 pub mod eigen;
 pub mod free;
 pub mod hopping;

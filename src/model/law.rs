@@ -174,7 +174,7 @@ impl Strength {
     }
 
     /// The cut-off, lowered to the apex of the shear surface when that comes first (Pa).
-    fn cap(&self) -> f64 {
+    pub fn cap(&self) -> f64 {
         if self.tan_phi > 0.0 {
             self.f_t.min(self.c / self.tan_phi)
         } else {

@@ -1,0 +1,407 @@
+//! Limit analysis (`rbsm limit`, the README's *Commands*): the collapse load of the discrete
+//! model a scene builds, by linear programming. RBSM began as discrete limit analysis (Kawai):
+//! a structure of rigid elements collapses when enough of its interfaces reach their strength.
+//!
+//! **The static problem**, on the explicit law's own Gauss points. Unknowns: the traction
+//! `λ = (σ, τ)` (Pa) on the interface's `(n, s)` axes at each of the two Gauss points of every
+//! interface, supports included, and the load factor `α`. Equilibrium on every free DOF:
+//! `G λ = α P_live + P_dead`, where `G λ` is the internal force of those tractions (eq. 15 with
+//! `λ` in place of `diag(k) δ`: `f_a −= t w N_aᵀ λ`, `f_b += t w N_bᵀ λ`). Strength at the Gauss
+//! points of the interfaces that fail ([`Strength`], unsoftened: the peak surface):
+//! `σ ≤ cap`, `τ + σ tan φ ≤ c`, `−τ + σ tan φ ≤ c`; the other interfaces and the supports carry
+//! any traction. Maximise `α`. With moving clamps the clamps' DOFs leave the equilibrium rows
+//! and the objective is the clamps' reaction along their velocity instead,
+//! `R = Σ_d (G λ − P_dead)_d v̂_d`.
+//!
+//! **Its dual** is the kinematic problem: the multipliers of the equilibrium rows are the
+//! element velocities of the collapse mechanism (scaled so that the live loads do unit power),
+//! those of the strength rows the plastic rates, normal to the surface (associated flow). At the
+//! optimum the two give one value: the collapse load of the discrete model, which the explicit
+//! run with the same strength, perfectly plastic, reaches where its flow is associated as well
+//! (`φ = 0` and the cut-off); with `φ > 0` the explicit law does not dilate and may carry more.
+//!
+//! **Formulations.** Only the rigid DOFs `(u, v, θ)` of each element take part: a hybrid
+//! element's constant stress is free (its material has no strength), so it balances any
+//! traction on its strain DOFs, and hybrid elements with elastic interiors collapse as rigid
+//! ones of the same shapes.
+//!
+//! The solver is Clarabel (an interior-point conic solver in Rust); the problem is sparse, with
+//! four unknowns per interface.
+
+use crate::analysis::setup::Setup;
+use crate::analysis::Report;
+use crate::error::{Error, Result};
+use crate::mesh::geometry::Vec2;
+use crate::model::law::Strength;
+use crate::model::loads::Loads;
+use crate::model::{Model, GROUND};
+use clarabel::algebra::CscMatrix;
+use clarabel::solver::{
+    DefaultSettingsBuilder, DefaultSolver, IPSolver, SolverStatus, SupportedConeT,
+};
+use serde::Serialize;
+use std::time::Instant;
+
+/// The solver's iterations at most (Clarabel's default is 200; a 400-cell Voronoi footing takes
+/// more).
+const MAX_ITERATIONS: u32 = 2000;
+
+/// What grows until the model collapses.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Multiplier {
+    /// The scene's loads (gravity held at its value): the factor `α` on them.
+    Loads,
+    /// Gravity (the loads held at their value): the factor on it.
+    Gravity,
+    /// The reaction of the scene's moving clamp along its velocity (N): displacement control.
+    Clamps,
+}
+
+impl Multiplier {
+    /// What the scene offers, in this order: its moving clamp, its loads, its gravity.
+    pub fn of(model: &Model) -> Option<Multiplier> {
+        if !model.prescribed.is_empty() {
+            Some(Multiplier::Clamps)
+        } else if !model.loads.is_empty() {
+            Some(Multiplier::Loads)
+        } else if model.gravity != Vec2::zeros() {
+            Some(Multiplier::Gravity)
+        } else {
+            None
+        }
+    }
+}
+
+/// The collapse load and its mechanism.
+#[derive(Debug, Clone, Serialize)]
+pub struct CollapseReport {
+    /// The scene's name.
+    pub scene: String,
+    /// What grows.
+    pub multiplier: Multiplier,
+    /// The load factor at collapse, or the clamp's reaction (N) for [`Multiplier::Clamps`].
+    pub collapse: f64,
+    /// The interfaces whose strength bounds the problem, and their Gauss points.
+    pub failing_interfaces: usize,
+    /// The unknowns and the constraints of the linear program.
+    pub unknowns: usize,
+    /// Equilibrium rows plus strength rows.
+    pub constraints: usize,
+    /// The solver's iterations.
+    pub iterations: u32,
+    /// Wall time of the solve (s), set-up included.
+    pub seconds: f64,
+    /// The element velocities of the mechanism `[u̇, v̇, θ̇]` per element, scaled so that the
+    /// largest translation speed is 1.
+    #[serde(skip)]
+    pub velocities: Vec<[f64; 3]>,
+    /// The statically admissible tractions `[σ, τ]` (Pa) at the two Gauss points of each
+    /// interface, in the order of `Model::interfaces`.
+    #[serde(skip)]
+    pub tractions: Vec<[[f64; 2]; 2]>,
+}
+
+impl Report for CollapseReport {
+    fn text(&self) -> String {
+        let what = match self.multiplier {
+            Multiplier::Loads => format!("load factor at collapse: {:.6}", self.collapse),
+            Multiplier::Gravity => format!("gravity factor at collapse: {:.6}", self.collapse),
+            Multiplier::Clamps => format!("clamp reaction at collapse: {:.6e} N", self.collapse),
+        };
+        format!(
+            "{}: {what}\n  {} failing interfaces; {} unknowns, {} constraints; {} iterations in {:.3} s",
+            self.scene,
+            self.failing_interfaces,
+            self.unknowns,
+            self.constraints,
+            self.iterations,
+            self.seconds
+        )
+    }
+}
+
+/// The generalised forces `(DOF, value)` of a unit traction along `dir` at `x` on interface
+/// `(a, b)` with weight `t w`: `−t w N_aᵀ dir` on `a`'s rigid DOFs and `t w N_bᵀ dir` on `b`'s
+/// (none on ground): one column of `G`.
+fn point_forces(
+    model: &Model,
+    (a, b): (u32, u32),
+    x: Vec2,
+    dir: Vec2,
+    tw: f64,
+) -> impl Iterator<Item = (usize, f64)> + '_ {
+    let nd = model.formulation.ndof();
+    [(a, -tw), (b, tw)]
+        .into_iter()
+        .filter(|&(e, _)| e != GROUND)
+        .flat_map(move |(e, sign)| {
+            let d = x - model.elements[e as usize].props.centroid;
+            let f = [dir.x, dir.y, d.x * dir.y - d.y * dir.x];
+            (0..3).map(move |k| (e as usize * nd + k, sign * f[k]))
+        })
+}
+
+/// The collapse load of the setup's model under `multiplier` (the scene's own when `None`:
+/// [`Multiplier::of`]).
+///
+/// # Errors
+/// A scene with contact (the program models bonded interfaces alone); one with nothing to grow,
+/// or with more than one moving clamp; a failing interface whose law is not the crate's
+/// [`Strength`]; a model that cannot carry its dead load (infeasible) or that does not collapse
+/// (unbounded: no mechanism is bounded by the strengths); a solver that stops short.
+pub fn analyse(setup: &Setup, multiplier: Option<Multiplier>) -> Result<CollapseReport> {
+    let started = Instant::now();
+    let model = &setup.model;
+    if model.contact.is_some() || !model.ground.is_empty() {
+        return Err(Error::scene(
+            "contact",
+            "rbsm limit models the bonded interfaces alone: remove `contact` and the ground \
+             segments from the scene",
+        ));
+    }
+    let Some(multiplier) = multiplier.or_else(|| Multiplier::of(model)) else {
+        return Err(Error::scene(
+            "bodies[].loads",
+            "nothing to grow: the scene has no loads, no gravity and no moving clamp",
+        ));
+    };
+    if multiplier == Multiplier::Clamps && model.prescribed.len() != 1 {
+        return Err(Error::scene(
+            "bodies[].supports",
+            format!(
+                "rbsm limit on the clamps takes one moving clamp (a clamp with `velocity`); the \
+                 scene has {}",
+                model.prescribed.len()
+            ),
+        ));
+    }
+    let nd = model.formulation.ndof();
+    let n = model.n_dofs();
+    // The equilibrium rows: the rigid DOFs that are not fixed (a moving clamp's DOFs are fixed).
+    let mut row_of = vec![usize::MAX; n];
+    let mut fixed = vec![false; n];
+    for &d in &model.fixed {
+        fixed[d] = true;
+    }
+    let mut rows = 0;
+    for e in 0..model.elements.len() {
+        for k in 0..3 {
+            if !fixed[e * nd + k] {
+                row_of[e * nd + k] = rows;
+                rows += 1;
+            }
+        }
+    }
+    // The loads: gravity on the translations of each element, the rest as the scene gives it.
+    let mut gravity = vec![0.0; n];
+    for (e, el) in model.elements.iter().enumerate() {
+        let w = model.gravity * (el.rho * model.thickness * el.props.area);
+        gravity[e * nd] = w.x;
+        gravity[e * nd + 1] = w.y;
+    }
+    let total = Loads::new(model).static_vector(n);
+    let loads: Vec<f64> = total.iter().zip(&gravity).map(|(t, g)| t - g).collect();
+    let (live, dead) = match multiplier {
+        Multiplier::Loads => (&loads, &gravity),
+        Multiplier::Gravity => (&gravity, &loads),
+        Multiplier::Clamps => (&vec![0.0; n], &total),
+    };
+    if multiplier != Multiplier::Clamps && live.iter().all(|&p| p == 0.0) {
+        let what = match multiplier {
+            Multiplier::Gravity => "gravity",
+            _ => "loads",
+        };
+        return Err(Error::scene(
+            "bodies[].loads",
+            format!("rbsm limit on the {what}: the scene has none"),
+        ));
+    }
+    // The clamp's DOFs and the unit vector of its velocity, for its reaction.
+    let clamp: Vec<(usize, f64)> = match multiplier {
+        Multiplier::Clamps => {
+            let p = &model.prescribed[0];
+            let unit = p.velocity / p.velocity.norm();
+            p.dofs.iter().map(|&(d, c)| (d, unit[c])).collect()
+        }
+        _ => Vec::new(),
+    };
+    let mut clamp_row = vec![0.0; n];
+    for &(d, v) in &clamp {
+        clamp_row[d] = v;
+    }
+
+    // Columns: `[σ, τ]` at each Gauss point of each interface, then `α`.
+    let n_lambda = 4 * model.interfaces.len();
+    let unknowns = n_lambda + usize::from(multiplier != Multiplier::Clamps);
+    let mut q = vec![0.0; unknowns];
+    let mut columns: Vec<Vec<(usize, f64)>> = Vec::with_capacity(unknowns);
+    let mut strength_rows: Vec<([(usize, f64); 2], f64)> = Vec::new();
+    let mut failing = 0;
+    for (k, i) in model.interfaces.iter().enumerate() {
+        let (points, w) = i.gauss_points();
+        let tw = model.thickness * w;
+        let law = model.law_of(i);
+        let strength: Option<&Strength> = if i.b != GROUND && model.fails(i) {
+            Some(law.as_strength().ok_or_else(|| {
+                Error::scene(
+                    "materials.*.interface",
+                    "rbsm limit knows the interface strength of the scene's laws (Mohr–Coulomb \
+                     with cut-off); a failing interface has a law of its own",
+                )
+            })?)
+        } else {
+            None
+        };
+        failing += usize::from(strength.is_some());
+        for (g, &x) in points.iter().enumerate() {
+            for (c, dir) in [i.normal, i.tangent].into_iter().enumerate() {
+                let col = 4 * k + 2 * g + c;
+                let forces = || point_forces(model, (i.a, i.b), x, dir, tw);
+                columns.push(
+                    forces()
+                        .filter(|&(d, f)| row_of[d] != usize::MAX && f != 0.0)
+                        .map(|(d, f)| (row_of[d], f))
+                        .collect(),
+                );
+                // The clamp's reaction `Σ_d (G λ)_d v̂_d`, maximised.
+                q[col] = -forces().map(|(d, f)| f * clamp_row[d]).sum::<f64>();
+            }
+            if let Some(s) = strength {
+                let (cap, c, tan_phi) = (s.cap(), s.c, s.tan_phi);
+                let (sigma, tau) = (4 * k + 2 * g, 4 * k + 2 * g + 1);
+                strength_rows.push(([(sigma, 1.0), (tau, 0.0)], cap));
+                strength_rows.push(([(sigma, tan_phi), (tau, 1.0)], c));
+                strength_rows.push(([(sigma, tan_phi), (tau, -1.0)], c));
+            }
+        }
+    }
+    if multiplier != Multiplier::Clamps {
+        let column = (0..n)
+            .filter(|&d| row_of[d] != usize::MAX && live[d] != 0.0)
+            .map(|d| (row_of[d], -live[d]))
+            .collect();
+        columns.push(column);
+        q[n_lambda] = -1.0;
+    }
+    for (r, (entries, _)) in strength_rows.iter().enumerate() {
+        for &(col, v) in entries {
+            if v != 0.0 {
+                columns[col].push((rows + r, v));
+            }
+        }
+    }
+    let constraints = rows + strength_rows.len();
+    let mut b = vec![0.0; constraints];
+    for d in 0..n {
+        if row_of[d] != usize::MAX {
+            b[row_of[d]] = dead[d];
+        }
+    }
+    for (r, (_, bound)) in strength_rows.iter().enumerate() {
+        b[rows + r] = *bound;
+    }
+    let a = csc(constraints, columns);
+    let p = CscMatrix::<f64>::zeros((unknowns, unknowns));
+    let cones = [
+        SupportedConeT::ZeroConeT(rows),
+        SupportedConeT::NonnegativeConeT(strength_rows.len()),
+    ];
+    let settings = DefaultSettingsBuilder::default()
+        .verbose(std::env::var_os("RBSM_LP_VERBOSE").is_some())
+        .max_iter(MAX_ITERATIONS)
+        .build()
+        .map_err(|e| Error::scene("bodies", format!("the solver's settings: {e}")))?;
+    let mut solver = DefaultSolver::new(&p, &q, &a, &b, &cones, settings)
+        .map_err(|e| Error::scene("bodies", format!("the linear program is malformed: {e}")))?;
+    solver.solve();
+    let solution = &solver.solution;
+    match solution.status {
+        SolverStatus::Solved | SolverStatus::AlmostSolved => {}
+        SolverStatus::PrimalInfeasible | SolverStatus::AlmostPrimalInfeasible => {
+            return Err(Error::scene(
+                "bodies[].loads",
+                "the model cannot carry its dead load with the strengths of its interfaces \
+                 (the program is infeasible): it collapses under the loads held at their value",
+            ))
+        }
+        SolverStatus::DualInfeasible | SolverStatus::AlmostDualInfeasible => {
+            return Err(Error::scene(
+                "materials.*.interface",
+                "the model does not collapse: no mechanism is bounded by the strengths (the \
+                 program is unbounded); give the interfaces a strength, or check the supports",
+            ))
+        }
+        status => {
+            return Err(Error::scene(
+                "bodies",
+                format!("the solver stopped short: {status:?}"),
+            ))
+        }
+    }
+    let collapse = match multiplier {
+        Multiplier::Clamps => {
+            let dead_power: f64 = clamp.iter().map(|&(d, v)| total[d] * v).sum();
+            -solution.obj_val - dead_power
+        }
+        _ => solution.x[n_lambda],
+    };
+    // The mechanism: `v = −z` on the equilibrium rows, the clamp's velocity on its DOFs.
+    let mut velocities = vec![[0.0; 3]; model.elements.len()];
+    for (e, v) in velocities.iter_mut().enumerate() {
+        for k in 0..3 {
+            let d = e * nd + k;
+            v[k] = if row_of[d] != usize::MAX {
+                -solution.z[row_of[d]]
+            } else {
+                clamp_row[d]
+            };
+        }
+    }
+    let largest = velocities
+        .iter()
+        .map(|v| v[0].hypot(v[1]))
+        .fold(0.0f64, f64::max);
+    if largest > 0.0 {
+        for v in &mut velocities {
+            v.iter_mut().for_each(|x| *x /= largest);
+        }
+    }
+    let tractions = (0..model.interfaces.len())
+        .map(|k| [0, 1].map(|g| [solution.x[4 * k + 2 * g], solution.x[4 * k + 2 * g + 1]]))
+        .collect();
+    Ok(CollapseReport {
+        scene: model.name.clone(),
+        multiplier,
+        collapse,
+        failing_interfaces: failing,
+        unknowns,
+        constraints,
+        iterations: solution.iterations,
+        seconds: started.elapsed().as_secs_f64(),
+        velocities,
+        tractions,
+    })
+}
+
+/// A sparse matrix of `m` rows from its columns (entries in any order).
+fn csc(m: usize, mut columns: Vec<Vec<(usize, f64)>>) -> CscMatrix<f64> {
+    let mut colptr = Vec::with_capacity(columns.len() + 1);
+    let (mut rowval, mut nzval) = (Vec::new(), Vec::new());
+    colptr.push(0);
+    for column in &mut columns {
+        column.sort_unstable_by_key(|&(r, _)| r);
+        let mut last = usize::MAX;
+        for &(r, v) in column.iter() {
+            if r == last {
+                *nzval.last_mut().expect("an entry") += v;
+            } else {
+                rowval.push(r);
+                nzval.push(v);
+                last = r;
+            }
+        }
+        colptr.push(rowval.len());
+    }
+    CscMatrix::new(m, columns.len(), colptr, rowval, nzval)
+}
