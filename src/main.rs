@@ -72,6 +72,10 @@ enum Command {
         /// gravity when absent.
         #[arg(long, value_parser = ["loads", "gravity", "clamps"])]
         on: Option<String>,
+        /// Write `summary.json`, the mechanism (`mechanism.vtu`, `mechanism.svg`) and the
+        /// tractions at collapse (`tractions.csv`) here.
+        #[arg(long)]
+        out: Option<PathBuf>,
     },
     /// Static solution K_ff U_f = P_f (sparse Cholesky); loads at their full value.
     Static {
@@ -399,14 +403,18 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
             let written = rbsm::output::plot::histories(dir)?;
             print(cli.json, &Written { written })?;
         }
-        Command::Limit { scene, on } => {
+        Command::Limit { scene, on, out } => {
             use rbsm::analysis::collapse::{self, Multiplier};
             let on = on.as_deref().map(|on| match on {
                 "loads" => Multiplier::Loads,
                 "gravity" => Multiplier::Gravity,
                 _ => Multiplier::Clamps,
             });
-            let r = collapse::analyse(&setup(scene, Overrides::default())?, on)?;
+            let setup = setup(scene, Overrides::default())?;
+            let r = collapse::analyse(&setup, on)?;
+            if let Some(dir) = out {
+                collapse::write(dir, &setup, &r)?;
+            }
             print(cli.json, &r)?;
         }
         Command::Static { scene, out } => {

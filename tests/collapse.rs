@@ -154,9 +154,40 @@ fn the_bundled_squeeze_collapses_at_twice_its_cohesion() {
         env!("CARGO_MANIFEST_DIR")
     );
     let scene: Value = serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
-    let r = collapse(&scene, None).unwrap();
+    let scene = Scene::from_json(&scene.to_string()).unwrap();
+    let setup = Setup::new(&scene, &Overrides::default()).unwrap();
+    let r = collapse::analyse(&setup, None).unwrap();
     let q = r.collapse / (0.5 * C);
     assert!((q - 2.0).abs() < 1e-6, "q = {q} c");
+    // `--out`: the report, the mechanism and the tractions, whose shear is nowhere above `c`.
+    let dir = tempfile::tempdir().unwrap();
+    collapse::write(dir.path(), &setup, &r).unwrap();
+    let summary: Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("summary.json")).unwrap())
+            .unwrap();
+    assert_eq!(summary["collapse"].as_f64(), Some(r.collapse));
+    for file in ["mechanism.vtu", "mechanism.svg"] {
+        assert!(
+            dir.path().join(file).metadata().unwrap().len() > 0,
+            "{file}"
+        );
+    }
+    let csv = std::fs::read_to_string(dir.path().join("tractions.csv")).unwrap();
+    let rows: Vec<&str> = csv.lines().skip(1).collect();
+    assert_eq!(rows.len(), 2 * setup.model.interfaces.len());
+    let failing: Vec<bool> = setup
+        .model
+        .interfaces
+        .iter()
+        .map(|i| setup.model.fails(i))
+        .collect();
+    for row in rows {
+        let cells: Vec<&str> = row.split(',').collect();
+        let tau: f64 = cells[7].parse().unwrap();
+        if failing[cells[0].parse::<usize>().unwrap()] {
+            assert!(tau.abs() <= C * (1.0 + 1e-6), "{row}");
+        }
+    }
 }
 
 /// Squares cut into four triangles by both diagonals, as the report's footings (§11.3).

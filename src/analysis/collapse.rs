@@ -405,3 +405,44 @@ fn csc(m: usize, mut columns: Vec<Vec<(usize, f64)>>) -> CscMatrix<f64> {
     }
     CscMatrix::new(m, columns.len(), colptr, rowval, nzval)
 }
+
+/// Writes what `rbsm limit --out DIR` gives: `summary.json` (the report), the collapse
+/// mechanism as `mechanism.vtu` (its velocities as the frame's velocity, its displacement
+/// scaled for viewing: the largest translation a tenth of the model's size) and
+/// `mechanism.svg` (the mesh moved along the mechanism over the reference), and
+/// `tractions.csv` (per interface and Gauss point, `σ` and `τ` in Pa: a statically admissible
+/// field at collapse).
+///
+/// # Errors
+/// The folder cannot be created or a file written in it.
+pub fn write(dir: &std::path::Path, setup: &Setup, report: &CollapseReport) -> Result<()> {
+    use crate::output::write_atomic;
+    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    let model = &setup.model;
+    crate::output::write_json(&dir.join("summary.json"), report)?;
+    let nd = model.formulation.ndof();
+    let mut shape = vec![0.0; model.n_dofs()];
+    for (e, v) in report.velocities.iter().enumerate() {
+        shape[e * nd..e * nd + 3].copy_from_slice(v);
+    }
+    crate::output::vtk::write_shape(&dir.join("mechanism.vtu"), model, &shape, &shape)?;
+    let caption = format!("{}: collapse mechanism", model.name);
+    let svg = crate::output::drawing::displaced_svg(model, &shape, &caption);
+    write_atomic(&dir.join("mechanism.svg"), svg.as_bytes())?;
+    let mut csv = String::from("interface,a,b,point,x (m),y (m),sigma (Pa),tau (Pa)\n");
+    for (k, (i, t)) in model.interfaces.iter().zip(&report.tractions).enumerate() {
+        let (points, _) = i.gauss_points();
+        let b = if i.b == GROUND {
+            "ground".to_string()
+        } else {
+            i.b.to_string()
+        };
+        for g in 0..2 {
+            csv.push_str(&format!(
+                "{k},{},{b},{g},{},{},{},{}\n",
+                i.a, points[g].x, points[g].y, t[g][0], t[g][1]
+            ));
+        }
+    }
+    write_atomic(&dir.join("tractions.csv"), csv.as_bytes())
+}

@@ -422,6 +422,22 @@ fn write_grid(
 /// A shape is shorter than `ndof × elements`.
 pub fn write_mode_shapes(dir: &Path, model: &Model, shapes: &[Vec<f64>]) -> Result<()> {
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    let mut frames = Vec::new();
+    for (k, shape) in shapes.iter().enumerate() {
+        let name = format!("mode_{:03}.vtu", k + 1);
+        write_shape(&dir.join(&name), model, shape, &vec![0.0; shape.len()])?;
+        frames.push(((k + 1) as f64, name));
+    }
+    write_collection(&dir.join("modes.pvd"), &frames)
+}
+
+/// Writes `shape` (DOFs over the model: a mode, a mechanism) as one frame, its displacement
+/// scaled so that the largest element translation is a tenth of the model's size, with `v` as
+/// its velocity.
+///
+/// # Errors
+/// As [`write_frame`].
+pub fn write_shape(path: &Path, model: &Model, shape: &[f64], v: &[f64]) -> Result<()> {
     let (mut lo, mut hi) = (
         crate::mesh::geometry::Vec2::repeat(f64::INFINITY),
         crate::mesh::geometry::Vec2::repeat(f64::NEG_INFINITY),
@@ -433,24 +449,12 @@ pub fn write_mode_shapes(dir: &Path, model: &Model, shapes: &[Vec<f64>]) -> Resu
     }
     let size = (hi - lo).norm();
     let nd = model.formulation.ndof();
-    let mut frames = Vec::new();
-    for (k, shape) in shapes.iter().enumerate() {
-        let max = (0..model.elements.len())
-            .map(|e| shape[e * nd].hypot(shape[e * nd + 1]))
-            .fold(0.0, f64::max);
-        let scale = if max > 0.0 { 0.1 * size / max } else { 1.0 };
-        let u: Vec<f64> = shape.iter().map(|x| x * scale).collect();
-        let name = format!("mode_{:03}.vtu", k + 1);
-        write_frame(
-            &dir.join(&name),
-            model,
-            &u,
-            &vec![0.0; u.len()],
-            Placement::Linear,
-        )?;
-        frames.push(((k + 1) as f64, name));
-    }
-    write_collection(&dir.join("modes.pvd"), &frames)
+    let max = (0..model.elements.len())
+        .map(|e| shape[e * nd].hypot(shape[e * nd + 1]))
+        .fold(0.0, f64::max);
+    let scale = if max > 0.0 { 0.1 * size / max } else { 1.0 };
+    let u: Vec<f64> = shape.iter().map(|x| x * scale).collect();
+    write_frame(path, model, &u, v, Placement::Linear)
 }
 
 /// Writes a collection listing `frames` (time, file name relative to the collection).
