@@ -1,8 +1,9 @@
 //! What failing interfaces cost a step: Voronoi panels of 10⁴, 10⁵ and 10⁶ elements, rigid and
 //! hybrid, stepped by both evaluators on 1 and 2 threads with elastic interfaces, with a
 //! softening law that stays elastic under the load, and with the same law on a panel that
-//! cracks; as ns per element-step (the median of criterion's samples, with the quartiles),
-//! measured in one run so that the ratios are the figures to read.
+//! cracks; as ns per element-step (the median of criterion's samples, with the quartiles).
+//! Every sample steps the three panels of a mesh in turn, and the ratios to the elastic step
+//! are taken sample by sample, their median reported: the figures to read.
 //!
 //! `cargo bench --bench failure` measures and rewrites the section *Interfaces that fail* of
 //! `benches/summary.md` (between its markers; `cargo bench --bench step` keeps it);
@@ -82,17 +83,18 @@ fn laws() -> [Case; 3] {
 fn main() {
     let mut c = Criterion::default()
         .sample_size(10)
-        .measurement_time(Duration::from_secs(2))
+        .measurement_time(Duration::from_secs(6))
         .warm_up_time(Duration::from_millis(500))
         .configure_from_args();
-    // (elements, formulation, law, evaluator, threads) → [q1, median, q3] ns per element-step.
+    // (elements, formulation, evaluator, threads) → per case of `laws()`, [q1, median, q3] ns
+    // per element-step, and the median of the ratios to the elastic case, sample by sample.
     type Row = (
         usize,
         &'static str,
         &'static str,
-        &'static str,
         usize,
-        [f64; 3],
+        [[f64; 3]; 3],
+        [f64; 2],
     );
     let mut rows: Vec<Row> = Vec::new();
     let mut cracked = Vec::new();
@@ -101,49 +103,63 @@ fn main() {
         .ok()
         .and_then(|m| m.parse().ok())
         .unwrap_or(usize::MAX);
+    let quartiles = |mut s: Vec<f64>| {
+        s.sort_by(f64::total_cmp);
+        [1, 2, 3].map(|k| s[(k * s.len() / 4).min(s.len() - 1)])
+    };
     for n in SIZES.into_iter().filter(|&n| n <= max) {
         for formulation in FORMULATIONS {
             let elastic = Model::build(&scene(n, formulation)).expect("the model builds");
-            for (law, strength, stretch) in laws() {
-                let mut model = elastic.clone();
-                if let Some(strength) = strength {
-                    model.set_law(strength, |_| true);
-                }
-                let (mass, loads) = (Mass::new(&model), Loads::new(&model));
-                let nd = model.formulation.ndof();
-                let mut u0 = vec![0.0; model.n_dofs()];
-                for (e, el) in model.elements.iter().enumerate() {
-                    u0[e * nd] = stretch * el.props.centroid.x;
-                }
-                let plastic = failure::build(&model);
-                assert_eq!(plastic.is_some(), law != "elastic");
-                for kind in [EvaluatorKind::Assembled, EvaluatorKind::ElementWise] {
-                    let ev = evaluator::build(&model, kind);
-                    for threads in [1, 2] {
-                        let pool = rayon::ThreadPoolBuilder::new()
-                            .num_threads(threads)
-                            .build()
-                            .expect("a thread pool");
-                        let samples = RefCell::new(Vec::new());
-                        let name = format!(
-                            "failure/{n}/{formulation}/{}/{}/{threads}thr",
-                            law.replace(' ', "-"),
-                            kind.name()
-                        );
-                        c.bench_function(&name, |b| {
-                            b.iter_custom(|iters| {
+            // Per case: its model, mass, loads, starting `U` and failing interfaces.
+            let cases: Vec<_> = laws()
+                .into_iter()
+                .map(|(law, strength, stretch)| {
+                    let mut model = elastic.clone();
+                    if let Some(strength) = strength {
+                        model.set_law(strength, |_| true);
+                    }
+                    let (mass, loads) = (Mass::new(&model), Loads::new(&model));
+                    let nd = model.formulation.ndof();
+                    let mut u0 = vec![0.0; model.n_dofs()];
+                    for (e, el) in model.elements.iter().enumerate() {
+                        u0[e * nd] = stretch * el.props.centroid.x;
+                    }
+                    let plastic = failure::build(&model);
+                    assert_eq!(plastic.is_some(), law != "elastic");
+                    (model, mass, loads, u0, plastic)
+                })
+                .collect();
+            drop(elastic);
+            for kind in [EvaluatorKind::Assembled, EvaluatorKind::ElementWise] {
+                let evaluators: Vec<_> =
+                    cases.iter().map(|c| evaluator::build(&c.0, kind)).collect();
+                for threads in [1, 2] {
+                    let pool = rayon::ThreadPoolBuilder::new()
+                        .num_threads(threads)
+                        .build()
+                        .expect("a thread pool");
+                    // The three cases in turn in every sample, so that their ratios are taken
+                    // sample by sample (a shared machine drifts between samples).
+                    let samples = RefCell::new([Vec::new(), Vec::new(), Vec::new()]);
+                    let name = format!("failure/{n}/{formulation}/{}/{threads}thr", kind.name());
+                    c.bench_function(&name, |b| {
+                        b.iter_custom(|iters| {
+                            let mut total = Duration::ZERO;
+                            for (k, ((model, mass, loads, u0, plastic), ev)) in
+                                cases.iter().zip(&evaluators).enumerate()
+                            {
                                 let (e, broken) = pool.install(|| {
                                     let mut cd = CentralDifference::from_state(
-                                        &model,
+                                        model,
                                         ev.as_ref(),
-                                        &mass,
-                                        &loads,
+                                        mass,
+                                        loads,
                                         None,
                                         1e-9,
                                         u0.clone(),
                                         vec![0.0; u0.len()],
                                     );
-                                    if let Some(p) = &plastic {
+                                    if let Some(p) = plastic {
                                         cd = cd.with_failure(p.as_ref());
                                     }
                                     let t0 = Instant::now();
@@ -160,28 +176,38 @@ fn main() {
                                     });
                                     (e, broken)
                                 });
-                                samples
-                                    .borrow_mut()
+                                samples.borrow_mut()[k]
                                     .push(e.as_secs_f64() / iters as f64 / n as f64 * 1e9);
-                                if law == "cracks" {
+                                if k == 2 {
                                     cracked.push((n, formulation, broken));
                                 }
-                                e
-                            })
-                        });
-                        let mut s = samples.borrow().clone();
-                        if s.is_empty() {
-                            continue; // filtered out on the command line
-                        }
-                        s.sort_by(f64::total_cmp);
-                        let q = [1, 2, 3].map(|k| s[(k * s.len() / 4).min(s.len() - 1)]);
-                        rows.push((n, formulation, law, kind.name(), threads, q));
+                                total += e;
+                            }
+                            total
+                        })
+                    });
+                    let s = samples.borrow().clone();
+                    if s[0].is_empty() {
+                        continue; // filtered out on the command line
                     }
+                    let paired = |k: usize| {
+                        let ratios = s[k].iter().zip(&s[0]).map(|(x, e)| x / e).collect();
+                        quartiles(ratios)[1]
+                    };
+                    let ns = [0, 1, 2].map(|k| quartiles(s[k].clone()));
+                    rows.push((
+                        n,
+                        formulation,
+                        kind.name(),
+                        threads,
+                        ns,
+                        [paired(1), paired(2)],
+                    ));
                 }
             }
         }
     }
-    if rows.len() < SIZES.len() * FORMULATIONS.len() * laws().len() * 4 {
+    if rows.len() < SIZES.len() * FORMULATIONS.len() * 4 {
         println!("a partial run (RBSM_BENCH_MAX or a filter): benches/summary.md left as it was");
         return;
     }
@@ -204,8 +230,10 @@ fn main() {
         interfaces in tension yield in the first step and break (their state read and written, \
         their return mapping and plastic forces at every step). ns per element-step, median of \
         10 samples with the quartiles, all measured in one run of `cargo bench --bench \
-        failure`; the ratios are to the elastic step of the same mesh; *broken* counts the \
-        interfaces broken at the end of the shortest sample.\n\n\
+        failure`; each sample steps the three panels in turn, and the ratios to the elastic \
+        step of the same mesh are the medians of the ratios sample by sample (a shared machine \
+        drifts between samples: a ratio of medians taken minutes apart moved by a third); \
+        *broken* counts the interfaces broken at the end of the shortest sample.\n\n\
         | elements | formulation | evaluator | threads | elastic ns | stays elastic ns | ratio | \
         cracks ns | ratio | broken interfaces |\n|---:|---|---|---:|---:|---:|---:|---:|---:|---:|\n",
     );
@@ -213,15 +241,10 @@ fn main() {
         for formulation in FORMULATIONS {
             for kind in ["assembled", "element-wise"] {
                 for threads in [1, 2] {
-                    let get = |law: &str| {
-                        rows.iter()
-                            .find(|r| {
-                                (r.0, r.1, r.2, r.3, r.4) == (n, formulation, law, kind, threads)
-                            })
-                            .map(|r| r.5)
-                            .expect("every case was measured")
-                    };
-                    let (e, s, k) = (get("elastic"), get("stays elastic"), get("cracks"));
+                    let (_, _, _, _, [e, s, k], [rs, rk]) = rows
+                        .iter()
+                        .find(|r| (r.0, r.1, r.2, r.3) == (n, formulation, kind, threads))
+                        .expect("every case was measured");
                     let _ = writeln!(
                         section,
                         "| {n} | {formulation} | {kind} | {threads} | {:.1} ({:.1}–{:.1}) | \
@@ -232,11 +255,11 @@ fn main() {
                         s[1],
                         s[0],
                         s[2],
-                        s[1] / e[1],
+                        rs,
                         k[1],
                         k[0],
                         k[2],
-                        k[1] / e[1],
+                        rk,
                         broken(n, formulation)
                     );
                 }
