@@ -143,39 +143,6 @@ fn footing(mesh: Value) -> Value {
     })
 }
 
-/// Squares of `size` cut into four triangles by both diagonals: interfaces at 0°, 90° and
-/// ±45°, the directions of Prandtl's wedges.
-fn crossed(nx: usize, ny: usize, size: [f64; 2]) -> Value {
-    let mut vertices: Vec<[f64; 2]> = Vec::new();
-    let corner = |i: usize, j: usize| j * (nx + 1) + i;
-    for j in 0..=ny {
-        for i in 0..=nx {
-            vertices.push([
-                i as f64 * size[0] / nx as f64,
-                j as f64 * size[1] / ny as f64,
-            ]);
-        }
-    }
-    let mut cells = Vec::new();
-    for j in 0..ny {
-        for i in 0..nx {
-            let m = vertices.len();
-            vertices.push([
-                (i as f64 + 0.5) * size[0] / nx as f64,
-                (j as f64 + 0.5) * size[1] / ny as f64,
-            ]);
-            let [a, b, c, d] = [
-                corner(i, j),
-                corner(i + 1, j),
-                corner(i + 1, j + 1),
-                corner(i, j + 1),
-            ];
-            cells.extend([[a, b, m], [b, c, m], [c, d, m], [d, a, m]]);
-        }
-    }
-    json!({"kind": "polygons", "vertices": vertices, "cells": cells})
-}
-
 fn voronoi(size: [f64; 2], sites: usize) -> Value {
     json!({"kind": "voronoi", "origin": [0, 0], "size": size, "sites": sites, "seed": 1, "lloyd": 10})
 }
@@ -722,7 +689,7 @@ fn prandtl(r: &mut Report, today: &mut Vec<Today>) {
         .map(|(nx, ny)| {
             (
                 format!("crossed triangles {nx} × {ny}"),
-                crossed(nx, ny, [2.0, 1.0]),
+                grid([2.0, 1.0], [nx, ny], "crossed"),
             )
         })
         .into_iter()

@@ -669,6 +669,20 @@ pub enum Cell {
     Rect,
     /// Two triangles per grid cell (lower-right `2c`, upper-left `2c + 1`).
     Tri,
+    /// Four triangles per grid cell, cut by both diagonals (bottom `4c`, right `4c + 1`, top
+    /// `4c + 2`, left `4c + 3`): interfaces at 0°, 90° and ±45°.
+    Crossed,
+}
+
+impl Cell {
+    /// The elements of one grid cell.
+    pub fn per_cell(self) -> usize {
+        match self {
+            Cell::Rect => 1,
+            Cell::Tri => 2,
+            Cell::Crossed => 4,
+        }
+    }
 }
 
 /// A side of a body's bounding box, used to tag boundary edges (supports, loads).

@@ -14,9 +14,7 @@ pub mod voronoi;
 pub use gmsh::EdgeGroup;
 
 use crate::error::{Error, Result};
-use crate::input::scene::{
-    Cell, EdgeSet, GmshSpec, GridSpec, MeshSpec, PolygonsSpec, Side, VoronoiSpec,
-};
+use crate::input::scene::{EdgeSet, GmshSpec, GridSpec, MeshSpec, PolygonsSpec, Side, VoronoiSpec};
 use crate::mesh::buckets::{BucketLists, Buckets};
 use crate::mesh::geometry::{
     area_properties, point_in_polygon, segment_distance, segments_cross, Vec2,
@@ -79,9 +77,7 @@ pub(crate) enum Checks {
 /// file, known only once read.
 pub fn cells_of(mesh: &MeshSpec) -> Option<u64> {
     match mesh {
-        MeshSpec::Grid(g) => {
-            Some(g.cells[0] as u64 * g.cells[1] as u64 * if g.cell == Cell::Tri { 2 } else { 1 })
-        }
+        MeshSpec::Grid(g) => Some(g.cells[0] as u64 * g.cells[1] as u64 * g.cell.per_cell() as u64),
         MeshSpec::Voronoi(v) => Some(v.sites as u64),
         MeshSpec::Polygons(p) => Some(p.cells.len() as u64),
         MeshSpec::Gmsh(_) => None,
