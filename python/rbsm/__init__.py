@@ -42,11 +42,13 @@ __all__ = [
     "RunResult",
     "InterfaceLines",
     "StaticResult",
+    "LimitResult",
     "EigenResult",
     "StabilityResult",
     "CheckResult",
     "run",
     "static",
+    "limit",
     "eigen",
     "stability",
     "check",
@@ -354,6 +356,39 @@ def static(
     ``out``, the command line's files."""
     d = _rbsm.static(*_scene(scene)._source(), out=_opt(out), threads=threads)
     return StaticResult(json.loads(d["report"]), d["U"], d["centroids"], list(d["dofs"]))
+
+
+@dataclass
+class LimitResult:
+    """``rbsm limit``: the collapse load of the scene's discrete model by linear programming."""
+
+    report: Dict[str, Any]
+    """``rbsm limit --json``: what grows, the collapse load, the program's size and time."""
+    velocities: np.ndarray
+    """The collapse mechanism, ``(elements, 3)``: ``u̇, v̇, θ̇`` per element, the largest
+    translation 1 (one optimal field: motions that cost nothing may be part of it)."""
+    tractions: np.ndarray
+    """Tractions at collapse, ``(interfaces, 2, 2)``: ``[σ, τ]`` (Pa) at each Gauss point."""
+    centroids: np.ndarray
+
+    @property
+    def collapse(self) -> float:
+        """The load factor at collapse, or the moving clamp's reaction (N)."""
+        return float(self.report["collapse"])
+
+
+def limit(
+    scene: SceneLike,
+    *,
+    on: Optional[str] = None,
+    out: Optional[PathLike] = None,
+    threads: Optional[int] = None,
+) -> LimitResult:
+    """``rbsm limit``: the collapse load under ``on`` (``"loads"``, ``"gravity"`` or
+    ``"clamps"``; the scene's moving clamp, else its loads, else gravity when ``None``); with
+    ``out``, the command line's files."""
+    d = _rbsm.limit(*_scene(scene)._source(), on=on, out=_opt(out), threads=threads)
+    return LimitResult(json.loads(d["report"]), d["velocities"], d["tractions"], d["centroids"])
 
 
 @dataclass

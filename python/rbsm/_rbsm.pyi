@@ -39,6 +39,14 @@ def static(
     out: Optional[str] = None,
     threads: Optional[int] = None,
 ) -> Dict[str, Any]: ...
+def limit(
+    path: Optional[str],
+    text: Optional[str],
+    base_dir: Optional[str],
+    on: Optional[str] = None,
+    out: Optional[str] = None,
+    threads: Optional[int] = None,
+) -> Dict[str, Any]: ...
 def eigen(
     path: Optional[str],
     text: Optional[str],

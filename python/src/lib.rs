@@ -344,6 +344,64 @@ fn static_py<'py>(
     Ok(d)
 }
 
+/// `rbsm limit`: the report (JSON), the mechanism's velocities as `(elements, 3)`, the
+/// tractions at collapse as `(interfaces, 2, 2)` and the centroids; with `out`, the command
+/// line's files.
+#[pyfunction]
+#[pyo3(name = "limit", signature = (path, text, base_dir, on=None, out=None, threads=None))]
+#[allow(clippy::too_many_arguments)]
+fn limit_py<'py>(
+    py: Python<'py>,
+    path: Option<PathBuf>,
+    text: Option<String>,
+    base_dir: Option<PathBuf>,
+    on: Option<String>,
+    out: Option<PathBuf>,
+    threads: Option<usize>,
+) -> PyResult<Bound<'py, PyDict>> {
+    use rbsm::analysis::collapse::{self, Multiplier};
+    let on = match on.as_deref() {
+        None => None,
+        Some("loads") => Some(Multiplier::Loads),
+        Some("gravity") => Some(Multiplier::Gravity),
+        Some("clamps") => Some(Multiplier::Clamps),
+        Some(other) => {
+            return Err(PyValueError::new_err(format!(
+                "on: {other:?} is not one of loads, gravity, clamps"
+            )))
+        }
+    };
+    let scene = scene(path, text, base_dir)?;
+    let (result, signal) = detached(py, threads, None, || {
+        let setup = Setup::new(&scene, &Overrides::default()).map_err(input)?;
+        let report = collapse::analyse(&setup, on)?;
+        if let Some(dir) = &out {
+            collapse::write(dir, &setup, &report)?;
+        }
+        Ok::<_, Failed>((setup, report))
+    })?;
+    raise(signal)?;
+    let (setup, report) = result.map_err(raise_failed)?;
+    let d = PyDict::new(py);
+    d.set_item("report", json(&report))?;
+    let velocities = report.velocities.iter().flatten().copied().collect();
+    d.set_item("velocities", matrix(py, velocities, 3)?)?;
+    let n = report.tractions.len();
+    let tractions: Vec<f64> = report
+        .tractions
+        .iter()
+        .flatten()
+        .flatten()
+        .copied()
+        .collect();
+    d.set_item(
+        "tractions",
+        PyArray1::from_vec(py, tractions).reshape([n, 2, 2])?,
+    )?;
+    d.set_item("centroids", centroids(py, &setup)?)?;
+    Ok(d)
+}
+
 /// A signal that arrived during an analysis that cannot stop half way: raised once it is done.
 fn raise(signal: Option<PyErr>) -> PyResult<()> {
     signal.map_or(Ok(()), Err)
@@ -600,6 +658,7 @@ fn _rbsm(m: &Bound<'_, PyModule>) -> PyResult<()> {
     for f in [
         wrap_pyfunction!(run_py, m)?,
         wrap_pyfunction!(static_py, m)?,
+        wrap_pyfunction!(limit_py, m)?,
         wrap_pyfunction!(eigen_py, m)?,
         wrap_pyfunction!(stability_py, m)?,
         wrap_pyfunction!(check_py, m)?,

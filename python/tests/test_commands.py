@@ -103,6 +103,21 @@ def test_eigen_static_stability_and_check_equal_the_command_line(cli, scenes):
     assert all(f["history"].shape[1] == 3 for f in st.fractions)
 
 
+def test_limit_equals_the_command_line(cli, scenes, tmp_path):
+    scene = scenes / "squeeze.json"
+    code, report = cli_json(cli, "limit", scene)
+    assert code == 0, report
+    r = rbsm.limit(scene, out=tmp_path / "limit")
+    assert r.report == {**report, "seconds": r.report["seconds"]}
+    # The squeeze's closed form, 2 c over its 0.5 m width (c = 1e5 Pa).
+    assert abs(r.collapse - 1e5) < 1e-6 * 1e5
+    assert r.velocities.shape == (r.centroids.shape[0], 3)
+    assert r.tractions.shape[1:] == (2, 2)
+    assert (tmp_path / "limit" / "mechanism.vtu").exists()
+    with pytest.raises(ValueError, match="on"):
+        rbsm.limit(scene, on="wind")
+
+
 def test_scenes_from_a_dict_a_string_and_a_file_are_the_same(scenes):
     path = scenes / "cantilever.json"
     text = path.read_text()
