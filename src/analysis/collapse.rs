@@ -32,6 +32,7 @@ use crate::analysis::setup::Setup;
 use crate::analysis::Report;
 use crate::error::{Error, Result};
 use crate::mesh::geometry::Vec2;
+use crate::model::formulation::{Kinematics, Rigid};
 use crate::model::law::Strength;
 use crate::model::loads::Loads;
 use crate::model::{Model, GROUND};
@@ -82,7 +83,7 @@ pub struct CollapseReport {
     pub multiplier: Multiplier,
     /// The load factor at collapse, or the clamp's reaction (N) for [`Multiplier::Clamps`].
     pub collapse: f64,
-    /// The interfaces whose strength bounds the problem, and their Gauss points.
+    /// The interfaces whose strength bounds the problem.
     pub failing_interfaces: usize,
     /// The unknowns and the constraints of the linear program.
     pub unknowns: usize,
@@ -136,8 +137,8 @@ fn point_forces(
         .into_iter()
         .filter(|&(e, _)| e != GROUND)
         .flat_map(move |(e, sign)| {
-            let d = x - model.elements[e as usize].props.centroid;
-            let f = [dir.x, dir.y, d.x * dir.y - d.y * dir.x];
+            let mut f = [0.0; 3];
+            Rigid::add_force(&mut f, x - model.elements[e as usize].props.centroid, dir);
             (0..3).map(move |k| (e as usize * nd + k, sign * f[k]))
         })
 }
@@ -193,15 +194,13 @@ pub fn analyse(setup: &Setup, multiplier: Option<Multiplier>) -> Result<Collapse
             }
         }
     }
-    // The loads: gravity on the translations of each element, the rest as the scene gives it.
-    let mut gravity = vec![0.0; n];
-    for (e, el) in model.elements.iter().enumerate() {
-        let w = model.gravity * (el.rho * model.thickness * el.props.area);
-        gravity[e * nd] = w.x;
-        gravity[e * nd + 1] = w.y;
-    }
-    let total = Loads::new(model).static_vector(n);
-    let loads: Vec<f64> = total.iter().zip(&gravity).map(|(t, g)| t - g).collect();
+    // The loads, gravity apart from the others.
+    let all = Loads::new(model);
+    let (gravity, loads, total) = (
+        all.gravity_vector(n),
+        all.applied_vector(n),
+        all.static_vector(n),
+    );
     let (live, dead) = match multiplier {
         Multiplier::Loads => (&loads, &gravity),
         Multiplier::Gravity => (&gravity, &loads),

@@ -57,11 +57,26 @@ impl Loads {
     /// The load vector `P` over all DOFs with every load at its full value (amplitudes are
     /// time histories; a static analysis applies the loads as given).
     pub fn static_vector(&self, n: usize) -> Vec<f64> {
+        let mut p = self.gravity_vector(n);
+        for &(d, v, _) in &self.entries {
+            p[d] += v;
+        }
+        p
+    }
+
+    /// Gravity's part of [`Loads::static_vector`]: the weights on the translations.
+    pub fn gravity_vector(&self, n: usize) -> Vec<f64> {
         let mut p = vec![0.0; n];
         for (e, w) in self.weight.iter().enumerate() {
             p[e * self.nd] += w.x;
             p[e * self.nd + 1] += w.y;
         }
+        p
+    }
+
+    /// The applied loads' part of [`Loads::static_vector`] (gravity left out).
+    pub fn applied_vector(&self, n: usize) -> Vec<f64> {
+        let mut p = vec![0.0; n];
         for &(d, v, _) in &self.entries {
             p[d] += v;
         }

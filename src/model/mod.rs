@@ -80,6 +80,11 @@ impl Interface {
         ([m - half, m + half], 0.5 * self.length)
     }
 
+    /// The distance `h = L/(2√3)` of each Gauss point from the midpoint.
+    pub fn gauss_offset(&self) -> f64 {
+        self.length / (2.0 * 3f64.sqrt())
+    }
+
     /// The midpoint of the edge.
     pub fn midpoint(&self) -> Vec2 {
         0.5 * (self.p1 + self.p2)

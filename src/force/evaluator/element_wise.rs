@@ -222,9 +222,11 @@ impl<K: Kernel<N>, const N: usize> ByLaw<K, N> {
                 .map(|&k| {
                     let i = &model.interfaces[k as usize];
                     let r = crate::force::failure::initial_disc(model.law_of(i));
-                    let h = i.length / (2.0 * 3f64.sqrt());
                     let reach = model.thickness * i.length * r;
-                    (records[k as usize], [(1.0 + 1e-9) / h, reach])
+                    (
+                        records[k as usize],
+                        [(1.0 + 1e-9) / i.gauss_offset(), reach],
+                    )
                 })
                 .collect()
         } else {

@@ -1,10 +1,10 @@
 //! The assembled evaluator's couplings with the failing interfaces they carry
 //! (`force::failure`): each block `K_ab` adds its elastic forces, then return-maps the Gauss
 //! points of the failing interfaces between its two elements and adds their plastic part, in
-//! one pass of the sweep ([`super::sweep`]), evaluating or stepping. On rigid elements a
-//! block that carries one interface, in its initial state, first screens it on the products
-//! the block has computed (`K_abᵀ U_a − K_ab U_b` is the interface's resultant traction), and
-//! reads nothing else where the screen passes. (The element-wise evaluator gives a failing
+//! one pass of the sweep ([`super::sweep`]), evaluating or stepping. A block that carries one
+//! interface, in its initial state, first screens it on the products the block has computed
+//! (`K_abᵀ U_a − K_ab U_b` is the interface's resultant traction; [`Screened`]), and reads
+//! nothing else where the screen passes. (The element-wise evaluator gives a failing
 //! interface its whole traction through its law instead, `super::element_wise`.)
 
 use super::assembled::{Assembled, Block};
@@ -54,8 +54,7 @@ impl Screened<3> for Rigid {
     type Screen = [f64; 2];
     const NEVER: [f64; 2] = [0.0, -1.0];
     fn screen(i: &Interface, [k_n, _]: [f64; 2], r: f64, t: f64) -> [f64; 2] {
-        let h = i.length / (2.0 * 3f64.sqrt());
-        [t * i.length * k_n * h, t * i.length * r]
+        [t * i.length * k_n * i.gauss_offset(), t * i.length * r]
     }
     #[inline(always)]
     fn passes(
@@ -74,7 +73,7 @@ impl Screened<6> for Hybrid {
     type Screen = [f64; 4];
     const NEVER: [f64; 4] = [0.0, 0.0, 0.0, -1.0];
     fn screen(i: &Interface, [k_n, k_s]: [f64; 2], r: f64, t: f64) -> [f64; 4] {
-        let g = i.length / (2.0 * 3f64.sqrt()) * i.tangent;
+        let g = i.gauss_offset() * i.tangent;
         [g.x, g.y, t * i.length * k_n.max(k_s), t * i.length * r]
     }
     #[inline(always)]
