@@ -371,7 +371,8 @@ pub struct FailingInterfaces<K: Kinematics<N>, const N: usize> {
     /// Each law [as the crate's `Strength`](InterfaceLaw::as_strength), which the steps
     /// return-map in line: through the seam, a point's state goes to the stack and back (the
     /// cracking 10⁵-element rigid panel of `cargo bench --bench failure`, element-wise, one
-    /// thread: 154–160 ns per element-step through the seam, 133–144 in line).
+    /// thread, stepped in turns with the elastic panel by a driver not kept: 154–160 ns per
+    /// element-step through the seam, 133–144 in line; the bench's own run, 147 in line).
     strengths: Vec<Option<Strength>>,
     /// Each law's [`InterfaceLaw::initial_region`], or one that holds no traction.
     regions: Vec<[f64; 3]>,
