@@ -72,6 +72,11 @@ enum Command {
         /// gravity when absent.
         #[arg(long, value_parser = ["loads", "gravity", "clamps"])]
         on: Option<String>,
+        /// Where the interface strengths are checked: `gauss` (the explicit law's two Gauss
+        /// points, the model `rbsm run` steps) or `ends` (each interface's end points, where a
+        /// linear traction is extreme, as finite-element limit analysis checks it).
+        #[arg(long, default_value = "gauss", value_parser = ["gauss", "ends"])]
+        points: String,
         /// Write `summary.json`, the mechanism (`mechanism.vtu`, `mechanism.svg`) and the
         /// tractions at collapse (`tractions.csv`) here.
         #[arg(long)]
@@ -403,7 +408,12 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
             let written = rbsm::output::plot::histories(dir)?;
             print(cli.json, &Written { written })?;
         }
-        Command::Limit { scene, on, out } => {
+        Command::Limit {
+            scene,
+            on,
+            points,
+            out,
+        } => {
             use rbsm::analysis::collapse::{self, Multiplier};
             let on = on.as_deref().map(|on| match on {
                 "loads" => Multiplier::Loads,
@@ -411,7 +421,8 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
                 _ => Multiplier::Clamps,
             });
             let setup = setup(scene, Overrides::default())?;
-            let r = collapse::analyse(&setup, on)?;
+            let points = points.parse().map_err(|e: String| rbsm::error::Error::scene("--points", e))?;
+            let r = collapse::analyse(&setup, on, points)?;
             if let Some(dir) = out {
                 collapse::write(dir, &setup, &r)?;
             }

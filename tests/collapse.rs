@@ -30,7 +30,7 @@ fn collapse(
     on: Option<Multiplier>,
 ) -> rbsm::error::Result<collapse::CollapseReport> {
     let scene = Scene::from_json(&scene.to_string()).unwrap();
-    collapse::analyse(&Setup::new(&scene, &Overrides::default())?, on)
+    collapse::analyse(&Setup::new(&scene, &Overrides::default())?, on, Default::default())
 }
 
 /// `n` unit squares stacked in a column.
@@ -156,7 +156,7 @@ fn the_bundled_squeeze_collapses_at_twice_its_cohesion() {
     let scene: Value = serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
     let scene = Scene::from_json(&scene.to_string()).unwrap();
     let setup = Setup::new(&scene, &Overrides::default()).unwrap();
-    let r = collapse::analyse(&setup, None).unwrap();
+    let r = collapse::analyse(&setup, None, Default::default()).unwrap();
     let q = r.collapse / (0.5 * C);
     assert!((q - 2.0).abs() < 1e-6, "q = {q} c");
     // `--out`: the report, the mechanism and the tractions, whose shear is nowhere above `c`.

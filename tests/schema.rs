@@ -85,6 +85,8 @@ fn extras() -> Vec<(String, Value)> {
 
     let mut hybrid = load("cantilever.json");
     hybrid["formulation"] = json!({"kind": "hybrid", "penalty": 100.0});
+    hybrid["materials"]["concrete"]["element"] =
+        json!({"kind": "mohr-coulomb", "cohesion": 3e6, "friction_angle": 30});
     hybrid["bodies"][0]["mesh"]["cell"] = json!("tri");
     hybrid["output"]["probes"] =
         json!([{"name": "tip_v", "element": 79, "dof": "v"}, {"element": 3, "dof": "gxy"}]);
@@ -101,6 +103,7 @@ fn extras() -> Vec<(String, Value)> {
     plastic["bodies"][0]["supports"][1]["span"] = json!([0.0, 0.05]);
     let mut elastic = load("tension_bar.json");
     elastic["materials"]["concrete"]["interface"] = json!({"kind": "elastic"});
+    elastic["materials"]["concrete"]["element"] = json!({"kind": "elastic"});
     elastic["bodies"][0]["supports"][0] =
         json!({"kind": "ground-spring", "edge": "left", "span": [0.0, 0.05]});
 

@@ -370,6 +370,12 @@ class LimitResult:
     tractions: np.ndarray
     """Tractions at collapse, ``(interfaces, 2, 2)``: ``[σ, τ]`` (Pa) at each Gauss point."""
     centroids: np.ndarray
+    strain_rates: np.ndarray
+    """The mechanism's plastic strain rates ``[ε̇_x, ε̇_y, γ̇_xy]`` per element on the scale of
+    ``velocities`` (hybrid; ``(0, 3)`` for a rigid model)."""
+    stresses: np.ndarray
+    """The elements' stresses at collapse ``[σ_x, σ_y, τ_xy]`` (Pa; zero for an element without
+    a strength; ``(0, 3)`` when none has one)."""
 
     @property
     def collapse(self) -> float:
@@ -381,14 +387,25 @@ def limit(
     scene: SceneLike,
     *,
     on: Optional[str] = None,
+    points: str = "gauss",
     out: Optional[PathLike] = None,
     threads: Optional[int] = None,
 ) -> LimitResult:
     """``rbsm limit``: the collapse load under ``on`` (``"loads"``, ``"gravity"`` or
-    ``"clamps"``; the scene's moving clamp, else its loads, else gravity when ``None``); with
-    ``out``, the command line's files."""
-    d = _rbsm.limit(*_scene(scene)._source(), on=on, out=_opt(out), threads=threads)
-    return LimitResult(json.loads(d["report"]), d["velocities"], d["tractions"], d["centroids"])
+    ``"clamps"``; the scene's moving clamp, else its loads, else gravity when ``None``), the
+    interface strengths checked at ``points`` (``"gauss"`` or ``"ends"``); with ``out``, the
+    command line's files."""
+    d = _rbsm.limit(
+        *_scene(scene)._source(), on=on, points=points, out=_opt(out), threads=threads
+    )
+    return LimitResult(
+        json.loads(d["report"]),
+        d["velocities"],
+        d["tractions"],
+        d["centroids"],
+        d["strain_rates"],
+        d["stresses"],
+    )
 
 
 @dataclass

@@ -344,11 +344,12 @@ fn static_py<'py>(
     Ok(d)
 }
 
-/// `rbsm limit`: the report (JSON), the mechanism's velocities as `(elements, 3)`, the
-/// tractions at collapse as `(interfaces, 2, 2)` and the centroids; with `out`, the command
-/// line's files.
+/// `rbsm limit`: the report (JSON), the mechanism's velocities as `(elements, 3)` and plastic
+/// strain rates as `(elements, 3)` (hybrid; `(0, 3)` rigid), the tractions at collapse as
+/// `(interfaces, 2, 2)`, the elements' stresses as `(elements, 3)` (`(0, 3)` when no element has
+/// a strength) and the centroids; with `out`, the command line's files.
 #[pyfunction]
-#[pyo3(name = "limit", signature = (path, text, base_dir, on=None, out=None, threads=None))]
+#[pyo3(name = "limit", signature = (path, text, base_dir, on=None, points="gauss".to_string(), out=None, threads=None))]
 #[allow(clippy::too_many_arguments)]
 fn limit_py<'py>(
     py: Python<'py>,
@@ -356,10 +357,14 @@ fn limit_py<'py>(
     text: Option<String>,
     base_dir: Option<PathBuf>,
     on: Option<String>,
+    points: String,
     out: Option<PathBuf>,
     threads: Option<usize>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    use rbsm::analysis::collapse::{self, Multiplier};
+    use rbsm::analysis::collapse::{self, Multiplier, Points};
+    let points: Points = points
+        .parse()
+        .map_err(|e: String| PyValueError::new_err(format!("points: {e}")))?;
     let on = match on.as_deref() {
         None => None,
         Some("loads") => Some(Multiplier::Loads),
@@ -374,7 +379,7 @@ fn limit_py<'py>(
     let scene = scene(path, text, base_dir)?;
     let (result, signal) = detached(py, threads, None, || {
         let setup = Setup::new(&scene, &Overrides::default()).map_err(input)?;
-        let report = collapse::analyse(&setup, on)?;
+        let report = collapse::analyse(&setup, on, points)?;
         if let Some(dir) = &out {
             collapse::write(dir, &setup, &report)?;
         }
@@ -386,6 +391,10 @@ fn limit_py<'py>(
     d.set_item("report", json(&report))?;
     let velocities = report.velocities.iter().flatten().copied().collect();
     d.set_item("velocities", matrix(py, velocities, 3)?)?;
+    let rates = report.strain_rates.iter().flatten().copied().collect();
+    d.set_item("strain_rates", matrix(py, rates, 3)?)?;
+    let stresses = report.stresses.iter().flatten().copied().collect();
+    d.set_item("stresses", matrix(py, stresses, 3)?)?;
     let n = report.tractions.len();
     let tractions: Vec<f64> = report
         .tractions

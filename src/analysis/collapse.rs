@@ -32,7 +32,7 @@ use crate::analysis::setup::Setup;
 use crate::analysis::Report;
 use crate::error::{Error, Result};
 use crate::mesh::geometry::Vec2;
-use crate::model::formulation::{Kinematics, Rigid};
+use crate::model::formulation::{Hybrid, Kinematics, Rigid};
 use crate::model::law::Strength;
 use crate::model::loads::Loads;
 use crate::model::{Model, GROUND};
@@ -97,6 +97,16 @@ pub struct CollapseReport {
     /// largest translation speed is 1.
     #[serde(skip)]
     pub velocities: Vec<[f64; 3]>,
+    /// The plastic strain rates `[ε̇_x, ε̇_y, γ̇_xy]` of the mechanism per element, on the same
+    /// scale (zero for an element without a strength); empty for a rigid model.
+    #[serde(skip)]
+    pub strain_rates: Vec<[f64; 3]>,
+    /// The statically admissible stresses `[σ_x, σ_y, τ_xy]` (Pa) of the elements that have a
+    /// strength, zero for the others; empty when none has.
+    #[serde(skip)]
+    pub stresses: Vec<[f64; 3]>,
+    /// The elements whose strength bounds the problem (hybrid).
+    pub yielding_elements: usize,
     /// The statically admissible tractions `[σ, τ]` (Pa) at the two Gauss points of each
     /// interface, in the order of `Model::interfaces`.
     #[serde(skip)]
@@ -111,9 +121,10 @@ impl Report for CollapseReport {
             Multiplier::Clamps => format!("clamp reaction at collapse: {:.6e} N", self.collapse),
         };
         format!(
-            "{}: {what}\n  {} failing interfaces; {} unknowns, {} constraints; {} iterations in {:.3} s",
+            "{}: {what}\n  {} failing interfaces, {} yielding elements; {} unknowns, {} constraints; {} iterations in {:.3} s",
             self.scene,
             self.failing_interfaces,
+            self.yielding_elements,
             self.unknowns,
             self.constraints,
             self.iterations,
@@ -123,8 +134,8 @@ impl Report for CollapseReport {
 }
 
 /// The generalised forces `(DOF, value)` of a unit traction along `dir` at `x` on interface
-/// `(a, b)` with weight `t w`: `−t w N_aᵀ dir` on `a`'s rigid DOFs and `t w N_bᵀ dir` on `b`'s
-/// (none on ground): one column of `G`.
+/// `(a, b)` with weight `t w`: `−t w N_aᵀ dir` on `a`'s DOFs and `t w N_bᵀ dir` on `b`'s (none
+/// on ground), the strain DOFs of hybrid elements included: one column of `G`.
 fn point_forces(
     model: &Model,
     (a, b): (u32, u32),
@@ -137,10 +148,53 @@ fn point_forces(
         .into_iter()
         .filter(|&(e, _)| e != GROUND)
         .flat_map(move |(e, sign)| {
-            let mut f = [0.0; 3];
-            Rigid::add_force(&mut f, x - model.elements[e as usize].props.centroid, dir);
-            (0..3).map(move |k| (e as usize * nd + k, sign * f[k]))
+            let mut f = [0.0; 6];
+            let d = x - model.elements[e as usize].props.centroid;
+            if nd == 6 {
+                Hybrid::add_force(&mut f, d, dir);
+            } else {
+                let mut r = [0.0; 3];
+                Rigid::add_force(&mut r, d, dir);
+                f[..3].copy_from_slice(&r);
+            }
+            (0..nd).map(move |k| (e as usize * nd + k, sign * f[k]))
         })
+}
+
+/// Where the interface strengths are checked.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Points {
+    /// At the explicit law's two Gauss points: the model the explicit run steps.
+    #[default]
+    Gauss,
+    /// At the interface's end points (as finite-element limit analysis does: the linear
+    /// traction of the two Gauss points is extreme there), a stronger condition.
+    Ends,
+}
+
+impl std::str::FromStr for Points {
+    type Err = String;
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        match s {
+            "gauss" => Ok(Points::Gauss),
+            "ends" => Ok(Points::Ends),
+            _ => Err(format!("`{s}`: the strengths are checked at `gauss` or `ends`")),
+        }
+    }
+}
+
+/// The weights of the two Gauss point tractions in the linear traction at the edge's ends
+/// `p1` and `p2` (the Gauss points lie at `∓ L/(2√3)` from the midpoint, `p1` side first):
+/// `λ(p1) = (1 + √3)/2 λ₀ + (1 − √3)/2 λ₁`, and the mirror at `p2`.
+fn end_weights(points: Points) -> [[f64; 2]; 2] {
+    match points {
+        Points::Gauss => [[1.0, 0.0], [0.0, 1.0]],
+        Points::Ends => {
+            let (near, far) = (0.5 * (1.0 + 3f64.sqrt()), 0.5 * (1.0 - 3f64.sqrt()));
+            [[near, far], [far, near]]
+        }
+    }
 }
 
 /// The collapse load of the setup's model under `multiplier` (the scene's own when `None`:
@@ -151,7 +205,11 @@ fn point_forces(
 /// or with more than one moving clamp; a failing interface whose law is not the crate's
 /// [`Strength`]; a model that cannot carry its dead load (infeasible) or that does not collapse
 /// (unbounded: no mechanism is bounded by the strengths); a solver that stops short.
-pub fn analyse(setup: &Setup, multiplier: Option<Multiplier>) -> Result<CollapseReport> {
+pub fn analyse(
+    setup: &Setup,
+    multiplier: Option<Multiplier>,
+    points: Points,
+) -> Result<CollapseReport> {
     let started = Instant::now();
     let model = &setup.model;
     if model.contact.is_some() || !model.ground.is_empty() {
@@ -179,15 +237,18 @@ pub fn analyse(setup: &Setup, multiplier: Option<Multiplier>) -> Result<Collapse
     }
     let nd = model.formulation.ndof();
     let n = model.n_dofs();
-    // The equilibrium rows: the rigid DOFs that are not fixed (a moving clamp's DOFs are fixed).
+    // The equilibrium rows: the rigid DOFs that are not fixed (a moving clamp's DOFs are fixed),
+    // and the strain DOFs of the elements that have a strength (those of elastic elements
+    // balance any traction with their free stress).
     let mut row_of = vec![usize::MAX; n];
     let mut fixed = vec![false; n];
     for &d in &model.fixed {
         fixed[d] = true;
     }
     let mut rows = 0;
-    for e in 0..model.elements.len() {
-        for k in 0..3 {
+    for (e, el) in model.elements.iter().enumerate() {
+        let dofs = if el.strength.is_some() { nd } else { 3 };
+        for k in 0..dofs {
             if !fixed[e * nd + k] {
                 row_of[e * nd + k] = rows;
                 rows += 1;
@@ -230,12 +291,19 @@ pub fn analyse(setup: &Setup, multiplier: Option<Multiplier>) -> Result<Collapse
         clamp_row[d] = v;
     }
 
-    // Columns: `[σ, τ]` at each Gauss point of each interface, then `α`.
+    // Columns: `[σ, τ]` at each Gauss point of each interface, then `(σ_x, σ_y, τ_xy)` of each
+    // element that has a strength, then `α`.
     let n_lambda = 4 * model.interfaces.len();
-    let unknowns = n_lambda + usize::from(multiplier != Multiplier::Clamps);
+    let yielding: Vec<usize> = (0..model.elements.len())
+        .filter(|&e| model.elements[e].strength.is_some())
+        .collect();
+    let unknowns =
+        n_lambda + 3 * yielding.len() + usize::from(multiplier != Multiplier::Clamps);
     let mut q = vec![0.0; unknowns];
     let mut columns: Vec<Vec<(usize, f64)>> = Vec::with_capacity(unknowns);
-    let mut strength_rows: Vec<([(usize, f64); 2], f64)> = Vec::new();
+    // `Σ a x ≤ b`: the interfaces' strengths at their Gauss points or ends.
+    let mut strength_rows: Vec<(Vec<(usize, f64)>, f64)> = Vec::new();
+    let weights = end_weights(points);
     let mut failing = 0;
     for (k, i) in model.interfaces.iter().enumerate() {
         let (points, w) = i.gauss_points();
@@ -266,32 +334,72 @@ pub fn analyse(setup: &Setup, multiplier: Option<Multiplier>) -> Result<Collapse
                 // The clamp's reaction `Σ_d (G λ)_d v̂_d`, maximised.
                 q[col] = -forces().map(|(d, f)| f * clamp_row[d]).sum::<f64>();
             }
-            if let Some(s) = strength {
-                let (cap, c, tan_phi) = (s.cap(), s.c, s.tan_phi);
-                let (sigma, tau) = (4 * k + 2 * g, 4 * k + 2 * g + 1);
-                strength_rows.push(([(sigma, 1.0), (tau, 0.0)], cap));
-                strength_rows.push(([(sigma, tan_phi), (tau, 1.0)], c));
-                strength_rows.push(([(sigma, tan_phi), (tau, -1.0)], c));
+        }
+        if let Some(s) = strength {
+            let (cap, c, tan_phi) = (s.cap(), s.c, s.tan_phi);
+            for w in weights {
+                // `(a_σ, a_τ)` of a row on the traction `Σ_g w_g λ_g` at the point checked.
+                let row = |a_sigma: f64, a_tau: f64| -> Vec<(usize, f64)> {
+                    (0..2)
+                        .flat_map(|g| [(4 * k + 2 * g, w[g] * a_sigma), (4 * k + 2 * g + 1, w[g] * a_tau)])
+                        .filter(|&(_, v)| v != 0.0)
+                        .collect()
+                };
+                strength_rows.push((row(1.0, 0.0), cap));
+                strength_rows.push((row(tan_phi, 1.0), c));
+                strength_rows.push((row(tan_phi, -1.0), c));
             }
         }
     }
+    // The elements' stresses: `t A σ` on their strain DOFs (the interior term of eq. 15).
+    for &e in &yielding {
+        let volume = model.thickness * model.elements[e].props.area;
+        for k in 0..3 {
+            let d = e * nd + 3 + k;
+            columns.push(if row_of[d] == usize::MAX {
+                Vec::new()
+            } else {
+                vec![(row_of[d], volume)]
+            });
+        }
+    }
+    let alpha = columns.len();
     if multiplier != Multiplier::Clamps {
         let column = (0..n)
             .filter(|&d| row_of[d] != usize::MAX && live[d] != 0.0)
             .map(|d| (row_of[d], -live[d]))
             .collect();
         columns.push(column);
-        q[n_lambda] = -1.0;
+        q[alpha] = -1.0;
     }
     for (r, (entries, _)) in strength_rows.iter().enumerate() {
         for &(col, v) in entries {
-            if v != 0.0 {
-                columns[col].push((rows + r, v));
-            }
+            columns[col].push((rows + r, v));
         }
     }
-    let constraints = rows + strength_rows.len();
+    // The elements' strengths, second-order cones `‖(x₁, x₂)‖ ≤ t` of `b − A σ`
+    // (`model::plasticity`): `t = r − a p`, `x = ((σ_x − σ_y)/2, τ)` for each side `a p + R ≤ r`.
+    let first_cone = rows + strength_rows.len();
+    let mut cone_rows = 0;
+    let mut cone_b = Vec::new();
+    for (j, &e) in yielding.iter().enumerate() {
+        let strength = model.elements[e].strength.expect("a yielding element");
+        let (sides, count) = strength.sides();
+        let col = n_lambda + 3 * j;
+        for side in &sides[..count - 1] {
+            let (a, r) = (side[0], side[2]);
+            let at = first_cone + cone_rows;
+            // t = r − a (σ_x + σ_y)/2; x₁ = (σ_x − σ_y)/2; x₂ = τ (b − A σ).
+            columns[col].extend([(at, 0.5 * a), (at + 1, -0.5)]);
+            columns[col + 1].extend([(at, 0.5 * a), (at + 1, 0.5)]);
+            columns[col + 2].push((at + 2, -1.0));
+            cone_b.extend([r, 0.0, 0.0]);
+            cone_rows += 3;
+        }
+    }
+    let constraints = first_cone + cone_rows;
     let mut b = vec![0.0; constraints];
+    b[first_cone..].copy_from_slice(&cone_b);
     for d in 0..n {
         if row_of[d] != usize::MAX {
             b[row_of[d]] = dead[d];
@@ -300,15 +408,38 @@ pub fn analyse(setup: &Setup, multiplier: Option<Multiplier>) -> Result<Collapse
     for (r, (_, bound)) in strength_rows.iter().enumerate() {
         b[rows + r] = *bound;
     }
+    // The stresses in units of the largest cohesion `s₀` (`λ = s₀ λ'`; the loads divided by
+    // `s₀` alike, `α` as it is): the interior-point steps then see numbers near 1 (in pascals,
+    // the cones of a 40 × 20 footing stopped short). A tensile strength may be far larger (a
+    // cut-off set out of the way), so the cohesions set the unit; the caps when all are zero.
+    let largest = |rows: &mut dyn Iterator<Item = f64>| rows.fold(0.0f64, |m, x| m.max(x.abs()));
+    let s0 = [
+        largest(&mut strength_rows.iter().skip(1).step_by(3).map(|r| r.1)),
+        largest(&mut yielding.iter().filter_map(|&e| model.elements[e].strength).map(|s| s.cohesion)),
+        largest(&mut b[rows..].iter().copied()),
+        1.0,
+    ]
+    .into_iter()
+    .find(|&s| s > 0.0)
+    .expect("1 > 0");
+    b.iter_mut().for_each(|x| *x /= s0);
+    if let Some(column) = columns.get_mut(alpha) {
+        column.iter_mut().for_each(|(_, v)| *v /= s0);
+    }
     let a = csc(constraints, columns);
     let p = CscMatrix::<f64>::zeros((unknowns, unknowns));
-    let cones = [
+    let mut cones = vec![
         SupportedConeT::ZeroConeT(rows),
         SupportedConeT::NonnegativeConeT(strength_rows.len()),
     ];
+    cones.extend((0..cone_rows / 3).map(|_| SupportedConeT::SecondOrderConeT(3)));
+    // Without Clarabel's equilibration: the unknowns are already in units of the strength, and
+    // with it the interior-point steps of hybrid models with cones on unstructured triangles
+    // stalled at a relative gap of 1e-4 (`NumericalError`).
     let settings = DefaultSettingsBuilder::default()
         .verbose(std::env::var_os("RBSM_LP_VERBOSE").is_some())
         .max_iter(MAX_ITERATIONS)
+        .equilibrate_enable(false)
         .build()
         .map_err(|e| Error::scene("bodies", format!("the solver's settings: {e}")))?;
     let mut solver = DefaultSolver::new(&p, &q, &a, &b, &cones, settings)
@@ -341,9 +472,9 @@ pub fn analyse(setup: &Setup, multiplier: Option<Multiplier>) -> Result<Collapse
     let collapse = match multiplier {
         Multiplier::Clamps => {
             let dead_power: f64 = clamp.iter().map(|&(d, v)| total[d] * v).sum();
-            -solution.obj_val - dead_power
+            -s0 * solution.obj_val - dead_power
         }
-        _ => solution.x[n_lambda],
+        _ => solution.x[alpha],
     };
     // The mechanism: `v = −z` on the equilibrium rows, the clamp's velocity on its DOFs.
     let mut velocities = vec![[0.0; 3]; model.elements.len()];
@@ -357,17 +488,31 @@ pub fn analyse(setup: &Setup, multiplier: Option<Multiplier>) -> Result<Collapse
             };
         }
     }
+    let mut strain_rates = vec![[0.0; 3]; if nd == 6 { model.elements.len() } else { 0 }];
+    for (e, r) in strain_rates.iter_mut().enumerate() {
+        for k in 0..3 {
+            let d = e * nd + 3 + k;
+            if row_of[d] != usize::MAX {
+                r[k] = -solution.z[row_of[d]];
+            }
+        }
+    }
     let largest = velocities
         .iter()
         .map(|v| v[0].hypot(v[1]))
         .fold(0.0f64, f64::max);
     if largest > 0.0 {
-        for v in &mut velocities {
+        for v in velocities.iter_mut().chain(&mut strain_rates) {
             v.iter_mut().for_each(|x| *x /= largest);
         }
     }
+    let mut stresses = vec![[0.0; 3]; if yielding.is_empty() { 0 } else { model.elements.len() }];
+    for (j, &e) in yielding.iter().enumerate() {
+        let x = &solution.x[n_lambda + 3 * j..n_lambda + 3 * j + 3];
+        stresses[e] = [s0 * x[0], s0 * x[1], s0 * x[2]];
+    }
     let tractions = (0..model.interfaces.len())
-        .map(|k| [0, 1].map(|g| [solution.x[4 * k + 2 * g], solution.x[4 * k + 2 * g + 1]]))
+        .map(|k| [0, 1].map(|g| [s0 * solution.x[4 * k + 2 * g], s0 * solution.x[4 * k + 2 * g + 1]]))
         .collect();
     Ok(CollapseReport {
         scene: model.name.clone(),
@@ -379,6 +524,9 @@ pub fn analyse(setup: &Setup, multiplier: Option<Multiplier>) -> Result<Collapse
         iterations: solution.iterations,
         seconds: started.elapsed().as_secs_f64(),
         velocities,
+        strain_rates,
+        stresses,
+        yielding_elements: yielding.len(),
         tractions,
     })
 }
@@ -423,6 +571,9 @@ pub fn write(dir: &std::path::Path, setup: &Setup, report: &CollapseReport) -> R
     let mut shape = vec![0.0; model.n_dofs()];
     for (e, v) in report.velocities.iter().enumerate() {
         shape[e * nd..e * nd + 3].copy_from_slice(v);
+    }
+    for (e, r) in report.strain_rates.iter().enumerate() {
+        shape[e * nd + 3..e * nd + 6].copy_from_slice(r);
     }
     crate::output::vtk::write_shape(&dir.join("mechanism.vtu"), model, &shape, &shape)?;
     let caption = format!("{}: collapse mechanism", model.name);

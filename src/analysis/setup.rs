@@ -7,6 +7,7 @@ use crate::error::{Error, Result};
 use crate::force::contact::{self, Contact, WithBlocks};
 use crate::force::evaluator::{self, Evaluator};
 use crate::force::failure::{self, PlasticForces};
+use crate::force::yielding::PlasticElements;
 use crate::input::scene::{EvaluatorKind, Scene};
 use crate::model::loads::Loads;
 use crate::model::mass::Mass;
@@ -57,6 +58,8 @@ pub struct Setup {
     /// The plastic forces of the failing interfaces, in the evaluator's manner; `None` when no
     /// material's interfaces fail (then no interface has a state).
     pub plastic: Option<Box<dyn PlasticForces>>,
+    /// The hybrid elements that may yield and their return mapping; `None` when none may.
+    pub yielding: Option<PlasticElements>,
     /// `M` and its inverse.
     pub mass: Mass,
     /// Point loads and gravity.
@@ -125,6 +128,7 @@ impl Setup {
         let kind = scene.evaluator;
         let evaluator = evaluator::build(&model, kind);
         let plastic = failure::build(&model);
+        let yielding = PlasticElements::build(&model);
         let mass = Mass::new(&model);
         let loads = Loads::new(&model);
         let contact = Contact::new(&model);
@@ -167,6 +171,7 @@ impl Setup {
             model,
             evaluator,
             plastic,
+            yielding,
             mass,
             loads,
             contact,
@@ -192,6 +197,9 @@ impl Setup {
         );
         if let Some(plastic) = &self.plastic {
             cd = cd.with_failure(plastic.as_ref());
+        }
+        if let Some(yielding) = &self.yielding {
+            cd = cd.with_plastic_elements(yielding);
         }
         if !self.model.prescribed.is_empty() {
             cd = cd.with_prescribed(&self.model);

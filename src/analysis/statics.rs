@@ -147,7 +147,7 @@ pub fn analyse(setup: &Setup) -> Result<StaticReport> {
             StaticElement {
                 centroid: [el.props.centroid.x, el.props.centroid.y],
                 u: u.to_vec(),
-                stress: crate::output::element_stress(model, e, u),
+                stress: crate::output::element_stress(model, e, u, [0.0; 3]),
             }
         })
         .collect();
@@ -218,7 +218,7 @@ pub fn write(dir: &Path, setup: &Setup, report: &StaticReport) -> Result<()> {
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
     crate::output::write_json(&dir.join("summary.json"), report)?;
     let v = vec![0.0; u.len()];
-    crate::output::write_final_state(dir, model, 0.0, u, &v, None)?;
+    crate::output::write_final_state(dir, model, 0.0, u, &v, None, &[])?;
     crate::output::write_probe_rows(
         dir,
         &setup.probes()?,
@@ -228,8 +228,8 @@ pub fn write(dir: &Path, setup: &Setup, report: &StaticReport) -> Result<()> {
     crate::output::vtk::write_frame(
         &dir.join("static.vtu"),
         model,
-        u,
-        &v,
+        (u, &v),
+        &[],
         crate::output::vtk::Placement::Linear,
     )?;
     crate::output::vtk::write_collection(&dir.join("series.pvd"), &[(0.0, "static.vtu".into())])

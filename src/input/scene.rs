@@ -39,6 +39,8 @@ const TENSILE_STRENGTH: Range = Range::at_least(0.0, "Pa");
 const COHESION: Range = Range::at_least(0.0, "Pa");
 /// An interface's `friction_angle` (degrees).
 const FRICTION_ANGLE: Range = Range::at_least(0.0, "degrees").below(90.0);
+/// An element strength's `cohesion` (Pa): a zero strength would leave nothing to carry a load.
+const ELEMENT_COHESION: Range = Range::above(0.0, "Pa");
 /// An interface's `fracture_energy` (J/m²).
 const FRACTURE_ENERGY: Range = Range::above(0.0, "J/m²");
 /// An interface's `fracture_energy_shear` (J/m²).
@@ -212,6 +214,72 @@ pub struct MaterialSpec {
     /// The law of the interfaces between its elements (eq. 11): `elastic` when absent.
     #[serde(default)]
     pub interface: InterfaceLawSpec,
+    /// The strength of its elements' own constant stress (hybrid formulation only):
+    /// `elastic` when absent.
+    #[serde(default)]
+    pub element: ElementStrengthSpec,
+}
+
+kinds! {
+    ///
+    /// `docs/scene.md`, *Elements that yield*.
+    #[derive(Debug, Clone, Copy, PartialEq)]
+    pub enum ElementStrengthSpec: "The strength of a material's elements (hybrid)" {
+        /// Elements that never yield.
+        "elastic" => Elastic,
+        /// Tresca: the largest shear stress at most `c`.
+        "tresca" => Tresca(TrescaSpec),
+        /// Mohr–Coulomb: `(σ₁ − σ₃)/2 ≤ c cos φ − (σ₁ + σ₃)/2 sin φ` (tension positive).
+        "mohr-coulomb" => MohrCoulomb(ElementMohrCoulombSpec),
+    }
+}
+
+/// `elastic`, the elements of a material that names no strength.
+impl Default for ElementStrengthSpec {
+    fn default() -> Self {
+        ElementStrengthSpec::Elastic
+    }
+}
+
+/// Tresca's strength of an element: its cohesion (the shear strength).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct TrescaSpec {
+    /// Cohesion `c` (Pa), > 0.
+    #[schemars(transform = ELEMENT_COHESION.schema())]
+    pub cohesion: f64,
+}
+
+/// Mohr–Coulomb's strength of an element.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct ElementMohrCoulombSpec {
+    /// Cohesion `c` (Pa), > 0.
+    #[schemars(transform = ELEMENT_COHESION.schema())]
+    pub cohesion: f64,
+    /// Friction angle `φ` (degrees), in [0, 90).
+    #[schemars(transform = FRICTION_ANGLE.schema())]
+    pub friction_angle: f64,
+}
+
+impl ElementStrengthSpec {
+    /// `(c, φ)` (Pa, degrees) of a strength (`φ = 0` for Tresca); `None` for elastic elements.
+    pub fn cohesion_friction(&self) -> Option<(f64, f64)> {
+        match *self {
+            ElementStrengthSpec::Elastic => None,
+            ElementStrengthSpec::Tresca(s) => Some((s.cohesion, 0.0)),
+            ElementStrengthSpec::MohrCoulomb(s) => Some((s.cohesion, s.friction_angle)),
+        }
+    }
+
+    /// Its keys in range, named under `at` (`materials.clay.element`).
+    fn validate(&self, at: &str) -> Result<()> {
+        if let Some((c, phi)) = self.cohesion_friction() {
+            ELEMENT_COHESION.check(&format!("{at}.cohesion"), c)?;
+            FRICTION_ANGLE.check(&format!("{at}.friction_angle"), phi)?;
+        }
+        Ok(())
+    }
 }
 
 kinds! {
@@ -1251,6 +1319,17 @@ impl Scene {
             DENSITY.check(&at("rho"), m.rho)?;
             POISSON.check(&at("nu"), m.nu)?;
             m.interface.validate(&at("interface"))?;
+            m.element.validate(&at("element"))?;
+            if m.element != ElementStrengthSpec::Elastic
+                && self.formulation == FormulationSpec::Rigid
+            {
+                return Err(Error::scene(
+                    &at("element"),
+                    "a rigid element has no strain and so no stress of its own to yield: give \
+                     the scene `\"formulation\": {\"kind\": \"hybrid\", ...}` for elements \
+                     that yield, or leave the strength to the interfaces (`interface`)",
+                ));
+            }
         }
         Ok(())
     }

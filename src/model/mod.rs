@@ -7,6 +7,7 @@ pub mod law;
 pub mod loads;
 pub mod mass;
 pub mod memory;
+pub mod plasticity;
 
 use crate::error::{Error, Result};
 use crate::input::scene::{BodySpec, EdgeSet, Side};
@@ -35,6 +36,8 @@ pub struct Element {
     pub rho: f64,
     /// Elasticity matrix `D` (Pa) of its material, plane stress or strain (hybrid interior term).
     pub d: nalgebra::Matrix3<f64>,
+    /// The strength of its constant stress, when its material gives one (hybrid only).
+    pub strength: Option<plasticity::ElementStrength>,
 }
 
 /// A shared edge carrying normal and shear penalty springs (eqs. 6, 11, 12).
@@ -251,6 +254,11 @@ impl Model {
         self.interfaces.iter().any(|i| self.fails(i))
     }
 
+    /// Whether any element has a strength of its own (hybrid, [`plasticity`]).
+    pub fn any_yields(&self) -> bool {
+        self.elements.iter().any(|e| e.strength.is_some())
+    }
+
     /// The interfaces that can fail (indices in [`Model::interfaces`]) in the order of the
     /// evaluators' sweep: by their lower element, then their higher one, then their index. The
     /// state of their Gauss points is kept in this order (`force::failure`), so that a sweep
@@ -449,6 +457,10 @@ impl Model {
                 props: p,
                 rho: material.rho,
                 d: elasticity(material.e, material.nu, plane),
+                strength: material
+                    .element
+                    .cohesion_friction()
+                    .map(|(c, phi)| plasticity::ElementStrength::new(c, phi, plane)),
             });
             let r = p.centroid - body_centroid;
             let mut v = vec![0.0; nd];

@@ -147,6 +147,9 @@ pub const HISTORY_COLUMNS: [&str; 7] = [
 /// can fail.
 const FAILURE_COLUMNS: [&str; 2] = ["fracture", "friction"];
 
+/// The work of the elements' plastic flow (J), after them when hybrid elements may yield.
+const PLASTIC_COLUMN: &str = "plastic";
+
 /// The work of damping (J), after them when the model is damped.
 const DAMPING_COLUMN: &str = "damping";
 
@@ -171,7 +174,7 @@ pub fn refuse_own_columns(model: &Model, probes: &[crate::input::scene::ProbeSpe
     let own: std::collections::HashSet<String> = HISTORY_COLUMNS
         .iter()
         .chain(&FAILURE_COLUMNS)
-        .chain(&[DAMPING_COLUMN])
+        .chain(&[PLASTIC_COLUMN, DAMPING_COLUMN])
         .map(|c| c.to_string())
         .chain(model.prescribed.iter().flat_map(|p| clamp_columns(&p.name)))
         .collect();
@@ -195,6 +198,8 @@ pub fn refuse_own_columns(model: &Model, probes: &[crate::input::scene::ProbeSpe
 pub struct Columns {
     /// `fracture` and `friction`, when interfaces can fail.
     pub failure: bool,
+    /// `plastic`, when elements may yield.
+    pub plastic: bool,
     /// `damping`, when the model is damped.
     pub damping: bool,
     /// `<name>_disp` and `<name>_force` of each moving clamp.
@@ -208,6 +213,7 @@ impl Columns {
     pub fn of(model: &Model, probes: Vec<Probe>) -> Self {
         Columns {
             failure: model.any_fails(),
+            plastic: model.any_yields(),
             damping: model.damping > 0.0 || model.local_damping > 0.0,
             clamps: model.prescribed.clone(),
             probes,
@@ -219,6 +225,9 @@ impl Columns {
         let mut h: Vec<String> = Vec::new();
         if self.failure {
             h.extend(FAILURE_COLUMNS.map(String::from));
+        }
+        if self.plastic {
+            h.push(PLASTIC_COLUMN.into());
         }
         if self.damping {
             h.push(DAMPING_COLUMN.into());
@@ -459,6 +468,9 @@ impl History {
         if c.failure {
             row.extend([e.fracture, e.friction]);
         }
+        if c.plastic {
+            row.push(e.plastic);
+        }
         if c.damping {
             row.push(e.damping);
         }
@@ -506,21 +518,28 @@ struct ElementState<'a> {
     u: &'a [f64],
     #[serde(rename = "V")]
     v: &'a [f64],
-    /// `(σ_x, σ_y, τ_xy) = D ε` (Pa), hybrid only.
+    /// `(σ_x, σ_y, τ_xy) = D (ε − ε_p)` (Pa), hybrid only.
     #[serde(skip_serializing_if = "Option::is_none")]
     stress: Option<[f64; 3]>,
+    /// The plastic strain `ε_p`, when elements may yield.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    plastic_strain: Option<[f64; 3]>,
 }
 
-/// `(σ_x, σ_y, τ_xy) = D ε` of a hybrid element's DOFs `u`; `None` for a rigid one.
-pub fn element_stress(model: &Model, e: usize, u: &[f64]) -> Option<[f64; 3]> {
+/// `(σ_x, σ_y, τ_xy) = D (ε − ε_p)` of a hybrid element's DOFs `u` with plastic strain
+/// `plastic`; `None` for a rigid one.
+pub fn element_stress(model: &Model, e: usize, u: &[f64], plastic: [f64; 3]) -> Option<[f64; 3]> {
     (u.len() == 6).then(|| {
-        let s = model.elements[e].d * nalgebra::Vector3::new(u[3], u[4], u[5]);
+        let s = model.elements[e].d
+            * (nalgebra::Vector3::new(u[3], u[4], u[5]) - nalgebra::Vector3::from(plastic));
         [s[0], s[1], s[2]]
     })
 }
 
 /// Writes `final_state.json`: per element its reference centroid, `U` and `V`.
-/// `interfaces` lists the failing interfaces' state, written only when the model has any.
+/// `interfaces` lists the failing interfaces' state, written only when the model has any;
+/// `plastic`, per element, its plastic strain and whether it yields (empty when no element
+/// may yield).
 ///
 /// # Errors
 /// `dir/final_state.json` cannot be written.
@@ -534,17 +553,22 @@ pub fn write_final_state(
     u: &[f64],
     v: &[f64],
     interfaces: Option<&[crate::force::failure::InterfaceFailure]>,
+    plastic: &[([f64; 3], bool)],
 ) -> Result<()> {
     let nd = model.formulation.ndof();
     let elements: Vec<ElementState> = model
         .elements
         .iter()
         .enumerate()
-        .map(|(e, el)| ElementState {
-            centroid: [el.props.centroid.x, el.props.centroid.y],
-            u: &u[e * nd..(e + 1) * nd],
-            v: &v[e * nd..(e + 1) * nd],
-            stress: element_stress(model, e, &u[e * nd..(e + 1) * nd]),
+        .map(|(e, el)| {
+            let p = plastic.get(e).map(|p| p.0);
+            ElementState {
+                centroid: [el.props.centroid.x, el.props.centroid.y],
+                u: &u[e * nd..(e + 1) * nd],
+                v: &v[e * nd..(e + 1) * nd],
+                stress: element_stress(model, e, &u[e * nd..(e + 1) * nd], p.unwrap_or_default()),
+                plastic_strain: p,
+            }
         })
         .collect();
     // Serialised straight from the slices: a `serde_json::Value` tree of 10⁶ elements took

@@ -13,6 +13,7 @@
 
 use crate::error::{Error, Result};
 use crate::force::failure::{InterfaceFailure, InterfaceStatus, PlasticForces};
+use crate::force::yielding::PlasticElements;
 use crate::mesh::geometry::Vec2;
 use crate::model::{Interface, Model, GROUND};
 use crate::step::integrator::Snapshot;
@@ -34,6 +35,8 @@ pub struct VtkSeries<'a> {
     collection: Collection,
     /// The plastic forces that report the interfaces' states, and the cracks' collection.
     cracks: Option<(&'a dyn PlasticForces, Collection)>,
+    /// The elements that may yield, whose plastic strains the frames show.
+    yielding: Option<&'a PlasticElements>,
 }
 
 const HEAD: &str =
@@ -115,8 +118,12 @@ impl<'a> VtkSeries<'a> {
     /// # Errors
     /// As [`VtkSeries::resume`] with no frames: the folders cannot be created or cleared of an
     /// earlier run's frames, or a collection cannot be written.
-    pub fn create(dir: &Path, plastic: Option<&'a dyn PlasticForces>) -> Result<VtkSeries<'a>> {
-        Self::resume(dir, Vec::new(), plastic)
+    pub fn create(
+        dir: &Path,
+        plastic: Option<&'a dyn PlasticForces>,
+        yielding: Option<&'a PlasticElements>,
+    ) -> Result<VtkSeries<'a>> {
+        Self::resume(dir, Vec::new(), plastic, yielding)
     }
 
     /// Goes on with the frames `frames` (time, name under `DIR`) of an earlier run: removes the
@@ -129,6 +136,7 @@ impl<'a> VtkSeries<'a> {
         dir: &Path,
         frames: Vec<(f64, String)>,
         plastic: Option<&'a dyn PlasticForces>,
+        yielding: Option<&'a PlasticElements>,
     ) -> Result<VtkSeries<'a>> {
         prune(
             &dir.join("vtk"),
@@ -152,6 +160,7 @@ impl<'a> VtkSeries<'a> {
             frames,
             collection,
             cracks,
+            yielding,
         })
     }
 
@@ -168,7 +177,17 @@ impl<'a> VtkSeries<'a> {
     /// left whole, without it).
     pub fn write(&mut self, model: &Model, s: &Snapshot) -> Result<()> {
         let name = format!("vtk/step_{:09}.vtu", s.step);
-        write_frame(&self.dir.join(&name), model, s.u, s.v, Placement::Current)?;
+        let plastic = match (self.yielding, s.elements) {
+            (Some(y), Some(state)) => y.per_element(state, model.elements.len()),
+            _ => Vec::new(),
+        };
+        write_frame(
+            &self.dir.join(&name),
+            model,
+            (s.u, s.v),
+            &plastic,
+            Placement::Current,
+        )?;
         let cracks = match (&self.cracks, s.failure) {
             (Some((plastic, _)), Some(state)) => {
                 let crack = crack_frame(&name);
@@ -255,8 +274,8 @@ pub fn status_code(status: InterfaceStatus) -> i32 {
 pub fn write_frame(
     path: &Path,
     model: &Model,
-    u: &[f64],
-    v: &[f64],
+    (u, v): (&[f64], &[f64]),
+    plastic: &[([f64; 3], bool)],
     placement: Placement,
 ) -> Result<()> {
     let nd = model.formulation.ndof();
@@ -264,13 +283,21 @@ pub fn write_frame(
         (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     let (mut disp, mut vel, mut rot, mut body) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     let (mut strain, mut stress): (Vec<f64>, Vec<f64>) = (Vec::new(), Vec::new());
+    let (mut plastic_strain, mut yielding) = (Vec::new(), Vec::new());
     for b in &model.bodies {
         for c in 0..b.mesh.n_cells() {
             let e = b.first_element + c;
             let (ue, ve) = (&u[e * nd..(e + 1) * nd], &v[e * nd..(e + 1) * nd]);
-            if let Some(s) = crate::output::element_stress(model, e, ue) {
+            let p = plastic.get(e).copied();
+            if let Some(s) =
+                crate::output::element_stress(model, e, ue, p.map(|p| p.0).unwrap_or_default())
+            {
                 strain.extend_from_slice(&ue[3..6]);
                 stress.extend(s);
+            }
+            if let Some((ep, flows)) = p {
+                plastic_strain.extend(ep);
+                yielding.push(i32::from(flows));
             }
             let cell = b.mesh.cell(c);
             for &k in cell {
@@ -300,6 +327,11 @@ pub fn write_frame(
         // (ε_x, ε_y, γ_xy) and (σ_x, σ_y, τ_xy) = D ε of the hybrid formulation.
         cell.push(Attribute::scalars("strain", 3).with_data(strain));
         cell.push(Attribute::scalars("stress", 3).with_data(stress));
+    }
+    if !plastic.is_empty() {
+        // ε_p and whether the element flowed at the step: elements that yield (issue 43).
+        cell.push(Attribute::scalars("plastic_strain", 3).with_data(plastic_strain));
+        cell.push(Attribute::scalars("yielding", 1).with_data(yielding));
     }
     write_grid(path, points, (conn, offsets), types, cell)
 }
@@ -454,7 +486,7 @@ pub fn write_shape(path: &Path, model: &Model, shape: &[f64], v: &[f64]) -> Resu
         .fold(0.0, f64::max);
     let scale = if max > 0.0 { 0.1 * size / max } else { 1.0 };
     let u: Vec<f64> = shape.iter().map(|x| x * scale).collect();
-    write_frame(path, model, &u, v, Placement::Linear)
+    write_frame(path, model, (&u, v), &[], Placement::Linear)
 }
 
 /// Writes a collection listing `frames` (time, file name relative to the collection).

@@ -11,6 +11,7 @@ use crate::error::Result;
 use crate::force::contact::Contact;
 use crate::force::evaluator::{Evaluator, GroupedStep};
 use crate::force::failure::{FailureState, PlasticForces};
+use crate::force::yielding::{ElementState, PlasticElements};
 use crate::input::names::named;
 use crate::model::law::InterfaceLaw;
 use crate::model::loads::Loads;
@@ -24,7 +25,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
 /// The energies at one time (J); `total = kinetic + elastic + contact + potential + fracture +
-/// friction + damping − external_work` is constant, up to the integrator's error.
+/// friction + plastic + damping − external_work` is constant, up to the integrator's error.
 #[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Energy {
     /// Time (s).
@@ -44,9 +45,12 @@ pub struct Energy {
     pub fracture: f64,
     /// Work of friction on the interfaces so far (J; failing laws).
     pub friction: f64,
+    /// Work of the plastic flow of the elements so far (J; hybrid elements that yield).
+    #[serde(default)]
+    pub plastic: f64,
     /// Work of the damping so far, mass-proportional and local (J).
     pub damping: f64,
-    /// `kinetic + elastic + contact + potential + fracture + friction + damping −
+    /// `kinetic + elastic + contact + potential + fracture + friction + plastic + damping −
     /// external_work` (J).
     pub total: f64,
 }
@@ -92,6 +96,8 @@ pub struct Snapshot<'a> {
     pub peaks: &'a [[f64; 2]],
     /// The state of the failing interfaces, when the model has any.
     pub failure: Option<&'a FailureState>,
+    /// The plastic state of the elements, when some may yield.
+    pub elements: Option<&'a ElementState>,
 }
 
 /// The kinetic plus elastic energy may not exceed this multiple of the energy put in (the
@@ -167,6 +173,10 @@ pub struct CentralDifference<'a> {
     interrupt: Option<Arc<AtomicBool>>,
     /// The plastic forces and the state of the failing interfaces, when the model has any.
     failure: Option<(&'a dyn PlasticForces, FailureState)>,
+    /// The elements that may yield and their plastic state, when the model has any.
+    elements: Option<(&'a PlasticElements, ElementState)>,
+    /// The elements' plastic state at the step of `good`.
+    good_elements: ElementState,
     /// The moving clamps, their element masses (kg) per DOF, and their reactions at the last
     /// check.
     prescribed: &'a [Prescribed],
@@ -261,6 +271,8 @@ pub struct State {
     velocity: Vec<f64>,
     contact: Option<Contact>,
     failure: Option<FailureState>,
+    #[serde(default)]
+    elements: Option<ElementState>,
     ledger: EnergyLedger,
     peaks: Vec<[f64; 2]>,
 }
@@ -345,6 +357,8 @@ impl<'a> CentralDifference<'a> {
             pending: false,
             interrupt: None,
             failure: None,
+            elements: None,
+            good_elements: ElementState::default(),
             prescribed: &[],
             clamp_mass: Vec::new(),
             reactions: Vec::new(),
@@ -367,6 +381,16 @@ impl<'a> CentralDifference<'a> {
     pub fn with_failure(mut self, plastic: &'a dyn PlasticForces) -> Self {
         self.good_failure = plastic.initial();
         self.failure = Some((plastic, plastic.initial()));
+        self.groups = None;
+        self
+    }
+
+    /// Lets the elements of `elements` yield, from a state where all are elastic (as
+    /// [`CentralDifference::with_failure`] lets interfaces fail). Such a step goes through the
+    /// net force, where the return mapping corrects the elements' interior forces.
+    pub fn with_plastic_elements(mut self, elements: &'a PlasticElements) -> Self {
+        self.good_elements = elements.initial();
+        self.elements = Some((elements, elements.initial()));
         self.groups = None;
         self
     }
@@ -498,9 +522,11 @@ impl<'a> CentralDifference<'a> {
 
     /// Whether a step must go through the net force vector: the fused step has no place for
     /// the clamps' reactions, the local damping or the hand-over of broken interfaces to
-    /// contact (it books the damping's work itself, and return-maps failing interfaces).
+    /// contact (it books the damping's work itself, and return-maps failing interfaces), nor
+    /// for the return mapping of elements that yield.
     fn needs_net_force(&self) -> bool {
         self.failure.as_ref().is_some_and(|(p, _)| p.releases())
+            || self.elements.is_some()
             || !self.prescribed.is_empty()
             || self.local.is_some()
     }
@@ -537,12 +563,19 @@ impl<'a> CentralDifference<'a> {
             }
             None => self.evaluator.internal_force(&self.u, &mut self.force),
         }
+        if let Some((elements, state)) = self.elements.as_mut() {
+            elements.correct(&self.u, state, &mut self.force);
+        }
         self.force_clear = false;
         let elastic = if energy {
             let offset = self
                 .failure
                 .as_ref()
-                .map_or(0.0, |(p, s)| p.energy_offset(&self.u, s));
+                .map_or(0.0, |(p, s)| p.energy_offset(&self.u, s))
+                + self
+                    .elements
+                    .as_ref()
+                    .map_or(0.0, |(p, s)| p.energy_offset(&self.u, s));
             0.5 * dot(&self.u, &self.force) - offset
         } else {
             0.0
@@ -627,6 +660,7 @@ impl<'a> CentralDifference<'a> {
             velocity: self.scratch.clone(),
             contact: self.contact.clone(),
             failure: self.failure.as_ref().map(|(_, s)| s.clone()),
+            elements: self.elements.as_ref().map(|(_, s)| s.clone()),
             ledger: self.ledger,
             peaks: self.peaks.clone(),
         }
@@ -668,6 +702,11 @@ impl<'a> CentralDifference<'a> {
         if state.failure.as_ref().map(sizes) != self.failure.as_ref().map(|(_, s)| sizes(s)) {
             return Err("the failing interfaces differ".into());
         }
+        let yielding = |s: &ElementState| s.strain.len();
+        if state.elements.as_ref().map(yielding) != self.elements.as_ref().map(|(_, s)| yielding(s))
+        {
+            return Err("the elements that yield differ".into());
+        }
         self.step = state.step;
         self.t = state.step as f64 * self.dt;
         self.good = Good {
@@ -686,6 +725,10 @@ impl<'a> CentralDifference<'a> {
             self.good_failure.copy_from(&saved);
             *s = saved;
         }
+        if let (Some((_, s)), Some(saved)) = (self.elements.as_mut(), state.elements) {
+            self.good_elements.clone_from(&saved);
+            *s = saved;
+        }
         self.ledger = state.ledger;
         self.peaks = state.peaks;
         self.force_clear = false;
@@ -697,6 +740,12 @@ impl<'a> CentralDifference<'a> {
     /// (after a divergence, of the state the guard restored).
     pub fn failure(&self) -> Option<&FailureState> {
         self.failure.as_ref().map(|(_, s)| s)
+    }
+
+    /// The plastic state of the elements that may yield, when the model has any: that of the
+    /// current `U` (after a divergence, of the state the guard restored).
+    pub fn plastic_elements(&self) -> Option<&ElementState> {
+        self.elements.as_ref().map(|(_, s)| s)
     }
 
     /// Whole-step velocities `v^n` of the last state handed to the observer (or restored by
@@ -780,6 +829,9 @@ impl<'a> CentralDifference<'a> {
                 if let Some((_, s)) = self.failure.as_mut() {
                     std::mem::swap(s, &mut self.good_failure);
                 }
+                if let Some((_, s)) = self.elements.as_mut() {
+                    std::mem::swap(s, &mut self.good_elements);
+                }
                 self.pending = false;
                 return Ok(Status::Diverged { step, t, reason });
             }
@@ -794,6 +846,7 @@ impl<'a> CentralDifference<'a> {
                         reactions: &self.reactions,
                         peaks: &self.peaks,
                         failure: self.failure.as_ref().map(|(_, s)| s),
+                        elements: self.elements.as_ref().map(|(_, s)| s),
                     },
                     &energy,
                 )?;
@@ -804,6 +857,9 @@ impl<'a> CentralDifference<'a> {
             self.good.velocity.copy_from_slice(&self.scratch);
             if let Some((_, s)) = &self.failure {
                 self.good_failure.copy_from(s);
+            }
+            if let Some((_, s)) = &self.elements {
+                self.good_elements.clone_from(s);
             }
             if settled {
                 self.settled = Some((self.step, self.t));
@@ -1005,9 +1061,10 @@ impl<'a> CentralDifference<'a> {
             .failure
             .as_ref()
             .map_or([0.0; 2], |(p, s)| p.dissipated(s));
+        let plastic = self.elements.as_ref().map_or(0.0, |(_, s)| s.dissipated);
         let damping = self.ledger.damping;
-        let total =
-            shadow + elastic + contact + potential + fracture + friction + damping - external_work;
+        let total = shadow + elastic + contact + potential + fracture + friction + plastic + damping
+            - external_work;
         let initial = *self.ledger.initial_total.get_or_insert(total);
         self.ledger.energy_scale = self.ledger.energy_scale.max(
             kinetic
@@ -1017,6 +1074,7 @@ impl<'a> CentralDifference<'a> {
                 + external_work.abs()
                 + fracture
                 + friction
+                + plastic
                 + damping,
         );
         self.ledger.max_drift = self.ledger.max_drift.max((total - initial).abs());
@@ -1029,6 +1087,7 @@ impl<'a> CentralDifference<'a> {
             external_work,
             fracture,
             friction,
+            plastic,
             damping,
             total,
         }

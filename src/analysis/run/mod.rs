@@ -192,6 +192,11 @@ pub fn simulate(
             &cd.u,
             &v,
             failure.as_ref().map(|(_, r)| &r[..]),
+            &p.yielding
+                .as_ref()
+                .zip(cd.plastic_elements())
+                .map(|(y, s)| y.per_element(s, model.elements.len()))
+                .unwrap_or_default(),
         )?;
     }
     let (first, last) = (rec.first.unwrap_or_default(), rec.last.unwrap_or_default());
@@ -428,7 +433,7 @@ fn open_outputs<'s>(
             scene
                 .output
                 .vtk
-                .then(|| VtkSeries::create(out, p.plastic.as_deref()))
+                .then(|| VtkSeries::create(out, p.plastic.as_deref(), p.yielding.as_ref()))
                 .transpose()?,
             None,
             0.0f64,
@@ -448,7 +453,7 @@ fn open_outputs<'s>(
             let vtk = scene
                 .output
                 .vtk
-                .then(|| VtkSeries::resume(out, c.frames, p.plastic.as_deref()))
+                .then(|| VtkSeries::resume(out, c.frames, p.plastic.as_deref(), p.yielding.as_ref()))
                 .transpose()?;
             (
                 History::resume(out, columns, c.history_bytes, keep)?,
