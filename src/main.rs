@@ -421,7 +421,9 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
                 _ => Multiplier::Clamps,
             });
             let setup = setup(scene, Overrides::default())?;
-            let points = points.parse().map_err(|e: String| rbsm::error::Error::scene("--points", e))?;
+            let points = points
+                .parse()
+                .map_err(|e: String| rbsm::error::Error::scene("--points", e))?;
             let r = collapse::analyse(&setup, on, points)?;
             if let Some(dir) = out {
                 collapse::write(dir, &setup, &r)?;

@@ -5,6 +5,8 @@
 //! Run: `cargo run --release --example validate` (about a minute). Exit code 1 if a check fails.
 //! `-- --bless` rewrites `reference.json` from this run (after a deliberate change).
 
+#[path = "collapse.rs"]
+mod collapse;
 #[path = "contact.rs"]
 mod contact;
 mod extremes;
@@ -1157,6 +1159,7 @@ fn main() {
     trade::trade_section(&mut r);
     extremes::extremes(&mut r);
     failure::failure(&mut r);
+    collapse::collapse(&mut r);
     // Checks: bounds, and figures against the reference.
     let reference: BTreeMap<String, f64> = std::fs::read_to_string(dir.join("reference.json"))
         .ok()

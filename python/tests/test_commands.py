@@ -116,6 +116,26 @@ def test_limit_equals_the_command_line(cli, scenes, tmp_path):
     assert (tmp_path / "limit" / "mechanism.vtu").exists()
     with pytest.raises(ValueError, match="on"):
         rbsm.limit(scene, on="wind")
+    with pytest.raises(ValueError, match="points"):
+        rbsm.limit(scene, points="middle")
+    # Rigid: no strain rates, no element stresses.
+    assert r.strain_rates.shape == (0, 3) and r.stresses.shape == (0, 3)
+
+
+def test_limit_of_plastic_hybrid_elements_equals_the_command_line(cli, scenes):
+    scene = scenes / "footing_hybrid.json"
+    for points in ["gauss", "ends"]:
+        code, report = cli_json(cli, "limit", scene, "--points", points)
+        assert code == 0, report
+        r = rbsm.limit(scene, points=points)
+        assert r.report == {**report, "seconds": r.report["seconds"]}
+        n = r.centroids.shape[0]
+        assert r.report["yielding_elements"] == n
+        assert r.strain_rates.shape == (n, 3) and r.stresses.shape == (n, 3)
+        # Every element's stress at collapse lies inside Tresca's circle, R <= c.
+        s = r.stresses
+        radius = np.hypot(0.5 * (s[:, 0] - s[:, 1]), s[:, 2])
+        assert radius.max() <= 1e5 * (1 + 1e-6)
 
 
 def test_scenes_from_a_dict_a_string_and_a_file_are_the_same(scenes):

@@ -179,7 +179,9 @@ impl std::str::FromStr for Points {
         match s {
             "gauss" => Ok(Points::Gauss),
             "ends" => Ok(Points::Ends),
-            _ => Err(format!("`{s}`: the strengths are checked at `gauss` or `ends`")),
+            _ => Err(format!(
+                "`{s}`: the strengths are checked at `gauss` or `ends`"
+            )),
         }
     }
 }
@@ -297,8 +299,7 @@ pub fn analyse(
     let yielding: Vec<usize> = (0..model.elements.len())
         .filter(|&e| model.elements[e].strength.is_some())
         .collect();
-    let unknowns =
-        n_lambda + 3 * yielding.len() + usize::from(multiplier != Multiplier::Clamps);
+    let unknowns = n_lambda + 3 * yielding.len() + usize::from(multiplier != Multiplier::Clamps);
     let mut q = vec![0.0; unknowns];
     let mut columns: Vec<Vec<(usize, f64)>> = Vec::with_capacity(unknowns);
     // `Σ a x ≤ b`: the interfaces' strengths at their Gauss points or ends.
@@ -341,7 +342,12 @@ pub fn analyse(
                 // `(a_σ, a_τ)` of a row on the traction `Σ_g w_g λ_g` at the point checked.
                 let row = |a_sigma: f64, a_tau: f64| -> Vec<(usize, f64)> {
                     (0..2)
-                        .flat_map(|g| [(4 * k + 2 * g, w[g] * a_sigma), (4 * k + 2 * g + 1, w[g] * a_tau)])
+                        .flat_map(|g| {
+                            [
+                                (4 * k + 2 * g, w[g] * a_sigma),
+                                (4 * k + 2 * g + 1, w[g] * a_tau),
+                            ]
+                        })
                         .filter(|&(_, v)| v != 0.0)
                         .collect()
                 };
@@ -382,8 +388,8 @@ pub fn analyse(
     let first_cone = rows + strength_rows.len();
     let mut cone_rows = 0;
     let mut cone_b = Vec::new();
-    for (j, &e) in yielding.iter().enumerate() {
-        let strength = model.elements[e].strength.expect("a yielding element");
+    let strengths = yielding.iter().filter_map(|&e| model.elements[e].strength);
+    for (j, strength) in strengths.enumerate() {
         let (sides, count) = strength.sides();
         let col = n_lambda + 3 * j;
         for side in &sides[..count - 1] {
@@ -415,13 +421,18 @@ pub fn analyse(
     let largest = |rows: &mut dyn Iterator<Item = f64>| rows.fold(0.0f64, |m, x| m.max(x.abs()));
     let s0 = [
         largest(&mut strength_rows.iter().skip(1).step_by(3).map(|r| r.1)),
-        largest(&mut yielding.iter().filter_map(|&e| model.elements[e].strength).map(|s| s.cohesion)),
+        largest(
+            &mut yielding
+                .iter()
+                .filter_map(|&e| model.elements[e].strength)
+                .map(|s| s.cohesion),
+        ),
         largest(&mut b[rows..].iter().copied()),
         1.0,
     ]
     .into_iter()
     .find(|&s| s > 0.0)
-    .expect("1 > 0");
+    .unwrap_or(1.0);
     b.iter_mut().for_each(|x| *x /= s0);
     if let Some(column) = columns.get_mut(alpha) {
         column.iter_mut().for_each(|(_, v)| *v /= s0);
@@ -506,13 +517,27 @@ pub fn analyse(
             v.iter_mut().for_each(|x| *x /= largest);
         }
     }
-    let mut stresses = vec![[0.0; 3]; if yielding.is_empty() { 0 } else { model.elements.len() }];
+    let mut stresses = vec![
+        [0.0; 3];
+        if yielding.is_empty() {
+            0
+        } else {
+            model.elements.len()
+        }
+    ];
     for (j, &e) in yielding.iter().enumerate() {
         let x = &solution.x[n_lambda + 3 * j..n_lambda + 3 * j + 3];
         stresses[e] = [s0 * x[0], s0 * x[1], s0 * x[2]];
     }
     let tractions = (0..model.interfaces.len())
-        .map(|k| [0, 1].map(|g| [s0 * solution.x[4 * k + 2 * g], s0 * solution.x[4 * k + 2 * g + 1]]))
+        .map(|k| {
+            [0, 1].map(|g| {
+                [
+                    s0 * solution.x[4 * k + 2 * g],
+                    s0 * solution.x[4 * k + 2 * g + 1],
+                ]
+            })
+        })
         .collect();
     Ok(CollapseReport {
         scene: model.name.clone(),
@@ -558,7 +583,8 @@ fn csc(m: usize, mut columns: Vec<Vec<(usize, f64)>>) -> CscMatrix<f64> {
 /// scaled for viewing: the largest translation a tenth of the model's size) and
 /// `mechanism.svg` (the mesh moved along the mechanism over the reference), and
 /// `tractions.csv` (per interface and Gauss point, `σ` and `τ` in Pa: a statically admissible
-/// field at collapse).
+/// field at collapse; and the mechanism's opening and slip rates there, on the scale of its
+/// velocities).
 ///
 /// # Errors
 /// The folder cannot be created or a file written in it.
@@ -579,7 +605,20 @@ pub fn write(dir: &std::path::Path, setup: &Setup, report: &CollapseReport) -> R
     let caption = format!("{}: collapse mechanism", model.name);
     let svg = crate::output::drawing::displaced_svg(model, &shape, &caption);
     write_atomic(&dir.join("mechanism.svg"), svg.as_bytes())?;
-    let mut csv = String::from("interface,a,b,point,x (m),y (m),sigma (Pa),tau (Pa)\n");
+    let mut csv = String::from(
+        "interface,a,b,point,x (m),y (m),sigma (Pa),tau (Pa),opening rate,slip rate\n",
+    );
+    // The mechanism's velocity of element `e` at `x` (zero on ground).
+    let velocity = |e: u32, x: Vec2| {
+        if e == GROUND {
+            return Vec2::zeros();
+        }
+        let e = e as usize;
+        let d = x - model.elements[e].props.centroid;
+        model
+            .formulation
+            .displacement(&shape[e * nd..(e + 1) * nd], d)
+    };
     for (k, (i, t)) in model.interfaces.iter().zip(&report.tractions).enumerate() {
         let (points, _) = i.gauss_points();
         let b = if i.b == GROUND {
@@ -588,9 +627,16 @@ pub fn write(dir: &std::path::Path, setup: &Setup, report: &CollapseReport) -> R
             i.b.to_string()
         };
         for g in 0..2 {
+            let jump = velocity(i.b, points[g]) - velocity(i.a, points[g]);
             csv.push_str(&format!(
-                "{k},{},{b},{g},{},{},{},{}\n",
-                i.a, points[g].x, points[g].y, t[g][0], t[g][1]
+                "{k},{},{b},{g},{},{},{},{},{},{}\n",
+                i.a,
+                points[g].x,
+                points[g].y,
+                t[g][0],
+                t[g][1],
+                i.normal.dot(&jump),
+                i.tangent.dot(&jump)
             ));
         }
     }

@@ -1324,7 +1324,7 @@ impl Scene {
                 && self.formulation == FormulationSpec::Rigid
             {
                 return Err(Error::scene(
-                    &at("element"),
+                    at("element"),
                     "a rigid element has no strain and so no stress of its own to yield: give \
                      the scene `\"formulation\": {\"kind\": \"hybrid\", ...}` for elements \
                      that yield, or leave the strength to the interfaces (`interface`)",

@@ -1063,8 +1063,9 @@ impl<'a> CentralDifference<'a> {
             .map_or([0.0; 2], |(p, s)| p.dissipated(s));
         let plastic = self.elements.as_ref().map_or(0.0, |(_, s)| s.dissipated);
         let damping = self.ledger.damping;
-        let total = shadow + elastic + contact + potential + fracture + friction + plastic + damping
-            - external_work;
+        let total =
+            shadow + elastic + contact + potential + fracture + friction + plastic + damping
+                - external_work;
         let initial = *self.ledger.initial_total.get_or_insert(total);
         self.ledger.energy_scale = self.ledger.energy_scale.max(
             kinetic

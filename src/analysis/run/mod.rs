@@ -96,6 +96,16 @@ pub struct Outcome {
     pub interfaces: Option<Vec<crate::force::failure::InterfaceFailure>>,
 }
 
+impl Outcome {
+    /// The last row's value in the first column whose name ends with `suffix` (`"_force"`: the
+    /// first moving clamp's reaction); `None` without such a column or rows.
+    pub fn last(&self, suffix: &str) -> Option<f64> {
+        let k = self.columns.iter().position(|c| c.ends_with(suffix))?;
+        let n = self.columns.len();
+        (self.history.len() >= n).then(|| self.history[self.history.len() - n + k])
+    }
+}
+
 /// What the caller sees of a run while it goes: a line of text, and the step reached.
 pub trait Monitor: Send {
     /// Information before the run starts (model size, time step, warnings).
@@ -453,7 +463,9 @@ fn open_outputs<'s>(
             let vtk = scene
                 .output
                 .vtk
-                .then(|| VtkSeries::resume(out, c.frames, p.plastic.as_deref(), p.yielding.as_ref()))
+                .then(|| {
+                    VtkSeries::resume(out, c.frames, p.plastic.as_deref(), p.yielding.as_ref())
+                })
                 .transpose()?;
             (
                 History::resume(out, columns, c.history_bytes, keep)?,

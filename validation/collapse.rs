@@ -1,0 +1,443 @@
+//! Section 12 of the validation report: collapse loads compared across formulations and meshes.
+//! `rbsm limit` (conic programming on the discrete model) for the rigid formulation and the
+//! hybrid one with plastic elements, interface strengths at the Gauss points and at the ends, on
+//! crossed triangles, unstructured triangles (gmsh, `validation/meshes/`) and Voronoi cells,
+//! three sizes each, against closed forms: Prandtl's footing (φ = 0 and 30°), compression between
+//! smooth platens and the vertical cut under gravity; explicit runs of the same models where the
+//! load levels off. Wall times go to `timings.md`.
+
+use super::Report;
+use rbsm::analysis::collapse::{self, CollapseReport, Multiplier, Points};
+use rbsm::analysis::run::{self as run, RunParams, Silent};
+use rbsm::analysis::setup::{Overrides, Setup};
+use rbsm::input::scene::Scene;
+use serde_json::{json, Value};
+use std::f64::consts::PI;
+
+/// Cohesion (Pa), density (kg/m³) and gravity (m/s²) of every model here.
+const C: f64 = 1e5;
+const RHO: f64 = 2000.0;
+const G: f64 = 9.81;
+
+/// The vertical cut's bracket `γH/c` by finite-element limit analysis (lower, upper).
+const CUT: [f64; 2] = [3.775, 3.778];
+
+#[derive(Clone, Copy, PartialEq)]
+enum Mesh {
+    /// Crossed triangles on square cells of this size (m).
+    Crossed(f64),
+    /// gmsh's unstructured triangles of this size (m), from `validation/meshes/<name>_<h>.msh`.
+    Gmsh(f64),
+    /// This many centroidal Voronoi cells.
+    Voronoi(u32),
+}
+
+impl Mesh {
+    fn spec(self, name: &str, size: [f64; 2]) -> Value {
+        match self {
+            Mesh::Crossed(h) => json!({"kind": "grid", "origin": [0, 0], "size": size,
+                "cells": [(size[0] / h).round() as u32, (size[1] / h).round() as u32],
+                "cell": "crossed"}),
+            Mesh::Gmsh(h) => {
+                json!({"kind": "gmsh", "path": format!("{}/validation/meshes/{name}_{h}.msh",
+                env!("CARGO_MANIFEST_DIR"))})
+            }
+            Mesh::Voronoi(n) => json!({"kind": "voronoi", "origin": [0, 0], "size": size,
+                "sites": n, "seed": 1, "lloyd": 20}),
+        }
+    }
+    fn label(self) -> String {
+        match self {
+            Mesh::Crossed(h) => format!("crossed h = {h} m"),
+            Mesh::Gmsh(h) => format!("gmsh h = {h} m"),
+            Mesh::Voronoi(n) => format!("Voronoi {n}"),
+        }
+    }
+    fn family(self) -> &'static str {
+        match self {
+            Mesh::Crossed(_) => "crossed",
+            Mesh::Gmsh(_) => "gmsh",
+            Mesh::Voronoi(_) => "Voronoi",
+        }
+    }
+}
+
+/// One collapse problem: its scene for a mesh, formulation and element strength, what its
+/// collapse value is divided by to compare with the reference, and the reference.
+struct Problem {
+    name: &'static str,
+    /// The gmsh meshes' file stem and the domain (m).
+    file: &'static str,
+    size: [f64; 2],
+    phi: f64,
+    /// The interfaces' tensile strength (Pa).
+    cap: f64,
+    supports: Value,
+    gravity: bool,
+    /// The collapse value per unit of the reference (N per `c` × width, or the gravity factor
+    /// per `c/(γH)`).
+    unit: f64,
+    /// The reference `[lower, upper]` (equal for a closed form).
+    reference: [f64; 2],
+    meshes: [Mesh; 9],
+}
+
+impl Problem {
+    fn scene(&self, mesh: Mesh, hybrid: bool, plastic: bool) -> Value {
+        let mut material = json!({"E": 1.0e8, "nu": 0.3, "rho": RHO,
+            "interface": {"kind": "mohr-coulomb", "tensile_strength": self.cap, "cohesion": C,
+                "friction_angle": self.phi}});
+        if plastic {
+            material["element"] =
+                json!({"kind": "mohr-coulomb", "cohesion": C, "friction_angle": self.phi});
+        }
+        let formulation = if hybrid {
+            json!({"kind": "hybrid", "penalty": 100})
+        } else {
+            json!({"kind": "rigid"})
+        };
+        let mut scene = json!({
+            "name": self.name, "thickness": 1.0, "plane": "strain", "formulation": formulation,
+            "local_damping": 0.8,
+            "materials": {"soil": material},
+            "bodies": [{"name": "soil", "material": "soil", "mesh": mesh.spec(self.file, self.size),
+                "supports": self.supports}],
+            "time": {"dt_factor": 0.5, "end": 0.1525},
+            "output": {"every": 500}
+        });
+        if self.gravity {
+            scene["gravity"] = json!([0, -G]);
+        }
+        scene
+    }
+
+    /// The error of `value` (in units of the reference) against the reference or its bracket.
+    fn error(&self, value: f64) -> f64 {
+        let [lo, hi] = self.reference;
+        if value > hi {
+            value / hi - 1.0
+        } else if value < lo {
+            value / lo - 1.0
+        } else {
+            0.0
+        }
+    }
+}
+
+fn setup(scene: &Value) -> Setup {
+    let scene = Scene::from_json(&scene.to_string()).unwrap_or_else(|e| panic!("{e}\n{scene}"));
+    Setup::new(&scene, &Overrides::default()).unwrap()
+}
+
+/// The collapse value of `setup` in units of the reference, or what stopped the program.
+fn limit(setup: &Setup, p: &Problem, points: Points) -> Result<(f64, CollapseReport), String> {
+    let on = if p.gravity {
+        Multiplier::Gravity
+    } else {
+        Multiplier::Clamps
+    };
+    collapse::analyse(setup, Some(on), points)
+        .map(|r| (r.collapse / p.unit, r))
+        .map_err(|e| e.to_string())
+}
+
+fn problems() -> Vec<Problem> {
+    let footing = json!([{"kind": "clamp", "edge": "bottom"},
+        {"kind": "clamp", "edge": "left", "dofs": ["u"]},
+        {"kind": "clamp", "edge": "right", "dofs": ["u"]},
+        {"kind": "clamp", "edge": "top", "span": [1.8, 2.2], "velocity": [0, -0.1], "ramp": 0.005}]);
+    let platens = json!([{"kind": "clamp", "edge": "bottom", "dofs": ["v"]},
+        {"kind": "clamp", "edge": "top", "dofs": ["v"], "velocity": [0, -0.1], "ramp": 0.005}]);
+    let cut = json!([{"kind": "clamp", "edge": "bottom"},
+        {"kind": "clamp", "edge": "left", "dofs": ["u"]}]);
+    let phi30 = 30f64.to_radians();
+    let n_c =
+        ((PI * phi30.tan()).exp() * (PI / 4.0 + phi30 / 2.0).tan().powi(2) - 1.0) / phi30.tan();
+    let squeeze = |phi: f64| 2.0 * phi.cos() / (1.0 - phi.sin());
+    let footing_meshes = [
+        Mesh::Crossed(0.2),
+        Mesh::Crossed(0.1),
+        Mesh::Crossed(0.05),
+        Mesh::Gmsh(0.16),
+        Mesh::Gmsh(0.08),
+        Mesh::Gmsh(0.04),
+        Mesh::Voronoi(400),
+        Mesh::Voronoi(1600),
+        Mesh::Voronoi(6400),
+    ];
+    let square_meshes = [
+        Mesh::Crossed(0.1),
+        Mesh::Crossed(0.05),
+        Mesh::Crossed(0.025),
+        Mesh::Gmsh(0.1),
+        Mesh::Gmsh(0.05),
+        Mesh::Gmsh(0.025),
+        Mesh::Voronoi(100),
+        Mesh::Voronoi(400),
+        Mesh::Voronoi(1600),
+    ];
+    vec![
+        Problem {
+            name: "Prandtl φ = 0",
+            file: "footing",
+            size: [4.0, 1.6],
+            phi: 0.0,
+            cap: 0.0,
+            supports: footing.clone(),
+            gravity: false,
+            unit: 0.4 * C,
+            reference: [2.0 + PI; 2],
+            meshes: footing_meshes,
+        },
+        Problem {
+            name: "footing φ = 30°",
+            file: "footing",
+            size: [4.0, 1.6],
+            phi: 30.0,
+            cap: 0.0,
+            supports: footing,
+            gravity: false,
+            unit: 0.4 * C,
+            reference: [n_c; 2],
+            meshes: footing_meshes,
+        },
+        Problem {
+            name: "smooth platens φ = 0",
+            file: "square",
+            size: [1.0, 1.0],
+            phi: 0.0,
+            cap: 1e9,
+            supports: platens.clone(),
+            gravity: false,
+            unit: C,
+            reference: [squeeze(0.0); 2],
+            meshes: square_meshes,
+        },
+        Problem {
+            name: "smooth platens φ = 30°",
+            file: "square",
+            size: [1.0, 1.0],
+            phi: 30.0,
+            cap: 1e9,
+            supports: platens,
+            gravity: false,
+            unit: C,
+            reference: [squeeze(phi30); 2],
+            meshes: square_meshes,
+        },
+        Problem {
+            name: "vertical cut",
+            file: "cut",
+            size: [2.0, 1.0],
+            phi: 0.0,
+            cap: 1e9,
+            supports: cut,
+            gravity: true,
+            unit: C / (RHO * G * 1.0),
+            reference: CUT,
+            meshes: [
+                Mesh::Crossed(0.1),
+                Mesh::Crossed(0.05),
+                Mesh::Crossed(0.025),
+                Mesh::Gmsh(0.1),
+                Mesh::Gmsh(0.05),
+                Mesh::Gmsh(0.025),
+                Mesh::Voronoi(200),
+                Mesh::Voronoi(800),
+                Mesh::Voronoi(3200),
+            ],
+        },
+    ]
+}
+
+fn cell(value: &Result<(f64, CollapseReport), String>, p: &Problem) -> String {
+    match value {
+        Ok((v, _)) => format!("{v:.3} ({:+.1} %)", 100.0 * p.error(*v)),
+        Err(e) if e.contains("does not collapse") => "locks (no mechanism)".into(),
+        Err(e) => format!("stopped: {e}"),
+    }
+}
+
+/// The explicit run of `scene`: the clamp's reaction at its end in units of the reference and
+/// at two thirds of its travel (1 cm), its steps and elements, and its wall time (s).
+fn explicit(scene: &Value, p: &Problem) -> ([f64; 2], u64, usize, f64) {
+    let start = std::time::Instant::now();
+    let s = setup(scene);
+    let params = RunParams {
+        keep_history: true,
+        ..RunParams::default()
+    };
+    let out = run::simulate(&s, &params, None, &mut Silent).unwrap();
+    let n = out.columns.len();
+    let force = out
+        .columns
+        .iter()
+        .position(|c| c.ends_with("_force"))
+        .expect("the clamp's force column");
+    let rows = out.history.len() / n;
+    let earlier = out.history[(2 * rows / 3) * n + force];
+    (
+        [
+            out.last("_force").expect("the clamp's force column") / p.unit,
+            earlier / p.unit,
+        ],
+        out.summary.steps,
+        s.model.elements.len(),
+        start.elapsed().as_secs_f64(),
+    )
+}
+
+pub fn collapse(r: &mut Report) {
+    r.line("## 12. Collapse loads: the formulations compared\n");
+    r.line("`rbsm limit` finds the collapse load of the discrete model a scene builds by conic programming (Clarabel): interface tractions at the explicit law's two Gauss points (or, `--points ends`, checked at each interface's end points), and for hybrid elements with a strength their constant stress inside Mohr–Coulomb's cone (plane strain). Three formulations: **rigid** elements; **hybrid elastic** (hybrid elements without a strength: their free stress balances any traction on their strains, so their collapse load is the rigid one of the same shapes, shown once below); **hybrid plastic** (elements with the interfaces' `c` and `φ`). Interfaces: Mohr–Coulomb with the problem's `c`, `φ` and cut-off. Meshes: crossed triangles (`grid`, `cell: crossed`), unstructured triangles by gmsh 4.15.2 (`validation/meshes/*.geo`, regenerated by `validation/meshes/make.sh`), centroidal Voronoi cells (seed 1, 20 Lloyd iterations). Each cell gives the collapse value in units of the reference and its error against the closed form (or the bracket, 0 inside it). Cost: the program's unknowns and interior-point iterations here; its wall time in `timings.md` (one 2-core machine).\n");
+    r.timing("\n## 12. Collapse loads (rbsm limit, wall time of each program)\n");
+    r.timing(
+        "| problem | mesh | formulation | points | elements | unknowns | iterations | seconds |",
+    );
+    r.timing("|---|---|---|---|---|---|---|---|");
+    let problems = problems();
+    for p in &problems {
+        let reference = if p.reference[0] == p.reference[1] {
+            format!("{:.4}", p.reference[0])
+        } else {
+            format!("{:.3}–{:.3}", p.reference[0], p.reference[1])
+        };
+        let what = if p.gravity {
+            "γH/c at collapse"
+        } else {
+            "q/c at collapse"
+        };
+        r.line(&format!("### {} ({what}; reference {reference})\n", p.name));
+        r.line("| mesh | elements | rigid, Gauss | rigid, ends | hybrid plastic, Gauss | hybrid plastic, ends | unknowns (hybrid) | iterations (hybrid, Gauss) |");
+        r.line("|---|---|---|---|---|---|---|---|");
+        // The last (finest) mesh of each triangle family: its hybrid plastic load.
+        let mut finest: Vec<(&str, f64)> = Vec::new();
+        for &mesh in &p.meshes {
+            eprintln!("§12 {}: {}", p.name, mesh.label());
+            let mut cells = Vec::new();
+            let (mut elements, mut unknowns, mut iterations) = (0, 0, 0);
+            for (hybrid, plastic) in [(false, false), (true, true)] {
+                let s = setup(&p.scene(mesh, hybrid, plastic));
+                elements = s.model.elements.len();
+                for points in [Points::Gauss, Points::Ends] {
+                    let v = limit(&s, p, points);
+                    if let Ok((value, report)) = &v {
+                        r.timing(&format!(
+                            "| {} | {} | {} | {:?} | {elements} | {} | {} | {:.2} |",
+                            p.name,
+                            mesh.label(),
+                            if plastic { "hybrid plastic" } else { "rigid" },
+                            points,
+                            report.unknowns,
+                            report.iterations,
+                            report.seconds
+                        ));
+                        if plastic && points == Points::Gauss {
+                            if mesh.family() != "Voronoi" {
+                                finest.retain(|f| f.0 != mesh.family());
+                                finest.push((mesh.family(), *value));
+                            }
+                            unknowns = report.unknowns;
+                            iterations = report.iterations;
+                            r.figure(
+                                &format!("collapse {}: {}, hybrid plastic", p.name, mesh.label()),
+                                *value,
+                                1e-4,
+                            );
+                        }
+                        if !plastic && points == Points::Gauss {
+                            r.figure(
+                                &format!("collapse {}: {}, rigid", p.name, mesh.label()),
+                                *value,
+                                1e-4,
+                            );
+                        }
+                    }
+                    cells.push(cell(&v, p));
+                }
+            }
+            r.line(&format!(
+                "| {} | {elements} | {} | {unknowns} | {iterations} |",
+                mesh.label(),
+                cells.join(" | ")
+            ));
+        }
+        r.line("");
+        // The finest triangles with plastic elements: the issue's goal (within 5 %).
+        for (family, value) in finest {
+            r.bound(
+                &format!(
+                    "|error| {}: finest {family} triangles, hybrid plastic",
+                    p.name
+                ),
+                p.error(value).abs(),
+                0.05,
+            );
+        }
+    }
+    // Hybrid elastic elements collapse as rigid ones: one mesh shows it.
+    let p = &problems[0];
+    let mesh = p.meshes[1];
+    let rigid = limit(&setup(&p.scene(mesh, false, false)), p, Points::Gauss)
+        .unwrap()
+        .0;
+    let elastic = limit(&setup(&p.scene(mesh, true, false)), p, Points::Gauss)
+        .unwrap()
+        .0;
+    r.line(&format!("**Hybrid elastic.** On {} the hybrid model with elastic elements collapses at {elastic:.6} c against the rigid model's {rigid:.6} c: the same load, as it must (its elements cannot dissipate, so the mechanism moves them rigidly). Its explicit run differs only on the way there (below).\n", mesh.label()));
+    r.bound(
+        "hybrid elastic against rigid collapse load, Prandtl crossed h = 0.1",
+        (elastic / rigid - 1.0).abs(),
+        1e-6,
+    );
+    explicit_section(r, &problems);
+    r.line("**Reading.** *Rigid elements* reach a closed form only where the mesh holds its mechanism: crossed triangles give the upper bounds of their 0°, 45° and 90° interfaces whatever their size (6 c for Prandtl, 4 for the cut; 2 c for the squeeze with φ = 0, whose slip planes are at 45°; +37 % and +54 % with φ = 30°, where the planes would have to turn); gmsh's triangles stay 12–19 % high with φ = 0 and lock with φ = 30° (the load grows with refinement); Voronoi cells lock everywhere, tens to thousands of times the reference, or with no mechanism the program can find (φ = 30°), as §11 found by stepping. *Hybrid elastic* elements collapse exactly as rigid ones (below). *Plastic hybrid elements* unlock the triangles: on both kinds the error falls with refinement, and the finest meshes are within the goal of 5 % (the checks below) except the φ = 30° footing on gmsh's triangles, 8.6 % at h = 0.04 m (23.8 %, 13.7 %, 8.6 %: about halved per halving of h, so h = 0.02 m, four times the elements, would be needed). On Voronoi cells plastic elements bring the footing from twelve times Prandtl down to +20 % at 6400 cells, and the squeeze with φ = 30° to +2.7 %, falling with refinement; the squeeze with φ = 0 falls more slowly (+433 %, +207 %, +57 %): the cells' constant strain must follow a shear band across randomly inclined faces whose slip does not dilate. The vertical cut on Voronoi cells stays thousands of per cent high even with plastic elements (falling with refinement); we have not found why: its mechanism concentrates in the clipped cells at the crest, and a free face with clipped cells is what that problem has and the others do not. Checking the interface strengths at the ends instead of the Gauss points is a stronger condition, so its load is never higher: on triangles with plastic elements within 4 % of the Gauss points' on the coarsest meshes and within 2 % on the finest, up to 40 % lower on Voronoi cells, where the interfaces carry more of the mechanism.\n");
+}
+
+/// Explicit runs of the footing on crossed triangles h = 0.1 m: the clamp's reaction at 1.5 cm
+/// against the program's load.
+fn explicit_section(r: &mut Report, problems: &[Problem]) {
+    r.line("### Explicit runs of the same models (footing, crossed h = 0.1 m)\n");
+    r.line("The footing pushed at 0.1 m/s (ramp 5 ms) to 1.5 cm with local damping 0.8, Δt = 0.5 Δt_crit, as `rbsm run` steps it; `q/c` is the clamp's reaction at the end over its width and `c`. Where the flow is associated (φ = 0: the interfaces' shear and cut-off, Tresca elements) the plateau is the program's load; with φ = 30° the interfaces slide without dilatancy while the program's flow is associated, so the explicit load may differ from it.\n");
+    r.line("| problem | formulation | program q/c | explicit q/c at 1 cm | explicit q/c at 1.5 cm | explicit − program | steps | element-steps |");
+    r.line("|---|---|---|---|---|---|---|---|");
+    r.timing("\n## 12. Explicit runs of the footing (crossed h = 0.1 m)\n");
+    r.timing("| problem | formulation | seconds | program seconds |");
+    r.timing("|---|---|---|---|");
+    let mesh = Mesh::Crossed(0.1);
+    // The φ = 30° run's reaction at 1 cm and at 1.5 cm.
+    let mut steep = [0.0; 2];
+    for (p, hybrid, plastic, name) in [
+        (&problems[0], false, false, "rigid"),
+        (&problems[0], true, false, "hybrid elastic"),
+        (&problems[0], true, true, "hybrid plastic"),
+        (&problems[1], true, true, "hybrid plastic"),
+    ] {
+        let scene = p.scene(mesh, hybrid, plastic);
+        let (program, report) = limit(&setup(&scene), p, Points::Gauss).unwrap();
+        let ([q, earlier], steps, elements, seconds) = explicit(&scene, p);
+        r.line(&format!(
+            "| {} | {name} | {program:.4} | {earlier:.4} | {q:.4} | {:+.2} % | {steps} | {:.2e} |",
+            p.name,
+            100.0 * (q / program - 1.0),
+            steps as f64 * elements as f64
+        ));
+        r.timing(&format!(
+            "| {} | {name} | {seconds:.1} | {:.2} |",
+            p.name, report.seconds
+        ));
+        if p.phi > 0.0 {
+            steep = [earlier, q];
+        }
+        if p.phi == 0.0 {
+            r.bound(
+                &format!("explicit plateau against the program, {} {name}", p.name),
+                (q / program - 1.0).abs(),
+                if plastic { 0.01 } else { 0.02 },
+            );
+        }
+    }
+    r.line("");
+    let [earlier, last] = steep;
+    r.line(&format!("With φ = 0 the three explicit runs lie within about 1 % of the program's load at 1.5 cm, the rigid and hybrid elastic ones still rising slowly towards it. With φ = 30° the explicit footing is still rising steeply ({earlier:.1} c at 1 cm, {last:.1} c at 1.5 cm): its interfaces slide without dilating, and a material whose flow is not associated collapses at no more than the associated limit load (Radenkovic's bound), which is what the program computes; how far below it this footing levels off needs a longer travel than this section runs.\n"));
+}
