@@ -158,10 +158,7 @@ fn both_evaluators_agree_while_a_bar_cracks_and_the_energy_balance_closes() {
     let (ua, rows_a, report_a) = run_through(&scene, EvaluatorKind::Assembled, 100);
     let (ue, rows_e, report_e) = run_through(&scene, EvaluatorKind::ElementWise, 100);
     let scale = ua.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-    let diff = ua
-        .iter()
-        .zip(&ue)
-        .fold(0.0f64, |m, (a, e)| m.max((a - e).abs()));
+    let diff = common::max_abs_diff(&ua, &ue);
     assert!(diff <= 1e-9 * scale, "|ΔU| = {diff:e} of {scale:e}");
     let broken = |r: &[rbsm::force::failure::InterfaceFailure]| {
         r.iter()
@@ -173,10 +170,7 @@ fn both_evaluators_agree_while_a_bar_cracks_and_the_energy_balance_closes() {
     for rows in [&rows_a, &rows_e] {
         let last = rows.last().unwrap();
         assert!(last.fracture > 1.0, "fracture work {} J", last.fracture);
-        let drift = rows
-            .iter()
-            .map(|e| (e.total - rows[0].total).abs())
-            .fold(0.0, f64::max);
+        let drift = common::energy_drift(rows);
         assert!(
             drift < 1e-4 * last.external_work,
             "energy balance off by {drift:e} J of {:e} J put in",
@@ -352,10 +346,7 @@ fn a_dropped_beam_breaks_into_blocks_with_its_energy_balanced() {
     assert_eq!(released_a, released_e);
     // Fragmentation amplifies round-off: the two runs stay close, not equal.
     let scale = ua.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-    let diff = ua
-        .iter()
-        .zip(&ue)
-        .fold(0.0f64, |m, (a, e)| m.max((a - e).abs()));
+    let diff = common::max_abs_diff(&ua, &ue);
     assert!(diff <= 1e-6 * scale, "|ΔU| = {diff:e} of {scale:e}");
     // The imbalance at the end, over the energy put in, at `Δt` and at `Δt / 2`.
     let imbalance = |rows: &[rbsm::step::integrator::Energy]| {

@@ -4,6 +4,8 @@
 //! checkpoint, the outputs, the rigid formulation's refusal, and the explicit plateau of a
 //! footing against the collapse load of the same model by conic programming.
 
+mod common;
+
 use nalgebra::{Matrix3, Vector3};
 use rbsm::analysis::collapse::{self, Points};
 use rbsm::analysis::run::{self as run, RunParams, Silent};
@@ -230,10 +232,7 @@ fn both_evaluators_agree_while_elements_and_interfaces_yield_and_the_energy_bala
     let (ua, rows_a, state_a) = run_through(&setup(&scene, EvaluatorKind::Assembled));
     let (ue, rows_e, state_e) = run_through(&setup(&scene, EvaluatorKind::ElementWise));
     let scale = ua.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-    let diff = ua
-        .iter()
-        .zip(&ue)
-        .fold(0.0f64, |m, (a, e)| m.max((a - e).abs()));
+    let diff = common::max_abs_diff(&ua, &ue);
     assert!(diff <= 1e-9 * scale, "|ΔU| = {diff:e} of {scale:e}");
     let flowed = state_a.strain.iter().filter(|e| **e != [0.0; 3]).count();
     assert!(flowed > 0, "no element yielded");
@@ -244,10 +243,7 @@ fn both_evaluators_agree_while_elements_and_interfaces_yield_and_the_energy_bala
     for rows in [&rows_a, &rows_e] {
         let last = rows.last().unwrap();
         assert!(last.plastic > 0.0 && last.fracture > 0.0, "{last:?}");
-        let drift = rows
-            .iter()
-            .map(|e| (e.total - rows[0].total).abs())
-            .fold(0.0, f64::max);
+        let drift = common::energy_drift(rows);
         assert!(
             drift < 1e-4 * last.external_work,
             "energy balance off by {drift:e} J of {:e} J put in",

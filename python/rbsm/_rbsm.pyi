@@ -44,6 +44,7 @@ def limit(
     text: Optional[str],
     base_dir: Optional[str],
     on: Optional[str] = None,
+    points: str = "gauss",
     out: Optional[str] = None,
     threads: Optional[int] = None,
 ) -> Dict[str, Any]: ...

@@ -67,6 +67,13 @@ pub fn max_abs_diff(a: &[f64], b: &[f64]) -> f64 {
         .fold(0.0, f64::max)
 }
 
+/// The largest `|total − total(0)|` over the energies of a run's records (J).
+pub fn energy_drift(rows: &[rbsm::step::integrator::Energy]) -> f64 {
+    rows.iter()
+        .map(|e| (e.total - rows[0].total).abs())
+        .fold(0.0, f64::max)
+}
+
 /// Runs `scene` silently into `dir`, for `steps` steps when given (else the scene's).
 pub fn run_into(scene: &Scene, steps: Option<u64>, dir: &std::path::Path) -> Summary {
     let overrides = Overrides {
