@@ -101,6 +101,11 @@ fn extras() -> Vec<(String, Value)> {
     plastic["materials"]["concrete"]["interface"] = json!({"kind": "mohr-coulomb",
         "tensile_strength": 1e6, "cohesion": 2e6, "friction_angle": 35});
     plastic["bodies"][0]["supports"][1]["span"] = json!([0.0, 0.05]);
+    let mut facet = load("tension_bar.json");
+    facet["materials"]["concrete"]["interface"] = json!({"kind": "facet",
+        "tensile_strength": 3e6, "shear_strength": 8.1e6, "fracture_energy": 100,
+        "fracture_energy_shear": 1000, "compressive_strength": 3e7, "cap_hardening": 3e11,
+        "friction": 0.6, "friction_residual": 0.1, "friction_pressure": 1e7});
     let mut elastic = load("tension_bar.json");
     elastic["materials"]["concrete"]["interface"] = json!({"kind": "elastic"});
     elastic["materials"]["concrete"]["element"] = json!({"kind": "elastic"});
@@ -120,6 +125,7 @@ fn extras() -> Vec<(String, Value)> {
         ("hybrid", hybrid),
         ("point contact", contact),
         ("mohr-coulomb", plastic),
+        ("facet", facet),
         ("elastic law", elastic),
         ("minimal", minimal),
     ]

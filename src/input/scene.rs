@@ -45,6 +45,13 @@ const ELEMENT_COHESION: Range = Range::above(0.0, "Pa");
 const FRACTURE_ENERGY: Range = Range::above(0.0, "J/m²");
 /// An interface's `fracture_energy_shear` (J/m²).
 const FRACTURE_ENERGY_SHEAR: Range = Range::above(0.0, "J/m²");
+/// A facet law's strengths and pressures (Pa): `tensile_strength`, `shear_strength`,
+/// `compressive_strength`, `friction_pressure`.
+const FACET_STRENGTH: Range = Range::above(0.0, "Pa");
+/// A facet law's `cap_hardening` (Pa/m).
+const CAP_HARDENING: Range = Range::at_least(0.0, "Pa/m");
+/// A facet law's friction coefficients.
+const FRICTION_COEFFICIENT: Range = Range::at_least(0.0, "");
 /// Each of a grid's or a Voronoi mesh's `size` (m).
 const SIZE: Range = Range::above(0.0, "m");
 /// Each of a grid's `cells`, and their product.
@@ -293,6 +300,9 @@ kinds! {
         "mohr-coulomb" => MohrCoulomb(StrengthSpec),
         /// The same surface, softening with the plastic opening and slip until it is exhausted.
         "softening" => Softening(SofteningSpec),
+        /// The facet law of quasi-brittle materials (concrete, rock): a smooth tension–shear
+        /// surface softening with the opening, bounded friction and a compression cap.
+        "facet" => Facet(FacetSpec),
     }
 }
 
@@ -339,12 +349,74 @@ pub struct SofteningSpec {
     pub fracture_energy_shear: f64,
 }
 
+/// The facet law (`model::facet`): `docs/scene.md`, *interface*.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct FacetSpec {
+    /// Tensile strength `f_t` (Pa), > 0.
+    #[schemars(transform = FACET_STRENGTH.schema())]
+    pub tensile_strength: f64,
+    /// Shear strength `s` (Pa) at no normal traction, > 0.
+    #[schemars(transform = FACET_STRENGTH.schema())]
+    pub shear_strength: f64,
+    /// Fracture energy in tension `G_t` (J/m²), > 0.
+    #[schemars(transform = FRACTURE_ENERGY.schema())]
+    pub fracture_energy: f64,
+    /// Fracture energy in shear `G_s` (J/m²), > 0.
+    #[schemars(transform = FRACTURE_ENERGY_SHEAR.schema())]
+    pub fracture_energy_shear: f64,
+    /// Compressive strength `f_c` (Pa), > 0: where the cap starts.
+    #[schemars(transform = FACET_STRENGTH.schema())]
+    pub compressive_strength: f64,
+    /// The cap's hardening `H` (Pa/m), ≥ 0: its rise per metre of compaction (0: perfectly
+    /// plastic).
+    #[serde(default)]
+    #[schemars(transform = CAP_HARDENING.schema())]
+    pub cap_hardening: f64,
+    /// Friction coefficient `μ₀` at low pressure, ≥ 0.
+    #[schemars(transform = FRICTION_COEFFICIENT.schema())]
+    pub friction: f64,
+    /// Friction coefficient `μ_∞` at high pressure, in [0, `friction`]; `friction` when absent
+    /// (a constant coefficient).
+    #[serde(default)]
+    #[schemars(transform = FRICTION_COEFFICIENT.schema())]
+    pub friction_residual: Option<f64>,
+    /// The pressure `σ_N0` (Pa), > 0, over which the coefficient falls from `μ₀` to `μ_∞`;
+    /// `compressive_strength` when absent.
+    #[serde(default)]
+    #[schemars(transform = FACET_STRENGTH.schema())]
+    pub friction_pressure: Option<f64>,
+}
+
+impl FacetSpec {
+    /// Its keys in range, named under `at`.
+    fn validate(&self, at: &str) -> Result<()> {
+        let key = |k: &str| format!("{at}.{k}");
+        FACET_STRENGTH.check(&key("tensile_strength"), self.tensile_strength)?;
+        FACET_STRENGTH.check(&key("shear_strength"), self.shear_strength)?;
+        FRACTURE_ENERGY.check(&key("fracture_energy"), self.fracture_energy)?;
+        FRACTURE_ENERGY_SHEAR.check(&key("fracture_energy_shear"), self.fracture_energy_shear)?;
+        FACET_STRENGTH.check(&key("compressive_strength"), self.compressive_strength)?;
+        CAP_HARDENING.check(&key("cap_hardening"), self.cap_hardening)?;
+        FRICTION_COEFFICIENT.check(&key("friction"), self.friction)?;
+        if let Some(mu) = self.friction_residual {
+            FRICTION_COEFFICIENT
+                .at_most(self.friction)
+                .check(&key("friction_residual"), mu)?;
+        }
+        if let Some(p) = self.friction_pressure {
+            FACET_STRENGTH.check(&key("friction_pressure"), p)?;
+        }
+        Ok(())
+    }
+}
+
 impl InterfaceLawSpec {
-    /// The strength, and the fracture energies `(G_f, G_f,II)` of a softening law; `None` for
-    /// an elastic law.
+    /// The Mohr–Coulomb strength, and the fracture energies `(G_f, G_f,II)` of a softening law;
+    /// `None` for an elastic law and for the facet law.
     pub fn strength(&self) -> Option<(StrengthSpec, Option<[f64; 2]>)> {
         match *self {
-            InterfaceLawSpec::Elastic => None,
+            InterfaceLawSpec::Elastic | InterfaceLawSpec::Facet(_) => None,
             InterfaceLawSpec::MohrCoulomb(s) => Some((s, None)),
             InterfaceLawSpec::Softening(s) => Some((
                 StrengthSpec {
@@ -1664,6 +1736,9 @@ impl InterfaceLawSpec {
     /// A strength in range, named under `at` (`materials.concrete.interface`), and fracture
     /// energies that give a finite softening.
     fn validate(&self, at: &str) -> Result<()> {
+        if let InterfaceLawSpec::Facet(f) = self {
+            return f.validate(at);
+        }
         let Some((strength, energies)) = self.strength() else {
             return Ok(());
         };

@@ -59,7 +59,7 @@ pub trait InterfaceLaw: Send + Sync + Debug {
     /// a quick test before [`update`](InterfaceLaw::update): `Some([σ_max, c, tan φ])` says
     /// that at a trial traction `(σ, τ) = (k_n δ_n, k_s δ_s)` with `σ ≤ σ_max` and
     /// `|τ| ≤ c − σ tan φ` (a Mohr–Coulomb region inside the law's own, evaluated in that
-    /// order of operations) `update` would not flow, so the steps leave it out there. `None`,
+    /// order of operations; a negative `tan φ` closes it in compression) `update` would not flow, so the steps leave it out there. `None`,
     /// the default, asks for `update` at every point.
     fn initial_region(&self) -> Option<[f64; 3]> {
         None
@@ -114,11 +114,26 @@ impl InterfaceLaw for Elastic {
 }
 
 /// The law of a material's interfaces in a scene: `None` for the elastic one (the model's
-/// default law then applies), else its [`Strength`].
+/// default law then applies), else its [`Strength`] or its [`Facet`](crate::model::facet::Facet).
 pub fn from_spec(
     spec: &crate::input::scene::InterfaceLawSpec,
 ) -> Option<std::sync::Arc<dyn InterfaceLaw>> {
-    Strength::from_spec(spec).map(|s| std::sync::Arc::new(s) as std::sync::Arc<dyn InterfaceLaw>)
+    use crate::input::scene::InterfaceLawSpec;
+    use std::sync::Arc;
+    match spec {
+        InterfaceLawSpec::Facet(f) => Some(Arc::new(crate::model::facet::Facet {
+            f_t: f.tensile_strength,
+            s: f.shear_strength,
+            g_t: f.fracture_energy,
+            g_s: f.fracture_energy_shear,
+            f_c: f.compressive_strength,
+            cap_hardening: f.cap_hardening,
+            mu_0: f.friction,
+            mu_inf: f.friction_residual.unwrap_or(f.friction),
+            sigma_n0: f.friction_pressure.unwrap_or(f.compressive_strength),
+        })),
+        _ => Strength::from_spec(spec).map(|s| Arc::new(s) as Arc<dyn InterfaceLaw>),
+    }
 }
 
 /// The strength of an interface that fails (eq. 11 beyond its elastic range): Mohr–Coulomb with

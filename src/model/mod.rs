@@ -2,6 +2,7 @@
 //! motion. Built once from a scene, immutable afterwards; every analysis reads this one copy.
 
 pub mod checks;
+pub mod facet;
 pub mod formulation;
 pub mod law;
 pub mod loads;
