@@ -25,7 +25,16 @@ fn config() -> ProptestConfig {
 #[test]
 fn a_voronoi_vertex_near_a_side_keeps_the_rectangle() {
     let size = Vec2::new(4.300362600714516, 6.798656690613665);
-    let mesh = voronoi("b", Vec2::new(0.0, 0.0), size, 15, 12731460188093093101, 1).unwrap();
+    let mesh = voronoi(
+        "b",
+        Vec2::new(0.0, 0.0),
+        size,
+        15,
+        12731460188093093101,
+        1,
+        None,
+    )
+    .unwrap();
     assert_eq!(mesh.n_cells(), 15);
     assert_conforming(&mesh, size);
 }
@@ -102,7 +111,7 @@ proptest! {
         sites in 3usize..80, seed in any::<u64>(), lloyd in 0usize..4,
         w in 0.1..10.0f64, h in 0.1..10.0f64,
     ) {
-        let mesh = voronoi("b", Vec2::new(0.0, 0.0), Vec2::new(w, h), sites, seed, lloyd).unwrap();
+        let mesh = voronoi("b", Vec2::new(0.0, 0.0), Vec2::new(w, h), sites, seed, lloyd, None).unwrap();
         prop_assert_eq!(mesh.n_cells(), sites);
         assert_conforming(&mesh, Vec2::new(w, h));
     }

@@ -885,3 +885,40 @@ fn body_names_follow_the_column_rule() {
     v["bodies"][0]["name"] = "bar [1] (left; x=0)".into();
     Scene::from_json(&v.to_string()).unwrap();
 }
+
+/// A Voronoi mesh's `domain` out of shape or out of its rectangle is named, with the reason.
+#[test]
+fn bad_voronoi_domains_are_named() {
+    let voronoi = |domain: Value| {
+        with(|v| {
+            v["bodies"][0]["mesh"] = serde_json::json!({"kind": "voronoi", "origin": [0, 0],
+                "size": [1, 1], "sites": 50, "domain": domain});
+        })
+    };
+    expect(
+        &voronoi(serde_json::json!({"kind": "disk", "centre": [0.5, 0.5], "radius": 0.6})),
+        &["bodies[0].mesh.domain.radius", "outside the rectangle"],
+    );
+    expect(
+        &voronoi(
+            serde_json::json!({"kind": "disk", "centre": [0.5, 0.5], "radius": 0.4, "segments": 30}),
+        ),
+        &["bodies[0].mesh.domain.segments", "multiple of 4"],
+    );
+    expect(
+        &voronoi(
+            serde_json::json!({"kind": "polygon", "vertices": [[0, 0], [1, 1], [1, 0], [0, 1]]}),
+        ),
+        &["bodies[0].mesh.domain.vertices", "crosses itself"],
+    );
+    expect(
+        &voronoi(serde_json::json!({"kind": "polygon", "vertices": [[0, 0], [1, 0]]})),
+        &["bodies[0].mesh.domain.vertices", "at least 3"],
+    );
+    expect(
+        &voronoi(
+            serde_json::json!({"kind": "polygon", "vertices": [[0, 0], [1, 0], [0.5, 1e-12]]}),
+        ),
+        &["bodies[0].mesh.domain", "covers less than 1/1000"],
+    );
+}

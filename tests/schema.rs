@@ -77,6 +77,13 @@ fn extras() -> Vec<(String, Value)> {
     let mut voronoi = load("voronoi_panel.json");
     voronoi["bodies"][0]["mesh"] = json!({"kind": "voronoi", "origin": [0.0, 0.0], "size": [1.0, 0.5], "sites": 40, "seed": 3, "lloyd": 2});
 
+    let mut disk = load("voronoi_panel.json");
+    disk["bodies"][0]["mesh"] = json!({"kind": "voronoi", "origin": [0.0, 0.0], "size": [1.0, 1.0], "sites": 60, "seed": 3, "lloyd": 2,
+        "domain": {"kind": "disk", "centre": [0.5, 0.5], "radius": 0.5, "segments": 64}});
+    let mut notched = load("voronoi_panel.json");
+    notched["bodies"][0]["mesh"] = json!({"kind": "voronoi", "origin": [0.0, 0.0], "size": [1.0, 0.5], "sites": 60, "seed": 3, "lloyd": 2,
+        "domain": {"kind": "polygon", "vertices": [[0, 0], [0.45, 0], [0.45, 0.1], [0.55, 0.1], [0.55, 0], [1, 0], [1, 0.5], [0, 0.5]]}});
+
     let mut polygons = load("cantilever.json");
     polygons["bodies"][0]["mesh"] = json!({"kind": "polygons", "vertices": [[0, 0], [1, 0], [1, 1], [0, 1], [2, 0], [2, 1]], "cells": [[0, 1, 2, 3], [1, 4, 5, 2]]});
     polygons["bodies"][0]["array"] =
@@ -121,6 +128,8 @@ fn extras() -> Vec<(String, Value)> {
     [
         ("all optional keys", all),
         ("voronoi", voronoi),
+        ("voronoi disk", disk),
+        ("voronoi notched", notched),
         ("polygons array", polygons),
         ("hybrid", hybrid),
         ("point contact", contact),

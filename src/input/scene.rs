@@ -64,6 +64,10 @@ const SITES: Range = Range::at_least(
 .at_most(MAX_CELLS as f64);
 /// A Voronoi mesh's `lloyd` iterations.
 const LLOYD: Range = Range::at_least(0.0, "").at_most(10_000.0);
+/// A disk domain's `radius` (m).
+const RADIUS: Range = Range::above(0.0, "m");
+/// A disk domain's `segments`.
+const SEGMENTS: Range = Range::at_least(8.0, "").at_most(1_000_000.0);
 /// Each of an array's `count`, and their product.
 const COUNT: Range = Range::at_least(1.0, "").at_most(MAX_BODIES as f64);
 /// A clamp's `ramp` (s).
@@ -712,7 +716,12 @@ impl BodySpec {
                 };
                 match &mut body.mesh {
                     MeshSpec::Grid(g) => moved(&mut g.origin),
-                    MeshSpec::Voronoi(v) => moved(&mut v.origin),
+                    MeshSpec::Voronoi(v) => {
+                        moved(&mut v.origin);
+                        if let Some(d) = &mut v.domain {
+                            d.shift(shift);
+                        }
+                    }
                     MeshSpec::Polygons(p) => p.vertices.iter_mut().for_each(moved),
                     MeshSpec::Gmsh(_) => unreachable!("validated: an array has no gmsh mesh"),
                 }
@@ -763,7 +772,8 @@ pub struct GridSpec {
     pub cell: Cell,
 }
 
-/// `sites` centroidal Voronoi cells clipped to the rectangle, after `lloyd` iterations.
+/// `sites` centroidal Voronoi cells clipped to the rectangle, or to a domain inside it, after
+/// `lloyd` iterations.
 #[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct VoronoiSpec {
@@ -782,6 +792,165 @@ pub struct VoronoiSpec {
     /// Lloyd iterations towards centroidal cells, 0 to 10 000 (default 0).
     #[schemars(transform = LLOYD.schema())]
     pub lloyd: usize,
+    /// The region the cells fill, inside the rectangle (default: the rectangle itself).
+    #[serde(default)]
+    pub domain: Option<DomainSpec>,
+}
+
+kinds! {
+    ///
+    /// `docs/scene.md`, *Meshes*.
+    #[derive(Debug, Clone)]
+    pub enum DomainSpec: "The region a Voronoi mesh fills, inside its rectangle" {
+        /// A simple polygon.
+        "polygon" => Polygon(DomainPolygonSpec),
+        /// A disk, cut as a regular polygon.
+        "disk" => Disk(DiskSpec),
+    }
+}
+
+/// A polygon domain.
+#[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct DomainPolygonSpec {
+    /// Its corners `[x, y]` (m) in order around it (either way), at least 3, its sides not
+    /// crossing, all inside the rectangle.
+    #[schemars(length(min = 3))]
+    pub vertices: Vec<[f64; 2]>,
+}
+
+/// A disk domain.
+#[derive(Debug, Clone, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct DiskSpec {
+    /// Its centre `[x, y]` (m).
+    pub centre: [f64; 2],
+    /// Its radius (m), > 0; the disk lies inside the rectangle.
+    #[schemars(transform = RADIUS.schema())]
+    pub radius: f64,
+    /// The sides of the regular polygon it is cut as, a multiple of 4 from 8 to 10⁶ (default
+    /// `8 √(π sites)` rounded up to one, at least 32: about four per boundary cell), turned so
+    /// that a side lies flat at the bottom, top, left and right.
+    #[serde(default)]
+    #[schemars(transform = SEGMENTS.schema())]
+    pub segments: Option<usize>,
+}
+
+impl DomainSpec {
+    /// Its outline, counter-clockwise for a disk, for a mesh of `sites` cells.
+    pub fn outline(&self, sites: usize) -> Vec<[f64; 2]> {
+        match self {
+            DomainSpec::Polygon(p) => p.vertices.clone(),
+            DomainSpec::Disk(d) => {
+                let n = d.segments.unwrap_or_else(|| {
+                    let n = (8.0 * (std::f64::consts::PI * sites as f64).sqrt()).round() as usize;
+                    (n.div_ceil(4) * 4).max(32)
+                });
+                // Corners half a side off the axes: flat sides at the bottom, top, left and
+                // right, on the disk's bounding box, which supports can name.
+                (0..n)
+                    .map(|k| {
+                        let t = std::f64::consts::TAU * (k as f64 + 0.5) / n as f64;
+                        [
+                            d.centre[0] + d.radius * t.cos(),
+                            d.centre[1] + d.radius * t.sin(),
+                        ]
+                    })
+                    .collect()
+            }
+        }
+    }
+
+    /// Moved by `shift` (m).
+    fn shift(&mut self, shift: [f64; 2]) {
+        let moved = |p: &mut [f64; 2]| {
+            p[0] += shift[0];
+            p[1] += shift[1];
+        };
+        match self {
+            DomainSpec::Polygon(p) => p.vertices.iter_mut().for_each(moved),
+            DomainSpec::Disk(d) => moved(&mut d.centre),
+        }
+    }
+
+    /// Its keys in range, named under `at` (`bodies[0].mesh.domain`), and its outline a simple
+    /// polygon inside the rectangle `origin`, `size`.
+    fn validate(&self, at: &str, origin: [f64; 2], size: [f64; 2], sites: usize) -> Result<()> {
+        let key = |k: &str| format!("{at}.{k}");
+        let field = match self {
+            DomainSpec::Polygon(p) => {
+                if p.vertices.len() < 3 {
+                    return Err(Error::scene(key("vertices"), "needs at least 3 vertices"));
+                }
+                for (i, v) in p.vertices.iter().enumerate() {
+                    finite_all(&key(&format!("vertices[{i}]")), v)?;
+                }
+                key("vertices")
+            }
+            DomainSpec::Disk(d) => {
+                finite_all(&key("centre"), &d.centre)?;
+                RADIUS.check(&key("radius"), d.radius)?;
+                if let Some(n) = d.segments {
+                    SEGMENTS.check_count(&key("segments"), n as u64)?;
+                    if n % 4 != 0 {
+                        return Err(Error::scene(
+                            key("segments"),
+                            format!("{n} is not a multiple of 4 (the disk has flat sides at the bottom, top, left and right)"),
+                        ));
+                    }
+                }
+                key("radius")
+            }
+        };
+        use crate::mesh::geometry::{area_properties, segments_cross, Vec2};
+        let outline: Vec<Vec2> = self
+            .outline(sites)
+            .iter()
+            .map(|p| Vec2::new(p[0], p[1]))
+            .collect();
+        let tol = 1e-9 * (size[0] + size[1]);
+        let outside = outline.iter().position(|p| {
+            p.x < origin[0] - tol
+                || p.y < origin[1] - tol
+                || p.x > origin[0] + size[0] + tol
+                || p.y > origin[1] + size[1] + tol
+        });
+        if let Some(i) = outside {
+            return Err(Error::scene(
+                field,
+                format!(
+                    "the domain reaches outside the rectangle `origin`, `size` (at corner {i}): \
+                     the cells fill the part of the domain inside it"
+                ),
+            ));
+        }
+        let n = outline.len();
+        let crossing = (0..n).any(|i| {
+            (i + 2..n).filter(|&j| (j + 1) % n != i).any(|j| {
+                segments_cross(
+                    outline[i],
+                    outline[(i + 1) % n],
+                    outline[j],
+                    outline[(j + 1) % n],
+                )
+            })
+        });
+        let area = area_properties(&outline).area.abs();
+        if crossing || area <= tol * tol {
+            return Err(Error::scene(
+                field,
+                "the domain's outline crosses itself or encloses no area",
+            ));
+        }
+        if area < 1e-3 * size[0] * size[1] {
+            return Err(Error::scene(
+                field,
+                "the domain covers less than 1/1000 of the rectangle `origin`, `size`, where the \
+                 sites are drawn: fit the rectangle to it",
+            ));
+        }
+        Ok(())
+    }
 }
 
 /// Explicit polygons, vertex lists counter-clockwise.
@@ -1623,6 +1792,7 @@ impl MeshSpec {
                 size,
                 sites,
                 lloyd,
+                domain,
                 ..
             }) => {
                 finite_all(&key("origin"), origin)?;
@@ -1630,6 +1800,9 @@ impl MeshSpec {
                 SIZE.check(&key("size[1]"), size[1])?;
                 SITES.check_count(&key("sites"), *sites as u64)?;
                 LLOYD.check_count(&key("lloyd"), *lloyd as u64)?;
+                if let Some(d) = domain {
+                    d.validate(&key("domain"), *origin, *size, *sites)?;
+                }
             }
             MeshSpec::Polygons(PolygonsSpec { vertices, cells }) => {
                 if vertices.len() < 3 || cells.is_empty() {

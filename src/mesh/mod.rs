@@ -105,7 +105,21 @@ impl Mesh {
                 sites,
                 seed,
                 lloyd,
-            }) => voronoi::voronoi(body, v(origin), v(size), *sites, *seed, *lloyd),
+                domain,
+            }) => {
+                let outline: Option<Vec<Vec2>> = domain
+                    .as_ref()
+                    .map(|d| d.outline(*sites).iter().map(v).collect());
+                voronoi::voronoi(
+                    body,
+                    v(origin),
+                    v(size),
+                    *sites,
+                    *seed,
+                    *lloyd,
+                    outline.as_deref(),
+                )
+            }
             MeshSpec::Polygons(PolygonsSpec { vertices, cells }) => {
                 Mesh::from_polygons(body, vertices.iter().map(v).collect(), cells)
             }

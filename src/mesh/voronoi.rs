@@ -1,21 +1,31 @@
-//! Centroidal Voronoi cells clipped to a rectangle: seeded random sites, then Lloyd iterations
-//! that move each site to the area centroid of its cell. The Voronoi step itself is the
-//! `voronoice` crate (Delaunay by `delaunator`, dual cells clipped to the box).
+//! Centroidal Voronoi cells clipped to a rectangle, or to a polygon inside it (a notched beam, a
+//! disk cut as a regular polygon): seeded random sites, then Lloyd iterations that move each
+//! site to the area centroid of its cell. The Voronoi step itself is the `voronoice` crate
+//! (Delaunay by `delaunator`, dual cells clipped to the box); a domain then clips each convex
+//! cell (Sutherland–Hodgman, the domain clipped by the cell's half-planes).
 
 use super::{Checks, Mesh};
 use crate::error::{Error, Result};
-use crate::mesh::geometry::{area_properties, Vec2};
+use crate::mesh::geometry::{area_properties, cross3, point_in_polygon, segment_distance, Vec2};
 use rand::{Rng, SeedableRng};
 use rustc_hash::FxHashMap;
 use voronoice::{BoundingBox, Point, VoronoiBuilder};
 
-/// `sites` cells in the rectangle `origin .. origin + size`, after `lloyd` centroid iterations;
-/// the same `seed` gives the same mesh on every machine (ChaCha8 generator).
+/// How many random points of the rectangle are drawn per site at most: ten times what a domain
+/// covering 1/1000 of it (the least the scene allows) needs on average.
+const DRAWS_PER_SITE: usize = 10_000;
+
+/// `sites` cells in the rectangle `origin .. origin + size`, or in the polygon `domain` inside
+/// it, after `lloyd` centroid iterations; the same `seed` gives the same mesh on every machine
+/// (ChaCha8 generator). With a domain, the sites are the first `sites` random points of the
+/// rectangle that lie inside it, and a Lloyd iteration leaves a site where it is when the
+/// centroid of its cell falls outside the domain (a non-convex cell at a re-entrant corner).
 ///
 /// # Errors
 /// The diagram of the sites cannot be built, loses sites, or has a cell that is degenerate or has
-/// no area (too few or coincident sites, or sites nearly on one line in an extreme rectangle); or
-/// the welded cells do not form a valid mesh.
+/// no area (too few or coincident sites, or sites nearly on one line in an extreme rectangle); a
+/// domain that covers too little of the rectangle, or cuts a cell in two (a feature narrower
+/// than a cell); or the welded cells do not form a valid mesh.
 pub fn voronoi(
     body: &str,
     origin: Vec2,
@@ -23,11 +33,30 @@ pub fn voronoi(
     sites: usize,
     seed: u64,
     lloyd: usize,
+    domain: Option<&[Vec2]>,
 ) -> Result<Mesh> {
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
-    let mut pts: Vec<Vec2> = (0..sites)
-        .map(|_| origin + Vec2::new(rng.random::<f64>() * size.x, rng.random::<f64>() * size.y))
-        .collect();
+    let mut draw =
+        || origin + Vec2::new(rng.random::<f64>() * size.x, rng.random::<f64>() * size.y);
+    let mut pts: Vec<Vec2> = match domain {
+        None => (0..sites).map(|_| draw()).collect(),
+        Some(domain) => {
+            let pts: Vec<Vec2> = std::iter::repeat_with(draw)
+                .take(DRAWS_PER_SITE * sites)
+                .filter(|p| point_in_polygon(*p, domain))
+                .take(sites)
+                .collect();
+            if pts.len() < sites {
+                return Err(Error::mesh(
+                    body,
+                    0,
+                    "too few random points of the rectangle `origin`, `size` fell inside the \
+                     domain: fit the rectangle to it",
+                ));
+            }
+            pts
+        }
+    };
     // Cells numbered strip by strip, as in a grid: neighbours get nearby numbers, so the
     // evaluators walk memory forwards instead of at random (10× faster at 10⁵ cells). The
     // sites are numbered so before the Lloyd iterations too, which then also walk nearby
@@ -36,12 +65,15 @@ pub fn voronoi(
     let strip = |p: &Vec2| (((p.y - origin.y) / size.y * strips as f64) as usize).min(strips - 1);
     pts.sort_by(|p, q| strip(p).cmp(&strip(q)).then(p.x.total_cmp(&q.x)));
     for _ in 0..lloyd {
-        pts = clipped_cells(body, origin, size, &pts)?
+        pts = clipped_cells(body, origin, size, &pts, domain, false)?
             .iter()
             .enumerate()
             .map(|(c, points)| {
                 let cell = area_properties(points);
                 match cell.area != 0.0 && cell.centroid.iter().all(|x| x.is_finite()) {
+                    true if domain.is_some_and(|d| !point_in_polygon(cell.centroid, d)) => {
+                        Ok(pts[c])
+                    }
                     true => Ok(cell.centroid),
                     false => Err(Error::mesh(
                         body,
@@ -58,7 +90,7 @@ pub fn voronoi(
         body,
         origin,
         size,
-        &clipped_cells(body, origin, size, &pts)?,
+        &clipped_cells(body, origin, size, &pts, domain, true)?,
     )
 }
 
@@ -77,8 +109,17 @@ impl Cells {
     }
 }
 
-/// The Voronoi cells of `sites`, clipped to the rectangle, as coordinate lists.
-fn clipped_cells(body: &str, origin: Vec2, size: Vec2, sites: &[Vec2]) -> Result<Cells> {
+/// The Voronoi cells of `sites`, clipped to the rectangle and to the domain, as coordinate
+/// lists. A cell the domain cuts in two is refused in the `last` diagram, the mesh's; before,
+/// in a Lloyd iteration, its two parts joined by their bridge give the centroid of both.
+fn clipped_cells(
+    body: &str,
+    origin: Vec2,
+    size: Vec2,
+    sites: &[Vec2],
+    domain: Option<&[Vec2]>,
+    last: bool,
+) -> Result<Cells> {
     let centre = origin + 0.5 * size;
     let diagram = VoronoiBuilder::default()
         .set_sites(sites.iter().map(|p| Point { x: p.x, y: p.y }).collect())
@@ -111,10 +152,26 @@ fn clipped_cells(body: &str, origin: Vec2, size: Vec2, sites: &[Vec2]) -> Result
         points: Vec::with_capacity(7 * sites.len()),
         ends: Vec::with_capacity(sites.len()),
     };
-    for c in diagram.cells() {
-        cells
-            .points
-            .extend(c.iter().map(|&i| Vec2::new(v[i].x, v[i].y)));
+    let (mut cell, mut piece, mut spare) = (Vec::new(), Vec::new(), Vec::new());
+    for (k, c) in diagram.cells().iter().enumerate() {
+        cell.clear();
+        cell.extend(c.iter().map(|&i| Vec2::new(v[i].x, v[i].y)));
+        match domain {
+            Some(domain) if !cell.iter().all(|p| point_in_polygon(*p, domain)) => {
+                clip(domain, &cell, &mut piece, &mut spare);
+                tidy(&mut piece, 1e-9 * size.norm());
+                if last && cut_in_two(&piece, 1e-9 * size.norm()) {
+                    return Err(Error::mesh(
+                        body,
+                        k,
+                        "the domain cuts this Voronoi cell in two (a notch or a neck narrower \
+                         than a cell): use more sites",
+                    ));
+                }
+                cells.points.extend_from_slice(&piece);
+            }
+            _ => cells.points.extend_from_slice(&cell),
+        }
         cells.ends.push(cells.points.len());
     }
     let degenerate = cells.iter().position(|c| c.len() < 3);
@@ -126,6 +183,72 @@ fn clipped_cells(body: &str, origin: Vec2, size: Vec2, sites: &[Vec2]) -> Result
         )),
         None => Ok(cells),
     }
+}
+
+/// `subject ∩ cell` into `out` for a convex `cell` (either orientation), by Sutherland–Hodgman:
+/// the subject clipped by each of the cell's half-planes in turn; `spare` is scratch. Where the
+/// intersection has two parts, they come out joined by edges that run along a side of the cell
+/// and back ([`cut_in_two`]).
+fn clip(subject: &[Vec2], cell: &[Vec2], out: &mut Vec<Vec2>, spare: &mut Vec<Vec2>) {
+    let orient = area_properties(cell).area.signum();
+    out.clear();
+    out.extend_from_slice(subject);
+    for (i, &a) in cell.iter().enumerate() {
+        let b = cell[(i + 1) % cell.len()];
+        let side = |p: Vec2| orient * cross3(a, b, p);
+        spare.clear();
+        for (j, &p) in out.iter().enumerate() {
+            let q = out[(j + 1) % out.len()];
+            let (dp, dq) = (side(p), side(q));
+            if dp >= 0.0 {
+                spare.push(p);
+            }
+            if dp * dq < 0.0 {
+                spare.push(p + (q - p) * (dp / (dp - dq)));
+            }
+        }
+        std::mem::swap(out, spare);
+        if out.is_empty() {
+            return;
+        }
+    }
+}
+
+/// Takes out of a clipped cell what Sutherland–Hodgman leaves where the domain leaves and
+/// re-enters the cell across one of its sides: repeated points (within `tol`) and spikes, a
+/// point where the outline turns back along itself.
+fn tidy(piece: &mut Vec<Vec2>, tol: f64) {
+    loop {
+        piece.dedup_by(|b, a| (*b - *a).norm() <= tol);
+        while piece.len() > 1 && (piece[0] - piece[piece.len() - 1]).norm() <= tol {
+            piece.pop();
+        }
+        let n = piece.len();
+        let spike = (0..n).find(|&i| {
+            let (a, b, c) = (piece[(i + n - 1) % n], piece[i], piece[(i + 1) % n]);
+            (b - a).dot(&(c - b)) < 0.0 && cross3(a, b, c).abs() <= tol * (b - a).norm()
+        });
+        match spike {
+            Some(i) if n > 3 => {
+                piece.remove(i);
+            }
+            _ => return,
+        }
+    }
+}
+
+/// Whether a tidied clipped cell is two parts joined by a bridge: two of its edges that do not
+/// follow each other come within `tol`.
+fn cut_in_two(p: &[Vec2], tol: f64) -> bool {
+    let n = p.len();
+    if n < 3 {
+        return true;
+    }
+    (0..n).any(|i| {
+        (i + 2..n)
+            .filter(|&j| (j + 1) % n != i)
+            .any(|j| segment_distance(p[i], p[(i + 1) % n], p[j], p[(j + 1) % n]) <= tol)
+    })
 }
 
 /// `x` moved onto the side `lo` or `lo + len` of the rectangle when it lies within `tol` of it
@@ -219,16 +342,20 @@ mod tests {
         // (`tests/fuzz.rs` found it); a release build left them out of the diagram, and the
         // error blamed sites outside the rectangle.
         let (o, s) = (Vec2::new(0.0, 0.0), Vec2::new(1.0, 2.5e-7));
-        let random = voronoi("b", o, s, 400, 42, 0).unwrap_err().to_string();
+        let random = voronoi("b", o, s, 400, 42, 0, None)
+            .unwrap_err()
+            .to_string();
         assert!(random.contains("at least 3"), "{random}");
-        let e = voronoi("b", o, s, 400, 42, 1).unwrap_err().to_string();
+        let e = voronoi("b", o, s, 400, 42, 1, None)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("has no area"), "{e}");
     }
 
     #[test]
     fn cells_tile_the_rectangle() {
         let (o, s) = (Vec2::new(1.0, 2.0), Vec2::new(2.0, 1.0));
-        let m = voronoi("b", o, s, 60, 7, 5).unwrap();
+        let m = voronoi("b", o, s, 60, 7, 5, None).unwrap();
         assert_eq!(m.n_cells(), 60);
         let total: f64 = (0..60)
             .map(|c| area_properties(&m.cell_points(c)).area)
@@ -243,8 +370,79 @@ mod tests {
 
     #[test]
     fn same_seed_same_mesh() {
-        let a = voronoi("b", Vec2::zeros(), Vec2::new(1.0, 1.0), 30, 3, 2).unwrap();
-        let b = voronoi("b", Vec2::zeros(), Vec2::new(1.0, 1.0), 30, 3, 2).unwrap();
+        let a = voronoi("b", Vec2::zeros(), Vec2::new(1.0, 1.0), 30, 3, 2, None).unwrap();
+        let b = voronoi("b", Vec2::zeros(), Vec2::new(1.0, 1.0), 30, 3, 2, None).unwrap();
         assert_eq!(a.vertices, b.vertices);
+    }
+
+    /// A notched beam (a re-entrant notch from the bottom) and a disk (a regular 200-gon):
+    /// the cells tile the domain to round-off, every boundary edge lies on the domain's
+    /// outline, and the mesh is one piece (Euler's formula).
+    #[test]
+    fn cells_tile_a_notched_beam_and_a_disk() {
+        let notched = [
+            Vec2::new(0.0, 0.0),
+            Vec2::new(0.48, 0.0),
+            Vec2::new(0.48, 0.05),
+            Vec2::new(0.52, 0.05),
+            Vec2::new(0.52, 0.0),
+            Vec2::new(1.0, 0.0),
+            Vec2::new(1.0, 0.2),
+            Vec2::new(0.0, 0.2),
+        ];
+        let disk: Vec<Vec2> = (0..200)
+            .map(|k| {
+                let t = std::f64::consts::TAU * k as f64 / 200.0;
+                Vec2::new(0.5 + 0.5 * t.cos(), 0.5 + 0.5 * t.sin())
+            })
+            .collect();
+        for (domain, origin, size, sites) in [
+            (&notched[..], Vec2::zeros(), Vec2::new(1.0, 0.2), 800),
+            (&disk[..], Vec2::zeros(), Vec2::new(1.0, 1.0), 500),
+        ] {
+            let m = voronoi("b", origin, size, sites, 1, 10, Some(domain)).unwrap();
+            assert_eq!(m.n_cells(), sites);
+            let total: f64 = (0..sites)
+                .map(|c| area_properties(&m.cell_points(c)).area)
+                .sum();
+            let area = area_properties(domain).area;
+            assert!((total - area).abs() < 1e-12 * area, "{total} ≠ {area}");
+            let on_outline = |p: Vec2| {
+                (0..domain.len()).any(|i| {
+                    let (a, b) = (domain[i], domain[(i + 1) % domain.len()]);
+                    crate::mesh::geometry::point_segment_distance(p, a, b) < 1e-9
+                })
+            };
+            for e in &m.boundary {
+                let (a, b) = (m.vertices[e.v1 as usize], m.vertices[e.v2 as usize]);
+                assert!(on_outline(a) && on_outline(b) && on_outline(0.5 * (a + b)));
+            }
+            let e = m.shared.len() + m.boundary.len();
+            assert_eq!(m.vertices.len() as i64 - e as i64 + sites as i64, 1);
+        }
+        // A slit far narrower than the cells, nearly through a square, cuts some in two, and
+        // says so.
+        let slit = [
+            Vec2::new(0.0, 0.0),
+            Vec2::new(1.0, 0.0),
+            Vec2::new(1.0, 1.0),
+            Vec2::new(0.501, 1.0),
+            Vec2::new(0.501, 0.05),
+            Vec2::new(0.499, 0.05),
+            Vec2::new(0.499, 1.0),
+            Vec2::new(0.0, 1.0),
+        ];
+        let e = voronoi(
+            "b",
+            Vec2::zeros(),
+            Vec2::new(1.0, 1.0),
+            40,
+            1,
+            0,
+            Some(&slit),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("cuts this Voronoi cell in two"), "{e}");
     }
 }
