@@ -897,7 +897,7 @@ fn bad_voronoi_domains_are_named() {
     };
     expect(
         &voronoi(serde_json::json!({"kind": "disk", "centre": [0.5, 0.5], "radius": 0.6})),
-        &["bodies[0].mesh.domain.radius", "outside the rectangle"],
+        &["bodies[0].mesh.domain", "outside the rectangle"],
     );
     expect(
         &voronoi(
@@ -909,7 +909,7 @@ fn bad_voronoi_domains_are_named() {
         &voronoi(
             serde_json::json!({"kind": "polygon", "vertices": [[0, 0], [1, 1], [1, 0], [0, 1]]}),
         ),
-        &["bodies[0].mesh.domain.vertices", "crosses itself"],
+        &["bodies[0].mesh.domain", "crosses itself"],
     );
     expect(
         &voronoi(serde_json::json!({"kind": "polygon", "vertices": [[0, 0], [1, 0]]})),

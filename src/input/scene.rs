@@ -873,11 +873,11 @@ impl DomainSpec {
         }
     }
 
-    /// Its keys in range, named under `at` (`bodies[0].mesh.domain`), and its outline a simple
-    /// polygon inside the rectangle `origin`, `size`.
-    fn validate(&self, at: &str, origin: [f64; 2], size: [f64; 2], sites: usize) -> Result<()> {
+    /// Its keys in range, named under `at` (`bodies[0].mesh.domain`); the mesh checks its
+    /// outline's shape (`mesh::voronoi::check_domain`).
+    fn validate(&self, at: &str) -> Result<()> {
         let key = |k: &str| format!("{at}.{k}");
-        let field = match self {
+        match self {
             DomainSpec::Polygon(p) => {
                 if p.vertices.len() < 3 {
                     return Err(Error::scene(key("vertices"), "needs at least 3 vertices"));
@@ -885,7 +885,6 @@ impl DomainSpec {
                 for (i, v) in p.vertices.iter().enumerate() {
                     finite_all(&key(&format!("vertices[{i}]")), v)?;
                 }
-                key("vertices")
             }
             DomainSpec::Disk(d) => {
                 finite_all(&key("centre"), &d.centre)?;
@@ -899,55 +898,7 @@ impl DomainSpec {
                         ));
                     }
                 }
-                key("radius")
             }
-        };
-        use crate::mesh::geometry::{area_properties, segments_cross, Vec2};
-        let outline: Vec<Vec2> = self
-            .outline(sites)
-            .iter()
-            .map(|p| Vec2::new(p[0], p[1]))
-            .collect();
-        let tol = 1e-9 * (size[0] + size[1]);
-        let outside = outline.iter().position(|p| {
-            p.x < origin[0] - tol
-                || p.y < origin[1] - tol
-                || p.x > origin[0] + size[0] + tol
-                || p.y > origin[1] + size[1] + tol
-        });
-        if let Some(i) = outside {
-            return Err(Error::scene(
-                field,
-                format!(
-                    "the domain reaches outside the rectangle `origin`, `size` (at corner {i}): \
-                     the cells fill the part of the domain inside it"
-                ),
-            ));
-        }
-        let n = outline.len();
-        let crossing = (0..n).any(|i| {
-            (i + 2..n).filter(|&j| (j + 1) % n != i).any(|j| {
-                segments_cross(
-                    outline[i],
-                    outline[(i + 1) % n],
-                    outline[j],
-                    outline[(j + 1) % n],
-                )
-            })
-        });
-        let area = area_properties(&outline).area.abs();
-        if crossing || area <= tol * tol {
-            return Err(Error::scene(
-                field,
-                "the domain's outline crosses itself or encloses no area",
-            ));
-        }
-        if area < 1e-3 * size[0] * size[1] {
-            return Err(Error::scene(
-                field,
-                "the domain covers less than 1/1000 of the rectangle `origin`, `size`, where the \
-                 sites are drawn: fit the rectangle to it",
-            ));
         }
         Ok(())
     }
@@ -1801,7 +1752,7 @@ impl MeshSpec {
                 SITES.check_count(&key("sites"), *sites as u64)?;
                 LLOYD.check_count(&key("lloyd"), *lloyd as u64)?;
                 if let Some(d) = domain {
-                    d.validate(&key("domain"), *origin, *size, *sites)?;
+                    d.validate(&key("domain"))?;
                 }
             }
             MeshSpec::Polygons(PolygonsSpec { vertices, cells }) => {

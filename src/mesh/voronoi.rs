@@ -6,7 +6,9 @@
 
 use super::{Checks, Mesh};
 use crate::error::{Error, Result};
-use crate::mesh::geometry::{area_properties, cross3, point_in_polygon, segment_distance, Vec2};
+use crate::mesh::geometry::{
+    area_properties, cross3, point_in_polygon, segment_distance, segments_cross, Vec2,
+};
 use rand::{Rng, SeedableRng};
 use rustc_hash::FxHashMap;
 use voronoice::{BoundingBox, Point, VoronoiBuilder};
@@ -183,6 +185,52 @@ fn clipped_cells(
         )),
         None => Ok(cells),
     }
+}
+
+/// Whether a domain's `outline` fits a Voronoi mesh in the rectangle `origin`, `size`: inside
+/// it (to 1e-9 of its size), not crossing itself, and covering at least 1/1000 of it (the sites
+/// are drawn in the rectangle); the reason when it does not.
+///
+/// # Errors
+/// What is wrong, for the caller to name the key.
+pub fn check_domain(outline: &[Vec2], origin: Vec2, size: Vec2) -> std::result::Result<(), String> {
+    let tol = 1e-9 * size.norm();
+    let (lo, hi) = (
+        origin - Vec2::repeat(tol),
+        origin + size + Vec2::repeat(tol),
+    );
+    if let Some(i) = outline
+        .iter()
+        .position(|p| p.x < lo.x || p.y < lo.y || p.x > hi.x || p.y > hi.y)
+    {
+        return Err(format!(
+            "the domain reaches outside the rectangle `origin`, `size` (at corner {i}): the \
+             cells fill the part of the domain inside it"
+        ));
+    }
+    let n = outline.len();
+    let crossing = (0..n).any(|i| {
+        (i + 2..n).filter(|&j| (j + 1) % n != i).any(|j| {
+            segments_cross(
+                outline[i],
+                outline[(i + 1) % n],
+                outline[j],
+                outline[(j + 1) % n],
+            )
+        })
+    });
+    let area = area_properties(outline).area.abs();
+    if crossing || area <= tol * tol {
+        return Err("the domain's outline crosses itself or encloses no area".into());
+    }
+    if area < 1e-3 * size.x * size.y {
+        return Err(
+            "the domain covers less than 1/1000 of the rectangle `origin`, `size`, where \
+                    the sites are drawn: fit the rectangle to it"
+                .into(),
+        );
+    }
+    Ok(())
 }
 
 /// `subject ∩ cell` into `out` for a convex `cell` (either orientation), by Sutherland–Hodgman:

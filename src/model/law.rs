@@ -113,29 +113,6 @@ impl InterfaceLaw for Elastic {
     }
 }
 
-/// The law of a material's interfaces in a scene: `None` for the elastic one (the model's
-/// default law then applies), else its [`Strength`] or its [`Facet`](crate::model::facet::Facet).
-pub fn from_spec(
-    spec: &crate::input::scene::InterfaceLawSpec,
-) -> Option<std::sync::Arc<dyn InterfaceLaw>> {
-    use crate::input::scene::InterfaceLawSpec;
-    use std::sync::Arc;
-    match spec {
-        InterfaceLawSpec::Facet(f) => Some(Arc::new(crate::model::facet::Facet {
-            f_t: f.tensile_strength,
-            s: f.shear_strength,
-            g_t: f.fracture_energy,
-            g_s: f.fracture_energy_shear,
-            f_c: f.compressive_strength,
-            cap_hardening: f.cap_hardening,
-            mu_0: f.friction,
-            mu_inf: f.friction_residual.unwrap_or(f.friction),
-            sigma_n0: f.friction_pressure.unwrap_or(f.compressive_strength),
-        })),
-        _ => Strength::from_spec(spec).map(|s| Arc::new(s) as Arc<dyn InterfaceLaw>),
-    }
-}
-
 /// The strength of an interface that fails (eq. 11 beyond its elastic range): Mohr–Coulomb with
 /// a tension cut-off, `σ ≤ f_t` and `|τ| ≤ c − σ tan φ` on the traction `(σ, τ) = (λ_n, λ_s)`
 /// (compression negative), softening linearly with the plastic opening and slip until it is

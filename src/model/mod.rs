@@ -367,7 +367,7 @@ impl Model {
         // One law per material that has its own, in name order.
         let mut own_law = BTreeMap::new();
         for (name, m) in &scene.materials {
-            if let Some(law) = law::from_spec(&m.interface) {
+            if let Some(law) = interface_law(&m.interface) {
                 own_law.insert(name.as_str(), model.laws.len() as u32);
                 model.laws.push(law);
             }
@@ -382,6 +382,14 @@ impl Model {
         memory::ensure_fits(scene, expected)?;
         for (bi, spec) in scene.bodies.iter().enumerate() {
             let material = scene.materials[&spec.material];
+            if let crate::input::scene::MeshSpec::Voronoi(v) = &spec.mesh {
+                if let Some(domain) = &v.domain {
+                    let point = |p: &[f64; 2]| Vec2::new(p[0], p[1]);
+                    let outline: Vec<Vec2> = domain.outline(v.sites).iter().map(point).collect();
+                    crate::mesh::voronoi::check_domain(&outline, point(&v.origin), point(&v.size))
+                        .map_err(|m| Error::scene(format!("bodies[{bi}].mesh.domain"), m))?;
+                }
+            }
             let mut mesh = Mesh::from_spec(&spec.name, &spec.mesh)?;
             if crate::mesh::cells_of(&spec.mesh).is_none() {
                 expected += mesh.n_cells() as u64;
@@ -867,4 +875,27 @@ fn supported_edges<'m>(
         }
     }
     Ok(edges)
+}
+
+/// The law of a material's interfaces in a scene: `None` for the elastic one (the model's
+/// default law then applies), else its [`Strength`](law::Strength) or its [`Facet`](facet::Facet).
+fn interface_law(
+    spec: &crate::input::scene::InterfaceLawSpec,
+) -> Option<std::sync::Arc<dyn InterfaceLaw>> {
+    use crate::input::scene::InterfaceLawSpec;
+    use std::sync::Arc;
+    match spec {
+        InterfaceLawSpec::Facet(f) => Some(Arc::new(crate::model::facet::Facet {
+            f_t: f.tensile_strength,
+            s: f.shear_strength,
+            g_t: f.fracture_energy,
+            g_s: f.fracture_energy_shear,
+            f_c: f.compressive_strength,
+            cap_hardening: f.cap_hardening,
+            mu_0: f.friction,
+            mu_inf: f.friction_residual.unwrap_or(f.friction),
+            sigma_n0: f.friction_pressure.unwrap_or(f.compressive_strength),
+        })),
+        _ => law::Strength::from_spec(spec).map(|s| Arc::new(s) as Arc<dyn InterfaceLaw>),
+    }
 }
