@@ -50,6 +50,7 @@ fn the_bundled_scenes_table_quotes_the_scenes() {
         ("voronoi_panel.json", "{} centroidal Voronoi cells"),
         ("tension_bar.json", "{} Voronoi cells"),
         ("beam_drop.json", "{} Voronoi cells"),
+        ("brazilian_disk.json", "{} Voronoi cells"),
     ] {
         let sites = &scene_json(name)["bodies"][0]["mesh"]["sites"];
         contains(

@@ -851,3 +851,48 @@ fn bad_facet_keys_name_the_key() {
         );
     }
 }
+
+/// The bundled Brazilian test (`examples/scenes/brazilian_disk.json`: a disk of Voronoi cells
+/// cut by the mesh's `domain`, facet law, squeezed between clamps on its flat top and bottom
+/// sides): it splits along the loaded diameter. Every broken interface lies within a sixth of the
+/// diameter of the vertical line through the centre, and the platen's force falls after its
+/// peak.
+#[test]
+fn the_brazilian_disk_splits_along_its_loaded_diameter() {
+    let scene = bundled("brazilian_disk.json");
+    let s = setup(&scene, EvaluatorKind::ElementWise);
+    let mut cd = s.integrator(s.dt);
+    let mut forces = Vec::new();
+    cd.run(
+        s.steps,
+        100,
+        |snapshot, _| {
+            forces.push(snapshot.reactions[0].abs());
+            Ok(())
+        },
+        |_| {},
+    )
+    .unwrap();
+    let report = s.plastic.as_ref().unwrap().report(cd.failure().unwrap());
+    let broken: Vec<_> = report
+        .iter()
+        .filter(|i| i.status == InterfaceStatus::Broken)
+        .map(|i| {
+            let face = &s.model.interfaces[i.interface];
+            0.5 * (face.p1 + face.p2)
+        })
+        .collect();
+    assert!(broken.len() >= 5, "{} broken interfaces", broken.len());
+    let (centre, diameter) = (0.075, 0.15);
+    for m in &broken {
+        assert!(
+            (m.x - centre).abs() < diameter / 6.0,
+            "a broken interface at {m:?}, off the loaded diameter"
+        );
+    }
+    let peak = forces.iter().copied().fold(0.0, f64::max);
+    assert!(
+        *forces.last().unwrap() < 0.75 * peak,
+        "no drop after the peak {peak} N"
+    );
+}
