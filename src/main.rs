@@ -4,7 +4,7 @@ use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use rbsm::analysis::run::{self, Monitor};
 use rbsm::analysis::setup::{Overrides, Setup};
-use rbsm::analysis::{check, eigen, stability, statics, tradeoff, Report};
+use rbsm::analysis::{check, effective, eigen, stability, statics, tradeoff, Report};
 use rbsm::input::names::Named;
 use rbsm::input::scene::{EvaluatorKind, Scene};
 use rbsm::step::integrator::RunStatus;
@@ -88,6 +88,13 @@ enum Command {
         /// into this directory.
         #[arg(long)]
         out: Option<PathBuf>,
+        /// The scene file (JSON; see docs/scene.md).
+        scene: PathBuf,
+    },
+    /// Effective elastic constants of the scene's mesh and formulation: the body in three
+    /// uniform strains (its outline on the affine field), C, the isotropic E and ν, and the
+    /// scatter of the element stresses; its supports and loads are ignored.
+    Effective {
         /// The scene file (JSON; see docs/scene.md).
         scene: PathBuf,
     },
@@ -437,6 +444,10 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
                 statics::write(dir, &setup, &r)?;
             }
             print(cli.json, &r)?;
+        }
+        Command::Effective { scene } => {
+            let setup = setup(scene, Overrides::default())?;
+            print(cli.json, &effective::analyse(&setup)?)?;
         }
         Command::Eigen {
             scene,

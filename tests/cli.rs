@@ -56,6 +56,9 @@ fn every_command_answers_json_with_json() {
         ),
         (Some(0), Some(true))
     );
+    let (code, v) = json(&["effective", &cantilever]);
+    assert_eq!(code, Some(0));
+    assert!(v["young"].as_f64().unwrap() > 0.0 && v["stiffness"][2][2].as_f64().unwrap() > 0.0);
     let (code, v) = json(&["static", &cantilever]);
     assert_eq!(code, Some(0));
     assert!(v["energy"].as_f64().unwrap() > 0.0);

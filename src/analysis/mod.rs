@@ -4,6 +4,7 @@
 
 pub mod check;
 pub mod collapse;
+pub mod effective;
 pub mod eigen;
 pub mod free;
 pub mod hopping;
