@@ -48,6 +48,7 @@ __all__ = [
     "CheckResult",
     "run",
     "static",
+    "effective",
     "limit",
     "eigen",
     "stability",
@@ -356,6 +357,15 @@ def static(
     ``out``, the command line's files."""
     d = _rbsm.static(*_scene(scene)._source(), out=_opt(out), threads=threads)
     return StaticResult(json.loads(d["report"]), d["U"], d["centroids"], list(d["dofs"]))
+
+
+def effective(scene: SceneLike, *, threads: Optional[int] = None) -> Dict[str, Any]:
+    """``rbsm effective --json``: the effective elastic constants of the scene's mesh and
+    formulation (its one body strained uniformly three times): ``stiffness`` (``C``, Pa, Voigt
+    with engineering shear), ``young``, ``poisson`` (the isotropic fit), ``material``,
+    ``anisotropy``, ``scatter`` (of the element stresses), ``elements``,
+    ``boundary_elements``, ``seconds``."""
+    return json.loads(_rbsm.effective(*_scene(scene)._source(), threads=threads))
 
 
 @dataclass

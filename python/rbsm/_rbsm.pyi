@@ -39,6 +39,12 @@ def static(
     out: Optional[str] = None,
     threads: Optional[int] = None,
 ) -> Dict[str, Any]: ...
+def effective(
+    path: Optional[str],
+    text: Optional[str],
+    base_dir: Optional[str],
+    threads: Optional[int] = None,
+) -> str: ...
 def limit(
     path: Optional[str],
     text: Optional[str],

@@ -14,7 +14,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use rbsm::analysis::run::{self, RunParams, Silent};
 use rbsm::analysis::setup::{Overrides, Setup};
-use rbsm::analysis::{check, eigen, stability, statics, tradeoff};
+use rbsm::analysis::{check, effective, eigen, stability, statics, tradeoff};
 use rbsm::input::scene::{EvaluatorKind, Scene};
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -311,6 +311,25 @@ fn interface_lines<'py>(
     d.set_item("slip", column(|f| f.slip))?;
     d.set_item("dissipated", column(|f| f.dissipated))?;
     Ok(d)
+}
+
+/// `rbsm effective`: the report (JSON).
+#[pyfunction]
+#[pyo3(name = "effective", signature = (path, text, base_dir, threads=None))]
+fn effective_py(
+    py: Python<'_>,
+    path: Option<PathBuf>,
+    text: Option<String>,
+    base_dir: Option<PathBuf>,
+    threads: Option<usize>,
+) -> PyResult<String> {
+    let scene = scene(path, text, base_dir)?;
+    let (result, signal) = detached(py, threads, None, || {
+        let setup = Setup::new(&scene, &Overrides::default()).map_err(input)?;
+        Ok::<_, Failed>(effective::analyse(&setup)?)
+    })?;
+    raise(signal)?;
+    Ok(json(&result.map_err(raise_failed)?))
 }
 
 /// `rbsm static`: the report (JSON), `U` as `(elements, ndof)` and the centroids.
@@ -667,6 +686,7 @@ fn _rbsm(m: &Bound<'_, PyModule>) -> PyResult<()> {
     for f in [
         wrap_pyfunction!(run_py, m)?,
         wrap_pyfunction!(static_py, m)?,
+        wrap_pyfunction!(effective_py, m)?,
         wrap_pyfunction!(limit_py, m)?,
         wrap_pyfunction!(eigen_py, m)?,
         wrap_pyfunction!(stability_py, m)?,

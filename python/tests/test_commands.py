@@ -103,6 +103,15 @@ def test_eigen_static_stability_and_check_equal_the_command_line(cli, scenes):
     assert all(f["history"].shape[1] == 3 for f in st.fractions)
 
 
+def test_effective_equals_the_command_line(cli, scenes):
+    scene = scenes / "voronoi_panel.json"
+    code, report = cli_json(cli, "effective", scene)
+    assert code == 0, report
+    r = rbsm.effective(scene)
+    assert r == {**report, "seconds": r["seconds"]}
+    assert r["material"] == [2.0e10, 0.25] and 0.0 < r["poisson"] < 0.25
+
+
 def test_limit_equals_the_command_line(cli, scenes, tmp_path):
     scene = scenes / "squeeze.json"
     code, report = cli_json(cli, "limit", scene)
