@@ -79,25 +79,17 @@ pub struct Outcome {
     pub status: InterfaceStatus,
 }
 
-/// Runs the pair for every step of the scene and compares each step's traction with the
-/// closed form.
-///
-/// # Panics
-/// Never: the scene is the example's own, valid, with one interface that can fail, and the
-/// run's observer cannot fail.
-pub fn compute() -> Outcome {
-    let setup = Setup::new(&scene(), &Overrides::default()).expect("the setup builds");
-    let face = setup.model.interfaces[0];
-    let area = face.length * setup.model.thickness;
-    let clamp = &setup.model.prescribed[0];
+/// Runs the pair of `setup` for every step, handing `observe` each step's time and the moving
+/// clamp's reaction over the edge's area (Pa); returns the fracture work per unit area of the
+/// edge at the end and the interface's status.
+fn run_pair(setup: &Setup, mut observe: impl FnMut(f64, f64) + Send) -> (f64, InterfaceStatus) {
+    let area = setup.model.interfaces[0].length * setup.model.thickness;
     let mut cd = setup.integrator(setup.dt);
-    let mut curve = Vec::new();
     cd.run(
         setup.steps,
         1,
         |s, _| {
-            let d = clamp.displacement(0, s.t);
-            curve.push((d, s.reactions[0] / area, closed_form(face.k_n, d)));
+            observe(s.t, s.reactions[0] / area);
             Ok(())
         },
         |_| {},
@@ -106,13 +98,31 @@ pub fn compute() -> Outcome {
     let plastic = setup.plastic.as_ref().expect("the interface can fail");
     let state = cd.failure().expect("the run has a failure state");
     let [fracture, _] = plastic.dissipated(state);
+    (fracture / area, plastic.report(state)[0].status)
+}
+
+/// Runs the pair for every step of the scene and compares each step's traction with the
+/// closed form.
+///
+/// # Panics
+/// Never: the scene is the example's own, valid, with one interface that can fail, and the
+/// run's observer cannot fail.
+pub fn compute() -> Outcome {
+    let setup = Setup::new(&scene(), &Overrides::default()).expect("the setup builds");
+    let k_n = setup.model.interfaces[0].k_n;
+    let clamp = &setup.model.prescribed[0];
+    let mut curve = Vec::new();
+    let (fracture, status) = run_pair(&setup, |t, sigma| {
+        let d = clamp.displacement(0, t);
+        curve.push((d, sigma, closed_form(k_n, d)));
+    });
     Outcome {
         error: curve
             .iter()
             .map(|&(_, run, law)| (run - law).abs() / F_T)
             .fold(0.0, f64::max),
-        energy_ratio: fracture / (G_F * area),
-        status: plastic.report(state)[0].status,
+        energy_ratio: fracture / G_F,
+        status,
         curve,
     }
 }
@@ -205,34 +215,21 @@ pub fn facet_path(direction: [f64; 2]) -> FacetPath {
         }
         (s0 * (-s0 * lo / g).exp(), lo)
     };
-    let area = face.length * setup.model.thickness;
     let clamp = &setup.model.prescribed[0];
-    let mut cd = setup.integrator(setup.dt);
     let (mut error, mut w_end) = (0.0f64, 0.0);
-    cd.run(
-        setup.steps,
-        1,
-        |s, _| {
-            // The direction is a unit vector: the travel is the path's length.
-            let travel = clamp.travel(s.t);
-            let (sigma, w) = closed(travel * per_m);
-            error = error.max((s.reactions[0] / area - sigma * along).abs() / s0);
-            w_end = w;
-            Ok(())
-        },
-        |_| {},
-    )
-    .expect("the run has no outputs to fail");
-    let plastic = setup.plastic.as_ref().expect("the interface can fail");
-    let state = cd.failure().expect("the run has a failure state");
-    let [fracture, _] = plastic.dissipated(state);
+    let (fracture, status) = run_pair(&setup, |t, sigma_run| {
+        // The direction is a unit vector: the travel is the path's length.
+        let (sigma, w) = closed(clamp.travel(t) * per_m);
+        error = error.max((sigma_run - sigma * along).abs() / s0);
+        w_end = w;
+    });
     FacetPath {
         omega: sin.atan2(cos),
         peak: s0,
         energy: g,
         error,
-        energy_ratio: fracture / (g * -(-s0 * w_end / g).exp_m1() * area),
-        status: plastic.report(state)[0].status,
+        energy_ratio: fracture / (g * -(-s0 * w_end / g).exp_m1()),
+        status,
     }
 }
 

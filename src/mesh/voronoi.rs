@@ -208,25 +208,15 @@ pub fn check_domain(outline: &[Vec2], origin: Vec2, size: Vec2) -> std::result::
              cells fill the part of the domain inside it"
         ));
     }
-    let n = outline.len();
-    let crossing = (0..n).any(|i| {
-        (i + 2..n).filter(|&j| (j + 1) % n != i).any(|j| {
-            segments_cross(
-                outline[i],
-                outline[(i + 1) % n],
-                outline[j],
-                outline[(j + 1) % n],
-            )
-        })
-    });
+    let crossing = apart_edges(outline).any(|([a, b], [c, d])| segments_cross(a, b, c, d));
     let area = area_properties(outline).area.abs();
     if crossing || area <= tol * tol {
         return Err("the domain's outline crosses itself or encloses no area".into());
     }
     if area < 1e-3 * size.x * size.y {
         return Err(
-            "the domain covers less than 1/1000 of the rectangle `origin`, `size`, where \
-                    the sites are drawn: fit the rectangle to it"
+            "the domain covers less than 1/1000 of the rectangle `origin`, `size`, \
+                    where the sites are drawn: fit the rectangle to it"
                 .into(),
         );
     }
@@ -262,6 +252,17 @@ fn clip(subject: &[Vec2], cell: &[Vec2], out: &mut Vec<Vec2>, spare: &mut Vec<Ve
     }
 }
 
+/// Every pair of a polygon's edges that do not follow each other, as their end points.
+fn apart_edges(p: &[Vec2]) -> impl Iterator<Item = ([Vec2; 2], [Vec2; 2])> + '_ {
+    let n = p.len();
+    let edge = move |i: usize| [p[i], p[(i + 1) % n]];
+    (0..n).flat_map(move |i| {
+        (i + 2..n)
+            .filter(move |&j| (j + 1) % n != i)
+            .map(move |j| (edge(i), edge(j)))
+    })
+}
+
 /// Takes out of a clipped cell what Sutherland–Hodgman leaves where the domain leaves and
 /// re-enters the cell across one of its sides: repeated points (within `tol`) and spikes, a
 /// point where the outline turns back along itself.
@@ -288,15 +289,7 @@ fn tidy(piece: &mut Vec<Vec2>, tol: f64) {
 /// Whether a tidied clipped cell is two parts joined by a bridge: two of its edges that do not
 /// follow each other come within `tol`.
 fn cut_in_two(p: &[Vec2], tol: f64) -> bool {
-    let n = p.len();
-    if n < 3 {
-        return true;
-    }
-    (0..n).any(|i| {
-        (i + 2..n)
-            .filter(|&j| (j + 1) % n != i)
-            .any(|j| segment_distance(p[i], p[(i + 1) % n], p[j], p[(j + 1) % n]) <= tol)
-    })
+    p.len() < 3 || apart_edges(p).any(|([a, b], [c, d])| segment_distance(a, b, c, d) <= tol)
 }
 
 /// `x` moved onto the side `lo` or `lo + len` of the rectangle when it lies within `tol` of it
