@@ -13,25 +13,25 @@ use serde_json::{json, Value};
 use std::f64::consts::PI;
 
 /// What one displacement-controlled run gives.
-struct Run {
+pub(super) struct Run {
     /// `(clamp displacement, reaction)` at every recorded step (m, N) of the scene's last
     /// moving clamp.
-    curve: Vec<(f64, f64)>,
-    last: Energy,
+    pub(super) curve: Vec<(f64, f64)>,
+    pub(super) last: Energy,
     /// Largest `|total − total(0)|` (J).
-    drift: f64,
-    interfaces: Vec<InterfaceFailure>,
-    u: Vec<f64>,
-    elements: usize,
-    steps: u64,
+    pub(super) drift: f64,
+    pub(super) interfaces: Vec<InterfaceFailure>,
+    pub(super) u: Vec<f64>,
+    pub(super) elements: usize,
+    pub(super) steps: u64,
     /// The last clamp's largest reaction, checked at every step, and when (N, s).
-    peak: [f64; 2],
+    pub(super) peak: [f64; 2],
     /// The step at which it was reached.
-    peak_step: u64,
-    wall_s: f64,
+    pub(super) peak_step: u64,
+    pub(super) wall_s: f64,
 }
 
-fn run(scene: &Value, evaluator: EvaluatorKind, every: u64) -> Run {
+pub(super) fn run(scene: &Value, evaluator: EvaluatorKind, every: u64) -> Run {
     let scene = Scene::from_json(&scene.to_string()).unwrap_or_else(|e| panic!("{e}\n{scene}"));
     let overrides = Overrides {
         evaluator: Some(evaluator),
@@ -78,16 +78,16 @@ fn run(scene: &Value, evaluator: EvaluatorKind, every: u64) -> Run {
 
 impl Run {
     /// The last clamp's largest reaction over every step (N).
-    fn peak(&self) -> f64 {
+    pub(super) fn peak(&self) -> f64 {
         self.peak[0]
     }
-    fn count(&self, status: InterfaceStatus) -> usize {
+    pub(super) fn count(&self, status: InterfaceStatus) -> usize {
         self.interfaces
             .iter()
             .filter(|i| i.status == status)
             .count()
     }
-    fn cost(&self) -> String {
+    pub(super) fn cost(&self) -> String {
         format!(
             "{} | {:.2e}",
             self.steps,
@@ -100,7 +100,7 @@ const F_T: f64 = 3.0e6;
 const G_F: f64 = 100.0;
 
 /// The tension bar of `examples/scenes/tension_bar.json` on `mesh`.
-fn bar(mesh: Value) -> Value {
+pub(super) fn bar(mesh: Value) -> Value {
     let path =
         std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/scenes/tension_bar.json");
     let mut scene: Value = serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
@@ -143,7 +143,7 @@ fn footing(mesh: Value) -> Value {
     })
 }
 
-fn voronoi(size: [f64; 2], sites: usize) -> Value {
+pub(super) fn voronoi(size: [f64; 2], sites: usize) -> Value {
     json!({"kind": "voronoi", "origin": [0, 0], "size": size, "sites": sites, "seed": 1, "lloyd": 10})
 }
 

@@ -15,6 +15,8 @@ mod failure;
 #[path = "fem.rs"]
 mod fem;
 mod fixtures;
+#[path = "fracture.rs"]
+mod fracture;
 #[path = "../examples/interface_failure.rs"]
 #[allow(dead_code)]
 mod interface_failure;
@@ -1160,6 +1162,7 @@ fn main() {
     extremes::extremes(&mut r);
     failure::failure(&mut r);
     collapse::collapse(&mut r);
+    fracture::fracture(&mut r);
     // Checks: bounds, and figures against the reference.
     let reference: BTreeMap<String, f64> = std::fs::read_to_string(dir.join("reference.json"))
         .ok()
