@@ -81,6 +81,18 @@ impl Run {
     pub(super) fn peak(&self) -> f64 {
         self.peak[0]
     }
+    /// The tension bar's peak stress, its largest reaction over its section, over `f_t`.
+    pub(super) fn bar_peak(&self) -> f64 {
+        self.peak() / SECTION / F_T
+    }
+    /// The tension bar's fracture work at the end over `G_F` × its section.
+    pub(super) fn bar_fracture(&self) -> f64 {
+        self.last.fracture / (G_F * SECTION)
+    }
+    /// The largest `|total − total(0)|` over the work put in.
+    pub(super) fn balance(&self) -> f64 {
+        self.drift / self.last.external_work
+    }
     pub(super) fn count(&self, status: InterfaceStatus) -> usize {
         self.interfaces
             .iter()
@@ -96,8 +108,10 @@ impl Run {
     }
 }
 
-const F_T: f64 = 3.0e6;
-const G_F: f64 = 100.0;
+pub(super) const F_T: f64 = 3.0e6;
+pub(super) const G_F: f64 = 100.0;
+/// The tension bar's section (m², per metre of thickness).
+const SECTION: f64 = 0.05;
 
 /// The tension bar of `examples/scenes/tension_bar.json` on `mesh`.
 pub(super) fn bar(mesh: Value) -> Value {
@@ -265,7 +279,7 @@ fn quasi_static(r: &mut Report) {
         "| mass-proportional 2000 1/s | 0.05 m/s | {} | {} | {:.4} | |",
         today.steps,
         today.peak_step,
-        reference / 0.05 / F_T
+        today.bar_peak()
     ));
     // (speed, ramp): a faster clamp, then a five times faster one that reaches its speed over
     // 1 ms, about 18 times the bar's wave transit time, instead of 0.2 ms.
@@ -279,7 +293,7 @@ fn quasi_static(r: &mut Report) {
             ramp * 1e3,
             run.steps,
             run.peak_step,
-            run.peak() / 0.05 / F_T
+            run.bar_peak()
         ));
         r.timing(&format!(
             "- local damping, clamp × {speed}, ramp {ramp:e} s: {:.2} s",
@@ -491,9 +505,7 @@ fn tension(r: &mut Report, today: &mut Vec<Today>) {
             scene["materials"]["concrete"]["interface"]["fracture_energy_shear"] = json!(G_F);
         }
         let run = run(&scene, EvaluatorKind::ElementWise, 100);
-        let peak = run.peak() / 0.05 / F_T;
-        let energy = run.last.fracture / (G_F * 0.05);
-        let balance = run.drift / run.last.external_work;
+        let (peak, energy, balance) = (run.bar_peak(), run.bar_fracture(), run.balance());
         r.line(&format!(
             "| {name} | {} | {peak:.4} | {energy:.4} | {} | {} | {balance:.2e} | {} |",
             run.elements,
