@@ -41,11 +41,12 @@ fn trajectory(scene: &Scene, kind: EvaluatorKind, steps: u64) -> Vec<f64> {
 /// `2 κ ε ‖U‖`, `κ = (ω_max / ω_1)²`. For the cantilever `κ ≈ 7e6` (ω_max = 4.6e5 rad/s,
 /// first bending mode 28 Hz), so the bound is about 1.5e-9; measured: 1e-15 after 10 steps,
 /// 9e-13 after 10³, 1.4e-10 after 10⁴ (growing as steps² within the first bending period of
-/// ~9000 steps, then bounded). The Voronoi panel is stiffer (smaller κ): 2e-13. A physics
+/// ~9000 steps, then bounded). The Voronoi panel is stiffer (smaller κ): 2e-13, and as much
+/// with the `rigid-poisson` correction, computed by each evaluator its own way. A physics
 /// difference (a missing term, another quadrature) would show at 1e-3 or more in a few steps.
 #[test]
 fn evaluators_give_the_same_trajectory_over_ten_thousand_steps() {
-    for name in ["cantilever", "voronoi_panel"] {
+    for name in ["cantilever", "voronoi_panel", "voronoi_panel_poisson"] {
         let s = scene(name);
         let a = trajectory(&s, EvaluatorKind::Assembled, 10_000);
         let e = trajectory(&s, EvaluatorKind::ElementWise, 10_000);

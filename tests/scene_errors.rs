@@ -135,7 +135,7 @@ fn kinds_without_keys_refuse_keys() {
     );
     expect(
         &with(|v| v["formulation"] = serde_json::json!({"kind": "elastic"})),
-        &["formulation", "elastic", "rigid, hybrid"],
+        &["formulation", "elastic", "rigid, rigid-poisson, hybrid"],
     );
 }
 

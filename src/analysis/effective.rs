@@ -16,10 +16,12 @@
 use crate::analysis::setup::Setup;
 use crate::analysis::Report;
 use crate::error::{Error, Result};
-use crate::force::evaluator::stiffness_triplets;
+use crate::force::evaluator::{stiffness_triplets, FacetPressures};
 use crate::input::scene::Plane;
 use crate::mesh::geometry::Vec2;
-use crate::model::GROUND;
+use crate::model::formulation::Formulation;
+use crate::model::poisson::correction;
+use crate::model::{Model, GROUND};
 use faer::linalg::solvers::Solve;
 use faer::sparse::{SparseColMat, Triplet};
 use serde::Serialize;
@@ -104,7 +106,6 @@ fn affine(k: usize, x: Vec2) -> Vec2 {
 /// definite on the interior DOFs.
 pub fn analyse(setup: &Setup) -> Result<EffectiveReport> {
     let started = Instant::now();
-    let model = &setup.model;
     let scene = &setup.scene;
     if scene.bodies.len() != 1 {
         return Err(Error::scene(
@@ -115,6 +116,12 @@ pub fn analyse(setup: &Setup) -> Result<EffectiveReport> {
             ),
         ));
     }
+    // Without its supports and loads: the `rigid-poisson` pressures would read the ground
+    // springs' tractions (the other formulations' forces on the interior do not see them).
+    let mut bare = setup.model.clone();
+    bare.interfaces.retain(|i| i.b != GROUND);
+    bare.loads.clear();
+    let model = &bare;
     let nd = model.formulation.ndof();
     let n = model.n_dofs();
     // The outline: elements whose bonded facets do not close.
@@ -191,7 +198,7 @@ pub fn analyse(setup: &Setup) -> Result<EffectiveReport> {
     // `σ̄` of each case: the area-weighted mean of the interior elements' stresses (the outline's
     // elements, rigid on the affine field, carry no strain of their own and miss the tractions
     // of the free surface).
-    let stresses: Vec<Vec<[f64; 3]>> = cases.iter().map(|u| element_stresses(setup, u)).collect();
+    let stresses: Vec<Vec<[f64; 3]>> = cases.iter().map(|u| element_stresses(model, u)).collect();
     let interior = || (0..model.elements.len()).filter(|&e| !boundary[e]);
     let area: f64 = interior().map(|e| model.elements[e].props.area).sum();
     let mut c = [[0.0; 3]; 3];
@@ -241,11 +248,16 @@ pub fn analyse(setup: &Setup) -> Result<EffectiveReport> {
 
 /// Each element's stress `(σ_x, σ_y, τ_xy)` (Pa), the average of the tractions its bonded facets
 /// carry at displacements `u`: `σ_e = (1/A_e) Σ_f Σ_g w_g sym(t_g ⊗ (x_g − x_e))`, the traction
-/// `t = k_n δ_n n + k_s δ_s s` on `a` (and its opposite on `b`) at the facet's Gauss points.
-fn element_stresses(setup: &Setup, u: &[f64]) -> Vec<[f64; 3]> {
-    let model = &setup.model;
+/// `t = k_n δ_n n + k_s δ_s s` on `a` (and its opposite on `b`) at the facet's Gauss points,
+/// with `rigid-poisson`'s correction added ([`crate::model::poisson::correction`]).
+fn element_stresses(model: &Model, u: &[f64]) -> Vec<[f64; 3]> {
     let nd = model.formulation.ndof();
     let mut s = vec![[0.0; 3]; model.elements.len()];
+    // `rigid-poisson`: the cells' `q` add the correction's traction to every facet.
+    let mut q = vec![0.0; model.elements.len()];
+    if model.formulation == Formulation::RigidPoisson {
+        FacetPressures::new(model).cells(u, &mut q);
+    }
     for i in model.interfaces.iter().filter(|i| i.b != GROUND) {
         let (points, w) = i.gauss_points();
         let [k_n, k_s] = model.law_of(i).springs([i.k_n, i.k_s]);
@@ -256,7 +268,9 @@ fn element_stresses(setup: &Setup, u: &[f64]) -> Vec<[f64; 3]> {
                 model.formulation.displacement(&u[e * nd..(e + 1) * nd], d)
             };
             let delta = disp(i.b) - disp(i.a);
-            let t = k_n * i.normal.dot(&delta) * i.normal + k_s * i.tangent.dot(&delta) * i.tangent;
+            let t = k_n * i.normal.dot(&delta) * i.normal
+                + k_s * i.tangent.dot(&delta) * i.tangent
+                + correction(model, i, q[i.a as usize], q[i.b as usize], x);
             for (e, sign) in [(i.a, 1.0), (i.b, -1.0)] {
                 let r = x - model.elements[e as usize].props.centroid;
                 let f = sign * w * t;

@@ -61,13 +61,21 @@ pub fn lanczos_iterations() -> u64 {
 /// exactly when `σ > ω_max²`. From the Ritz value the bracket closes to 1e-12 (relative, in
 /// `ω²`) and its upper end is returned. (Against dense: ≤ 2.5e-13 on chains and strips up to
 /// 3000 DOFs.)
+///
+/// `rigid-poisson`: its `K` couples the neighbours of each cell with each other, which the
+/// element graph of the inertia's probes does not hold, so Lanczos alone settles it.
 pub fn omega_max(model: &Model, evaluator: &dyn Evaluator, mass: &Mass, tolerance: f64) -> f64 {
+    let probed = model.formulation != Formulation::RigidPoisson;
     top(
         evaluator,
         mass,
         tolerance,
         || Graph::of_model(model, mass.nd()),
-        |g| Inertia::probed(model, g, evaluator, mass),
+        |g| {
+            probed
+                .then(|| Inertia::probed(model, g, evaluator, mass))
+                .flatten()
+        },
     )
 }
 
@@ -716,11 +724,36 @@ impl Limit {
     pub fn bracket(model: &Model, contact: Option<&[f64]>) -> Limit {
         let top = match model.formulation {
             Formulation::Rigid => largest_block_eigenvalue::<Rigid, 3>(model, contact),
+            Formulation::RigidPoisson => return Limit::poisson_bracket(model, contact),
             Formulation::Hybrid { .. } => largest_block_eigenvalue::<Hybrid, 6>(model, contact),
         };
         Limit {
             floor: top.sqrt(),
             bound: (2.0 * top).sqrt(),
+            omega_max: None,
+            tolerance: None,
+            stiffening: (1.0 + model.local_damping).sqrt(),
+        }
+    }
+
+    /// [`Limit::bracket`] of `rigid-poisson`. `K = Σ_f K_f + Σ_I K_I`: the springs' terms couple
+    /// two elements, the correction's `t Λ_I g_I g_Iᵀ` the `m` elements of a cell's
+    /// neighbourhood, and a positive semi-definite term on `k` elements is at most `k` times
+    /// its diagonal blocks. So with `K^s_ee`, `K^P_ee` the diagonal blocks, `ω_max² ≤
+    /// max_e λ_max(2 K^s_ee + m K^P_ee, M_e)`; the floor is `max_e λ_max(K^s_ee + K^P_ee, M_e)`
+    /// as for the other formulations.
+    fn poisson_bracket(model: &Model, contact: Option<&[f64]>) -> Limit {
+        let (blocks, m) = crate::force::evaluator::PressureOperator::new(model).diagonal_blocks();
+        let with = |weight: f64| {
+            let mut b = blocks.iter().map(|x| weight * x).collect::<Vec<f64>>();
+            if let Some(c) = contact {
+                b.iter_mut().zip(c).for_each(|(x, c)| *x += c);
+            }
+            largest_block_eigenvalue::<Rigid, 3>(model, Some(&b))
+        };
+        Limit {
+            floor: with(1.0).sqrt(),
+            bound: (2.0 * with(0.5 * m as f64)).sqrt(),
             omega_max: None,
             tolerance: None,
             stiffening: (1.0 + model.local_damping).sqrt(),

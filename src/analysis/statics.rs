@@ -10,6 +10,7 @@ use crate::error::{Error, Result};
 use crate::force::evaluator;
 use crate::input::scene::EvaluatorKind;
 use crate::mesh::geometry::Vec2;
+use crate::model::formulation::Formulation;
 use crate::model::loads::Loads;
 use crate::model::mass::Mass;
 use crate::model::{Model, GROUND};
@@ -24,6 +25,30 @@ pub struct StaticSolution {
     pub u: Vec<f64>,
     /// Strain energy `½ Uᵀ K U` (J).
     pub energy: f64,
+    /// The cells' `q_e = λ' tr ε_e / 2μ` of a `rigid-poisson` model, loads included
+    /// ([`crate::model::poisson`]); empty for the other formulations.
+    pub cells: Vec<f64>,
+}
+
+impl StaticSolution {
+    /// The traction `[t_n, t_s]` (Pa) at an interface's midpoint: its springs'
+    /// ([`midpoint_traction`]) and, for `rigid-poisson`, the correction's of its cells
+    /// ([`crate::model::poisson::correction`]).
+    pub fn traction(&self, model: &Model, i: &crate::model::Interface) -> [f64; 2] {
+        let [t_n, t_s] = midpoint_traction(model, i, &self.u);
+        if self.cells.is_empty() {
+            return [t_n, t_s];
+        }
+        let q = |e: u32| {
+            if e == GROUND {
+                0.0
+            } else {
+                self.cells[e as usize]
+            }
+        };
+        let c = crate::model::poisson::correction(model, i, q(i.a), q(i.b), i.midpoint());
+        [t_n + c.dot(&i.normal), t_s + c.dot(&i.tangent)]
+    }
 }
 
 /// Solves `K U = P` for the model's loads at their full value (gravity included).
@@ -60,7 +85,12 @@ pub fn solve(model: &Model) -> Result<StaticSolution> {
     let mut f = vec![0.0; u.len()];
     ev.internal_force(&u, &mut f);
     let energy = 0.5 * crate::step::integrator::dot(&u, &f);
-    Ok(StaticSolution { u, energy })
+    let cells = if model.formulation == Formulation::RigidPoisson {
+        evaluator::cells(model, &u)
+    } else {
+        Vec::new()
+    };
+    Ok(StaticSolution { u, energy, cells })
 }
 
 /// The traction `[t_n, t_s]` (Pa) at the midpoint of an interface by the springs of its law
@@ -159,7 +189,7 @@ pub fn analyse(setup: &Setup) -> Result<StaticReport> {
             b: (i.b != GROUND).then_some(i.b),
             midpoint: [i.midpoint().x, i.midpoint().y],
             normal: [i.normal.x, i.normal.y],
-            traction: midpoint_traction(model, i, &sol.u),
+            traction: sol.traction(model, i),
         })
         .collect();
     let mut notes = Vec::new();

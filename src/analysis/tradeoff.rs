@@ -496,8 +496,13 @@ fn apply(scene: &mut Scene, key: Key, value: &str) -> Result<()> {
         Key::Formulation => {
             scene.formulation = match (value, scene.formulation) {
                 (rigid, _) if rigid == FormulationSpec::Rigid.kind() => FormulationSpec::Rigid,
+                (poisson, _) if poisson == FormulationSpec::RigidPoisson.kind() => {
+                    FormulationSpec::RigidPoisson
+                }
                 (_, FormulationSpec::Hybrid { penalty }) => FormulationSpec::Hybrid { penalty },
-                (_, FormulationSpec::Rigid) => FormulationSpec::Hybrid { penalty: 10.0 },
+                (_, FormulationSpec::Rigid | FormulationSpec::RigidPoisson) => {
+                    FormulationSpec::Hybrid { penalty: 10.0 }
+                }
             }
         }
         Key::Penalty => scene.formulation = FormulationSpec::Hybrid { penalty: number() },

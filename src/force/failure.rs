@@ -297,7 +297,9 @@ pub fn build(model: &Model) -> Option<Box<dyn PlasticForces>> {
         return None;
     }
     Some(match model.formulation {
-        Formulation::Rigid => Box::new(FailingInterfaces::<Rigid, 3>::new(model)),
+        Formulation::Rigid | Formulation::RigidPoisson => {
+            Box::new(FailingInterfaces::<Rigid, 3>::new(model))
+        }
         Formulation::Hybrid { .. } => Box::new(FailingInterfaces::<Hybrid, 6>::new(model)),
     })
 }

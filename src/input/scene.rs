@@ -180,6 +180,10 @@ kinds! {
     pub enum FormulationSpec: "Which displacement field an element carries" {
         /// Plain RBSM: `(u, v, θ)` per element (eq. 10).
         "rigid" => Rigid,
+        /// Rigid cells that keep Poisson's effect: `(u, v, θ)` per element, springs
+        /// `k_n = k_s = 2μ/h` (a lattice of `ν = 0`, elastically uniform on Voronoi cells) and a
+        /// pressure `λ tr ε` per cell from its facets' tractions, applied on its facets.
+        "rigid-poisson" => RigidPoisson,
         /// Rigid plus constant strain (eqs. 5, 8), springs `penalty` times eq. 12.
         "hybrid" => Hybrid {
             /// The penalty factor `p > 0` (dimensionless): larger is more accurate (error O(1/p))
@@ -1513,13 +1517,33 @@ impl Scene {
             m.interface.validate(&at("interface"))?;
             m.element.validate(&at("element"))?;
             if m.element != ElementStrengthSpec::Elastic
-                && self.formulation == FormulationSpec::Rigid
+                && !matches!(self.formulation, FormulationSpec::Hybrid { .. })
             {
                 return Err(Error::scene(
                     at("element"),
                     "a rigid element has no strain and so no stress of its own to yield: give \
                      the scene `\"formulation\": {\"kind\": \"hybrid\", ...}` for elements \
                      that yield, or leave the strength to the interfaces (`interface`)",
+                ));
+            }
+            if m.nu < 0.0 && self.formulation == FormulationSpec::RigidPoisson {
+                return Err(Error::scene(
+                    at("nu"),
+                    format!(
+                        "must be ≥ 0 for the `rigid-poisson` formulation (its correction adds \
+                         λ' ≥ 0 to a lattice of ν = 0), got {}",
+                        m.nu
+                    ),
+                ));
+            }
+            if !matches!(m.interface, InterfaceLawSpec::Elastic)
+                && self.formulation == FormulationSpec::RigidPoisson
+            {
+                return Err(Error::scene(
+                    at("interface"),
+                    "the `rigid-poisson` formulation takes elastic interfaces only: its \
+                     correction presses on every facet with its cells' mean stress, and would \
+                     carry it across a crack; use `rigid` or `hybrid` for interfaces that fail",
                 ));
             }
         }

@@ -250,6 +250,9 @@ pub fn elasticity(e: f64, nu: f64, plane: crate::input::scene::Plane) -> Matrix3
 pub enum Formulation {
     /// 3 DOF per element: `(u, v, θ)`.
     Rigid,
+    /// The rigid element's 3 DOFs, springs of `ν = 0` and the Poisson correction of
+    /// [`crate::model::poisson`].
+    RigidPoisson,
     /// 6 DOF per element: `(u, v, θ, ε_x, ε_y, γ_xy)`; interface springs `penalty` × eq. 12.
     Hybrid {
         /// The penalty factor `p > 0` on the springs of eq. 12.
@@ -266,6 +269,7 @@ impl Formulation {
     pub fn from_spec(spec: FormulationSpec) -> crate::error::Result<Self> {
         match spec {
             FormulationSpec::Rigid => Ok(Formulation::Rigid),
+            FormulationSpec::RigidPoisson => Ok(Formulation::RigidPoisson),
             FormulationSpec::Hybrid { penalty } => Ok(Formulation::Hybrid { penalty }),
         }
     }
@@ -273,7 +277,7 @@ impl Formulation {
     /// DOFs per element.
     pub fn ndof(self) -> usize {
         match self {
-            Formulation::Rigid => 3,
+            Formulation::Rigid | Formulation::RigidPoisson => 3,
             Formulation::Hybrid { .. } => 6,
         }
     }
@@ -282,6 +286,7 @@ impl Formulation {
     pub fn name(self) -> &'static str {
         match self {
             Formulation::Rigid => "rigid",
+            Formulation::RigidPoisson => "rigid-poisson",
             Formulation::Hybrid { .. } => "hybrid",
         }
     }
@@ -294,7 +299,7 @@ impl Formulation {
     /// `N_e(d)ᵀ F` plus a moment `M` on the rotation, as a vector of `ndof` entries.
     pub fn point_load(self, d: Vec2, force: Vec2, moment: f64) -> Vec<f64> {
         match self {
-            Formulation::Rigid => {
+            Formulation::Rigid | Formulation::RigidPoisson => {
                 let mut f = [0.0, 0.0, moment];
                 Rigid::add_force(&mut f, d, force);
                 f.to_vec()
@@ -313,7 +318,7 @@ impl Formulation {
     /// `f.len()` is not [`Formulation::ndof`]: 3 for rigid, 6 for hybrid.
     pub fn add_point_force(self, f: &mut [f64], d: Vec2, force: Vec2) {
         match self {
-            Formulation::Rigid => {
+            Formulation::Rigid | Formulation::RigidPoisson => {
                 Rigid::add_force(f.try_into().expect("3 DOFs per rigid element"), d, force)
             }
             Formulation::Hybrid { .. } => {
@@ -328,7 +333,7 @@ impl Formulation {
     /// `u.len()` is not [`Formulation::ndof`]: 3 for rigid, 6 for hybrid.
     pub fn displacement(self, u: &[f64], d: Vec2) -> Vec2 {
         match self {
-            Formulation::Rigid => {
+            Formulation::Rigid | Formulation::RigidPoisson => {
                 Rigid::displacement(u.try_into().expect("3 DOFs per rigid element"), d)
             }
             Formulation::Hybrid { .. } => {
@@ -348,7 +353,7 @@ impl Formulation {
     /// The strain part `E_e d` of an element's displacement at offset `d` (zero for rigid).
     pub fn strain_part(self, ue: &[f64], d: Vec2) -> Vec2 {
         match self {
-            Formulation::Rigid => Vec2::zeros(),
+            Formulation::Rigid | Formulation::RigidPoisson => Vec2::zeros(),
             Formulation::Hybrid { .. } => {
                 let mut w = [0.0; 6];
                 w[3..].copy_from_slice(&ue[3..6]);
@@ -360,7 +365,9 @@ impl Formulation {
     /// The element mass block, row-major `ndof × ndof`.
     pub fn mass(self, props: &AreaProperties, rho_t: f64) -> Vec<f64> {
         match self {
-            Formulation::Rigid => Rigid::mass(props, rho_t).transpose().as_slice().to_vec(),
+            Formulation::Rigid | Formulation::RigidPoisson => {
+                Rigid::mass(props, rho_t).transpose().as_slice().to_vec()
+            }
             Formulation::Hybrid { .. } => {
                 Hybrid::mass(props, rho_t).transpose().as_slice().to_vec()
             }
@@ -370,7 +377,7 @@ impl Formulation {
     /// The factor on the springs of eq. 12: 1 for rigid, the penalty `p` for hybrid.
     pub fn spring_factor(self) -> f64 {
         match self {
-            Formulation::Rigid => 1.0,
+            Formulation::Rigid | Formulation::RigidPoisson => 1.0,
             Formulation::Hybrid { penalty } => penalty,
         }
     }

@@ -1,7 +1,11 @@
 //! External loads `P(t)`: gravity on every element and the scene's point and edge loads,
-//! mapped to element DOFs by `N_eᵀ` (the right-hand side of eq. 7).
+//! mapped to element DOFs by `N_eᵀ` (the right-hand side of eq. 7), with, for `rigid-poisson`,
+//! the facet forces of the cells' pressures that the loads drive
+//! ([`crate::model::poisson::Poisson::load_share`]).
 
 use crate::mesh::geometry::Vec2;
+use crate::model::formulation::Formulation;
+use crate::model::poisson::Poisson;
 use crate::model::{Amplitude, Model};
 
 /// The loads of a model, ready for the time loop (no allocation per step).
@@ -30,6 +34,8 @@ impl Loads {
         };
         let mut entries = Vec::new();
         let mut amplitudes = Vec::new();
+        // The cells' pressures that the loads drive (`rigid-poisson`).
+        let poisson = (model.formulation == Formulation::RigidPoisson).then(|| Poisson::new(model));
         for l in &model.loads {
             let amp = match &l.amplitude {
                 None => usize::MAX,
@@ -44,6 +50,10 @@ impl Loads {
                 if v != 0.0 {
                     entries.push((l.element as usize * nd + k, v, amp));
                 }
+            }
+            if let Some(poisson) = &poisson {
+                let share = poisson.load_share(model, l.element as usize, l.point, l.force);
+                entries.extend(share.into_iter().map(|(d, v)| (d, v, amp)));
             }
         }
         Loads {

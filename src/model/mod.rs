@@ -9,6 +9,7 @@ pub mod loads;
 pub mod mass;
 pub mod memory;
 pub mod plasticity;
+pub mod poisson;
 
 use crate::error::{Error, Result};
 use crate::input::scene::{BodySpec, EdgeSet, Side};
@@ -316,8 +317,13 @@ fn cell_holds(cell: &[Vec2], x: Vec2) -> bool {
 
 /// The numerators of eq. 12, `k_n = E_n / (h_a + h_b)`, `k_s = E_s / (h_a + h_b)`:
 /// `E_n = E/(1 − ν²)`, `E_s = E/(1 + ν)`; plane strain uses `E' = E/(1 − ν²)` and
-/// `ν' = ν/(1 − ν)` in the same formulas.
-pub fn spring_moduli(m: &MaterialSpec, plane: Plane) -> [f64; 2] {
+/// `ν' = ν/(1 − ν)` in the same formulas. The `rigid-poisson` formulation takes both as
+/// `2μ = E/(1 + ν)` in either plane: the springs of a lattice of `ν = 0`, which its correction
+/// completes ([`poisson`]).
+pub fn spring_moduli(m: &MaterialSpec, plane: Plane, formulation: Formulation) -> [f64; 2] {
+    if formulation == Formulation::RigidPoisson {
+        return [m.e / (1.0 + m.nu); 2];
+    }
     let (e, nu) = match plane {
         Plane::Stress => (m.e, m.nu),
         Plane::Strain => (m.e / (1.0 - m.nu * m.nu), m.nu / (1.0 - m.nu)),
@@ -420,7 +426,7 @@ impl Model {
                 name: spec.name.clone(),
                 mesh,
                 first_element: first,
-                moduli: spring_moduli(&material, scene.plane),
+                moduli: spring_moduli(&material, scene.plane, formulation),
                 first_interface,
             });
         }
@@ -638,7 +644,7 @@ impl Model {
                 "edge ({v1}, {v2}): the centroids lie on the edge line (h_a + h_b = 0)"
             ));
         }
-        let [e_n, e_s] = spring_moduli(m, self.plane);
+        let [e_n, e_s] = spring_moduli(m, self.plane, self.formulation);
         let (k_n, k_s) = [e_n, e_s]
             .map(|e| e / (h_a + h_b) * self.formulation.spring_factor())
             .into();

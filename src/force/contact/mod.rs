@@ -344,7 +344,7 @@ impl Frames {
         let arm = x - self.centroids[e] - Vec2::new(ue[0], ue[1]);
         let rigid = Vec2::new(dt * ve[0], dt * ve[1]) + (dt * ve[2]) * Vec2::new(-arm.y, arm.x);
         match self.formulation {
-            Formulation::Rigid => rigid,
+            Formulation::Rigid | Formulation::RigidPoisson => rigid,
             Formulation::Hybrid { .. } => {
                 let mut du = [0.0; 6];
                 for (d, v) in du.iter_mut().zip(ve) {
@@ -373,7 +373,7 @@ impl Frames {
         let ue = &u[e * nd..(e + 1) * nd];
         let arm = x - self.centroids[e] - Vec2::new(ue[0], ue[1]);
         let mut q = [0.0; 6];
-        if self.formulation == Formulation::Rigid {
+        if nd == 3 {
             // The moment about the current centroid: (R d) × F = d × (Rᵀ F).
             q[..3].copy_from_slice(&[force.x, force.y, arm.perp(&force)]);
             return q;

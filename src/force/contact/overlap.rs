@@ -271,7 +271,7 @@ impl Overlap {
             corners,
             lines,
             reach,
-            rigid: model.formulation == crate::model::formulation::Formulation::Rigid,
+            rigid: model.formulation.ndof() == 3,
             offsets,
             faces,
             buckets: BucketLists::default(),

@@ -8,10 +8,12 @@
 mod assembled;
 mod element_wise;
 mod failing;
+mod poisson;
 mod sweep;
 
 pub use assembled::{assemble, interface_stiffness, Assembled, BlockCsr};
 pub use element_wise::ElementWise;
+pub use poisson::{cells, FacetPressures, PressureOperator, WithPoisson};
 
 use crate::force::failure::{FailureState, PlasticForces};
 use crate::input::scene::EvaluatorKind;
@@ -106,10 +108,16 @@ pub trait GroupedStep {
 /// The failing interfaces of a model and their state, for an evaluation that updates it.
 pub type Failure<'a> = (&'a dyn PlasticForces, &'a mut FailureState);
 
-/// The global stiffness `K` of eq. 7 as scalar triplets `(row, col, value)` over all DOFs.
+/// The global stiffness `K` of eq. 7 as scalar triplets `(row, col, value)` over all DOFs
+/// (with the Poisson correction's part for `rigid-poisson`, which is not symmetric).
 pub fn stiffness_triplets(model: &Model) -> Vec<(usize, usize, f64)> {
     match model.formulation {
         Formulation::Rigid => assemble::<Rigid, 3>(model).triplets(),
+        Formulation::RigidPoisson => {
+            let mut k = assemble::<Rigid, 3>(model).triplets();
+            k.extend(PressureOperator::new(model).triplets());
+            k
+        }
         Formulation::Hybrid { .. } => assemble::<Hybrid, 6>(model).triplets(),
     }
 }
@@ -123,6 +131,16 @@ pub fn build(model: &Model, kind: EvaluatorKind) -> Box<dyn Evaluator> {
         (Formulation::Rigid, EvaluatorKind::ElementWise) => {
             Box::new(ElementWise::<Rigid, 3>::new(model))
         }
+        (Formulation::RigidPoisson, EvaluatorKind::Assembled) => Box::new(WithPoisson::new(
+            model,
+            Box::new(Assembled::<Rigid, 3>::new(model)),
+            PressureOperator::new(model),
+        )),
+        (Formulation::RigidPoisson, EvaluatorKind::ElementWise) => Box::new(WithPoisson::new(
+            model,
+            Box::new(ElementWise::<Rigid, 3>::new(model)),
+            FacetPressures::new(model),
+        )),
         (Formulation::Hybrid { .. }, EvaluatorKind::Assembled) => {
             Box::new(Assembled::<Hybrid, 6>::new(model))
         }

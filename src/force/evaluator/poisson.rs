@@ -1,0 +1,530 @@
+//! The Poisson correction's forces (formulation `rigid-poisson`, [`crate::model::poisson`]) in
+//! the two evaluators' manners, on top of the rigid springs' evaluator:
+//!
+//! - **element-wise** ([`FacetPressures`]): each element sums the first moment of its facets'
+//!   spring tractions at their Gauss points (from its own and its neighbours' `U`) into its
+//!   `q_I`; then each element adds the correction's tractions on its facets, from its own and
+//!   its neighbours' `q`. Two passes over the elements, no global matrix.
+//! - **assembled** ([`PressureOperator`]): the same two maps as sparse matrices, `q = Λ G U`
+//!   (cells × DOFs) and `f += t Gᵀ q` (DOFs × cells); `t Gᵀ Λ G` is the correction's part of `K`
+//!   ([`PressureOperator::triplets`]).
+//!
+//! Both keep the cells' `q` in a buffer of their own (locked for an evaluation, no allocation),
+//! and go over the elements in fixed chunks, so the result does not depend on the thread count.
+//! Neither offers a fused step: a cell's `q` needs its neighbours' displacements, and an
+//! element's force its neighbours' `q`.
+
+use crate::force::evaluator::{Evaluator, FusedStep};
+use crate::input::scene::EvaluatorKind;
+use crate::mesh::geometry::Vec2;
+use crate::model::formulation::{Kinematics, Rigid, Springs};
+use crate::model::poisson::{load_moment, springs, Poisson};
+use crate::model::{Model, GROUND};
+use crate::parallel::{for_each_chunk, for_each_chunk_pair, CHUNK};
+use std::sync::Mutex;
+
+/// The correction's forces, `f += K_P U`.
+pub trait Correction: Send + Sync {
+    /// `f += K_P u`, with `q` (one per element) as the buffer of the cells' `q_I`.
+    fn add(&self, u: &[f64], f: &mut [f64], q: &mut [f64]);
+    /// Bytes it reads in an evaluation.
+    fn bytes(&self) -> usize;
+}
+
+/// The rigid springs' evaluator with the Poisson correction added.
+pub struct WithPoisson<C: Correction> {
+    springs: Box<dyn Evaluator>,
+    correction: C,
+    q: Mutex<Vec<f64>>,
+}
+
+impl<C: Correction> WithPoisson<C> {
+    /// `springs` (a rigid evaluator of the model) with `correction`.
+    pub fn new(model: &Model, springs: Box<dyn Evaluator>, correction: C) -> Self {
+        WithPoisson {
+            springs,
+            correction,
+            q: Mutex::new(vec![0.0; model.elements.len()]),
+        }
+    }
+}
+
+impl<C: Correction> Evaluator for WithPoisson<C> {
+    fn kind(&self) -> EvaluatorKind {
+        self.springs.kind()
+    }
+    fn internal_force(&self, u: &[f64], f: &mut [f64]) {
+        self.springs.internal_force(u, f);
+        // A poisoned lock only means another evaluation panicked; the buffer is scratch.
+        let mut q = self.q.lock().unwrap_or_else(|e| e.into_inner());
+        self.correction.add(u, f, &mut q);
+    }
+    fn bytes(&self) -> usize {
+        self.springs.bytes() + self.correction.bytes()
+    }
+    fn fused(&self) -> Option<&dyn FusedStep> {
+        None
+    }
+}
+
+/// One facet as the element-wise passes read it.
+#[derive(Debug, Clone, Copy)]
+struct Facet {
+    a: u32,
+    b: u32,
+    /// The Gauss points' offsets from `a`'s centroid and from `b`'s (from the midpoint on
+    /// ground, unused).
+    ga: [Vec2; 2],
+    gb: [Vec2; 2],
+    /// The springs `S` (Pa/m).
+    springs: Springs,
+    /// The Gauss weight `L/2` (m).
+    weight: f64,
+}
+
+impl Facet {
+    /// `δ = u_b − u_a` at Gauss point `g`.
+    #[inline]
+    fn jump(&self, u: &[f64], g: usize) -> Vec2 {
+        let ub = if self.b == GROUND {
+            Vec2::zeros()
+        } else {
+            Rigid::displacement(dofs(u, self.b), self.gb[g])
+        };
+        ub - Rigid::displacement(dofs(u, self.a), self.ga[g])
+    }
+}
+
+/// Element `e`'s three DOFs.
+#[inline]
+fn dofs(u: &[f64], e: u32) -> &[f64; 3] {
+    let k = 3 * e as usize;
+    u[k..k + 3]
+        .try_into()
+        .expect("three DOFs per rigid element")
+}
+
+/// The element-wise correction: facets by element, Gauss-point tractions.
+pub struct FacetPressures {
+    facets: Vec<Facet>,
+    start: Vec<u32>,
+    of: Vec<u32>,
+    scale: Vec<f64>,
+    thickness: f64,
+}
+
+impl FacetPressures {
+    /// The facets of a `rigid-poisson` model.
+    pub fn new(model: &Model) -> Self {
+        let poisson = Poisson::new(model);
+        let facets = model
+            .interfaces
+            .iter()
+            .map(|i| {
+                let (g, w) = i.gauss_points();
+                let at = |e: u32| {
+                    if e == GROUND {
+                        i.midpoint()
+                    } else {
+                        model.elements[e as usize].props.centroid
+                    }
+                };
+                Facet {
+                    a: i.a,
+                    b: i.b,
+                    ga: g.map(|x| x - at(i.a)),
+                    gb: g.map(|x| x - at(i.b)),
+                    springs: springs(model, i),
+                    weight: w,
+                }
+            })
+            .collect();
+        FacetPressures {
+            facets,
+            start: poisson.start,
+            of: poisson.facets,
+            scale: poisson.scale,
+            thickness: model.thickness,
+        }
+    }
+
+    fn of(&self, e: usize) -> &[u32] {
+        &self.of[self.start[e] as usize..self.start[e + 1] as usize]
+    }
+
+    /// `s_e`: the first moment `∫ (x − x_e)·S δ ds` of the spring tractions on element `e`'s
+    /// facets (per unit thickness), two Gauss points each.
+    fn moment(&self, e: usize, u: &[f64]) -> f64 {
+        let mut s = 0.0;
+        for &k in self.of(e) {
+            let f = &self.facets[k as usize];
+            for g in 0..2 {
+                let t = f.springs.apply(f.jump(u, g));
+                s += f.weight
+                    * if f.a as usize == e {
+                        f.ga[g].dot(&t)
+                    } else {
+                        -f.gb[g].dot(&t)
+                    };
+            }
+        }
+        s
+    }
+
+    /// The cells' `q_e = Λ_e s_e` at `u`, from the springs alone (the loads' share is in `P`).
+    pub fn cells(&self, u: &[f64], q: &mut [f64]) {
+        for_each_chunk(q, |first, chunk| {
+            for (k, q) in chunk.iter_mut().enumerate() {
+                let e = first + k;
+                *q = self.scale[e] * self.moment(e, u);
+            }
+        });
+    }
+}
+
+/// The cells' `q_e = λ' tr ε_e / 2μ` of a `rigid-poisson` model at `u` under its loads at
+/// their full value: what the correction's tractions on its facets are made of
+/// ([`crate::model::poisson::correction`]; the static analysis reports them).
+pub fn cells(model: &Model, u: &[f64]) -> Vec<f64> {
+    let facets = FacetPressures::new(model);
+    let mut q = vec![0.0; model.elements.len()];
+    facets.cells(u, &mut q);
+    for l in &model.loads {
+        let e = l.element as usize;
+        q[e] += facets.scale[e] * load_moment(model, e, l.point, l.force);
+    }
+    q
+}
+
+impl Correction for FacetPressures {
+    fn add(&self, u: &[f64], f: &mut [f64], q: &mut [f64]) {
+        self.cells(u, q);
+        let q = &*q;
+        for_each_chunk_pair(f, &mut [], 3 * CHUNK, |first, chunk, _| {
+            for (k, fe) in chunk.chunks_exact_mut(3).enumerate() {
+                let e = first / 3 + k;
+                let fe: &mut [f64; 3] = fe.try_into().expect("three DOFs");
+                for &k in self.of(e) {
+                    let x = &self.facets[k as usize];
+                    let qb = if x.b == GROUND { 0.0 } else { q[x.b as usize] };
+                    let qa = q[x.a as usize];
+                    for g in 0..2 {
+                        // The traction on `a`, `S (q_a (x − x_a) − q_b (x − x_b))`; `f_int` is
+                        // minus the force on the element, and `b` takes the opposite.
+                        let c = x.springs.apply(qa * x.ga[g] - qb * x.gb[g])
+                            * (x.weight * self.thickness);
+                        if x.a as usize == e {
+                            Rigid::add_force(fe, x.ga[g], -c);
+                        } else {
+                            Rigid::add_force(fe, x.gb[g], c);
+                        }
+                    }
+                }
+            }
+        });
+    }
+    fn bytes(&self) -> usize {
+        std::mem::size_of_val(&self.facets[..])
+            + std::mem::size_of_val(&self.start[..])
+            + std::mem::size_of_val(&self.of[..])
+            + std::mem::size_of_val(&self.scale[..])
+    }
+}
+
+/// A sparse matrix in compressed rows.
+#[derive(Debug, Clone, Default)]
+struct Rows {
+    start: Vec<u32>,
+    col: Vec<u32>,
+    val: Vec<f64>,
+}
+
+impl Rows {
+    /// From `(row, col, value)` triplets over `n` rows, duplicates summed.
+    fn new(n: usize, mut t: Vec<(usize, usize, f64)>) -> Rows {
+        t.sort_unstable_by_key(|&(r, c, _)| (r, c));
+        let mut rows = Rows {
+            start: vec![0; n + 1],
+            ..Rows::default()
+        };
+        let mut last = None;
+        for (r, c, v) in t {
+            if last == Some((r, c)) {
+                *rows.val.last_mut().expect("a previous entry") += v;
+            } else {
+                rows.col.push(c as u32);
+                rows.val.push(v);
+                last = Some((r, c));
+            }
+            rows.start[r + 1] = rows.col.len() as u32;
+        }
+        for r in 0..n {
+            rows.start[r + 1] = rows.start[r + 1].max(rows.start[r]);
+        }
+        rows
+    }
+    fn range(&self, r: usize) -> std::ops::Range<usize> {
+        self.start[r] as usize..self.start[r + 1] as usize
+    }
+    #[inline]
+    fn dot(&self, r: usize, x: &[f64]) -> f64 {
+        let r = self.range(r);
+        self.col[r.clone()]
+            .iter()
+            .zip(&self.val[r])
+            .map(|(&c, v)| v * x[c as usize])
+            .sum()
+    }
+    fn bytes(&self) -> usize {
+        std::mem::size_of_val(&self.start[..])
+            + std::mem::size_of_val(&self.col[..])
+            + std::mem::size_of_val(&self.val[..])
+    }
+    /// The transpose, with `n` rows, each row scaled by `scale[r]` first.
+    fn transpose(&self, n: usize, scale: &[f64]) -> Rows {
+        let t = (0..self.start.len() - 1)
+            .flat_map(|r| self.range(r).map(move |j| (r, j)))
+            .map(|(r, j)| (self.col[j] as usize, r, scale[r] * self.val[j]))
+            .collect();
+        Rows::new(n, t)
+    }
+}
+
+/// The assembled correction: `q = Λ G U`, `f += t Gᵀ q`.
+pub struct PressureOperator {
+    /// `G`: per cell, the first moment `s` of its tractions from the DOFs.
+    g: Rows,
+    /// `t Gᵀ`: per DOF, its internal force from the cells' `q`.
+    gt: Rows,
+    /// `Λ` per cell.
+    scale: Vec<f64>,
+    thickness: f64,
+}
+
+impl PressureOperator {
+    /// `G`, `t Gᵀ` and `Λ` of a `rigid-poisson` model.
+    pub fn new(model: &Model) -> Self {
+        let poisson = Poisson::new(model);
+        let centroid = |e: u32| model.elements[e as usize].props.centroid;
+        let mut g = Vec::new();
+        for i in &model.interfaces {
+            let s = springs(model, i);
+            let (x, w) = i.gauss_points();
+            // The first moment of the traction on side `e`, `±w (x − x_e)ᵀ S (u_b(x) − u_a(x))`.
+            for (e, sign) in [(i.a, 1.0), (i.b, -1.0)] {
+                if e == GROUND {
+                    continue;
+                }
+                for &xg in &x {
+                    let r = s.apply(xg - centroid(e)) * (sign * w);
+                    for (side, dir) in [(i.a, -1.0), (i.b, 1.0)] {
+                        if side == GROUND {
+                            continue;
+                        }
+                        let shape = Rigid::shape(xg - centroid(side));
+                        for d in 0..3 {
+                            let v = dir * (r.x * shape[(0, d)] + r.y * shape[(1, d)]);
+                            g.push((e as usize, 3 * side as usize + d, v));
+                        }
+                    }
+                }
+            }
+        }
+        let n = model.elements.len();
+        let g = Rows::new(n, g);
+        let gt = g.transpose(3 * n, &vec![model.thickness; n]);
+        PressureOperator {
+            g,
+            gt,
+            scale: poisson.scale,
+            thickness: model.thickness,
+        }
+    }
+
+    /// The correction's part of `K`, `t Gᵀ Λ G`, as triplets over all DOFs, duplicates summed.
+    pub fn triplets(&self) -> Vec<(usize, usize, f64)> {
+        let n = self.gt.start.len() - 1;
+        let mut products = Vec::new();
+        for r in 0..n {
+            for j in self.gt.range(r) {
+                let cell = self.gt.col[j] as usize;
+                let tv = self.scale[cell] * self.gt.val[j];
+                products.extend(
+                    self.g
+                        .range(cell)
+                        .map(|k| (r, self.g.col[k] as usize, tv * self.g.val[k])),
+                );
+            }
+        }
+        let k = Rows::new(n, products);
+        (0..n)
+            .flat_map(|r| k.range(r).map(move |j| (r, j)))
+            .map(|(r, j)| (r, k.col[j] as usize, k.val[j]))
+            .collect()
+    }
+}
+
+impl PressureOperator {
+    /// The correction's diagonal blocks `K^P_ee` (row-major, nine per element), and the most
+    /// elements a cell's `q` reads (`K_P`'s terms couple that many): what the stability limit's
+    /// bracket needs ([`crate::analysis::limit::Limit`]).
+    pub fn diagonal_blocks(&self) -> (Vec<f64>, usize) {
+        let n = self.g.start.len() - 1;
+        let mut blocks = vec![0.0; 9 * n];
+        let mut most = 0;
+        for cell in 0..n {
+            let r = self.g.range(cell);
+            let mut elements: Vec<u32> = self.g.col[r.clone()].iter().map(|c| c / 3).collect();
+            elements.dedup();
+            most = most.max(elements.len());
+            // `t Λ g gᵀ`, `g` the cell's row of `G`.
+            let weight = self.thickness * self.scale[cell];
+            for j in r.clone() {
+                for k in r.clone() {
+                    let (dj, dk) = (self.g.col[j] as usize, self.g.col[k] as usize);
+                    if dj / 3 == dk / 3 {
+                        blocks[9 * (dj / 3) + 3 * (dj % 3) + dk % 3] +=
+                            weight * self.g.val[j] * self.g.val[k];
+                    }
+                }
+            }
+        }
+        (blocks, most)
+    }
+}
+
+impl Correction for PressureOperator {
+    fn add(&self, u: &[f64], f: &mut [f64], q: &mut [f64]) {
+        for_each_chunk(q, |first, chunk| {
+            for (k, q) in chunk.iter_mut().enumerate() {
+                *q = self.scale[first + k] * self.g.dot(first + k, u);
+            }
+        });
+        let q = &*q;
+        for_each_chunk_pair(f, &mut [], 3 * CHUNK, |first, chunk, _| {
+            for (k, fd) in chunk.iter_mut().enumerate() {
+                *fd += self.gt.dot(first + k, q);
+            }
+        });
+    }
+    fn bytes(&self) -> usize {
+        self.g.bytes() + self.gt.bytes() + std::mem::size_of_val(&self.scale[..])
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::input::scene::Scene;
+
+    fn voronoi(nu: f64) -> Model {
+        Model::build(
+            &Scene::from_json(&format!(
+                r#"{{"name": "p", "thickness": 0.5, "plane": "stress", "formulation": {{"kind": "rigid-poisson"}},
+                "materials": {{"m": {{"E": 1e10, "nu": {nu}, "rho": 2000}}}},
+                "bodies": [{{"name": "b", "material": "m",
+                    "mesh": {{"kind": "voronoi", "origin": [0, 0], "size": [1, 1], "sites": 300, "seed": 3, "lloyd": 30}}}}],
+                "time": {{"dt": 1e-6, "steps": 1}}}}"#
+            ))
+            .unwrap(),
+        )
+        .unwrap()
+    }
+
+    /// Under a uniform strain (each cell at the affine field), an interior cell's
+    /// `q = λ' tr ε / 2μ` to the lattice's uniformity.
+    #[test]
+    fn interior_pressures_under_a_uniform_strain() {
+        let m = voronoi(0.25);
+        let lambda = m.elements[0].d[(0, 1)];
+        // Interior: no edge without springs (`B = 0`).
+        let poisson = Poisson::new(&m);
+        let interior: Vec<bool> = (0..m.elements.len())
+            .map(|e| {
+                let el = &m.elements[e];
+                let two_mu = el.d[(0, 0)] - lambda;
+                (poisson.scale[e] * two_mu * two_mu * el.props.area / lambda - 1.0).abs() < 1e-9
+            })
+            .collect();
+        for (ex, ey, g) in [
+            (1e-3, 0.0, 0.0),
+            (0.0, 1e-3, 0.0),
+            (0.0, 0.0, 1e-3),
+            (1e-3, -4e-4, 6e-4),
+        ] {
+            let u: Vec<f64> = m
+                .elements
+                .iter()
+                .flat_map(|el| {
+                    let c = el.props.centroid;
+                    [ex * c.x + 0.5 * g * c.y, ey * c.y + 0.5 * g * c.x, 0.0]
+                })
+                .collect();
+            let p = cells(&m, &u);
+            // `q = λ' tr ε / 2μ`.
+            let exact = lambda * (ex + ey) / (m.elements[0].d[(0, 0)] - lambda);
+            let worst = (0..m.elements.len())
+                .filter(|&e| interior[e])
+                .map(|e| (p[e] - exact).abs())
+                .fold(0.0, f64::max);
+            assert!(
+                worst
+                    <= 0.03
+                        * exact
+                            .abs()
+                            .max(lambda * 1e-3 / (m.elements[0].d[(0, 0)] - lambda)),
+                "ε = ({ex}, {ey}, {g}): worst interior |p − λ' tr ε| = {worst:e}"
+            );
+        }
+    }
+
+    /// The two evaluators' corrections, and `K`'s triplets, give the same force on any `U`; `K`
+    /// is symmetric.
+    #[test]
+    fn the_evaluators_agree_on_any_displacement() {
+        use crate::force::evaluator::{build, stiffness_triplets};
+        use crate::input::scene::EvaluatorKind;
+        let m = voronoi(0.3);
+        let n = m.n_dofs();
+        let u: Vec<f64> = (0..n)
+            .map(|k| 1e-4 * ((k as f64 * 0.7).sin() + 0.3 * (k as f64 * 1.9).cos()))
+            .collect();
+        let force = |kind| {
+            let mut f = vec![0.0; n];
+            build(&m, kind).internal_force(&u, &mut f);
+            f
+        };
+        let (fa, fe) = (
+            force(EvaluatorKind::Assembled),
+            force(EvaluatorKind::ElementWise),
+        );
+        let mut fk = vec![0.0; n];
+        let k = stiffness_triplets(&m);
+        for &(r, c, v) in &k {
+            fk[r] += v * u[c];
+        }
+        let mut entries = std::collections::BTreeMap::new();
+        for &(r, c, v) in &k {
+            *entries.entry((r, c)).or_insert(0.0) += v;
+        }
+        let big = entries.values().fold(0.0f64, |s, v| s.max(v.abs()));
+        for (&(r, c), v) in &entries {
+            let vt = entries.get(&(c, r)).copied().unwrap_or(0.0);
+            assert!(
+                (v - vt).abs() <= 1e-12 * big,
+                "K[{r}][{c}] = {v:e}, K[{c}][{r}] = {vt:e}"
+            );
+        }
+        let scale = fa.iter().fold(0.0f64, |s, x| s.max(x.abs()));
+        for (name, g) in [("element-wise", &fe), ("triplets", &fk)] {
+            let worst = fa
+                .iter()
+                .zip(g)
+                .fold(0.0f64, |s, (a, b)| s.max((a - b).abs()));
+            assert!(
+                worst <= 1e-12 * scale,
+                "assembled against {name}: {worst:e} of {scale:e}"
+            );
+        }
+    }
+}
