@@ -2,9 +2,10 @@
 //! the two evaluators' manners, on top of the rigid springs' evaluator:
 //!
 //! - **element-wise** ([`FacetPressures`]): each element sums the first moment of its facets'
-//!   spring tractions at their Gauss points (from its own and its neighbours' `U`) into its
-//!   `q_I`; then each element adds the correction's tractions on its facets, from its own and
-//!   its neighbours' `q`. Two passes over the elements, no global matrix.
+//!   spring tractions (from its own and its neighbours' `U`, through each facet's coefficients
+//!   integrated in closed form once) into its `q_I`; then each element takes the correction's
+//!   forces of its facets from its own and its neighbours' `q`. Two passes over the elements,
+//!   records kept per element, no global matrix.
 //! - **assembled** ([`PressureOperator`]): the same two maps as sparse matrices, `q = Λ G U`
 //!   (cells × DOFs) and `f += t Gᵀ q` (DOFs × cells); `t Gᵀ Λ G` is the correction's part of `K`
 //!   ([`PressureOperator::triplets`]).
@@ -17,7 +18,7 @@
 use crate::force::evaluator::{Evaluator, FusedStep};
 use crate::input::scene::EvaluatorKind;
 use crate::mesh::geometry::Vec2;
-use crate::model::formulation::{Kinematics, Rigid, Springs};
+use crate::model::formulation::{Kinematics, Rigid};
 use crate::model::poisson::{load_moment, springs, Poisson};
 use crate::model::{Model, GROUND};
 use crate::parallel::{for_each_chunk, for_each_chunk_pair, CHUNK};
@@ -67,108 +68,89 @@ impl<C: Correction> Evaluator for WithPoisson<C> {
     }
 }
 
-/// One facet as the element-wise passes read it.
-#[derive(Debug, Clone, Copy)]
-struct Facet {
-    a: u32,
-    b: u32,
-    /// The Gauss points' offsets from `a`'s centroid and from `b`'s (from the midpoint on
-    /// ground, unused).
-    ga: [Vec2; 2],
-    gb: [Vec2; 2],
-    /// The springs `S` (Pa/m).
-    springs: Springs,
-    /// The Gauss weight `L/2` (m).
-    weight: f64,
-}
-
-impl Facet {
-    /// `δ = u_b − u_a` at Gauss point `g`.
-    #[inline]
-    fn jump(&self, u: &[f64], g: usize) -> Vec2 {
-        let ub = if self.b == GROUND {
-            Vec2::zeros()
-        } else {
-            Rigid::displacement(dofs(u, self.b), self.gb[g])
-        };
-        ub - Rigid::displacement(dofs(u, self.a), self.ga[g])
-    }
-}
-
-/// Element `e`'s three DOFs.
-#[inline]
-fn dofs(u: &[f64], e: u32) -> &[f64; 3] {
-    let k = 3 * e as usize;
-    u[k..k + 3]
-        .try_into()
-        .expect("three DOFs per rigid element")
-}
-
-/// The element-wise correction: facets by element, Gauss-point tractions.
+/// The element-wise correction, element by element. Element `I`'s facets to other elements are
+/// `start[I] .. start[I + 1]` in `other` (the element `J` across), `reads` (the coefficients of
+/// `U_J` in `s_I`: `∫ S (x − x_I) ds` on `(u, v)`, `∫ (x − x_I)·S (ẑ × (x − x_J)) ds` on `θ`)
+/// and `read_by` (those of `U_I` in `s_J`), kept apart so that each pass reads only its own;
+/// `own` holds the coefficients of `U_I` in `s_I`, ground springs included.
 pub struct FacetPressures {
-    facets: Vec<Facet>,
+    other: Vec<u32>,
+    reads: Vec<[f64; 3]>,
+    read_by: Vec<[f64; 3]>,
     start: Vec<u32>,
-    of: Vec<u32>,
+    own: Vec<[f64; 3]>,
     scale: Vec<f64>,
     thickness: f64,
 }
 
+/// `(∫ S (x − x_i) ds, ∫ (x − x_i)·S (ẑ × (x − x_j)) ds)` over an interface (two Gauss points,
+/// exact): the coefficients of `(u_j, v_j, θ_j)` in `∫ (x − x_i)·S u_j(x) ds`.
+fn reading(model: &Model, i: &crate::model::Interface, xi: Vec2, xj: Vec2) -> [f64; 3] {
+    let s = springs(model, i);
+    let (points, w) = i.gauss_points();
+    let mut c = [0.0; 3];
+    for x in points {
+        let t = s.apply(x - xi) * w;
+        let turn = x - xj;
+        c[0] += t.x;
+        c[1] += t.y;
+        c[2] += t.dot(&Vec2::new(-turn.y, turn.x));
+    }
+    c
+}
+
 impl FacetPressures {
-    /// The facets of a `rigid-poisson` model.
+    /// The facets and own coefficients of a `rigid-poisson` model.
     pub fn new(model: &Model) -> Self {
         let poisson = Poisson::new(model);
-        let facets = model
-            .interfaces
-            .iter()
-            .map(|i| {
-                let (g, w) = i.gauss_points();
-                let at = |e: u32| {
-                    if e == GROUND {
-                        i.midpoint()
-                    } else {
-                        model.elements[e as usize].props.centroid
-                    }
-                };
-                Facet {
-                    a: i.a,
-                    b: i.b,
-                    ga: g.map(|x| x - at(i.a)),
-                    gb: g.map(|x| x - at(i.b)),
-                    springs: springs(model, i),
-                    weight: w,
+        let n = model.elements.len();
+        let centroid = |e: u32| model.elements[e as usize].props.centroid;
+        let mut own = vec![[0.0; 3]; n];
+        let (mut other, mut reads, mut read_by) = (Vec::new(), Vec::new(), Vec::new());
+        let mut start = vec![0u32; n + 1];
+        for e in 0..n {
+            let me = e as u32;
+            for &k in poisson.facets_of(e) {
+                let i = &model.interfaces[k as usize];
+                let across = if i.a == me { i.b } else { i.a };
+                // `δ = u_b − u_a` and the traction on `I` is `±S δ`: in `s_I` the other's
+                // displacement enters with `+`, its own with `−`.
+                let self_read = reading(model, i, centroid(me), centroid(me));
+                own[e].iter_mut().zip(self_read).for_each(|(o, c)| *o -= c);
+                if across != GROUND {
+                    other.push(across);
+                    reads.push(reading(model, i, centroid(me), centroid(across)));
+                    read_by.push(reading(model, i, centroid(across), centroid(me)));
                 }
-            })
-            .collect();
+            }
+            start[e + 1] = other.len() as u32;
+        }
         FacetPressures {
-            facets,
-            start: poisson.start,
-            of: poisson.facets,
+            other,
+            reads,
+            read_by,
+            start,
+            own,
             scale: poisson.scale,
             thickness: model.thickness,
         }
     }
 
-    fn of(&self, e: usize) -> &[u32] {
-        &self.of[self.start[e] as usize..self.start[e + 1] as usize]
+    fn sides(&self, e: usize) -> std::ops::Range<usize> {
+        self.start[e] as usize..self.start[e + 1] as usize
     }
 
     /// `s_e`: the first moment `∫ (x − x_e)·S δ ds` of the spring tractions on element `e`'s
-    /// facets (per unit thickness), two Gauss points each.
+    /// facets (per unit thickness), from its own and its neighbours' DOFs.
+    #[inline]
     fn moment(&self, e: usize, u: &[f64]) -> f64 {
-        let mut s = 0.0;
-        for &k in self.of(e) {
-            let f = &self.facets[k as usize];
-            for g in 0..2 {
-                let t = f.springs.apply(f.jump(u, g));
-                s += f.weight
-                    * if f.a as usize == e {
-                        f.ga[g].dot(&t)
-                    } else {
-                        -f.gb[g].dot(&t)
-                    };
-            }
-        }
-        s
+        let dot =
+            |c: &[f64; 3], k: usize| c[0] * u[3 * k] + c[1] * u[3 * k + 1] + c[2] * u[3 * k + 2];
+        let r = self.sides(e);
+        self.other[r.clone()]
+            .iter()
+            .zip(&self.reads[r])
+            .fold(dot(&self.own[e], e), |s, (&j, c)| s + dot(c, j as usize))
     }
 
     /// The cells' `q_e = Λ_e s_e` at `u`, from the springs alone (the loads' share is in `P`).
@@ -200,33 +182,28 @@ impl Correction for FacetPressures {
     fn add(&self, u: &[f64], f: &mut [f64], q: &mut [f64]) {
         self.cells(u, q);
         let q = &*q;
+        // `f_I += t (q_I ∂s_I/∂U_I + Σ_J q_J ∂s_J/∂U_I)`: the energy's gradient.
         for_each_chunk_pair(f, &mut [], 3 * CHUNK, |first, chunk, _| {
             for (k, fe) in chunk.chunks_exact_mut(3).enumerate() {
                 let e = first / 3 + k;
-                let fe: &mut [f64; 3] = fe.try_into().expect("three DOFs");
-                for &k in self.of(e) {
-                    let x = &self.facets[k as usize];
-                    let qb = if x.b == GROUND { 0.0 } else { q[x.b as usize] };
-                    let qa = q[x.a as usize];
-                    for g in 0..2 {
-                        // The traction on `a`, `S (q_a (x − x_a) − q_b (x − x_b))`; `f_int` is
-                        // minus the force on the element, and `b` takes the opposite.
-                        let c = x.springs.apply(qa * x.ga[g] - qb * x.gb[g])
-                            * (x.weight * self.thickness);
-                        if x.a as usize == e {
-                            Rigid::add_force(fe, x.ga[g], -c);
-                        } else {
-                            Rigid::add_force(fe, x.gb[g], c);
-                        }
-                    }
+                let mut g = self.own[e].map(|c| c * q[e]);
+                let r = self.sides(e);
+                for (&j, c) in self.other[r.clone()].iter().zip(&self.read_by[r]) {
+                    let qj = q[j as usize];
+                    g.iter_mut().zip(c).for_each(|(g, c)| *g += qj * c);
                 }
+                fe.iter_mut()
+                    .zip(g)
+                    .for_each(|(f, g)| *f += self.thickness * g);
             }
         });
     }
     fn bytes(&self) -> usize {
-        std::mem::size_of_val(&self.facets[..])
+        std::mem::size_of_val(&self.other[..])
+            + std::mem::size_of_val(&self.reads[..])
+            + std::mem::size_of_val(&self.read_by[..])
             + std::mem::size_of_val(&self.start[..])
-            + std::mem::size_of_val(&self.of[..])
+            + std::mem::size_of_val(&self.own[..])
             + std::mem::size_of_val(&self.scale[..])
     }
 }
