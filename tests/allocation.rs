@@ -120,11 +120,12 @@ fn plain_steps() {
         ("rigid", EvaluatorKind::Assembled),
         ("rigid", EvaluatorKind::ElementWise),
         ("hybrid", EvaluatorKind::ElementWise),
+        ("rigid-poisson", EvaluatorKind::Assembled),
+        ("rigid-poisson", EvaluatorKind::ElementWise),
     ] {
-        let f = if formulation == "rigid" {
-            r#"{"kind": "rigid"}"#
-        } else {
-            r#"{"kind": "hybrid", "penalty": 10}"#
+        let f = match formulation {
+            "hybrid" => r#"{"kind": "hybrid", "penalty": 10}"#.to_string(),
+            kind => format!(r#"{{"kind": "{kind}"}}"#),
         };
         let json = format!(
             r#"{{"name": "a", "thickness": 1.0, "formulation": {f}, "gravity": [0, -9.81],

@@ -152,3 +152,66 @@ fn what_the_correction_cannot_model_is_refused() {
         assert!(err.contains(key) && err.contains(says), "{err}");
     }
 }
+
+/// The explicit scheme's empirical limit is the `Δt_crit` the setup reports (Lanczos on the
+/// symmetric `K`, without the inertia probes), and inside the proven bracket.
+#[test]
+fn the_empirical_stability_limit_is_the_reported_one() {
+    let mut s = bundled();
+    s.gravity = None;
+    let setup = Setup::new(
+        &s,
+        &Overrides {
+            exact_dt_crit: true,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let (_, ratio) = rbsm::analysis::stability::empirical_limit(&setup, 2000, 1e-3);
+    assert!(
+        (ratio - 1.0).abs() < 2e-3,
+        "empirical limit / Δt_crit = {ratio}"
+    );
+    let limit = &setup.limit;
+    let omega = setup.omega_max();
+    assert!(
+        limit.floor <= omega && omega <= limit.bound,
+        "{limit:?} against {omega:e}"
+    );
+}
+
+/// Both evaluators' forces are the same bits on 1 and 2 threads (the correction's passes go
+/// over fixed chunks of elements; 6,000 cells make three of them).
+#[test]
+fn the_correction_does_not_depend_on_the_thread_count() {
+    use rbsm::force::evaluator;
+    use rbsm::input::scene::EvaluatorKind;
+    let json = std::fs::read_to_string(format!(
+        "{}/examples/scenes/voronoi_panel_poisson.json",
+        env!("CARGO_MANIFEST_DIR")
+    ))
+    .unwrap()
+    .replace("\"sites\": 400", "\"sites\": 6000")
+    .replace("\"lloyd\": 20", "\"lloyd\": 2");
+    let model = Model::build(&Scene::from_json(&json).unwrap()).unwrap();
+    let u = common::random_vector(model.n_dofs(), 7);
+    for kind in [EvaluatorKind::Assembled, EvaluatorKind::ElementWise] {
+        let ev = evaluator::build(&model, kind);
+        let force = |threads| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            let mut f = vec![0.0; u.len()];
+            pool.install(|| ev.internal_force(&u, &mut f));
+            f
+        };
+        let (one, two) = (force(1), force(2));
+        assert!(
+            one.iter()
+                .zip(&two)
+                .all(|(a, b)| a.to_bits() == b.to_bits()),
+            "{kind:?}"
+        );
+    }
+}

@@ -112,6 +112,12 @@ def test_effective_equals_the_command_line(cli, scenes):
     assert r["material"] == [2.0e10, 0.25] and 0.0 < r["poisson"] < 0.25
 
 
+def test_effective_of_the_poisson_corrected_cells(scenes):
+    # The same 400 cells with the `rigid-poisson` formulation keep the rock's ν.
+    r = rbsm.effective(scenes / "voronoi_panel_poisson.json")
+    assert abs(r["poisson"] / 0.25 - 1) < 0.02 and abs(r["young"] / 2.0e10 - 1) < 0.02
+
+
 def test_limit_equals_the_command_line(cli, scenes, tmp_path):
     scene = scenes / "squeeze.json"
     code, report = cli_json(cli, "limit", scene)

@@ -57,6 +57,13 @@ def test_a_local_sweep_equals_rbsm_tradeoff(cli, scenes, tmp_path, local):
     assert local.error[1] < local.error[0] and local.error[3] < local.error[2]
 
 
+def test_a_sweep_over_the_formulations(column):
+    # The `formulation` key takes every kind a scene can name, `rigid-poisson` included.
+    table = rbsm.sweep(column, {"formulation": ["rigid", "rigid-poisson"]}, workers=1)
+    assert list(table.formulation) == ["rigid", "rigid-poisson"]
+    assert list(table.status) == ["ok", "ok"]
+
+
 def test_a_dask_sweep_equals_the_local_one(column, local, cluster):
     on_dask = rbsm.sweep(column, GRID, executor=cluster)
     pd.testing.assert_frame_equal(on_dask[FIGURES], local[FIGURES])

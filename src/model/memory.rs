@@ -29,6 +29,12 @@ const FAILING: [u64; 2] = [1_900, 2_700];
 /// strength (120 bytes), the plastic strain and its flag (25 bytes): counted from the
 /// structures' sizes, rounded up, not measured as the others were.
 const YIELDING: u64 = 200;
+/// The `rigid-poisson` correction (each cell's facets' coefficients, element-wise; `G` and
+/// `t Gᵀ`, assembled; and their triplets while built), measured as above on Voronoi panels of
+/// 2·10⁴ and 10⁵ elements against the same panels of rigid cells: element-wise slopes of 4.70
+/// and 2.74 kB, 1.96 kB more; assembled within that (VmPeak 133.9 against 89.4 MB, 459.4
+/// against 443.7 MB). Rounded up.
+const POISSON: u64 = 2_500;
 /// A body that fragments (failing interfaces and edge-to-edge contact, `Model::fragments`)
 /// makes every element a contact target and every edge a source, with room for the neighbour
 /// lists and pieces of all of them: 3.35 kB rigid, 3.80 kB hybrid more than the same body
@@ -63,6 +69,7 @@ pub fn arenas_bounded(n: usize) {
 /// room reserved for fragments is touched as the bodies crack.
 pub fn estimate(scene: &Scene, elements: u64, threads: usize) -> u64 {
     let hybrid = matches!(scene.formulation, FormulationSpec::Hybrid { .. }) as usize;
+    let poisson = scene.formulation == FormulationSpec::RigidPoisson;
     let base = match scene.evaluator {
         EvaluatorKind::Assembled => ASSEMBLED[hybrid],
         EvaluatorKind::ElementWise => ELEMENT_WISE[hybrid],
@@ -77,8 +84,10 @@ pub fn estimate(scene: &Scene, elements: u64, threads: usize) -> u64 {
             let material = scene.materials.get(&b.material);
             let fails = material.is_some_and(|m| m.interface != InterfaceLawSpec::Elastic);
             let yields = material.is_some_and(|m| m.element != ElementStrengthSpec::Elastic);
-            let bytes =
-                base + if fails { FAILING[hybrid] } else { 0 } + if yields { YIELDING } else { 0 };
+            let bytes = base
+                + if fails { FAILING[hybrid] } else { 0 }
+                + if yields { YIELDING } else { 0 }
+                + if poisson { POISSON } else { 0 };
             let bytes = match (scene.contact.is_some(), fails && edge_to_edge) {
                 (_, true) => (bytes + FRAGMENTS) as f64,
                 (true, false) => bytes as f64 * CONTACT_FACTOR,
