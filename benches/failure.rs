@@ -15,6 +15,8 @@
 //! a small fracture energy, breaks: then every step reads and writes the state of those points
 //! and applies their plastic forces.
 
+#[path = "common/paired.rs"]
+mod paired;
 #[path = "common/section.rs"]
 mod section;
 
@@ -99,14 +101,7 @@ fn main() {
     let mut rows: Vec<Row> = Vec::new();
     let mut cracked = Vec::new();
     // `RBSM_BENCH_MAX=100000` stops at 10⁵ elements (a partial run, as a filter makes one).
-    let max: usize = std::env::var("RBSM_BENCH_MAX")
-        .ok()
-        .and_then(|m| m.parse().ok())
-        .unwrap_or(usize::MAX);
-    let quartiles = |mut s: Vec<f64>| {
-        s.sort_by(f64::total_cmp);
-        [1, 2, 3].map(|k| s[(k * s.len() / 4).min(s.len() - 1)])
-    };
+    let max = paired::max_elements();
     for n in SIZES.into_iter().filter(|&n| n <= max) {
         for formulation in FORMULATIONS {
             let elastic = Model::build(&scene(n, formulation)).expect("the model builds");
@@ -134,10 +129,7 @@ fn main() {
                 let evaluators: Vec<_> =
                     cases.iter().map(|c| evaluator::build(&c.0, kind)).collect();
                 for threads in [1, 2] {
-                    let pool = rayon::ThreadPoolBuilder::new()
-                        .num_threads(threads)
-                        .build()
-                        .expect("a thread pool");
+                    let pool = paired::pool(threads);
                     // The three cases in turn in every sample, so that their ratios are taken
                     // sample by sample (a shared machine drifts between samples).
                     let samples = RefCell::new([Vec::new(), Vec::new(), Vec::new()]);
@@ -190,18 +182,14 @@ fn main() {
                     if s[0].is_empty() {
                         continue; // filtered out on the command line
                     }
-                    let paired = |k: usize| {
-                        let ratios = s[k].iter().zip(&s[0]).map(|(x, e)| x / e).collect();
-                        quartiles(ratios)[1]
-                    };
-                    let ns = [0, 1, 2].map(|k| quartiles(s[k].clone()));
+                    let ns = [0, 1, 2].map(|k| paired::quartiles(s[k].clone()));
                     rows.push((
                         n,
                         formulation,
                         kind.name(),
                         threads,
                         ns,
-                        [paired(1), paired(2)],
+                        [paired::paired(&s, 1), paired::paired(&s, 2)],
                     ));
                 }
             }

@@ -8,6 +8,8 @@
 //! costs* of `benches/summary.md` (between its markers; `cargo bench --bench step` keeps it);
 //! `RBSM_BENCH_MAX=100000` stops at 10⁵ elements and leaves the summary as it was.
 
+#[path = "common/paired.rs"]
+mod paired;
 #[path = "common/section.rs"]
 mod section;
 
@@ -52,14 +54,8 @@ fn main() {
     // and the medians of the ratios to rigid, sample by sample.
     type Row = (usize, &'static str, usize, [[f64; 3]; 3], [f64; 2]);
     let mut rows: Vec<Row> = Vec::new();
-    let max: usize = std::env::var("RBSM_BENCH_MAX")
-        .ok()
-        .and_then(|m| m.parse().ok())
-        .unwrap_or(usize::MAX);
-    let quartiles = |mut s: Vec<f64>| {
-        s.sort_by(f64::total_cmp);
-        [1, 2, 3].map(|k| s[(k * s.len() / 4).min(s.len() - 1)])
-    };
+    // `RBSM_BENCH_MAX=100000` stops at 10⁵ elements (a partial run, as a filter makes one).
+    let max = paired::max_elements();
     for n in SIZES.into_iter().filter(|&n| n <= max) {
         let cases: Vec<_> = FORMULATIONS
             .iter()
@@ -72,10 +68,7 @@ fn main() {
         for kind in [EvaluatorKind::Assembled, EvaluatorKind::ElementWise] {
             let evaluators: Vec<_> = cases.iter().map(|c| evaluator::build(&c.0, kind)).collect();
             for threads in [1, 2] {
-                let pool = rayon::ThreadPoolBuilder::new()
-                    .num_threads(threads)
-                    .build()
-                    .expect("a thread pool");
+                let pool = paired::pool(threads);
                 let samples = RefCell::new([Vec::new(), Vec::new(), Vec::new()]);
                 let name = format!("formulations/{n}/{}/{threads}thr", kind.name());
                 c.bench_function(&name, |b| {
@@ -108,12 +101,14 @@ fn main() {
                 if s[0].is_empty() {
                     continue; // filtered out on the command line
                 }
-                let paired = |k: usize| {
-                    let ratios = s[k].iter().zip(&s[0]).map(|(x, e)| x / e).collect();
-                    quartiles(ratios)[1]
-                };
-                let ns = [0, 1, 2].map(|k| quartiles(s[k].clone()));
-                rows.push((n, kind.name(), threads, ns, [paired(1), paired(2)]));
+                let ns = [0, 1, 2].map(|k| paired::quartiles(s[k].clone()));
+                rows.push((
+                    n,
+                    kind.name(),
+                    threads,
+                    ns,
+                    [paired::paired(&s, 1), paired::paired(&s, 2)],
+                ));
             }
         }
     }

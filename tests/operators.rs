@@ -203,19 +203,7 @@ fn forces_do_not_depend_on_the_thread_count() {
         SUPPORTS,
     );
     let u = random_vector(model.n_dofs(), 9);
-    for kind in [EvaluatorKind::Assembled, EvaluatorKind::ElementWise] {
-        let ev = evaluator::build(&model, kind);
-        let run = |threads| {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap();
-            let mut f = vec![0.0; u.len()];
-            pool.install(|| ev.internal_force(&u, &mut f));
-            f
-        };
-        assert_eq!(run(1), run(2), "{kind:?}");
-    }
+    common::same_forces_on_one_and_two_threads(&model, &u);
 }
 
 /// Both evaluators advance each element inside their sweep (eq. 15, or the rows of `K U` of

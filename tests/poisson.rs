@@ -184,8 +184,6 @@ fn the_empirical_stability_limit_is_the_reported_one() {
 /// over fixed chunks of elements; 6,000 cells make three of them).
 #[test]
 fn the_correction_does_not_depend_on_the_thread_count() {
-    use rbsm::force::evaluator;
-    use rbsm::input::scene::EvaluatorKind;
     let json = std::fs::read_to_string(format!(
         "{}/examples/scenes/voronoi_panel_poisson.json",
         env!("CARGO_MANIFEST_DIR")
@@ -195,23 +193,5 @@ fn the_correction_does_not_depend_on_the_thread_count() {
     .replace("\"lloyd\": 20", "\"lloyd\": 2");
     let model = Model::build(&Scene::from_json(&json).unwrap()).unwrap();
     let u = common::random_vector(model.n_dofs(), 7);
-    for kind in [EvaluatorKind::Assembled, EvaluatorKind::ElementWise] {
-        let ev = evaluator::build(&model, kind);
-        let force = |threads| {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap();
-            let mut f = vec![0.0; u.len()];
-            pool.install(|| ev.internal_force(&u, &mut f));
-            f
-        };
-        let (one, two) = (force(1), force(2));
-        assert!(
-            one.iter()
-                .zip(&two)
-                .all(|(a, b)| a.to_bits() == b.to_bits()),
-            "{kind:?}"
-        );
-    }
+    common::same_forces_on_one_and_two_threads(&model, &u);
 }

@@ -237,7 +237,11 @@ fn bending(omega: &[f64], shapes: &[Vec<f64>], mass: &[f64], nd: usize) -> Vec<f
 /// (40 × 4 elements): its modes less the first axial one, the nearest to the bar's `c/(4L)`.
 fn q8_bending(length: f64, depth: f64, t: f64, e: f64, nu: f64, rho: f64) -> Vec<f64> {
     let w = fem::cantilever_frequencies(length, depth, t, e, nu, rho, 40, 4, 12);
-    let axial = (e / rho).sqrt() * PI / (2.0 * length);
+    without_axial(&w, (e / rho).sqrt() * PI / (2.0 * length))
+}
+
+/// The first three of frequencies `w` less the one nearest `axial`, the first axial mode.
+fn without_axial(w: &[f64], axial: f64) -> Vec<f64> {
     let ax = w
         .iter()
         .enumerate()
@@ -264,21 +268,10 @@ fn cantilever(r: &mut Report) {
     // The Q8 model's bending modes: drop the first axial mode (c/(4L) ≈ 442 Hz lies between
     // bending modes 3 and 4); its frequency is identified as the one nearest the bar value.
     let axial = (e / rho).sqrt() * PI / (2.0 * length);
-    let pick = |w: &[f64]| -> Vec<f64> {
-        let ax = w
-            .iter()
-            .enumerate()
-            .min_by(|a, b| (a.1 - axial).abs().total_cmp(&(b.1 - axial).abs()))
-            .unwrap()
-            .0;
-        w.iter()
-            .enumerate()
-            .filter(|(i, _)| *i != ax)
-            .map(|(_, x)| *x)
-            .take(3)
-            .collect()
-    };
-    let (fine, coarse) = (pick(&fem_fine), pick(&fem_coarse));
+    let (fine, coarse) = (
+        without_axial(&fem_fine, axial),
+        without_axial(&fem_coarse, axial),
+    );
     r.line("## 2. Cantilever plate: bending frequencies\n");
     r.line(&format!(
         "`{length}` m × `{depth}` m, `t = {t}` m, `E = {e:e}` Pa, `ν = {nu}`, `ρ = {rho}`; RBSM: square elements, left edge on \

@@ -56,6 +56,32 @@ pub fn forces(model: &Model, u: &[f64]) -> (Vec<f64>, Vec<f64>) {
     (fa, fe)
 }
 
+/// Asserts that both evaluators' forces at `u` are the same bits on 1 and 2 threads.
+pub fn same_forces_on_one_and_two_threads(model: &Model, u: &[f64]) {
+    for kind in [
+        rbsm::input::scene::EvaluatorKind::Assembled,
+        rbsm::input::scene::EvaluatorKind::ElementWise,
+    ] {
+        let ev = rbsm::force::evaluator::build(model, kind);
+        let run = |threads| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            let mut f = vec![0.0; u.len()];
+            pool.install(|| ev.internal_force(u, &mut f));
+            f
+        };
+        let (one, two) = (run(1), run(2));
+        assert!(
+            one.iter()
+                .zip(&two)
+                .all(|(a, b)| a.to_bits() == b.to_bits()),
+            "{kind:?}"
+        );
+    }
+}
+
 pub fn norm(x: &[f64]) -> f64 {
     x.iter().map(|v| v * v).sum::<f64>().sqrt()
 }
