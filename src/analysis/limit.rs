@@ -743,7 +743,7 @@ impl Limit {
     /// max_e λ_max(2 K^s_ee + m K^P_ee, M_e)`; the floor is `max_e λ_max(K^s_ee + K^P_ee, M_e)`
     /// as for the other formulations.
     fn poisson_bracket(model: &Model, contact: Option<&[f64]>) -> Limit {
-        let (blocks, m) = crate::force::evaluator::PressureOperator::new(model).diagonal_blocks();
+        let (blocks, m) = crate::force::evaluator::FacetPressures::new(model).diagonal_blocks();
         let with = |weight: f64| {
             let mut b = blocks.iter().map(|x| weight * x).collect::<Vec<f64>>();
             if let Some(c) = contact {

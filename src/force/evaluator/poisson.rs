@@ -153,6 +153,32 @@ impl FacetPressures {
             .fold(dot(&self.own[e], e), |s, (&j, c)| s + dot(c, j as usize))
     }
 
+    /// The correction's diagonal blocks `K^P_ee` (row-major, nine per element), and the most
+    /// elements a cell's `q` reads (`K_P`'s terms couple that many): what the stability limit's
+    /// bracket needs ([`crate::analysis::limit::Limit`]). `K^P_ee = t Σ_c Λ_c g_ce g_ceᵀ` over
+    /// the cells `c` whose `s` reads element `e`: itself (`own`) and its neighbours (`read_by`).
+    pub fn diagonal_blocks(&self) -> (Vec<f64>, usize) {
+        let n = self.own.len();
+        let mut blocks = vec![0.0; 9 * n];
+        for (e, block) in blocks.chunks_exact_mut(9).enumerate() {
+            let r = self.sides(e);
+            let cells = std::iter::once((e, &self.own[e])).chain(
+                self.other[r.clone()]
+                    .iter()
+                    .map(|&j| j as usize)
+                    .zip(&self.read_by[r]),
+            );
+            for (c, g) in cells {
+                let w = self.thickness * self.scale[c];
+                for (k, b) in block.iter_mut().enumerate() {
+                    *b += w * g[k / 3] * g[k % 3];
+                }
+            }
+        }
+        let most = (0..n).map(|e| 1 + self.sides(e).len()).max().unwrap_or(0);
+        (blocks, most)
+    }
+
     /// The cells' `q_e = Λ_e s_e` at `u`, from the springs alone (the loads' share is in `P`).
     pub fn cells(&self, u: &[f64], q: &mut [f64]) {
         for_each_chunk(q, |first, chunk| {
@@ -275,7 +301,6 @@ pub struct PressureOperator {
     gt: Rows,
     /// `Λ` per cell.
     scale: Vec<f64>,
-    thickness: f64,
 }
 
 impl PressureOperator {
@@ -314,7 +339,6 @@ impl PressureOperator {
             g,
             gt,
             scale: poisson.scale,
-            thickness: model.thickness,
         }
     }
 
@@ -338,35 +362,6 @@ impl PressureOperator {
             .flat_map(|r| k.range(r).map(move |j| (r, j)))
             .map(|(r, j)| (r, k.col[j] as usize, k.val[j]))
             .collect()
-    }
-}
-
-impl PressureOperator {
-    /// The correction's diagonal blocks `K^P_ee` (row-major, nine per element), and the most
-    /// elements a cell's `q` reads (`K_P`'s terms couple that many): what the stability limit's
-    /// bracket needs ([`crate::analysis::limit::Limit`]).
-    pub fn diagonal_blocks(&self) -> (Vec<f64>, usize) {
-        let n = self.g.start.len() - 1;
-        let mut blocks = vec![0.0; 9 * n];
-        let mut most = 0;
-        for cell in 0..n {
-            let r = self.g.range(cell);
-            let mut elements: Vec<u32> = self.g.col[r.clone()].iter().map(|c| c / 3).collect();
-            elements.dedup();
-            most = most.max(elements.len());
-            // `t Λ g gᵀ`, `g` the cell's row of `G`.
-            let weight = self.thickness * self.scale[cell];
-            for j in r.clone() {
-                for k in r.clone() {
-                    let (dj, dk) = (self.g.col[j] as usize, self.g.col[k] as usize);
-                    if dj / 3 == dk / 3 {
-                        blocks[9 * (dj / 3) + 3 * (dj % 3) + dk % 3] +=
-                            weight * self.g.val[j] * self.g.val[k];
-                    }
-                }
-            }
-        }
-        (blocks, most)
     }
 }
 
@@ -503,5 +498,29 @@ mod tests {
                 "assembled against {name}: {worst:e} of {scale:e}"
             );
         }
+    }
+
+    /// The bracket's diagonal blocks, from each element's own records, are those of `K_P`'s
+    /// triplets.
+    #[test]
+    fn the_diagonal_blocks_are_those_of_k() {
+        let m = voronoi(0.3);
+        let (blocks, most) = FacetPressures::new(&m).diagonal_blocks();
+        let mut from_k = vec![0.0; blocks.len()];
+        for (r, c, v) in PressureOperator::new(&m).triplets() {
+            if r / 3 == c / 3 {
+                from_k[9 * (r / 3) + 3 * (r % 3) + c % 3] += v;
+            }
+        }
+        let big = from_k.iter().fold(0.0f64, |s, x| s.max(x.abs()));
+        let worst = blocks
+            .iter()
+            .zip(&from_k)
+            .fold(0.0f64, |s, (a, b)| s.max((a - b).abs()));
+        assert!(worst <= 1e-12 * big, "{worst:e} of {big:e}");
+        assert!(
+            (4..=12).contains(&most),
+            "a Voronoi cell reads {most} elements"
+        );
     }
 }
