@@ -98,6 +98,17 @@ enum Command {
         /// The scene file (JSON; see docs/scene.md).
         scene: PathBuf,
     },
+    /// Calibrate the facet law of a Voronoi material: the facet parameters that give the
+    /// targets' E, ν, f_t, G_F and f_c on tension bars and compression prisms of every cell
+    /// size and seed (docs/calibrate.md). The specimen runs of a round share the cores.
+    Calibrate {
+        /// The calibration file (JSON; see docs/calibrate.md).
+        spec: PathBuf,
+        /// Write the calibrated material block, `{"<name>": {...}}`, to this file (JSON), for
+        /// a scene's `materials`.
+        #[arg(long)]
+        material: Option<PathBuf>,
+    },
     /// Lowest modes and ω_max of K φ = ω² M φ.
     Eigen {
         /// The scene file (JSON; see docs/scene.md).
@@ -442,6 +453,24 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
             let r = statics::analyse(&setup)?;
             if let Some(dir) = out {
                 statics::write(dir, &setup, &r)?;
+            }
+            print(cli.json, &r)?;
+        }
+        Command::Calibrate { spec, material } => {
+            use rbsm::analysis::calibrate;
+            let spec = calibrate::CalibrationSpec::from_file(spec)?;
+            let r = calibrate::calibrate(
+                &spec,
+                |jobs| calibrate::run_local(&spec, jobs),
+                |round, jobs| {
+                    if !cli.quiet {
+                        tell(&format!("round {round}: {jobs} specimen runs"));
+                    }
+                },
+            )?;
+            if let Some(path) = material {
+                let block = serde_json::json!({ spec.name.as_str(): r.material });
+                rbsm::output::write_json(path, &block)?;
             }
             print(cli.json, &r)?;
         }

@@ -39,6 +39,7 @@ __all__ = [
     "DivergedError",
     "DivergedWarning",
     "SweepFailed",
+    "CalibrationFailed",
     "RunResult",
     "InterfaceLines",
     "StaticResult",
@@ -56,6 +57,7 @@ __all__ = [
     "polygons",
     "schema",
     "sweep",
+    "calibrate",
 ]
 
 PathLike = Union[str, "os.PathLike[str]"]
@@ -560,4 +562,4 @@ def schema() -> Dict[str, Any]:
     return schema
 
 
-from .study import SweepFailed, sweep  # noqa: E402  (the study uses the names above)
+from .study import CalibrationFailed, SweepFailed, calibrate, sweep  # noqa: E402  (the study uses the names above)

@@ -136,17 +136,27 @@ def _is_dask_client(executor: Any) -> bool:
     )
 
 
-def _run_dask(client: Any, payloads: List[Dict[str, Any]], done: Done) -> None:
+Task = Callable[[Dict[str, Any]], Dict[str, Any]]
+Failed = Callable[[Dict[str, Any], str], Dict[str, Any]]
+
+
+def _run_dask(
+    client: Any, payloads: List[Dict[str, Any]], done: Done, task: Task, failed: Failed
+) -> None:
     """Every payload on the cluster; a task whose worker died is run again by the scheduler
     (``distributed.scheduler.allowed-failures``); one that still fails is reported."""
     from distributed import as_completed
 
-    futures = {client.submit(_point, p, pure=False): p for p in payloads}
-    _collect(futures, as_completed(list(futures)), done)  # type: ignore[no-untyped-call]
+    futures = {client.submit(task, p, pure=False): p for p in payloads}
+    _collect(futures, as_completed(list(futures)), done, failed)  # type: ignore[no-untyped-call]
 
 
 def _run_local(
-    payloads: List[Dict[str, Any]], workers: Optional[int], done: Done
+    payloads: List[Dict[str, Any]],
+    workers: Optional[int],
+    done: Done,
+    task: Task,
+    failed: Failed,
 ) -> None:
     """Every payload on local processes (spawned: scripts need the usual
     ``if __name__ == "__main__":``). A process that dies breaks the pool: the points it took
@@ -157,7 +167,7 @@ def _run_local(
     while left:
         broken = []
         with cf.ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
-            futures = {pool.submit(_point, p): p for p in left}
+            futures = {pool.submit(task, p): p for p in left}
             for future in cf.as_completed(futures):
                 payload = futures[future]
                 try:
@@ -168,24 +178,53 @@ def _run_local(
         for p in broken:
             tries[id(p)] += 1
             if tries[id(p)] > RETRIES:
-                done(_failed(p, DIED.format(tries[id(p)])))
+                done(failed(p, DIED.format(tries[id(p)])))
             else:
                 left.append(p)
 
 
-def _run_executor(executor: cf.Executor, payloads: List[Dict[str, Any]], done: Done) -> None:
-    futures = {executor.submit(_point, p): p for p in payloads}
-    _collect(futures, cf.as_completed(futures), done)
+def _run_executor(
+    executor: cf.Executor, payloads: List[Dict[str, Any]], done: Done, task: Task, failed: Failed
+) -> None:
+    futures = {executor.submit(task, p): p for p in payloads}
+    _collect(futures, cf.as_completed(futures), done, failed)
 
 
-def _collect(futures: Dict[Any, Dict[str, Any]], finished: Iterable[Any], done: Done) -> None:
+def _run(
+    executor: Any,
+    payloads: List[Dict[str, Any]],
+    workers: Optional[int],
+    done: Done,
+    task: Task,
+    failed: Failed,
+) -> None:
+    """Every payload through ``task`` on local processes (``executor=None``), a Dask
+    ``distributed.Client`` or a ``concurrent.futures.Executor``; each result to ``done``."""
+    if not payloads:
+        pass
+    elif executor is None:
+        _run_local(payloads, workers, done, task, failed)
+    elif _is_dask_client(executor):
+        _run_dask(executor, payloads, done, task, failed)
+    elif isinstance(executor, cf.Executor):
+        _run_executor(executor, payloads, done, task, failed)
+    else:
+        raise TypeError(
+            "executor: give None (local processes), a dask distributed.Client or a "
+            f"concurrent.futures.Executor, not {type(executor).__name__}"
+        )
+
+
+def _collect(
+    futures: Dict[Any, Dict[str, Any]], finished: Iterable[Any], done: Done, failed: Failed
+) -> None:
     """Hands each finished future's result to `done`; a future that raised (a task that could
     not run: KilledWorker and the like) is a failed point."""
     for future in finished:
         try:
             done(future.result())
         except Exception as e:  # noqa: BLE001 - reported in the table, not lost
-            done(_failed(futures[future], f"{type(e).__name__}: {e}"))
+            done(failed(futures[future], f"{type(e).__name__}: {e}"))
 
 
 #: The columns of a study's table after the swept keys.
@@ -267,19 +306,7 @@ def sweep(
         if progress is not None:
             progress(result)
 
-    if not payloads:
-        pass
-    elif executor is None:
-        _run_local(payloads, workers, done)
-    elif _is_dask_client(executor):
-        _run_dask(executor, payloads, done)
-    elif isinstance(executor, cf.Executor):
-        _run_executor(executor, payloads, done)
-    else:
-        raise TypeError(
-            "executor: give None (local processes), a dask distributed.Client or a "
-            f"concurrent.futures.Executor, not {type(executor).__name__}"
-        )
+    _run(executor, payloads, workers, done, _point, _failed)
     ordered = [results[_key(settings)] for settings, _ in combos]
     if ordered and all(r["measured"] is None for r in ordered):
         failures = [
@@ -347,3 +374,73 @@ def _table(
             frame.attrs.update(scene=scene.name, reference=reference, error_definition=definition)
             return frame
     return [dict(r, reference=reference, error_definition=definition) for r in records]
+
+
+def _job(payload: Dict[str, Any]) -> Dict[str, Any]:
+    """One specimen run of a calibration, on a worker: what it measured (JSON) or why it
+    failed."""
+    try:
+        measured = _rbsm.calibration_job(payload["spec"], payload["job"], threads=payload["threads"])
+        return {"job": payload["job"], "measured": measured, "failure": None}
+    except Exception as e:  # noqa: BLE001 - raised by the caller, naming the job
+        return _job_failed(payload, f"{type(e).__name__}: {e}")
+
+
+def _job_failed(payload: Dict[str, Any], why: str) -> Dict[str, Any]:
+    return {"job": payload["job"], "measured": None, "failure": why}
+
+
+class CalibrationFailed(RuntimeError):
+    """A specimen run of a calibration failed; ``job`` is the run (test, cell size, seed,
+    material) and the message says why."""
+
+    def __init__(self, job: Dict[str, Any], why: str) -> None:
+        self.job = job
+        super().__init__(
+            f"the {job['test']} specimen of cell size {job['size']}, seed {job['seed']} "
+            f"(round {job['round']}) failed: {why}"
+        )
+
+
+def calibrate(
+    spec: Union[str, "os.PathLike[str]", Mapping[str, Any]],
+    executor: Any = None,
+    *,
+    threads: Optional[int] = 1,
+    workers: Optional[int] = None,
+    progress: Optional[Callable[[int, int], None]] = None,
+) -> Dict[str, Any]:
+    """``rbsm calibrate``: the facet law of a Voronoi material calibrated to its measured
+    ``E``, ``nu``, ``tensile_strength``, ``fracture_energy`` and ``compressive_strength``
+    (``docs/calibrate.md``). ``spec`` is a calibration file's path or its content as a
+    dict. Each round's specimen runs are tasks on ``executor`` (``None``: local processes,
+    ``workers`` of them; a Dask ``distributed.Client``: its cluster; any
+    ``concurrent.futures.Executor``), each on ``threads`` Rust threads; the rounds and the
+    report are the command line's (``rbsm calibrate --json``), returned as a dict whose
+    ``material`` is the block for a scene's ``materials``. ``progress(round, runs)`` is called
+    before each round. A run that fails raises :class:`CalibrationFailed`.
+    """
+    if isinstance(spec, Mapping):
+        text = json.dumps(spec)
+    else:
+        text = Path(spec).read_text(encoding="utf-8")
+    done: List[str] = []
+    while True:
+        step = json.loads(_rbsm.calibration_next(text, done))
+        if "report" in step:
+            return step["report"]  # type: ignore[no-any-return]
+        jobs = step["jobs"]
+        if progress is not None:
+            progress(jobs[0]["round"], len(jobs))
+        payloads = [{"spec": text, "job": json.dumps(j), "threads": threads} for j in jobs]
+        results: Dict[str, Dict[str, Any]] = {}
+
+        def finished(result: Dict[str, Any]) -> None:
+            results[result["job"]] = result
+
+        _run(executor, payloads, workers, finished, _job, _job_failed)
+        for p in payloads:
+            r = results[p["job"]]
+            if r["measured"] is None:
+                raise CalibrationFailed(json.loads(p["job"]), r["failure"])
+            done.append(r["measured"])

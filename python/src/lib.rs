@@ -613,6 +613,42 @@ fn study_report(
     Ok(json(&report))
 }
 
+/// `rbsm calibrate`'s next round from the results so far (each as [`calibration_job`]
+/// returned it): `{"jobs": [...]}` to run, or `{"report": {...}}` when done, as JSON.
+#[pyfunction]
+fn calibration_next(spec: String, done: Vec<String>) -> PyResult<String> {
+    use rbsm::analysis::calibrate;
+    let spec = calibrate::CalibrationSpec::from_json(&spec).map_err(py_error)?;
+    let done = done
+        .iter()
+        .map(|m| serde_json::from_str::<calibrate::Measured>(m))
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(|e| PyValueError::new_err(format!("not a calibration result: {e}")))?;
+    Ok(match calibrate::next(&spec, &done).map_err(py_error)? {
+        calibrate::Next::Run(jobs) => json(&serde_json::json!({ "jobs": jobs })),
+        calibrate::Next::Done(report) => json(&serde_json::json!({ "report": report })),
+    })
+}
+
+/// One specimen run of a calibration (a job of [`calibration_next`], as JSON): what it
+/// measured, as JSON.
+#[pyfunction]
+#[pyo3(signature = (spec, job, threads=None))]
+fn calibration_job(
+    py: Python<'_>,
+    spec: String,
+    job: String,
+    threads: Option<usize>,
+) -> PyResult<String> {
+    use rbsm::analysis::calibrate;
+    let spec = calibrate::CalibrationSpec::from_json(&spec).map_err(py_error)?;
+    let job: calibrate::Job = serde_json::from_str(&job)
+        .map_err(|e| PyValueError::new_err(format!("not a calibration job: {e}")))?;
+    let (result, signal) = detached(py, threads, None, || calibrate::specimen(&spec, &job))?;
+    raise(signal)?;
+    Ok(json(&result.map_err(py_error)?))
+}
+
 /// The scene's elements as polygons: their vertices `(n, 2)` (moved by `N_e(x) U_e × scale`
 /// when `U` is given, `(elements, ndof)`), and where each element's vertices start
 /// (`elements + 1` offsets).
@@ -691,6 +727,8 @@ fn _rbsm(m: &Bound<'_, PyModule>) -> PyResult<()> {
         wrap_pyfunction!(eigen_py, m)?,
         wrap_pyfunction!(stability_py, m)?,
         wrap_pyfunction!(check_py, m)?,
+        wrap_pyfunction!(calibration_next, m)?,
+        wrap_pyfunction!(calibration_job, m)?,
         wrap_pyfunction!(study_check, m)?,
         wrap_pyfunction!(study_point, m)?,
         wrap_pyfunction!(study_report, m)?,

@@ -24,3 +24,13 @@ def cli() -> Path:
 @pytest.fixture(scope="session")
 def scenes() -> Path:
     return SCENES
+
+
+@pytest.fixture(scope="session")
+def cluster():
+    """A local Dask cluster of two worker processes (skipped without ``distributed``)."""
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+    ) as c, distributed.Client(c) as client:
+        yield client

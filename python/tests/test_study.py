@@ -29,15 +29,6 @@ def local(column):
     return rbsm.sweep(column, GRID, workers=2)
 
 
-@pytest.fixture(scope="module")
-def cluster():
-    distributed = pytest.importorskip("distributed")
-    with distributed.LocalCluster(
-        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
-    ) as c, distributed.Client(c) as client:
-        yield client
-
-
 def test_a_local_sweep_equals_rbsm_tradeoff(cli, scenes, tmp_path, local):
     out = subprocess.run(
         [str(cli), "--json", "--quiet", "tradeoff", scenes / "column_step.json",

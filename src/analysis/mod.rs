@@ -2,6 +2,7 @@
 //! report: a dynamic [`run`], [`statics`], [`eigen`] modes, [`stability`] limits and the
 //! speed–accuracy [`tradeoff`].
 
+pub mod calibrate;
 pub mod check;
 pub mod collapse;
 pub mod effective;

@@ -1,0 +1,124 @@
+//! `rbsm calibrate` (issue 44, item 3): the calibration's inverse where it is known, and bad
+//! calibration files refused by key.
+
+use rbsm::analysis::calibrate::{calibrate, run_local, CalibrationSpec};
+
+/// On squares the facets' strengths are the material's: a bar in tension carries its stress
+/// on the facets across it, which open at `f_t'`; a prism between smooth platens carries it
+/// on the facets along it, which crush at the cap `f_c' = 4 s'`. So the calibration must keep
+/// the start's `f_t' = f_t` and `s' = f_c/4`. A crack across the bar spends `G_t'` per unit
+/// section, and the columns of facets that soften beside it before it localises spend some
+/// more: `G_t'` must come out at most `G_F`, and not far below.
+#[test]
+fn on_squares_the_facets_strengths_are_the_targets() {
+    let spec = CalibrationSpec::from_json(
+        r#"{"name": "squares", "rho": 2400, "width": 0.05,
+            "targets": {"E": 3e10, "nu": 0.2, "tensile_strength": 3e6, "fracture_energy": 100,
+                        "compressive_strength": 3e7},
+            "cells": {"kind": "grid", "sizes": [0.0125], "seeds": [1]}}"#,
+    )
+    .unwrap();
+    let report = calibrate(&spec, |jobs| run_local(&spec, jobs), |_, _| {}).unwrap();
+    let text = rbsm::analysis::Report::text(&report);
+    assert!(report.converged, "{text}");
+    assert!(report.rounds.len() <= 3, "{text}");
+    let [f_t, f_c, _] = report.rounds[0].ratios;
+    assert!(
+        (f_t - 1.0).abs() < 1e-3 && (f_c - 1.0).abs() < 1e-3,
+        "{text}"
+    );
+    let law = &report.material["interface"];
+    let value = |key: &str| law[key].as_f64().unwrap();
+    assert!(
+        (value("tensile_strength") / 3e6 - 1.0).abs() < 1e-3,
+        "{text}"
+    );
+    assert!(
+        (value("compressive_strength") / 3e7 - 1.0).abs() < 1e-3,
+        "{text}"
+    );
+    let g = value("fracture_energy");
+    assert!((90.0..=100.0).contains(&g), "{text}");
+    // Squares have ν = 0 whatever the material's: the material keeps the target's, and its
+    // E is the one whose lattice E (E/(1 − ν²) in plane stress) is the target.
+    assert_eq!(report.material["nu"], 0.2);
+    let e = report.material["E"].as_f64().unwrap();
+    assert!((e / (3e10 * (1.0 - 0.04)) - 1.0).abs() < 1e-6, "{e}");
+    assert!(
+        report.note.as_deref().unwrap().contains("whatever"),
+        "{text}"
+    );
+    assert!((report.sizes[0].e.mean / 3e10 - 1.0).abs() < 1e-6, "{text}");
+}
+
+#[test]
+fn bad_calibration_files_name_the_key() {
+    let base = serde_json::json!({"name": "c", "rho": 2400, "width": 0.05,
+        "targets": {"E": 3e10, "nu": 0.2, "tensile_strength": 3e6, "fracture_energy": 100,
+                    "compressive_strength": 3e7},
+        "cells": {"sizes": [0.005], "seeds": [1]}});
+    let cases = [
+        (
+            "/targets/fracture_energy",
+            serde_json::json!(-1.0),
+            "targets.fracture_energy",
+            "> 0",
+        ),
+        (
+            "/targets/compressive_strength",
+            serde_json::json!(2e6),
+            "targets.compressive_strength",
+            "above",
+        ),
+        (
+            "/targets/nu",
+            serde_json::json!(0.5),
+            "targets.nu",
+            "[0, 0.5)",
+        ),
+        (
+            "/cells/sizes",
+            serde_json::json!([0.02]),
+            "cells.sizes[0]",
+            "width/4",
+        ),
+        (
+            "/cells/seeds",
+            serde_json::json!([]),
+            "cells.seeds",
+            "1 to 20",
+        ),
+        (
+            "/tolerance",
+            serde_json::json!(0.5),
+            "tolerance",
+            "[0.001, 0.2]",
+        ),
+        (
+            "/law/friction_residual",
+            serde_json::json!(0.9),
+            "law.friction_residual",
+            "[0, 0.6]",
+        ),
+    ];
+    for (pointer, value, key, range) in cases {
+        let mut v = base.clone();
+        if pointer.starts_with("/law") && v.get("law").is_none() {
+            v["law"] = serde_json::json!({});
+        }
+        let (parent, last) = pointer.rsplit_once('/').unwrap();
+        v.pointer_mut(parent).unwrap_or_else(|| panic!("{pointer}"))[last] = value;
+        let e = CalibrationSpec::from_json(&v.to_string()).err().unwrap();
+        let (_, field, message) = e.parts();
+        assert_eq!(field, key, "{e}");
+        assert!(message.contains(range), "{e}");
+    }
+    let mut v = base.clone();
+    v["targets"]["G_F"] = serde_json::json!(100);
+    let e = CalibrationSpec::from_json(&v.to_string())
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(e.contains("unknown field `G_F`"), "{e}");
+    CalibrationSpec::from_json(&base.to_string()).unwrap();
+}
