@@ -462,10 +462,17 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
             let r = calibrate::calibrate(
                 &spec,
                 |jobs| calibrate::run_local(&spec, jobs),
-                |round, jobs| {
-                    if !cli.quiet {
-                        tell(&format!("round {round}: {jobs} specimen runs"));
+                |round, jobs, last| {
+                    if cli.quiet {
+                        return;
                     }
+                    if let Some(r) = last {
+                        tell(&format!(
+                            "round {}: f_t, f_c, G_F at {:.4}, {:.4}, {:.4} of the targets",
+                            r.round, r.ratios[0], r.ratios[1], r.ratios[2]
+                        ));
+                    }
+                    tell(&format!("round {round}: {jobs} specimen runs"));
                 },
             )?;
             if let Some(path) = material {

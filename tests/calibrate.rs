@@ -18,7 +18,7 @@ fn on_squares_the_facets_strengths_are_the_targets() {
             "cells": {"kind": "grid", "sizes": [0.0125], "seeds": [1]}}"#,
     )
     .unwrap();
-    let report = calibrate(&spec, |jobs| run_local(&spec, jobs), |_, _| {}).unwrap();
+    let report = calibrate(&spec, |jobs| run_local(&spec, jobs), |_, _, _| {}).unwrap();
     let text = rbsm::analysis::Report::text(&report);
     assert!(report.converged, "{text}");
     assert!(report.rounds.len() <= 3, "{text}");
@@ -89,9 +89,9 @@ fn bad_calibration_files_name_the_key() {
             "1 to 20",
         ),
         (
-            "/tolerance",
+            "/tolerance/fracture_energy",
             serde_json::json!(0.5),
-            "tolerance",
+            "tolerance.fracture_energy",
             "[0.001, 0.2]",
         ),
         (
@@ -103,8 +103,10 @@ fn bad_calibration_files_name_the_key() {
     ];
     for (pointer, value, key, range) in cases {
         let mut v = base.clone();
-        if pointer.starts_with("/law") && v.get("law").is_none() {
-            v["law"] = serde_json::json!({});
+        for group in ["law", "tolerance"] {
+            if pointer.starts_with(&format!("/{group}")) && v.get(group).is_none() {
+                v[group] = serde_json::json!({});
+            }
         }
         let (parent, last) = pointer.rsplit_once('/').unwrap();
         v.pointer_mut(parent).unwrap_or_else(|| panic!("{pointer}"))[last] = value;

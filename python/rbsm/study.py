@@ -408,7 +408,7 @@ def calibrate(
     *,
     threads: Optional[int] = 1,
     workers: Optional[int] = None,
-    progress: Optional[Callable[[int, int], None]] = None,
+    progress: Optional[Callable[[int, int, Optional[Dict[str, Any]]], None]] = None,
 ) -> Dict[str, Any]:
     """``rbsm calibrate``: the facet law of a Voronoi material calibrated to its measured
     ``E``, ``nu``, ``tensile_strength``, ``fracture_energy`` and ``compressive_strength``
@@ -417,8 +417,9 @@ def calibrate(
     ``workers`` of them; a Dask ``distributed.Client``: its cluster; any
     ``concurrent.futures.Executor``), each on ``threads`` Rust threads; the rounds and the
     report are the command line's (``rbsm calibrate --json``), returned as a dict whose
-    ``material`` is the block for a scene's ``materials``. ``progress(round, runs)`` is called
-    before each round. A run that fails raises :class:`CalibrationFailed`.
+    ``material`` is the block for a scene's ``materials``. ``progress(round, runs, last)`` is
+    called before each round, ``last`` being the fracture round just measured (a row of the
+    report's ``rounds``) or ``None``. A run that fails raises :class:`CalibrationFailed`.
     """
     if isinstance(spec, Mapping):
         text = json.dumps(spec)
@@ -431,7 +432,7 @@ def calibrate(
             return step["report"]  # type: ignore[no-any-return]
         jobs = step["jobs"]
         if progress is not None:
-            progress(jobs[0]["round"], len(jobs))
+            progress(jobs[0]["round"], len(jobs), step["last"])
         payloads = [{"spec": text, "job": json.dumps(j), "threads": threads} for j in jobs]
         results: Dict[str, Dict[str, Any]] = {}
 

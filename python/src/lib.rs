@@ -614,7 +614,8 @@ fn study_report(
 }
 
 /// `rbsm calibrate`'s next round from the results so far (each as [`calibration_job`]
-/// returned it): `{"jobs": [...]}` to run, or `{"report": {...}}` when done, as JSON.
+/// returned it): `{"jobs": [...], "last": {...}}` to run (`last`: the fracture round just
+/// measured, or null), or `{"report": {...}}` when done, as JSON.
 #[pyfunction]
 fn calibration_next(spec: String, done: Vec<String>) -> PyResult<String> {
     use rbsm::analysis::calibrate;
@@ -625,7 +626,9 @@ fn calibration_next(spec: String, done: Vec<String>) -> PyResult<String> {
         .collect::<Result<Vec<_>, _>>()
         .map_err(|e| PyValueError::new_err(format!("not a calibration result: {e}")))?;
     Ok(match calibrate::next(&spec, &done).map_err(py_error)? {
-        calibrate::Next::Run(jobs) => json(&serde_json::json!({ "jobs": jobs })),
+        calibrate::Next::Run { jobs, last } => {
+            json(&serde_json::json!({ "jobs": jobs, "last": last }))
+        }
         calibrate::Next::Done(report) => json(&serde_json::json!({ "report": report })),
     })
 }
