@@ -124,3 +124,51 @@ fn bad_calibration_files_name_the_key() {
     assert!(e.contains("unknown field `G_F`"), "{e}");
     CalibrationSpec::from_json(&base.to_string()).unwrap();
 }
+
+/// The tension bar is pulled slowly enough for its peak: at half the speed (and twice the
+/// ramp) the peak of a 400-cell bar moves by less than 1 %.
+#[test]
+fn the_tension_peak_holds_at_half_the_speed() {
+    use rbsm::analysis::calibrate::{displace, specimen_scene, Facet, Job, Test};
+    use rbsm::analysis::setup::{Overrides, Setup};
+    let spec = CalibrationSpec::from_json(
+        r#"{"name": "c", "rho": 2400, "width": 0.05,
+            "targets": {"E": 3e10, "nu": 0.18, "tensile_strength": 3e6,
+                        "fracture_energy": 100, "compressive_strength": 3e7},
+            "cells": {"sizes": [0.005], "seeds": [1]}}"#,
+    )
+    .unwrap();
+    let job = Job {
+        round: 1,
+        test: Test::Tension,
+        size: 0.005,
+        seed: 1,
+        facet: Facet {
+            e: 2.7e10,
+            nu: 0.49,
+            tensile_strength: 3e6,
+            shear_strength: 7.6e6,
+            fracture_energy: 17.0,
+        },
+    };
+    let peak = |slower: f64| {
+        let mut scene = specimen_scene(&spec, &job);
+        let clamp = &mut scene["bodies"][0]["supports"][1];
+        let v = clamp["velocity"][0].as_f64().unwrap();
+        let ramp = clamp["ramp"].as_f64().unwrap();
+        clamp["velocity"][0] = serde_json::json!(v / slower);
+        clamp["ramp"] = serde_json::json!(ramp * slower);
+        let scene = rbsm::input::scene::Scene::from_json(&scene.to_string()).unwrap();
+        let setup = Setup::new(&scene, &Overrides::default()).unwrap();
+        // Past the peak: the load has fallen below half of it, after the bar has carried half
+        // the target strength.
+        let (pulled, _) = displace(&setup, |p| {
+            p.peak > 0.5 * 3e6 * 0.05 && p.load < 0.5 * p.peak
+        })
+        .unwrap();
+        pulled.peak / 0.05
+    };
+    let (fast, slow) = (peak(1.0), peak(2.0));
+    assert!(fast > 2e6, "{fast}");
+    assert!((fast / slow - 1.0).abs() < 0.01, "{fast} against {slow}");
+}
