@@ -10,7 +10,8 @@
 //!   then the `E` that gives the target `E` ([`effective`]). A target above what the lattice can
 //!   reach takes the highest it can, and the report says so.
 //! - **Fracture** (rounds 1, 2, …): every cell size and seed runs a tension bar (`4w × w`, its
-//!   ends clamped, one pulled) and a compression prism (`w × 2w` between smooth platens). The
+//!   ends clamped, one pulled) for `f_t`, a notched bar (`2w × w`) for `G_F` and a compression
+//!   prism (`w × 2w` between smooth platens) for `f_c`. The
 //!   three facet parameters `x = ln(f_t', s', G_t')` are moved towards the targets
 //!   `y* = ln(f_t, f_c, G_F)` of the measured means `y` by Broyden's method, `x ← x − J⁻¹ (y − y*)`,
 //!   from `J₀ = I` (each macroscopic figure proportional to its facet parameter); the cap and
@@ -112,8 +113,8 @@ pub struct Targets {
     pub nu: f64,
     /// Uniaxial tensile strength `f_t` (Pa), > 0.
     pub tensile_strength: f64,
-    /// Fracture energy `G_F` (J/m²), > 0: the work of fracture per unit section of a bar in
-    /// tension ([`OPENING`]).
+    /// Fracture energy `G_F` (J/m²), > 0: the work of fracture per unit ligament of a notched
+    /// bar in tension ([`Test::Notched`], [`OPENING`]).
     pub fracture_energy: f64,
     /// Uniaxial compressive strength `f_c` (Pa), > `tensile_strength`.
     pub compressive_strength: f64,
@@ -177,9 +178,13 @@ impl Default for LawRatios {
     }
 }
 
-/// The opening, in `G_F/f_t` of the targets, past the bar's elastic stretch at which its pull
-/// stops: the work of fracture is counted to there, and the load left is reported (`tail`).
+/// The opening, in `G_F/f_t` of the targets, past the notched bar's elastic stretch at which its
+/// pull stops: the work of fracture is counted to there, and the load left is reported (`tail`).
 pub const OPENING: f64 = 40.0;
+
+/// The depth of each notch of [`Test::Notched`] over the width: the ligament is `1 − 2 NOTCH`
+/// of it.
+pub const NOTCH: f64 = 0.2;
 
 /// The material `ν` at which round 0 measures the lattice's.
 const NU_GRID: [f64; 6] = [0.0, 0.1, 0.2, 0.3, 0.4, 0.49];
@@ -341,8 +346,12 @@ impl CalibrationSpec {
 pub enum Test {
     /// The effective elastic constants of the tension bar's mesh ([`effective`]).
     Elastic,
-    /// The tension bar pulled to [`OPENING`]: `f_t` and `G_F`.
+    /// The tension bar pulled past its peak: `f_t`.
     Tension,
+    /// A bar `2w × w` with a notch [`NOTCH`] `w` deep and `2h` wide in each long edge at
+    /// mid-length (squares: no notch), pulled to [`OPENING`]: `G_F` over the ligament. The
+    /// notches hold the crack to one section, so that its work is that of one crack.
+    Notched,
     /// The compression prism pushed until its load levels off: `f_c`.
     Compression,
 }
@@ -393,12 +402,12 @@ pub struct Measured {
     pub steps: u64,
     /// Wall time of the run (s).
     pub seconds: f64,
-    /// Elastic: `E` (Pa); tension and compression: the peak stress (Pa).
+    /// Elastic: `E` (Pa); the others: the peak stress (Pa), over the ligament when notched.
     pub first: f64,
-    /// Elastic: `ν`; tension: the work of fracture per unit section (J/m²); compression: 0.
+    /// Elastic: `ν`; notched: the work of fracture per unit ligament (J/m²); else 0.
     pub second: f64,
-    /// Tension: the load left at the end over the peak; compression: 1 if the load levelled
-    /// off before 2 % strain, else 0; elastic: 0.
+    /// Notched: the load left at the end over the peak; compression: 1 if the load levelled
+    /// off before 2 % strain, else 0; else 0.
     pub third: f64,
 }
 
@@ -434,7 +443,7 @@ pub fn material_block(spec: &CalibrationSpec, f: &Facet) -> Value {
     })
 }
 
-/// The specimen scene of a job: a tension bar or a compression prism of Voronoi cells, loaded
+/// The specimen scene of a job: a tension bar, a notched bar or a compression prism, loaded
 /// by a clamp at a speed that reaches the target's peak strain in many periods of the
 /// specimen's first axial mode, with 2 % of critical mass damping on that mode.
 pub fn specimen_scene(spec: &CalibrationSpec, job: &Job) -> Value {
@@ -442,8 +451,8 @@ pub fn specimen_scene(spec: &CalibrationSpec, job: &Job) -> Value {
     let c = spec.wave_speed();
     let t = &spec.targets;
     let (size, supports, length) = match job.test {
-        Test::Elastic | Test::Tension => {
-            let l = 4.0 * w;
+        Test::Elastic | Test::Tension | Test::Notched => {
+            let l = if job.test == Test::Notched { 2.0 } else { 4.0 } * w;
             // 8 periods 2L/c to the peak strain; the ramp over 2 of them.
             let v = t.tensile_strength * c / (16.0 * t.e);
             (
@@ -467,6 +476,27 @@ pub fn specimen_scene(spec: &CalibrationSpec, job: &Job) -> Value {
         }
     };
     let mesh = match spec.cells.kind {
+        CellKind::Voronoi if job.test == Test::Notched => {
+            let (a, n, m) = (NOTCH * w, 2.0 * job.size, w);
+            let notched = [
+                [0.0, 0.0],
+                [m - n / 2.0, 0.0],
+                [m - n / 2.0, a],
+                [m + n / 2.0, a],
+                [m + n / 2.0, 0.0],
+                [2.0 * w, 0.0],
+                [2.0 * w, w],
+                [m + n / 2.0, w],
+                [m + n / 2.0, w - a],
+                [m - n / 2.0, w - a],
+                [m - n / 2.0, w],
+                [0.0, w],
+            ];
+            json!({"kind": "voronoi", "origin": [0.0, 0.0], "size": size,
+                "sites": ((size[0] * size[1] - 2.0 * a * n) / (job.size * job.size)).round() as usize,
+                "seed": job.seed, "lloyd": spec.cells.lloyd,
+                "domain": {"kind": "polygon", "vertices": notched}})
+        }
         CellKind::Voronoi => json!({"kind": "voronoi", "origin": [0.0, 0.0], "size": size,
             "sites": (size[0] * size[1] / (job.size * job.size)).round().max(4.0) as usize,
             "seed": job.seed, "lloyd": spec.cells.lloyd}),
@@ -510,42 +540,53 @@ pub fn specimen(spec: &CalibrationSpec, job: &Job) -> Result<Measured> {
             let r = effective::analyse(&setup)?;
             (0, r.young, r.poisson, 0.0)
         }
-        Test::Tension | Test::Compression => {
-            let tension = job.test == Test::Tension;
-            let length = if tension { 4.0 * w } else { 2.0 * w };
-            let strength = if tension {
-                t.tensile_strength
-            } else {
+        test => {
+            let length = match test {
+                Test::Notched => 2.0 * w,
+                Test::Compression => 2.0 * w,
+                _ => 4.0 * w,
+            };
+            let strength = if test == Test::Compression {
                 t.compressive_strength
+            } else {
+                t.tensile_strength
             };
             let elastic = strength / t.e * length;
-            let end = if tension {
-                elastic + OPENING * t.fracture_energy / t.tensile_strength
-            } else {
+            let end = if test == Test::Compression {
                 0.02 * length
+            } else {
+                elastic + OPENING * t.fracture_energy / t.tensile_strength
             };
             let (mut mark, mut d_mark, mut levelled) = (0.0, 0.0, false);
             let (pulled, _) = displace(&setup, |p| {
-                if !tension {
+                match test {
                     // Levelled off: the peak has grown by less than 1 % over the last half
                     // of the travel.
-                    if p.peak > 1.01 * mark {
-                        (mark, d_mark) = (p.peak, p.travel);
+                    Test::Compression => {
+                        if p.peak > 1.01 * mark {
+                            (mark, d_mark) = (p.peak, p.travel);
+                        }
+                        levelled = p.travel >= 2.0 * d_mark && p.travel >= 2.0 * elastic;
                     }
-                    levelled = p.travel >= 2.0 * d_mark && p.travel >= 2.0 * elastic;
+                    // Past the peak: the load below half of it, beyond the elastic stretch.
+                    Test::Tension => levelled = p.travel > elastic && p.load < 0.5 * p.peak,
+                    _ => {}
                 }
                 levelled || p.travel >= end
             })
             .map_err(|e| Error::scene("calibration", format!("{}: {e}", name())))?;
-            let section = w * scene.thickness;
-            let third = if tension {
-                pulled.load / pulled.peak.max(f64::MIN_POSITIVE)
-            } else if levelled {
-                1.0
-            } else {
-                0.0
+            let section = match (test, spec.cells.kind) {
+                (Test::Notched, CellKind::Voronoi) => (1.0 - 2.0 * NOTCH) * w,
+                _ => w,
+            } * scene.thickness;
+            let (work, third) = match test {
+                Test::Notched => (
+                    pulled.work / section,
+                    pulled.load / pulled.peak.max(f64::MIN_POSITIVE),
+                ),
+                Test::Compression => (0.0, if levelled { 1.0 } else { 0.0 }),
+                _ => (0.0, 0.0),
             };
-            let work = if tension { pulled.work / section } else { 0.0 };
             (pulled.steps, pulled.peak / section, work, third)
         }
     };
@@ -655,6 +696,14 @@ pub fn calibrate(
     }
 }
 
+/// The tests of a fracture round.
+const ALL: [Test; 4] = [
+    Test::Elastic,
+    Test::Tension,
+    Test::Notched,
+    Test::Compression,
+];
+
 /// The jobs of one round at one facet: every test, size and seed.
 fn round_jobs(spec: &CalibrationSpec, round: usize, tests: &[Test], facet: Facet) -> Vec<Job> {
     let mut jobs = Vec::new();
@@ -705,8 +754,8 @@ impl Stat {
 pub struct SizeFigures {
     /// The cell size (m).
     pub size: f64,
-    /// Elements of the tension bar and of the compression prism (first seed).
-    pub elements: [usize; 2],
+    /// Elements of the tension bar, the notched bar and the compression prism (first seed).
+    pub elements: [usize; 3],
     /// `E` (Pa).
     #[serde(rename = "E")]
     pub e: Stat,
@@ -718,7 +767,7 @@ pub struct SizeFigures {
     pub fracture_energy: Stat,
     /// `f_c` (Pa).
     pub compressive_strength: Stat,
-    /// The largest load left at the end of a tension run over its peak.
+    /// The largest load left at the end of a notched bar's run over its peak.
     pub tail: f64,
     /// Compression prisms whose load did not level off before 2 % strain.
     pub unlevelled: usize,
@@ -793,7 +842,7 @@ pub fn next(spec: &CalibrationSpec, done: &[Measured]) -> Result<Next> {
     let expected = spec.cells.sizes.len() * spec.cells.seeds.len();
     for r in 0..=last {
         let n = by_round(r).count();
-        let want = if r == 0 { NU_GRID.len() } else { 3 } * expected;
+        let want = if r == 0 { NU_GRID.len() } else { ALL.len() } * expected;
         if n != want {
             return Err(Error::scene(
                 "calibration",
@@ -816,7 +865,7 @@ pub fn next(spec: &CalibrationSpec, done: &[Measured]) -> Result<Next> {
         t.compressive_strength.ln(),
         t.fracture_energy.ln(),
     ];
-    let all = [Test::Elastic, Test::Tension, Test::Compression];
+    let all = ALL;
     if last == 0 {
         // Start: the facets at the targets, the shear strength at f_c over the cap ratio.
         let facet = Facet {
@@ -856,7 +905,7 @@ pub fn next(spec: &CalibrationSpec, done: &[Measured]) -> Result<Next> {
         let y = [
             mean(Test::Tension, |m| m.first).ln(),
             mean(Test::Compression, |m| m.first).ln(),
-            mean(Test::Tension, |m| m.second).ln(),
+            mean(Test::Notched, |m| m.second).ln(),
         ];
         if let Some((px, py)) = prev {
             broyden(&mut jac, sub(x, px), sub(y, py));
@@ -940,7 +989,7 @@ fn lattice_material(points: &[(f64, f64, f64)], target: f64) -> (f64, f64, Optio
         format!(
             "the target ν = {target} is beyond what these cells reach ({:.3} to {:.3}); the \
              material takes the nearest",
-            lo + 0.0,
+            (lo * 1e3).round() / 1e3 + 0.0,
             hi
         )
     });
@@ -1019,13 +1068,17 @@ fn report(
             let first = |test: Test| of(test).next().map_or(0, |m| m.elements);
             SizeFigures {
                 size,
-                elements: [first(Test::Tension), first(Test::Compression)],
+                elements: [
+                    first(Test::Tension),
+                    first(Test::Notched),
+                    first(Test::Compression),
+                ],
                 e: Stat::of(of(Test::Elastic).map(|m| m.first)),
                 nu: Stat::of(of(Test::Elastic).map(|m| m.second)),
                 tensile_strength: Stat::of(of(Test::Tension).map(|m| m.first)),
-                fracture_energy: Stat::of(of(Test::Tension).map(|m| m.second)),
+                fracture_energy: Stat::of(of(Test::Notched).map(|m| m.second)),
                 compressive_strength: Stat::of(of(Test::Compression).map(|m| m.first)),
-                tail: of(Test::Tension).map(|m| m.third).fold(0.0, f64::max),
+                tail: of(Test::Notched).map(|m| m.third).fold(0.0, f64::max),
                 unlevelled: of(Test::Compression).filter(|m| m.third == 0.0).count(),
             }
         })
@@ -1096,7 +1149,7 @@ impl Report for CalibrationReport {
             "  round {} per cell size (mean over seeds, CV in brackets), against the targets:\n",
             self.chosen
         );
-        s += "  h (m) | cells (bar, prism) | E | ν | f_t | G_F | f_c | f_c/f_t | tail\n";
+        s += "  h (m) | cells (bar, notched bar, prism) | E | ν | f_t | G_F | f_c | f_c/f_t | tail\n";
         let pct = |st: &Stat, target: f64| {
             format!(
                 "{:+.2} % ({:.1} %)",
@@ -1106,10 +1159,11 @@ impl Report for CalibrationReport {
         };
         for z in &self.sizes {
             s += &format!(
-                "  {:.3e} | {}, {} | {} | {:.4} ({:.1} %) | {} | {} | {} | {:.2} | {:.3}{}\n",
+                "  {:.3e} | {}, {}, {} | {} | {:.4} ({:.1} %) | {} | {} | {} | {:.2} | {:.3}{}\n",
                 z.size,
                 z.elements[0],
                 z.elements[1],
+                z.elements[2],
                 pct(&z.e, t.e),
                 z.nu.mean,
                 100.0 * z.nu.cv,
@@ -1160,10 +1214,8 @@ mod tests {
         let noise = 1.0 + 0.01 * (job.seed as f64 - 2.0);
         let (first, second) = match job.test {
             Test::Elastic => (0.9 * f.e, 0.5 * f.nu),
-            Test::Tension => (
-                1.2e6 * t.powf(0.9) * s.powf(0.1) * noise,
-                6.0 * g.powf(0.8) * t.powf(0.3) * noise,
-            ),
+            Test::Tension => (1.2e6 * t.powf(0.9) * s.powf(0.1) * noise, 0.0),
+            Test::Notched => (0.0, 6.0 * g.powf(0.8) * t.powf(0.3) * noise),
             Test::Compression => (2.5e6 * s.powf(0.6) * t.powf(0.5) * noise, 0.0),
         };
         Measured {
