@@ -8,12 +8,14 @@
 use rbsm::analysis::calibrate::{self, CalibrationReport, CalibrationSpec, Facet, Job, Stat, Test};
 use rbsm::analysis::setup::{Overrides, Setup};
 use rbsm::analysis::Report as _;
-use rbsm::force::failure::InterfaceStatus;
 use rbsm::input::scene::Scene;
 use serde_json::{json, Value};
 use std::f64::consts::PI;
 use std::fmt::Write as _;
 use std::path::Path;
+
+#[path = "fixtures/disk.rs"]
+mod disk;
 
 /// The goals of issue 44 on the mean over the seeds at each cell size.
 const GOAL_FT: f64 = 0.05;
@@ -162,37 +164,18 @@ fn brazilian(md: &mut String, spec: &CalibrationSpec, r: &CalibrationReport, fai
                 .as_ref()
                 .unwrap()
                 .report(cd.failure().unwrap());
-            let broken: Vec<f64> = failures
-                .iter()
-                .filter(|i| i.status == InterfaceStatus::Broken)
-                .map(|i| {
-                    let f = &setup.model.interfaces[i.interface];
-                    0.5 * (f.p1.x + f.p2.x)
-                })
-                .collect();
-            let on = broken
-                .iter()
-                .filter(|&&x| (x - 0.5 * d).abs() < d / 6.0)
-                .count() as f64
-                / broken.len().max(1) as f64;
+            let (broken, on) = disk::on_the_diameter(&setup, &failures, d);
             let _ = writeln!(
                 md,
-                "| {h} | {sites} | {seed} | {strength:.4} | {} | {:.0} % | {} | {:.1} |",
-                broken.len(),
+                "| {h} | {sites} | {seed} | {strength:.4} | {broken} | {:.0} % | {} | {:.1} |",
                 100.0 * on,
                 pulled.steps,
                 started.elapsed().as_secs_f64()
             );
             strengths.push(strength);
         }
-        let n = strengths.len() as f64;
-        let mean = strengths.iter().sum::<f64>() / n;
-        let sd = if strengths.len() > 1 {
-            (strengths.iter().map(|s| (s - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt()
-        } else {
-            0.0
-        };
-        means.push((h, mean, sd / mean));
+        let s = Stat::of(strengths.into_iter());
+        means.push((h, s.mean, s.cv));
     }
     md.push_str("\n| h (m) | mean splitting strength / f_t | CV over the seeds |\n|---|---|---|\n");
     for &(h, mean, cv) in &means {
@@ -248,23 +231,18 @@ fn plain_bars(md: &mut String, spec: &CalibrationSpec, r: &CalibrationReport) {
             let (pulled, _) = calibrate::displace(&setup, |p| p.travel >= end).unwrap();
             works.push(pulled.work / spec.width / t.fracture_energy);
         }
-        let n = works.len() as f64;
-        let mean = works.iter().sum::<f64>() / n;
-        let sd = if works.len() > 1 {
-            (works.iter().map(|w| (w - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt()
-        } else {
-            0.0
-        };
+        let plain = Stat::of(works.iter().copied());
         let _ = writeln!(
             md,
-            "| {} | {} | {mean:.3} ({:.0} %) | {:.3} ({:.0} %) |",
+            "| {} | {} | {:.3} ({:.0} %) | {:.3} ({:.0} %) |",
             z.size,
             works
                 .iter()
                 .map(|w| format!("{w:.3}"))
                 .collect::<Vec<_>>()
                 .join(", "),
-            100.0 * sd / mean,
+            plain.mean,
+            100.0 * plain.cv,
             z.fracture_energy.mean / t.fracture_energy,
             100.0 * z.fracture_energy.cv
         );

@@ -157,23 +157,9 @@ fn brazilian(r: &mut Report) {
             // Where the broken interfaces are: the model's geometry, built again.
             let parsed = Scene::from_json(&scene.to_string()).unwrap();
             let setup = Setup::new(&parsed, &Overrides::default()).unwrap();
-            let broken: Vec<f64> = run
-                .interfaces
-                .iter()
-                .filter(|i| i.status == InterfaceStatus::Broken)
-                .map(|i| {
-                    let f = &setup.model.interfaces[i.interface];
-                    0.5 * (f.p1.x + f.p2.x)
-                })
-                .collect();
-            let on = broken
-                .iter()
-                .filter(|&&x| (x - 0.5 * d).abs() < d / 6.0)
-                .count() as f64
-                / broken.len().max(1) as f64;
+            let (broken, on) = super::fixtures::disk::on_the_diameter(&setup, &run.interfaces, d);
             r.line(&format!(
-                "| {sites} | {seed} | {strength:.4} | {} | {:.0} % | {} |",
-                broken.len(),
+                "| {sites} | {seed} | {strength:.4} | {broken} | {:.0} % | {} |",
                 100.0 * on,
                 run.cost()
             ));

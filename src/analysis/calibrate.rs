@@ -733,7 +733,8 @@ pub struct Stat {
 }
 
 impl Stat {
-    fn of(values: impl Iterator<Item = f64>) -> Stat {
+    /// Of some values: their mean and sample standard deviation over the mean.
+    pub fn of(values: impl Iterator<Item = f64>) -> Stat {
         let v: Vec<f64> = values.collect();
         let n = v.len() as f64;
         let mean = v.iter().sum::<f64>() / n;
