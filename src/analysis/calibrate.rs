@@ -11,12 +11,12 @@
 //!   reach takes the highest it can, and the report says so.
 //! - **Fracture** (rounds 1, 2, …): every cell size and seed runs a tension bar (`4w × w`, its
 //!   ends clamped, one pulled) for `f_t`, a notched bar (`2w × w`) for `G_F` and a compression
-//!   prism (`w × 2w` between smooth platens) for `f_c`. The
-//!   three facet parameters `x = ln(f_t', s', G_t')` are moved towards the targets
-//!   `y* = ln(f_t, f_c, G_F)` of the measured means `y` by Broyden's method, `x ← x − J⁻¹ (y − y*)`,
-//!   from `J₀ = I` (each macroscopic figure proportional to its facet parameter); the cap and
-//!   the shear fracture energy keep fixed ratios to `s'` and `G_t'`. The run stops when every
-//!   mean is within its tolerance, or after `rounds` rounds with the best one.
+//!   prism (`w × 2w` between smooth platens) for `f_c`. The three facet parameters
+//!   `x = ln(f_t', s', G_t')` are moved towards the targets `y* = ln(f_t, f_c, G_F)` of the
+//!   measured means `y` by Broyden's method, `x ← x − J⁻¹ (y − y*)`, from `J₀ = I` (each
+//!   macroscopic figure proportional to its facet parameter); the cap and the shear fracture
+//!   energy keep fixed ratios to `s'` and `G_t'`. The run stops when every mean is within its
+//!   tolerance, or after `rounds` rounds with the best one.
 //!
 //! Each specimen run is a [`Job`], independent of the others and serialisable, so that the
 //! command line runs a round's jobs on the cores ([`run_local`]) and the Python package on a
