@@ -433,7 +433,9 @@ def calibrate(
         jobs = step["jobs"]
         if progress is not None:
             progress(jobs[0]["round"], len(jobs), step["last"])
-        payloads = [{"spec": text, "job": json.dumps(j), "threads": threads} for j in jobs]
+        payloads: List[Dict[str, Any]] = [
+            {"spec": text, "job": json.dumps(j), "threads": threads} for j in jobs
+        ]
         results: Dict[str, Dict[str, Any]] = {}
 
         def finished(result: Dict[str, Any]) -> None:
