@@ -163,21 +163,9 @@ fn brazilian(md: &mut String, spec: &CalibrationSpec, r: &CalibrationReport, fai
             scene["bodies"][0]["mesh"]["sites"] = json!(sites);
             scene["bodies"][0]["mesh"]["seed"] = json!(seed);
             let started = std::time::Instant::now();
-            let parsed = Scene::from_json(&scene.to_string()).unwrap();
-            let setup = Setup::new(&parsed, &Overrides::default()).unwrap();
             // Past the peak (the load has fallen to a third of it), or at the scene's end.
-            let end = setup.steps;
-            let (pulled, cd) = calibrate::displace(&setup, |p| {
-                (p.peak > 0.0 && p.load < p.peak / 3.0) || p.steps >= end
-            })
-            .unwrap();
+            let (pulled, broken, on) = split(&scene, d, true);
             let strength = 2.0 * pulled.peak / (PI * d * t) / f_t;
-            let failures = setup
-                .plastic
-                .as_ref()
-                .unwrap()
-                .report(cd.failure().unwrap());
-            let (broken, on) = disk::on_the_diameter(&setup, &failures, d);
             let _ = writeln!(
                 md,
                 "| {h} | {sites} | {seed} | {strength:.4} | {broken} | {:.0} % | {} | {:.1} |",
@@ -195,16 +183,7 @@ fn brazilian(md: &mut String, spec: &CalibrationSpec, r: &CalibrationReport, fai
     let h = spec.cells.sizes[0];
     narrow["materials"] = json!({ "concrete": r.material });
     narrow["bodies"][0]["mesh"]["sites"] = json!((PI * 0.25 * d * d / (h * h)).round() as usize);
-    let parsed = Scene::from_json(&narrow.to_string()).unwrap();
-    let setup = Setup::new(&parsed, &Overrides::default()).unwrap();
-    let end = setup.steps;
-    let (pulled, cd) = calibrate::displace(&setup, |p| p.steps >= end).unwrap();
-    let failures = setup
-        .plastic
-        .as_ref()
-        .unwrap()
-        .report(cd.failure().unwrap());
-    let (broken, _) = disk::on_the_diameter(&setup, &failures, d);
+    let (pulled, broken, _) = split(&narrow, d, false);
     let _ = writeln!(
         md,
         "\nThe scene's own strips (11.8 mm), h = {h} m, seed 1, to its end (0.4 mm of travel): \
@@ -226,6 +205,26 @@ fn brazilian(md: &mut String, spec: &CalibrationSpec, r: &CalibrationReport, fai
             GOAL_SPLIT,
         );
     }
+}
+
+/// Runs a disk scene until its scene's end, or before it once the load has fallen to a third
+/// of its peak (`past_the_peak`); returns where it stands, its broken interfaces and their share
+/// on the loaded diameter.
+fn split(scene: &Value, d: f64, past_the_peak: bool) -> (calibrate::Pulled, usize, f64) {
+    let parsed = Scene::from_json(&scene.to_string()).unwrap();
+    let setup = Setup::new(&parsed, &Overrides::default()).unwrap();
+    let end = setup.steps;
+    let (pulled, cd) = calibrate::displace(&setup, |p| {
+        (past_the_peak && p.peak > 0.0 && p.load < p.peak / 3.0) || p.steps >= end
+    })
+    .unwrap();
+    let failures = setup
+        .plastic
+        .as_ref()
+        .unwrap()
+        .report(cd.failure().unwrap());
+    let (broken, on) = disk::on_the_diameter(&setup, &failures, d);
+    (pulled, broken, on)
 }
 
 /// Why `G_F` is read on a notched bar: the plain tension bars of the calibration (`4w × w`), with
