@@ -231,6 +231,11 @@ impl<K: Screened<N>, const N: usize> Assembled<K, N> {
 }
 
 impl<K: Screened<N>, const N: usize> Assembled<K, N> {
+    /// The sweep over its pairs.
+    pub(super) fn sweep(&self) -> &Sweep<N> {
+        &self.sweep
+    }
+
     /// A pair's forces, `K_ab U_b` on `a` and `K_abᵀ U_a` on `b`.
     #[inline(always)]
     pub(super) fn products(k: &Block<N>, ua: &[f64; N], ub: &[f64; N]) -> [[f64; N]; 2] {

@@ -420,13 +420,7 @@ impl Kernel<3> for Rigid {
     /// inline records of a 10⁶-element Voronoi mesh step in about 10 % less time.
     #[inline(always)]
     fn face_forces(f: &Record<Self, 3>, ua: &[f64; 3], ub: Option<&[f64; 3]>) -> [[f64; 3]; 2] {
-        let (ra, rb) = (Vec2::new(-f.da.y, f.da.x), Vec2::new(-f.db.y, f.db.x));
-        let ub = ub.unwrap_or(&[0.0; 3]);
-        let (ta, tb) = (ra * ua[2], rb * ub[2]);
-        let delta = Vec2::new(ub[0] - ua[0], ub[1] - ua[1]) + (tb - ta);
-        let t = f.springs.apply(delta);
-        let w = f.odd * (ub[2] - ua[2]);
-        [[t.x, t.y, ra.dot(&t) + w], [-t.x, -t.y, -(rb.dot(&t) + w)]]
+        rigid_forces(f, ua, ub, None)
     }
     const SCREENS: bool = true;
     /// The tractions at the Gauss points are `λ₀ ∓ λ₁`, with `t L λ₀ = S δ₀` the force on `a`
@@ -443,6 +437,82 @@ impl Kernel<3> for Rigid {
         let w = f.odd * (ub[2] - ua[2]);
         (on_a[0].abs() + on_a[1].abs() + w.abs() * per_h <= reach).then_some([on_a, on_b])
     }
+}
+
+/// [`Kernel::face_forces`] of a rigid interface, its jump at the midpoint increased by
+/// `extra` (the Poisson correction's, [`Corrected`]).
+#[inline(always)]
+fn rigid_forces(
+    f: &Record<Rigid, 3>,
+    ua: &[f64; 3],
+    ub: Option<&[f64; 3]>,
+    extra: Option<Vec2>,
+) -> [[f64; 3]; 2] {
+    let (ra, rb) = (Vec2::new(-f.da.y, f.da.x), Vec2::new(-f.db.y, f.db.x));
+    let ub = ub.unwrap_or(&[0.0; 3]);
+    let (ta, tb) = (ra * ua[2], rb * ub[2]);
+    let mut delta = Vec2::new(ub[0] - ua[0], ub[1] - ua[1]) + (tb - ta);
+    if let Some(extra) = extra {
+        delta += extra;
+    }
+    let t = f.springs.apply(delta);
+    let w = f.odd * (ub[2] - ua[2]);
+    [[t.x, t.y, ra.dot(&t) + w], [-t.x, -t.y, -(rb.dot(&t) + w)]]
+}
+
+/// The interfaces of a `rigid-poisson` model with the Poisson correction in their tractions
+/// ([`crate::model::poisson`]): the springs act on `δ + q_a (x − x_a) − q_b (x − x_b)`, with
+/// the cells' `q` of the step (`q_b = 0` on ground). That jump's odd part along the edge,
+/// `(q_a − q_b) g`, meets the springs as `k_s (q_a − q_b) g`, which has neither resultant nor
+/// moment over the two Gauss points: only its midpoint value `q_a d_a − q_b d_b` enters.
+struct Corrected<'a> {
+    inline: &'a Inline<Rigid, 3>,
+    q: &'a [f64],
+}
+
+impl Couplings<3> for Corrected<'_> {
+    type Ref = Record<Rigid, 3>;
+    const PREFETCH: bool = true;
+    const RUNS: bool = false;
+    const WIDE: bool = false;
+    const OWN: bool = false;
+    #[inline(always)]
+    fn faces(&self) -> &[Face<Record<Rigid, 3>>] {
+        &self.inline.faces
+    }
+    /// The record, and the jump the correction adds at its midpoint.
+    type Coupling<'b>
+        = (&'b Record<Rigid, 3>, Vec2)
+    where
+        Self: 'b;
+    #[inline(always)]
+    fn coupling<'b>(&'b self, face: &'b Face<Record<Rigid, 3>>) -> Self::Coupling<'b> {
+        let r = &face.record;
+        let (qa, qb) = (self.q[face.a as usize], self.q[face.b as usize]);
+        (r, r.da * qa - r.db * qb)
+    }
+    #[inline(always)]
+    fn add_pair(
+        &self,
+        _: impl Lanes,
+        (record, extra): (&Record<Rigid, 3>, Vec2),
+        ua: &[f64; 3],
+        ub: &[f64; 3],
+        fa: &mut [f64; 3],
+        fb: &mut [f64; 3],
+    ) {
+        let [on_a, on_b] = rigid_forces(record, ua, Some(ub), Some(extra));
+        sub(fa, &on_a);
+        sub(fb, &on_b);
+    }
+    #[inline(always)]
+    fn add_ground(&self, face: &Face<Record<Rigid, 3>>, ua: &[f64; 3], fa: &mut [f64; 3]) {
+        let r = &face.record;
+        let extra = r.da * self.q[face.a as usize];
+        sub(fa, &rigid_forces(r, ua, None, Some(extra))[0]);
+    }
+    #[inline(always)]
+    fn add_own(&self, _: usize, _: &[f64; 3], _: &mut [f64; 3]) {}
 }
 
 /// A hybrid interface: 10 inputs, 10 outputs in three groups of four (two lanes unused).
@@ -817,6 +887,40 @@ impl<K: Kernel<N>, const N: usize> ElementWise<K, N> {
             failing: failing_of::<K, N>(plastic),
             state,
         }
+    }
+}
+
+/// The rigid springs of a `rigid-poisson` model, stepped with the Poisson correction's
+/// tractions of the cells' `q` ([`Corrected`]; `super::poisson` computes `q`).
+impl ElementWise<Rigid, 3> {
+    /// The evaluator of a `rigid-poisson` model: every interface with its record inline, whose
+    /// offsets the correction's jump needs.
+    pub fn with_poisson(model: &Model) -> Self {
+        Self::build(model, false, false)
+    }
+
+    fn corrected<'a>(&'a self, q: &'a [f64]) -> Corrected<'a> {
+        match &self.faces {
+            Store::Inline(inline) => Corrected { inline, q },
+            Store::Shared(_) => unreachable!("built by `with_poisson`, inline"),
+        }
+    }
+
+    /// `f = f_int(u)` with the correction's forces of the cells' `q`.
+    pub(super) fn internal_force_corrected(&self, u: &[f64], f: &mut [f64], q: &[f64]) {
+        self.sweep.evaluate(&self.corrected(q), u, f);
+    }
+
+    /// [`FusedStep::advance`] with the correction's forces of the cells' `q` at `u`.
+    pub(super) fn advance_corrected(
+        &self,
+        (u, v, force): (&mut [f64], &mut [f64], &mut [f64]),
+        loaded: Option<&[u32]>,
+        update: &Update,
+        q: &[f64],
+    ) -> f64 {
+        let faces = self.corrected(q);
+        self.sweep.advance(&faces, u, v, force, loaded, update)
     }
 }
 

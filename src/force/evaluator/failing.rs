@@ -8,7 +8,7 @@
 //! interface its whole traction through its law instead, `super::element_wise`.)
 
 use super::assembled::{Assembled, Block};
-use super::sweep::{Couplings, Face};
+use super::sweep::{place, Couplings, Face};
 use crate::force::failure::{self, FailingInterfaces, FailureState, PlasticForces};
 use crate::lanes::Lanes;
 use crate::mesh::geometry::Vec2;
@@ -198,8 +198,7 @@ impl<'a, K: Screened<N>, const N: usize> WithFailure<'a, K, N> {
     /// Where `face` is in the blocks.
     #[inline(always)]
     fn index(&self, face: &Face<Block<N>>) -> usize {
-        let first = self.assembled.faces().as_ptr() as usize;
-        (std::ptr::from_ref(face) as usize - first) / std::mem::size_of::<Face<Block<N>>>()
+        place(self.assembled.faces(), face)
     }
 }
 

@@ -13,7 +13,9 @@ mod sweep;
 
 pub use assembled::{assemble, interface_stiffness, Assembled, BlockCsr};
 pub use element_wise::ElementWise;
-pub use poisson::{cells, FacetPressures, PressureOperator, WithPoisson};
+pub use poisson::{
+    cells, AssembledPoisson, ElementWisePoisson, FacetPressures, PressureOperator, WithPoisson,
+};
 
 use crate::force::failure::{FailureState, PlasticForces};
 use crate::input::scene::EvaluatorKind;
@@ -131,16 +133,12 @@ pub fn build(model: &Model, kind: EvaluatorKind) -> Box<dyn Evaluator> {
         (Formulation::Rigid, EvaluatorKind::ElementWise) => {
             Box::new(ElementWise::<Rigid, 3>::new(model))
         }
-        (Formulation::RigidPoisson, EvaluatorKind::Assembled) => Box::new(WithPoisson::new(
-            model,
-            Box::new(Assembled::<Rigid, 3>::new(model)),
-            PressureOperator::new(model),
-        )),
-        (Formulation::RigidPoisson, EvaluatorKind::ElementWise) => Box::new(WithPoisson::new(
-            model,
-            Box::new(ElementWise::<Rigid, 3>::new(model)),
-            FacetPressures::new(model),
-        )),
+        (Formulation::RigidPoisson, EvaluatorKind::Assembled) => {
+            Box::new(WithPoisson::new(model, AssembledPoisson::new(model)))
+        }
+        (Formulation::RigidPoisson, EvaluatorKind::ElementWise) => {
+            Box::new(WithPoisson::new(model, ElementWisePoisson::new(model)))
+        }
         (Formulation::Hybrid { .. }, EvaluatorKind::Assembled) => {
             Box::new(Assembled::<Hybrid, 6>::new(model))
         }

@@ -56,6 +56,14 @@ pub(super) struct Face<R> {
     pub(super) record: R,
 }
 
+/// Where `face`, one of `faces`, is in it: the sweep hands a coupling over as a reference into
+/// [`Couplings::faces`], whose place names what a coupling keeps beside its face.
+#[inline(always)]
+pub(super) fn place<R>(faces: &[Face<R>], face: &Face<R>) -> usize {
+    let first = faces.as_ptr() as usize;
+    (std::ptr::from_ref(face) as usize - first) / std::mem::size_of::<Face<R>>()
+}
+
 /// The couplings of a model, in the order of the sweep, and how each adds its internal forces
 /// `f_int` to its elements.
 pub(super) trait Couplings<const N: usize>: Sync {
