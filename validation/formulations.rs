@@ -85,8 +85,9 @@ pub fn formulations(r: &mut Report) {
          triangles the effective `ν` is 0.33 for 0.25. *Hybrid* passes every patch as `1/p` (its `E` 9–10 % soft at \
          `p` = 10, §7.1) and is the formulation for triangles (bending within 3 % at `p` = 10); on rectangles and \
          Voronoi cells it locks as `p` grows (+15 to +34 % already at `p` = 10, §7.3) and its `Δt_crit` falls as \
-         `1/√p`. Cost per step (`cargo bench --bench formulations`, `benches/summary.md`): rigid-poisson adds two passes \
-         over the elements to the rigid step and steps through the net force; hybrid with `p` = 10 is dearer still. \
+         `1/√p`. Cost per step (`cargo bench --bench formulations`, `benches/summary.md`): rigid-poisson adds a pass \
+         over the cells for their pressures to the rigid sweep, which carries the correction (1.7–2.5 × the rigid \
+         step); hybrid with `p` = 10 is dearer still (3.1–5 ×). \
          Failure: `rigid-poisson` takes elastic interfaces only (a correction across a crack would carry the cells' \
          pressure through it); the tension peak and fracture work of rigid cells are §11's and §13's.\n",
     );
