@@ -438,7 +438,7 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
                 "gravity" => Multiplier::Gravity,
                 _ => Multiplier::Clamps,
             });
-            let setup = setup(scene, Overrides::default())?;
+            let setup = setup(scene, Overrides::no_step())?;
             let points = points
                 .parse()
                 .map_err(|e: String| rbsm::error::Error::scene("--points", e))?;
@@ -449,7 +449,7 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
             print(cli.json, &r)?;
         }
         Command::Static { scene, out } => {
-            let setup = setup(scene, Overrides::default())?;
+            let setup = setup(scene, Overrides::no_step())?;
             let r = statics::analyse(&setup)?;
             if let Some(dir) = out {
                 statics::write(dir, &setup, &r)?;
@@ -482,7 +482,7 @@ fn execute(cli: &Cli) -> rbsm::error::Result<ExitCode> {
             print(cli.json, &r)?;
         }
         Command::Effective { scene } => {
-            let setup = setup(scene, Overrides::default())?;
+            let setup = setup(scene, Overrides::no_step())?;
             print(cli.json, &effective::analyse(&setup)?)?;
         }
         Command::Eigen {
@@ -607,6 +607,7 @@ fn run(cli: &Cli, args: &RunArgs) -> rbsm::error::Result<ExitCode> {
         dt_factor: *dt_factor,
         steps: *steps,
         exact_dt_crit: *exact_dt_crit,
+        ..Default::default()
     };
     let params = run::RunParams {
         resume: resume.is_some(),

@@ -1,7 +1,7 @@
 //! A run models only what its scene asks for, at setup too (paper_notes.md 24): with a given `dt`
 //! it computes no `ω_max` (Lanczos iterations are counted process-wide, so this file holds one
 //! test, alone in its process), with a `dt_factor` only a few digits, and to full precision when
-//! asked.
+//! asked; an analysis that takes no step (`static`, `effective`, `limit`) computes none.
 
 use rbsm::analysis::limit;
 use rbsm::analysis::run::{self, RunParams, Silent};
@@ -89,4 +89,15 @@ fn a_run_with_a_given_dt_does_no_lanczos_iteration() {
     let before = limit::lanczos_iterations();
     assert!(summary.dt_safe <= setup.dt_crit());
     assert!(limit::lanczos_iterations() > before);
+    // The analyses that take no step: none on the scene's `dt_factor` either.
+    let before = limit::lanczos_iterations();
+    let setup = Setup::new(&factor_scene, &Overrides::no_step()).unwrap();
+    rbsm::analysis::statics::analyse(&setup).unwrap();
+    rbsm::analysis::effective::analyse(&setup).unwrap();
+    assert_eq!(
+        limit::lanczos_iterations(),
+        before,
+        "an analysis without steps ran Lanczos"
+    );
+    assert!(setup.dt > 0.0 && setup.dt <= setup.limit.dt_safe() * 0.9 * (1.0 + 1e-12));
 }

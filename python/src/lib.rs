@@ -235,6 +235,7 @@ fn run_py<'py>(
         dt_factor,
         steps,
         exact_dt_crit,
+        ..Default::default()
     };
     let stop = Arc::new(AtomicBool::new(false));
     let params = RunParams {
@@ -325,7 +326,7 @@ fn effective_py(
 ) -> PyResult<String> {
     let scene = scene(path, text, base_dir)?;
     let (result, signal) = detached(py, threads, None, || {
-        let setup = Setup::new(&scene, &Overrides::default()).map_err(input)?;
+        let setup = Setup::new(&scene, &Overrides::no_step()).map_err(input)?;
         Ok::<_, Failed>(effective::analyse(&setup)?)
     })?;
     raise(signal)?;
@@ -345,7 +346,7 @@ fn static_py<'py>(
 ) -> PyResult<Bound<'py, PyDict>> {
     let scene = scene(path, text, base_dir)?;
     let (result, signal) = detached(py, threads, None, || {
-        let setup = Setup::new(&scene, &Overrides::default()).map_err(input)?;
+        let setup = Setup::new(&scene, &Overrides::no_step()).map_err(input)?;
         let report = statics::analyse(&setup)?;
         if let Some(dir) = &out {
             statics::write(dir, &setup, &report)?;
@@ -397,7 +398,7 @@ fn limit_py<'py>(
     };
     let scene = scene(path, text, base_dir)?;
     let (result, signal) = detached(py, threads, None, || {
-        let setup = Setup::new(&scene, &Overrides::default()).map_err(input)?;
+        let setup = Setup::new(&scene, &Overrides::no_step()).map_err(input)?;
         let report = collapse::analyse(&setup, on, points)?;
         if let Some(dir) = &out {
             collapse::write(dir, &setup, &report)?;

@@ -531,7 +531,11 @@ pub fn specimen(spec: &CalibrationSpec, job: &Job) -> Result<Measured> {
         )
     };
     let scene = Scene::from_json(&specimen_scene(spec, job).to_string())?;
-    let setup = Setup::new(&scene, &Overrides::default())?;
+    let overrides = match job.test {
+        Test::Elastic => Overrides::no_step(),
+        _ => Overrides::default(),
+    };
+    let setup = Setup::new(&scene, &overrides)?;
     let elements = setup.model.elements.len();
     let w = spec.width;
     let t = &spec.targets;

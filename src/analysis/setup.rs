@@ -32,6 +32,9 @@ pub struct Overrides {
     /// Otherwise a given `dt` computes no `ω_max` at all (the proven bracket decides the
     /// warning) and a `dt_factor` computes it to [`limit::FOR_STEP`].
     pub exact_dt_crit: bool,
+    /// The analysis takes no time step (`static`, `effective`, `limit`): no `ω_max` is computed
+    /// for one, and a `dt_factor` is taken of the proven-safe step (the bracket's).
+    pub no_step: bool,
 }
 
 impl Overrides {
@@ -40,6 +43,15 @@ impl Overrides {
     pub fn exact() -> Overrides {
         Overrides {
             exact_dt_crit: true,
+            ..Default::default()
+        }
+    }
+
+    /// None of the scene's settings overridden, for an analysis that takes no time step: no
+    /// Lanczos iteration at setup ([`Overrides::no_step`]).
+    pub fn no_step() -> Overrides {
+        Overrides {
+            no_step: true,
             ..Default::default()
         }
     }
@@ -139,7 +151,7 @@ impl Setup {
         check_finite(scene, limit.bound)?;
         let given_dt =
             overrides.dt.is_some() || (overrides.dt_factor.is_none() && scene.time.dt.is_some());
-        let tolerance = match (overrides.exact_dt_crit, given_dt) {
+        let tolerance = match (overrides.exact_dt_crit, given_dt || overrides.no_step) {
             (true, _) => Some(limit::EXACT),
             (false, false) => Some(limit::FOR_STEP),
             (false, true) => None,
@@ -154,7 +166,10 @@ impl Setup {
                 exact.set(omega).expect("set once");
             }
         }
-        let dt_crit = limit.dt_crit().unwrap_or(f64::INFINITY);
+        let dt_crit = match overrides.no_step {
+            true => limit.dt_crit_at_least(),
+            false => limit.dt_crit().unwrap_or(f64::INFINITY),
+        };
         let dt = time_step(scene, overrides, dt_crit)?;
         let steps = match (overrides.steps, scene.time.steps, scene.time.end) {
             (Some(0), _, _) => {

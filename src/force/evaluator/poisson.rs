@@ -716,7 +716,10 @@ mod tests {
             assert!(force.iter().all(|&x| x == 0.0), "{kind:?} left a force");
             for (name, a, b) in [("U", &u, &uf), ("v", &v, &vf)] {
                 let scale = a.iter().fold(0.0f64, |s, x| s.max(x.abs()));
-                let worst = a.iter().zip(b).fold(0.0f64, |s, (x, y)| s.max((x - y).abs()));
+                let worst = a
+                    .iter()
+                    .zip(b)
+                    .fold(0.0f64, |s, (x, y)| s.max((x - y).abs()));
                 assert!(
                     worst <= 1e-13 * scale,
                     "{kind:?} {name}: {worst:e} of {scale:e}"
