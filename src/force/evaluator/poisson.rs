@@ -1,21 +1,22 @@
 //! The Poisson correction's forces (formulation `rigid-poisson`, [`crate::model::poisson`]) in
-//! the two evaluators' manners, with the rigid springs in their sweep:
+//! the two evaluators' manners, with the rigid springs in their sweep. A step is two passes
+//! over the elements:
 //!
-//! - **element-wise** ([`ElementWisePoisson`]): each element sums the first moment of its
-//!   facets' spring tractions (from its own and its neighbours' `U`, through each facet's
-//!   coefficients integrated in closed form once, [`FacetPressures`]) into its `q_I`; then the
-//!   sweep gives each interface's springs the jump the correction adds,
-//!   `q_a (x − x_a) − q_b (x − x_b)`, so that its traction is the material's.
-//! - **assembled** ([`AssembledPoisson`]): the same two maps as sparse operators, `q = Λ G U`
-//!   ([`PressureOperator`]) and `f += t Gᵀ q`, whose entries the sweep adds pair by pair with
-//!   `K_ab`: `t ∂s_b/∂U_a q_b` to `a`, `t ∂s_a/∂U_b q_a` to `b`, and `t ∂s_e/∂U_e q_e` to each
-//!   element last. `t Gᵀ Λ G` is the correction's part of `K` ([`PressureOperator::triplets`]).
+//! 1. the cells' `q = Λ G U^n` ([`WithPoisson`]): each cell sums the first moment `s` of its
+//!    facets' spring tractions from its own and its neighbours' `U`, through each facet's
+//!    coefficients integrated in closed form once (`G` by block rows, [`FacetPressures`]). A
+//!    cell's `q` needs its neighbours' `U^n`, and an element's force its neighbours' `q`, so
+//!    this pass comes before any element moves;
+//! 2. the rigid springs' sweep with the correction's forces, each element advanced as soon as
+//!    its force is complete: element-wise ([`ElementWisePoisson`]) each interface's springs get
+//!    the jump the correction adds, `q_a (x − x_a) − q_b (x − x_b)`, so that its traction is
+//!    the material's; assembled ([`AssembledPoisson`]) `f += t Gᵀ q` with `G`'s entries from its
+//!    compressed rows ([`PressureOperator`]), pair by pair with `K_ab`: `t ∂s_b/∂U_a q_b` to
+//!    `a`, `t ∂s_a/∂U_b q_a` to `b`, and `t ∂s_e/∂U_e q_e` to each element last.
 //!
-//! So a step is two passes over the elements: the cells' `q` from `U^n` (a cell's `q` needs
-//! its neighbours' `U^n`, and an element's force its neighbours' `q`), then the fused sweep of
-//! the rigid springs with the correction's forces, each element advanced as soon as its force
-//! is complete. `q` is kept in a buffer of its own (locked for an evaluation, no allocation)
-//! and computed in fixed chunks, so the result does not depend on the thread count.
+//! `t Gᵀ Λ G` is the correction's part of `K` ([`PressureOperator::triplets`]). `q` is kept in
+//! a buffer of its own (locked for an evaluation, no allocation) and computed in fixed chunks,
+//! so the result does not depend on the thread count.
 
 use super::assembled::Block;
 use super::sweep::{place, Couplings, Face};
@@ -34,8 +35,6 @@ use std::sync::Mutex;
 pub trait Correction: Send + Sync {
     /// Which evaluator this is.
     fn kind(&self) -> EvaluatorKind;
-    /// The cells' `q = Λ G u` (one per element).
-    fn cells(&self, u: &[f64], q: &mut [f64]);
     /// `f = f_int(u)`: the springs' forces and the correction's of `q`.
     fn internal_force(&self, u: &[f64], f: &mut [f64], q: &[f64]);
     /// [`FusedStep::advance`] with the correction's forces of `q`.
@@ -50,8 +49,10 @@ pub trait Correction: Send + Sync {
     fn bytes(&self) -> usize;
 }
 
-/// The rigid springs' evaluator with the Poisson correction: the cells' `q`, then the sweep.
+/// The rigid springs' evaluator with the Poisson correction: the cells' `q` (`G` by block rows),
+/// then the sweep.
 pub struct WithPoisson<C: Correction> {
+    rows: FacetPressures,
     correction: C,
     q: Mutex<Vec<f64>>,
 }
@@ -60,6 +61,7 @@ impl<C: Correction> WithPoisson<C> {
     /// The evaluator `correction` of `model`.
     pub fn new(model: &Model, correction: C) -> Self {
         WithPoisson {
+            rows: FacetPressures::new(model),
             correction,
             q: Mutex::new(vec![0.0; model.elements.len()]),
         }
@@ -69,7 +71,7 @@ impl<C: Correction> WithPoisson<C> {
     /// panicked; the buffer is scratch).
     fn cells(&self, u: &[f64]) -> std::sync::MutexGuard<'_, Vec<f64>> {
         let mut q = self.q.lock().unwrap_or_else(|e| e.into_inner());
-        self.correction.cells(u, &mut q);
+        self.rows.cells(u, &mut q);
         q
     }
 }
@@ -83,7 +85,7 @@ impl<C: Correction> Evaluator for WithPoisson<C> {
         self.correction.internal_force(u, f, &q);
     }
     fn bytes(&self) -> usize {
-        self.correction.bytes()
+        self.rows.bytes() + self.correction.bytes()
     }
     fn fused(&self) -> Option<&dyn FusedStep> {
         Some(self)
@@ -117,11 +119,10 @@ impl<C: Correction> FusedStep for WithPoisson<C> {
     }
 }
 
-/// The element-wise evaluator of a `rigid-poisson` model: [`FacetPressures`] for the cells'
-/// `q`, and the rigid springs' sweep with the correction's jump on each interface.
+/// The element-wise sweep of a `rigid-poisson` model: the rigid springs with the correction's
+/// jump on each interface.
 pub struct ElementWisePoisson {
     springs: ElementWise<Rigid, 3>,
-    facets: FacetPressures,
 }
 
 impl ElementWisePoisson {
@@ -129,7 +130,6 @@ impl ElementWisePoisson {
     pub fn new(model: &Model) -> Self {
         ElementWisePoisson {
             springs: ElementWise::with_poisson(model),
-            facets: FacetPressures::new(model),
         }
     }
 }
@@ -137,9 +137,6 @@ impl ElementWisePoisson {
 impl Correction for ElementWisePoisson {
     fn kind(&self) -> EvaluatorKind {
         EvaluatorKind::ElementWise
-    }
-    fn cells(&self, u: &[f64], q: &mut [f64]) {
-        self.facets.cells(u, q);
     }
     fn internal_force(&self, u: &[f64], f: &mut [f64], q: &[f64]) {
         self.springs.internal_force_corrected(u, f, q);
@@ -154,16 +151,14 @@ impl Correction for ElementWisePoisson {
         self.springs.advance_corrected(state, loaded, update, q)
     }
     fn bytes(&self) -> usize {
-        self.springs.bytes() + self.facets.bytes()
+        self.springs.bytes()
     }
 }
 
-/// The assembled evaluator of a `rigid-poisson` model: `q = Λ G U` (`G` by block rows,
-/// [`FacetPressures`]), then the sweep of `K`'s blocks with `t Gᵀ q` added pair by pair (`G`'s
-/// entries from its compressed rows, [`PressureOperator`]).
+/// The assembled sweep of a `rigid-poisson` model: `K`'s blocks with `t Gᵀ q` added pair by
+/// pair (`G`'s entries from its compressed rows, [`PressureOperator`]).
 pub struct AssembledPoisson {
     springs: Assembled<Rigid, 3>,
-    rows: FacetPressures,
     /// Per pair of `springs`, in its order: `t ∂s_b/∂U_a` (the force on `a` per `q_b`) and
     /// `t ∂s_a/∂U_b` (on `b` per `q_a`).
     pairs: Vec<[[f64; 3]; 2]>,
@@ -197,7 +192,6 @@ impl AssembledPoisson {
             .collect();
         AssembledPoisson {
             springs,
-            rows: FacetPressures::new(model),
             pairs,
             own,
         }
@@ -263,9 +257,6 @@ impl Correction for AssembledPoisson {
     fn kind(&self) -> EvaluatorKind {
         EvaluatorKind::Assembled
     }
-    fn cells(&self, u: &[f64], q: &mut [f64]) {
-        self.rows.cells(u, q);
-    }
     fn internal_force(&self, u: &[f64], f: &mut [f64], q: &[f64]) {
         let pairs = Pairs { of: self, q };
         self.springs.sweep().evaluate(&pairs, u, f);
@@ -284,10 +275,7 @@ impl Correction for AssembledPoisson {
     }
     fn bytes(&self) -> usize {
         use std::mem::size_of_val;
-        self.springs.bytes()
-            + self.rows.bytes()
-            + size_of_val(&self.pairs[..])
-            + size_of_val(&self.own[..])
+        self.springs.bytes() + size_of_val(&self.pairs[..]) + size_of_val(&self.own[..])
     }
 }
 
