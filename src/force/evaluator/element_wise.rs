@@ -891,7 +891,7 @@ impl<K: Kernel<N>, const N: usize> ElementWise<K, N> {
 }
 
 /// The rigid springs of a `rigid-poisson` model, stepped with the Poisson correction's
-/// tractions of the cells' `q` ([`Corrected`]; `super::poisson` computes `q`).
+/// tractions of the cells' `q` (`Corrected`; `super::poisson` computes `q`).
 impl ElementWise<Rigid, 3> {
     /// The evaluator of a `rigid-poisson` model: every interface with its record inline, whose
     /// offsets the correction's jump needs.
