@@ -133,7 +133,7 @@ fn patch_and_constants(r: &mut Report) {
         for (label, formulation) in FORMULATIONS {
             let errs = [0.0, 0.2, 0.4].map(|nu| patch_traction_error(mesh, formulation, nu));
             let s = body(mesh, formulation, 0.25, "[]", "[]");
-            let c = effective::analyse(&Setup::new(&s, &Overrides::default()).expect("a setup"))
+            let c = effective::analyse(&Setup::new(&s, &Overrides::no_step()).expect("a setup"))
                 .expect("the effective constants");
             let de = c.young / c.material[0] - 1.0;
             r.line(&format!(
@@ -145,11 +145,14 @@ fn patch_and_constants(r: &mut Report) {
                 c.poisson
             ));
             for (k, nu) in [0.0, 0.2, 0.4].iter().enumerate() {
-                r.figure(
-                    &format!("formulations: patch {name} {label} ν={nu}"),
-                    errs[k],
-                    1e-6,
-                );
+                let check = format!("formulations: patch {name} {label} ν={nu}");
+                // On rectangles every formulation carries the uniform stress exactly: its error
+                // is round-off, a bound and not a figure to reproduce.
+                if name.starts_with("rectangles") {
+                    r.bound(&check, errs[k], 1e-10);
+                } else {
+                    r.figure(&check, errs[k], 1e-6);
+                }
             }
             r.figure(
                 &format!("formulations: effective E {name} {label}"),
