@@ -27,7 +27,7 @@ use crate::analysis::effective;
 use crate::analysis::setup::{Overrides, Setup};
 use crate::analysis::Report;
 use crate::error::{Error, Result};
-use crate::input::scene::{Plane, Scene};
+use crate::input::scene::{FormulationSpec, Plane, Scene};
 use crate::step::integrator::{CentralDifference, Status};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -52,6 +52,10 @@ pub struct CalibrationSpec {
     pub cells: Cells,
     /// The specimens' width `w` (m): tension bars `4w × w`, compression prisms `w × 2w`.
     pub width: f64,
+    /// The cells' formulation, as the scenes that will use the material: `rigid` (default),
+    /// `rigid-poisson` (whose lattice has the material's `ν`) or `hybrid`.
+    #[serde(default = "default_formulation")]
+    pub formulation: FormulationSpec,
     /// The parts of the facet law that the calibration keeps fixed.
     #[serde(default)]
     pub law: LawRatios,
@@ -147,6 +151,10 @@ pub enum CellKind {
     Voronoi,
     /// Squares of side `h` (the seeds only repeat the run).
     Grid,
+}
+
+fn default_formulation() -> FormulationSpec {
+    FormulationSpec::Rigid
 }
 
 fn default_lloyd() -> u32 {
@@ -251,6 +259,9 @@ impl CalibrationSpec {
     pub fn validate(&self) -> Result<()> {
         let t = &self.targets;
         positive("targets.E", t.e, "Young's modulus (Pa)")?;
+        if let FormulationSpec::Hybrid { penalty } = self.formulation {
+            positive("formulation.penalty", penalty, "the penalty factor")?;
+        }
         if !(t.nu.is_finite() && (0.0..0.5).contains(&t.nu)) {
             return Err(Error::scene(
                 "targets.nu",
@@ -507,7 +518,7 @@ pub fn specimen_scene(spec: &CalibrationSpec, job: &Job) -> Value {
         "name": format!("{}-{:?}-h{:.3e}-seed{}", spec.name, job.test, job.size, job.seed).to_lowercase(),
         "thickness": 1.0,
         "plane": spec.plane,
-        "formulation": {"kind": "rigid"},
+        "formulation": spec.formulation,
         "evaluator": "element-wise",
         "materials": {"m": material_block(spec, &job.facet)},
         "damping": 0.04 * std::f64::consts::PI * c / length,

@@ -64,6 +64,11 @@ pub(crate) fn initial_disc(law: &dyn InterfaceLaw) -> f64 {
     })
 }
 
+/// The Poisson correction's pressures `[q_a, q_b]` of a failing interface's two elements
+/// (`rigid-poisson`; `None` otherwise): its law acts on `δ + q_a (x − x_a) − q_b (x − x_b)` at
+/// each Gauss point, the relative displacement whose springs give the material's traction.
+pub type Jump = Option<[f64; 2]>;
+
 /// The state of every Gauss point of the failing interfaces: two per interface, in the order of
 /// [`PlasticForces::interfaces`]. A sweep updates it in place through a shared reference, each
 /// interface by the one coupling that carries it ([`PointCell`]).
@@ -354,6 +359,21 @@ impl Failing {
         ]
     }
 
+    /// `deltas` with the Poisson correction's jump `q_a (x − x_a) − q_b (x − x_b)` added at
+    /// each Gauss point `x = m ∓ g` (`rigid-poisson`, [`crate::model::poisson`]): the relative
+    /// displacement whose springs' traction is the material's, which the law bounds.
+    #[inline(always)]
+    fn jumped(&self, half_per_tw: f64, deltas: [[f64; 2]; 2], [qa, qb]: [f64; 2]) -> [[f64; 2]; 2] {
+        let (n, s, g) = (self.normal, self.tangent(), self.gauss_offset(half_per_tw));
+        let (j0, j1) = (qa * self.da - qb * self.db, (qa - qb) * g);
+        let (j0, j1) = ([n.dot(&j0), s.dot(&j0)], [n.dot(&j1), s.dot(&j1)]);
+        let [d0, d1] = deltas;
+        [
+            [d0[0] + j0[0] - j1[0], d0[1] + j0[1] - j1[1]],
+            [d1[0] + j0[0] + j1[0], d1[1] + j0[1] + j1[1]],
+        ]
+    }
+
     /// `T = t w (k_n e_n n + k_s e_s s)`: the force of the springs at a relative displacement
     /// `e` on the interface's axes (`δ − δ_p`, or `−δ_p` for the plastic part alone).
     #[inline(always)]
@@ -454,20 +474,22 @@ impl<K: Kinematics<N>, const N: usize> FailingInterfaces<K, N> {
     /// `a < b`, in `state`: each Gauss point's relative displacement, the return mapping of its
     /// law, and `f_int,a += N_aᵀ T_p`, `f_int,b −= N_bᵀ T_p` for the points that have flowed.
     /// A sweep calls it once per interface, from one thread: the points of `range` are its
-    /// alone ([`PointCell`]).
+    /// alone ([`PointCell`]). Under the Poisson correction, `jump` holds the cells' `q_a`, `q_b`:
+    /// the law acts on the jumped relative displacement ([`Jump`]).
     #[inline(always)]
     pub fn couple(
         &self,
         range: std::ops::Range<usize>,
         state: &FailureState,
         (ua, ub): (&[f64; N], &[f64; N]),
+        jump: Jump,
         fa: &mut [f64; N],
         fb: &mut [f64; N],
     ) {
         self.prefetch(range.start);
         for j in range {
             let f = &self.failing[j];
-            let delta = f.deltas::<K, N>(self.half_per_tw, ua, ub);
+            let delta = self.delta(f, ua, ub, jump);
             if let Some(p) = self.plastic(j, delta, state) {
                 self.add_forces(f, p.map(|p| [-p[0], -p[1]]), fa, fb);
             }
@@ -478,18 +500,20 @@ impl<K: Kinematics<N>, const N: usize> FailingInterfaces<K, N> {
     /// `a < b`, in `state`: `f_int,a −= N_aᵀ T`, `f_int,b += N_bᵀ T` with
     /// `T = t w diag(k_n, k_s) (δ − δ_p)` at each Gauss point, the elastic and the plastic part
     /// of [`FailingInterfaces::couple`] in one, for a sweep that keeps no elastic record of the
-    /// interface (element-wise). Called as `couple`.
+    /// interface (element-wise); under the Poisson correction `T` is the material's traction
+    /// `t w S (δ + j − δ_p)` with its jump `j` ([`Jump`]). Called as `couple`.
     #[inline(always)]
     pub fn couple_whole(
         &self,
         j: usize,
         state: &FailureState,
         (ua, ub): (&[f64; N], &[f64; N]),
+        jump: Jump,
         fa: &mut [f64; N],
         fb: &mut [f64; N],
     ) {
         let f = &self.failing[j];
-        let delta = f.deltas::<K, N>(self.half_per_tw, ua, ub);
+        let delta = self.delta(f, ua, ub, jump);
         let elastic = match self.plastic(j, delta, state) {
             // `δ − 0` is `δ` to the bit: a point in its initial region is not return-mapped,
             // and gives the same forces as one that is and does not flow.
@@ -497,6 +521,43 @@ impl<K: Kinematics<N>, const N: usize> FailingInterfaces<K, N> {
             Some(p) => [0, 1].map(|g| [delta[g][0] - p[g][0], delta[g][1] - p[g][1]]),
         };
         self.add_forces(f, elastic, fa, fb);
+    }
+
+    /// The relative displacements at the Gauss points of `f`, jumped by `jump`.
+    #[inline(always)]
+    fn delta(&self, f: &Failing, ua: &[f64; N], ub: &[f64; N], jump: Jump) -> [[f64; 2]; 2] {
+        let delta = f.deltas::<K, N>(self.half_per_tw, ua, ub);
+        match jump {
+            Some(q) => f.jumped(self.half_per_tw, delta, q),
+            None => delta,
+        }
+    }
+
+    /// `moments[e]`: the first moment `Σ_gp (L/2) (x − x_e)·S δ_p` of the plastic relative
+    /// displacements on element `e`'s failing facets, per unit thickness (`+` on the lower
+    /// element, as [`crate::model::poisson`]'s `s`), in model `thickness`. What the Poisson
+    /// correction's `s = G U` loses to them: a cell reads its strain from the springs'
+    /// tractions `S (δ − δ_p)`, so that an open crack is not a strain of its cells. In the order
+    /// of the failing interfaces, on one thread: the same bits on any number of threads.
+    pub(crate) fn plastic_moments(
+        &self,
+        state: &FailureState,
+        thickness: f64,
+        moments: &mut [f64],
+    ) {
+        moments.fill(0.0);
+        for (k, f) in self.failing.iter().enumerate() {
+            if !state.touched[k].get() {
+                continue;
+            }
+            let g = f.gauss_offset(self.half_per_tw);
+            let [a, b] = self.pairs[k].map(|e| e as usize);
+            for (point, off) in state.points[2 * k..2 * k + 2].iter().zip([-g, g]) {
+                let t = f.traction(&point.get().p) / thickness;
+                moments[a] += (f.da + off).dot(&t);
+                moments[b] -= (f.db + off).dot(&t);
+            }
+        }
     }
 
     /// Whether failing interface `j` is in its initial state in `state`: never flowed, not
@@ -623,7 +684,7 @@ impl<K: Kinematics<N>, const N: usize> PlasticForces for FailingInterfaces<K, N>
         for (j, &[a, b]) in self.pairs.iter().enumerate() {
             let (a, b) = (a as usize, b as usize);
             let (mut fa, mut fb) = ([0.0; N], [0.0; N]);
-            self.couple(j..j + 1, state, (&u[a], &u[b]), &mut fa, &mut fb);
+            self.couple(j..j + 1, state, (&u[a], &u[b]), None, &mut fa, &mut fb);
             for r in 0..N {
                 f[a][r] += fa[r];
                 f[b][r] += fb[r];

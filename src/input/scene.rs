@@ -1536,14 +1536,20 @@ impl Scene {
                     ),
                 ));
             }
+            let fragments = self
+                .contact
+                .as_ref()
+                .is_some_and(|c| c.model == ContactModel::EdgeToEdge);
             if !matches!(m.interface, InterfaceLawSpec::Elastic)
                 && self.formulation == FormulationSpec::RigidPoisson
+                && fragments
             {
                 return Err(Error::scene(
                     at("interface"),
-                    "the `rigid-poisson` formulation takes elastic interfaces only: its \
-                     correction presses on every facet with its cells' mean stress, and would \
-                     carry it across a crack; use `rigid` or `hybrid` for interfaces that fail",
+                    "the `rigid-poisson` formulation does not hand broken interfaces over to \
+                     edge-to-edge contact (its correction's jump would have to follow the \
+                     fragments): give interfaces that fail without `contact`, or use `rigid` or \
+                     `hybrid` for fragments that collide",
                 ));
             }
         }

@@ -568,14 +568,12 @@ impl<'a> CentralDifference<'a> {
         }
         self.force_clear = false;
         let elastic = if energy {
-            let offset = self
-                .failure
+            let offset = self.failure.as_ref().map_or(0.0, |(p, s)| {
+                p.energy_offset(&self.u, s) + self.evaluator.energy_offset((*p, s))
+            }) + self
+                .elements
                 .as_ref()
-                .map_or(0.0, |(p, s)| p.energy_offset(&self.u, s))
-                + self
-                    .elements
-                    .as_ref()
-                    .map_or(0.0, |(p, s)| p.energy_offset(&self.u, s));
+                .map_or(0.0, |(p, s)| p.energy_offset(&self.u, s));
             0.5 * dot(&self.u, &self.force) - offset
         } else {
             0.0

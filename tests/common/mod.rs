@@ -126,3 +126,27 @@ impl rbsm::force::evaluator::Evaluator for TwoPass<'_> {
         self.0.bytes()
     }
 }
+
+/// An evaluator stepped in two passes through its own failing evaluation (`TwoPass` takes the
+/// default one, `PlasticForces::add_plastic`, which knows no Poisson correction).
+pub struct Unfused<'a>(pub &'a dyn rbsm::force::evaluator::Evaluator);
+
+impl rbsm::force::evaluator::Evaluator for Unfused<'_> {
+    fn kind(&self) -> rbsm::input::scene::EvaluatorKind {
+        self.0.kind()
+    }
+    fn internal_force(&self, u: &[f64], f: &mut [f64]) {
+        self.0.internal_force(u, f)
+    }
+    fn internal_force_failing(
+        &self,
+        u: &[f64],
+        f: &mut [f64],
+        failure: rbsm::force::evaluator::Failure<'_>,
+    ) {
+        self.0.internal_force_failing(u, f, failure)
+    }
+    fn bytes(&self) -> usize {
+        self.0.bytes()
+    }
+}

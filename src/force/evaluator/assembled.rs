@@ -236,6 +236,15 @@ impl<K: Screened<N>, const N: usize> Assembled<K, N> {
         &self.sweep
     }
 
+    /// Its couplings with the failing interfaces `failure` they carry ([`WithFailure::new`],
+    /// whose panics it shares).
+    pub(super) fn with_failure<'a>(
+        &'a self,
+        (plastic, state): Failure<'a>,
+    ) -> WithFailure<'a, K, N> {
+        WithFailure::new(self, self.carried.as_ref(), plastic, state)
+    }
+
     /// A pair's forces, `K_ab U_b` on `a` and `K_abᵀ U_a` on `b`.
     #[inline(always)]
     pub(super) fn products(k: &Block<N>, ua: &[f64; N], ub: &[f64; N]) -> [[f64; N]; 2] {
@@ -329,9 +338,8 @@ impl<K: Screened<N>, const N: usize> Evaluator for Assembled<K, N> {
     }
 
     fn internal_force_failing(&self, u: &[f64], f: &mut [f64], (plastic, state): Failure<'_>) {
-        let carried = self.carried.as_ref();
-        let pairs = WithFailure::<K, N>::new(self, carried, plastic, state);
-        self.sweep.evaluate(&pairs, u, f);
+        self.sweep
+            .evaluate(&self.with_failure((plastic, state)), u, f);
     }
 
     fn fused(&self) -> Option<&dyn FusedStep> {
@@ -360,8 +368,7 @@ impl<K: Screened<N>, const N: usize> FusedStep for Assembled<K, N> {
         update: &Update,
         (plastic, state): Failure<'_>,
     ) -> f64 {
-        let carried = self.carried.as_ref();
-        let pairs = WithFailure::<K, N>::new(self, carried, plastic, state);
+        let pairs = self.with_failure((plastic, state));
         self.sweep.advance(&pairs, u, v, force, loaded, update)
     }
 }

@@ -28,7 +28,7 @@
 use super::failing::failing_of;
 use super::sweep::{Couplings, Face, Higher, Sweep};
 use super::{Evaluator, Failure, FusedStep, GroupedStep};
-use crate::force::failure::{FailingInterfaces, FailureState};
+use crate::force::failure::{FailingInterfaces, FailureState, Jump};
 use crate::input::scene::EvaluatorKind;
 use crate::lanes::{spread, Lanes, Wide};
 use crate::mesh::geometry::Vec2;
@@ -240,12 +240,15 @@ impl<K: Kernel<N>, const N: usize> ByLaw<K, N> {
     }
 }
 
-/// [`ByLaw`] in one sweep that updates the failing interfaces' `state`.
+/// [`ByLaw`] in one sweep that updates the failing interfaces' `state`; under the Poisson
+/// correction (`rigid-poisson`) with the cells' `q`, whose jump every interface's springs take
+/// ([`Corrected`]) and every failing interface's law bounds ([`Jump`]).
 struct ByLawSweep<'a, K: Kernel<N>, const N: usize> {
     by_law: &'a ByLaw<K, N>,
     interior: &'a Interior,
     failing: &'a FailingInterfaces<K, N>,
     state: &'a FailureState,
+    q: Option<&'a [f64]>,
 }
 
 impl<K: Kernel<N>, const N: usize> Couplings<N> for ByLawSweep<'_, K, N> {
@@ -260,20 +263,23 @@ impl<K: Kernel<N>, const N: usize> Couplings<N> for ByLawSweep<'_, K, N> {
     fn faces(&self) -> &[Face<u32>] {
         &self.by_law.faces
     }
+    /// The face's index, with its elements' `q` under the Poisson correction.
     type Coupling<'b>
-        = u32
+        = (u32, Jump)
     where
         Self: 'b;
     #[inline(always)]
-    fn coupling(&self, face: &Face<u32>) -> u32 {
-        face.record
+    fn coupling(&self, face: &Face<u32>) -> (u32, Jump) {
+        let jump = self.q.map(|q| [q[face.a as usize], q[face.b as usize]]);
+        (face.record, jump)
     }
-    /// A sweep computes each face once: the points of a failing interface are its alone.
+    /// A sweep computes each face once: the points of a failing interface are its alone. A
+    /// failing interface is screened on its elastic record where the correction adds no jump.
     #[inline(always)]
     fn add_pair(
         &self,
         _: impl Lanes,
-        record: u32,
+        (record, jump): (u32, Jump),
         ua: &[f64; N],
         ub: &[f64; N],
         fa: &mut [f64; N],
@@ -281,7 +287,7 @@ impl<K: Kernel<N>, const N: usize> Couplings<N> for ByLawSweep<'_, K, N> {
     ) {
         if record & BY_LAW != 0 {
             let j = (record & !BY_LAW) as usize;
-            if K::SCREENS {
+            if K::SCREENS && jump.is_none() {
                 let screens = &self.by_law.screens;
                 #[cfg(target_arch = "x86_64")]
                 if let Some(ahead) = screens.get(j + BY_LAW_AHEAD) {
@@ -298,22 +304,31 @@ impl<K: Kernel<N>, const N: usize> Couplings<N> for ByLawSweep<'_, K, N> {
             } else {
                 self.failing.prefetch(j);
             }
-            self.failing.couple_whole(j, self.state, (ua, ub), fa, fb);
+            self.failing
+                .couple_whole(j, self.state, (ua, ub), jump, fa, fb);
         } else {
             let records = &self.by_law.records;
             #[cfg(target_arch = "x86_64")]
             if let Some(ahead) = records.get(record as usize + BY_LAW_AHEAD) {
                 safe_arch::prefetch_t0(ahead);
             }
-            let [on_a, on_b] = K::face_forces(&records[record as usize], ua, Some(ub));
+            let r = &records[record as usize];
+            let [on_a, on_b] = match jump {
+                Some([qa, qb]) => K::jumped_forces(r, ua, Some(ub), r.da * qa - r.db * qb),
+                None => K::face_forces(r, ua, Some(ub)),
+            };
             sub(fa, &on_a);
             sub(fb, &on_b);
         }
     }
     #[inline(always)]
     fn add_ground(&self, face: &Face<u32>, ua: &[f64; N], fa: &mut [f64; N]) {
-        let record = &self.by_law.records[face.record as usize];
-        sub(fa, &K::face_forces(record, ua, None)[0]);
+        let r = &self.by_law.records[face.record as usize];
+        let on_a = match self.q {
+            Some(q) => K::jumped_forces(r, ua, None, r.da * q[face.a as usize]),
+            None => K::face_forces(r, ua, None),
+        };
+        sub(fa, &on_a[0]);
     }
     #[inline(always)]
     fn add_own(&self, e: usize, ue: &[f64; N], f: &mut [f64; N]) {
@@ -358,7 +373,18 @@ pub trait Kernel<const N: usize>: Kinematics<N> + Sized {
     /// (`ub = None` on ground): [`gauss_forces`], unless `K` has a cheaper form of it.
     #[inline(always)]
     fn face_forces(f: &Record<Self, N>, ua: &[f64; N], ub: Option<&[f64; N]>) -> [[f64; N]; 2] {
-        gauss_forces(f, ua, ub)
+        gauss_forces(f, ua, ub, None)
+    }
+    /// [`Kernel::face_forces`] with the jump at the midpoint increased by `extra`: the Poisson
+    /// correction's `q_a d_a − q_b d_b` ([`Corrected`]).
+    #[inline(always)]
+    fn jumped_forces(
+        f: &Record<Self, N>,
+        ua: &[f64; N],
+        ub: Option<&[f64; N]>,
+        extra: Vec2,
+    ) -> [[f64; N]; 2] {
+        gauss_forces(f, ua, ub, Some(extra))
     }
     /// Whether a failing interface of `K` in its initial state is first screened on its elastic
     /// record ([`Kernel::screened`]).
@@ -385,15 +411,20 @@ pub type Screen = [f64; 2];
 
 /// The generalised forces that an interface with record `f` puts on its sides `a` and `b`
 /// (`ub = None` on ground): `± t L [N(m)ᵀ λ(δ₀) + (N(g) − N(0))ᵀ λ(δ₁)]` with
-/// `δ = u_b − u_a` (module doc), through the shape matrices of any [`Kinematics`].
+/// `δ = u_b − u_a` (module doc), its midpoint value `δ₀` increased by `extra`, through the
+/// shape matrices of any [`Kinematics`].
 #[inline(always)]
 fn gauss_forces<K: Kinematics<N>, const N: usize>(
     f: &Record<K, N>,
     ua: &[f64; N],
     ub: Option<&[f64; N]>,
+    extra: Option<Vec2>,
 ) -> [[f64; N]; 2] {
     let s = &f.springs;
     let mut delta = -K::displacement(ua, f.da);
+    if let Some(extra) = extra {
+        delta += extra;
+    }
     let mut out = [[0.0; N]; 2];
     let Some(ub) = ub else {
         K::add_force(&mut out[0], f.da, s.apply(delta));
@@ -421,6 +452,15 @@ impl Kernel<3> for Rigid {
     #[inline(always)]
     fn face_forces(f: &Record<Self, 3>, ua: &[f64; 3], ub: Option<&[f64; 3]>) -> [[f64; 3]; 2] {
         rigid_forces(f, ua, ub, None)
+    }
+    #[inline(always)]
+    fn jumped_forces(
+        f: &Record<Self, 3>,
+        ua: &[f64; 3],
+        ub: Option<&[f64; 3]>,
+        extra: Vec2,
+    ) -> [[f64; 3]; 2] {
+        rigid_forces(f, ua, ub, Some(extra))
     }
     const SCREENS: bool = true;
     /// The tractions at the Gauss points are `λ₀ ∓ λ₁`, with `t L λ₀ = S δ₀` the force on `a`
@@ -877,8 +917,13 @@ impl<K: Kernel<N>, const N: usize> ElementWise<K, N> {
     /// # Panics
     /// If the evaluator was built for a model whose interfaces do not fail, or `plastic` is not
     /// of the formulation `K`.
-    fn by_law_sweep<'a>(&'a self, (plastic, state): Failure<'a>) -> ByLawSweep<'a, K, N> {
+    fn by_law_sweep<'a>(
+        &'a self,
+        (plastic, state): Failure<'a>,
+        q: Option<&'a [f64]>,
+    ) -> ByLawSweep<'a, K, N> {
         ByLawSweep {
+            q,
             by_law: self
                 .by_law
                 .as_ref()
@@ -906,21 +951,43 @@ impl ElementWise<Rigid, 3> {
         }
     }
 
-    /// `f = f_int(u)` with the correction's forces of the cells' `q`.
-    pub(super) fn internal_force_corrected(&self, u: &[f64], f: &mut [f64], q: &[f64]) {
-        self.sweep.evaluate(&self.corrected(q), u, f);
+    /// `f = f_int(u)` with the correction's forces of the cells' `q`, the failing interfaces
+    /// `failure` return-mapped in the same pass.
+    pub(super) fn internal_force_corrected(
+        &self,
+        u: &[f64],
+        f: &mut [f64],
+        q: &[f64],
+        failure: Option<Failure<'_>>,
+    ) {
+        match failure {
+            Some(failure) => self
+                .sweep
+                .evaluate(&self.by_law_sweep(failure, Some(q)), u, f),
+            None => self.sweep.evaluate(&self.corrected(q), u, f),
+        }
     }
 
-    /// [`FusedStep::advance`] with the correction's forces of the cells' `q` at `u`.
+    /// [`FusedStep::advance`] with the correction's forces of the cells' `q` at `u`, the
+    /// failing interfaces `failure` return-mapped in the same pass.
     pub(super) fn advance_corrected(
         &self,
         (u, v, force): (&mut [f64], &mut [f64], &mut [f64]),
         loaded: Option<&[u32]>,
         update: &Update,
         q: &[f64],
+        failure: Option<Failure<'_>>,
     ) -> f64 {
-        let faces = self.corrected(q);
-        self.sweep.advance(&faces, u, v, force, loaded, update)
+        match failure {
+            Some(failure) => {
+                let faces = self.by_law_sweep(failure, Some(q));
+                self.sweep.advance(&faces, u, v, force, loaded, update)
+            }
+            None => {
+                let faces = self.corrected(q);
+                self.sweep.advance(&faces, u, v, force, loaded, update)
+            }
+        }
     }
 }
 
@@ -945,7 +1012,7 @@ impl<K: Kernel<N>, const N: usize> Evaluator for ElementWise<K, N> {
     }
 
     fn internal_force_failing(&self, u: &[f64], f: &mut [f64], failure: Failure<'_>) {
-        self.sweep.evaluate(&self.by_law_sweep(failure), u, f);
+        self.sweep.evaluate(&self.by_law_sweep(failure, None), u, f);
     }
 
     fn fused(&self) -> Option<&dyn FusedStep> {
@@ -977,7 +1044,7 @@ impl<K: Kernel<N>, const N: usize> FusedStep for ElementWise<K, N> {
         update: &Update,
         failure: Failure<'_>,
     ) -> f64 {
-        let faces = self.by_law_sweep(failure);
+        let faces = self.by_law_sweep(failure, None);
         self.sweep.advance(&faces, u, v, force, loaded, update)
     }
 
@@ -1268,7 +1335,7 @@ mod tests {
             let ub = (face.b != GROUND).then(|| &u[face.b as usize]);
             ground += usize::from(ub.is_none());
             let got = Rigid::face_forces(&face.record, ua, ub);
-            let want = gauss_forces(&face.record, ua, ub);
+            let want = gauss_forces(&face.record, ua, ub, None);
             let sides = if ub.is_some() { 2 } else { 1 };
             let scale = want[..sides]
                 .as_flattened()

@@ -9,7 +9,7 @@
 
 use super::assembled::{Assembled, Block};
 use super::sweep::{place, Couplings, Face};
-use crate::force::failure::{self, FailingInterfaces, FailureState, PlasticForces};
+use crate::force::failure::{self, FailingInterfaces, FailureState, Jump, PlasticForces};
 use crate::lanes::Lanes;
 use crate::mesh::geometry::Vec2;
 use crate::model::formulation::{Hybrid, Kinematics, Rigid};
@@ -163,12 +163,15 @@ pub(super) fn failing_of<K: Kinematics<N>, const N: usize>(
 }
 
 /// The assembled couplings with the failing interfaces they carry, for one sweep that updates
-/// `state`.
+/// `state`; under the Poisson correction (`rigid-poisson`) with the cells' `q`, whose jump the
+/// failing interfaces' laws bound ([`Jump`]; the correction's own forces are
+/// `super::poisson`'s).
 pub(super) struct WithFailure<'a, K: Screened<N>, const N: usize> {
     assembled: &'a Assembled<K, N>,
     carried: &'a Carried<K::Screen>,
     failing: &'a FailingInterfaces<K, N>,
     state: &'a FailureState,
+    q: Option<&'a [f64]>,
 }
 
 impl<'a, K: Screened<N>, const N: usize> WithFailure<'a, K, N> {
@@ -192,7 +195,14 @@ impl<'a, K: Screened<N>, const N: usize> WithFailure<'a, K, N> {
             carried,
             failing,
             state,
+            q: None,
         }
+    }
+
+    /// The same couplings, whose failing interfaces' laws act on the jump of the Poisson
+    /// correction's `q`.
+    pub(super) fn jumped(self, q: &'a [f64]) -> Self {
+        WithFailure { q: Some(q), ..self }
     }
 
     /// Where `face` is in the blocks.
@@ -214,12 +224,13 @@ impl<K: Screened<N>, const N: usize> WithFailure<'_, K, N> {
         range: std::ops::Range<usize>,
         ua: &[f64; N],
         ub: &[f64; N],
+        jump: Jump,
     ) -> [[f64; N]; 2] {
         let [mut fa, mut fb] = [[0.0; N]; 2];
         // A sweep computes each coupling once, and `Carried` gives each failing interface to
         // one coupling.
         self.failing
-            .couple(range, self.state, (ua, ub), &mut fa, &mut fb);
+            .couple(range, self.state, (ua, ub), jump, &mut fa, &mut fb);
         [fa, fb]
     }
 }
@@ -236,20 +247,23 @@ impl<K: Screened<N>, const N: usize> Couplings<N> for WithFailure<'_, K, N> {
         self.assembled.faces()
     }
     type Coupling<'b>
-        = (&'b Block<N>, &'b Carry<K::Screen>)
+        = (&'b Block<N>, &'b Carry<K::Screen>, Jump)
     where
         Self: 'b;
     /// The sweep names a coupling by its place in [`Couplings::faces`] (a reference into it),
-    /// which gives what it carries.
+    /// which gives what it carries; with its elements' `q` under the Poisson correction.
     #[inline(always)]
     fn coupling<'b>(&'b self, face: &'b Face<Block<N>>) -> Self::Coupling<'b> {
-        (&face.record, &self.carried.0[self.index(face)])
+        let jump = self.q.map(|q| [q[face.a as usize], q[face.b as usize]]);
+        (&face.record, &self.carried.0[self.index(face)], jump)
     }
+    /// A fresh interface carried alone is screened on the block's products where the correction
+    /// adds no jump.
     #[inline(always)]
     fn add_pair(
         &self,
         _: impl Lanes,
-        (block, carry): (&Block<N>, &Carry<K::Screen>),
+        (block, carry, jump): (&Block<N>, &Carry<K::Screen>, Jump),
         ua: &[f64; N],
         ub: &[f64; N],
         fa: &mut [f64; N],
@@ -265,10 +279,13 @@ impl<K: Screened<N>, const N: usize> Couplings<N> for WithFailure<'_, K, N> {
             return;
         }
         let force = [on_b[0] - on_a[0], on_b[1] - on_a[1]];
-        if K::passes(&carry.screen, force, ua, ub) && self.failing.is_fresh(start, self.state) {
+        if jump.is_none()
+            && K::passes(&carry.screen, force, ua, ub)
+            && self.failing.is_fresh(start, self.state)
+        {
             return;
         }
-        let [plastic_a, plastic_b] = self.plastic_forces(start..end, ua, ub);
+        let [plastic_a, plastic_b] = self.plastic_forces(start..end, ua, ub, jump);
         for p in 0..N {
             fa[p] += plastic_a[p];
             fb[p] += plastic_b[p];

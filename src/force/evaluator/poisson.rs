@@ -19,8 +19,10 @@
 //! so the result does not depend on the thread count.
 
 use super::assembled::Block;
+use super::failing::{failing_of, Carry, WithFailure};
 use super::sweep::{place, Couplings, Face};
 use crate::force::evaluator::{Assembled, ElementWise, Evaluator, Failure, FusedStep};
+use crate::force::failure::{FailureState, Jump, PlasticForces};
 use crate::input::scene::EvaluatorKind;
 use crate::lanes::Lanes;
 use crate::mesh::geometry::Vec2;
@@ -28,22 +30,25 @@ use crate::model::formulation::{Kinematics, Rigid};
 use crate::model::mass::Update;
 use crate::model::poisson::{load_moment, springs, Poisson};
 use crate::model::{Model, GROUND};
-use crate::parallel::for_each_chunk;
+use crate::parallel::{for_each_chunk, for_each_chunk_pair, CHUNK};
 use std::sync::Mutex;
 
 /// A rigid evaluator that steps with the Poisson correction's forces of the cells' `q`.
 pub trait Correction: Send + Sync {
     /// Which evaluator this is.
     fn kind(&self) -> EvaluatorKind;
-    /// `f = f_int(u)`: the springs' forces and the correction's of `q`.
-    fn internal_force(&self, u: &[f64], f: &mut [f64], q: &[f64]);
-    /// [`FusedStep::advance`] with the correction's forces of `q`.
+    /// `f = f_int(u)`: the springs' forces and the correction's of `q`, the failing
+    /// interfaces `failure` return-mapped in the same pass, their laws acting on the jump of `q`.
+    fn internal_force(&self, u: &[f64], f: &mut [f64], q: &[f64], failure: Option<Failure<'_>>);
+    /// [`FusedStep::advance`] (or [`FusedStep::advance_failing`]) with the correction's forces
+    /// of `q`.
     fn advance(
         &self,
         state: (&mut [f64], &mut [f64], &mut [f64]),
         loaded: Option<&[u32]>,
         update: &Update,
         q: &[f64],
+        failure: Option<Failure<'_>>,
     ) -> f64;
     /// Bytes it reads in an evaluation.
     fn bytes(&self) -> usize;
@@ -54,25 +59,53 @@ pub trait Correction: Send + Sync {
 pub struct WithPoisson<C: Correction> {
     rows: FacetPressures,
     correction: C,
-    q: Mutex<Vec<f64>>,
+    cells: Mutex<Cells>,
+    thickness: f64,
+}
+
+/// The cells' buffers of an evaluation: `q`, and where interfaces fail the springs' moments
+/// `G U` and the plastic ones `s_p` that `s = G U − s_p` loses (what the energy books need).
+struct Cells {
+    q: Vec<f64>,
+    moment: Vec<f64>,
+    plastic: Vec<f64>,
 }
 
 impl<C: Correction> WithPoisson<C> {
     /// The evaluator `correction` of `model`.
     pub fn new(model: &Model, correction: C) -> Self {
+        let n = model.elements.len();
+        let failing = if model.any_fails() { n } else { 0 };
         WithPoisson {
             rows: FacetPressures::new(model),
             correction,
-            q: Mutex::new(vec![0.0; model.elements.len()]),
+            cells: Mutex::new(Cells {
+                q: vec![0.0; n],
+                moment: vec![0.0; failing],
+                plastic: vec![0.0; failing],
+            }),
+            thickness: model.thickness,
         }
     }
 
-    /// The cells' `q` at `u`, in the buffer (a poisoned lock only means another evaluation
-    /// panicked; the buffer is scratch).
-    fn cells(&self, u: &[f64]) -> std::sync::MutexGuard<'_, Vec<f64>> {
-        let mut q = self.q.lock().unwrap_or_else(|e| e.into_inner());
-        self.rows.cells(u, &mut q);
-        q
+    /// The cells' buffers with `q` at `u`, less the plastic moments of the failing interfaces
+    /// in `failure`'s state (a poisoned lock only means another evaluation panicked; the
+    /// buffers are scratch).
+    fn cells(&self, u: &[f64], failure: Option<&Failure<'_>>) -> std::sync::MutexGuard<'_, Cells> {
+        let mut cells = self.cells.lock().unwrap_or_else(|e| e.into_inner());
+        match failure {
+            Some((plastic, state)) => {
+                let Cells {
+                    q,
+                    moment,
+                    plastic: moments,
+                } = &mut *cells;
+                failing_of::<Rigid, 3>(*plastic).plastic_moments(state, self.thickness, moments);
+                self.rows.cells_less(u, moments, q, moment);
+            }
+            None => self.rows.cells(u, &mut cells.q),
+        }
+        cells
     }
 }
 
@@ -81,8 +114,28 @@ impl<C: Correction> Evaluator for WithPoisson<C> {
         self.correction.kind()
     }
     fn internal_force(&self, u: &[f64], f: &mut [f64]) {
-        let q = self.cells(u);
-        self.correction.internal_force(u, f, &q);
+        let cells = self.cells(u, None);
+        self.correction.internal_force(u, f, &cells.q, None);
+    }
+    fn internal_force_failing(&self, u: &[f64], f: &mut [f64], failure: Failure<'_>) {
+        let cells = self.cells(u, Some(&failure));
+        self.correction
+            .internal_force(u, f, &cells.q, Some(failure));
+    }
+    /// `½ t Σ_c (q_c (G U)_c − Λ_c s_c²)`, `s = G U − s_p` with the plastic moments of `state`,
+    /// of the last evaluation: `½ Uᵀ f_P` less the correction's energy `½ t Σ Λ s²`.
+    fn energy_offset(&self, (plastic, state): (&dyn PlasticForces, &FailureState)) -> f64 {
+        let mut cells = self.cells.lock().unwrap_or_else(|e| e.into_inner());
+        let Cells {
+            q,
+            moment,
+            plastic: moments,
+        } = &mut *cells;
+        failing_of::<Rigid, 3>(plastic).plastic_moments(state, self.thickness, moments);
+        let offset: f64 = (q.iter().zip(&*moment).zip(&*moments).zip(&self.rows.scale))
+            .map(|(((q, m), p), scale)| q * m - scale * (m - p) * (m - p))
+            .sum();
+        0.5 * self.thickness * offset
     }
     fn bytes(&self) -> usize {
         self.rows.bytes() + self.correction.bytes()
@@ -101,21 +154,22 @@ impl<C: Correction> FusedStep for WithPoisson<C> {
         loaded: Option<&[u32]>,
         update: &Update,
     ) -> f64 {
-        let q = self.cells(u);
-        self.correction.advance((u, v, force), loaded, update, &q)
+        let cells = self.cells(u, None);
+        self.correction
+            .advance((u, v, force), loaded, update, &cells.q, None)
     }
     fn advance_failing(
         &self,
-        _: &mut [f64],
-        _: &mut [f64],
-        _: &mut [f64],
-        _: Option<&[u32]>,
-        _: &Update,
-        _: Failure<'_>,
+        u: &mut [f64],
+        v: &mut [f64],
+        force: &mut [f64],
+        loaded: Option<&[u32]>,
+        update: &Update,
+        failure: Failure<'_>,
     ) -> f64 {
-        unreachable!(
-            "a rigid-poisson model has no failing interfaces (the scene check refuses them)"
-        )
+        let cells = self.cells(u, Some(&failure));
+        self.correction
+            .advance((u, v, force), loaded, update, &cells.q, Some(failure))
     }
 }
 
@@ -138,8 +192,8 @@ impl Correction for ElementWisePoisson {
     fn kind(&self) -> EvaluatorKind {
         EvaluatorKind::ElementWise
     }
-    fn internal_force(&self, u: &[f64], f: &mut [f64], q: &[f64]) {
-        self.springs.internal_force_corrected(u, f, q);
+    fn internal_force(&self, u: &[f64], f: &mut [f64], q: &[f64], failure: Option<Failure<'_>>) {
+        self.springs.internal_force_corrected(u, f, q, failure);
     }
     fn advance(
         &self,
@@ -147,8 +201,10 @@ impl Correction for ElementWisePoisson {
         loaded: Option<&[u32]>,
         update: &Update,
         q: &[f64],
+        failure: Option<Failure<'_>>,
     ) -> f64 {
-        self.springs.advance_corrected(state, loaded, update, q)
+        self.springs
+            .advance_corrected(state, loaded, update, q, failure)
     }
     fn bytes(&self) -> usize {
         self.springs.bytes()
@@ -204,6 +260,25 @@ struct Pairs<'a> {
     q: &'a [f64],
 }
 
+impl Pairs<'_> {
+    /// The correction's forces on `a` and `b` of the pair at `face`.
+    #[inline(always)]
+    fn correction(&self, face: &Face<Block<3>>) -> [[f64; 3]; 2] {
+        let [on_a, on_b] = &self.of.pairs[place(self.faces(), face)];
+        let (qa, qb) = (self.q[face.a as usize], self.q[face.b as usize]);
+        [on_a.map(|c| c * qb), on_b.map(|c| c * qa)]
+    }
+}
+
+/// Adds a pair's correction forces.
+#[inline(always)]
+fn add_correction([pa, pb]: [[f64; 3]; 2], fa: &mut [f64; 3], fb: &mut [f64; 3]) {
+    for p in 0..3 {
+        fa[p] += pa[p];
+        fb[p] += pb[p];
+    }
+}
+
 impl Couplings<3> for Pairs<'_> {
     type Ref = Block<3>;
     const PREFETCH: bool = true;
@@ -220,25 +295,20 @@ impl Couplings<3> for Pairs<'_> {
         Self: 'b;
     #[inline(always)]
     fn coupling<'b>(&'b self, face: &'b Face<Block<3>>) -> Self::Coupling<'b> {
-        let [on_a, on_b] = &self.of.pairs[place(self.faces(), face)];
-        let (qa, qb) = (self.q[face.a as usize], self.q[face.b as usize]);
-        (&face.record, [on_a.map(|c| c * qb), on_b.map(|c| c * qa)])
+        (&face.record, self.correction(face))
     }
     #[inline(always)]
     fn add_pair(
         &self,
         lanes: impl Lanes,
-        (k, [pa, pb]): (&Block<3>, [[f64; 3]; 2]),
+        (k, correction): (&Block<3>, [[f64; 3]; 2]),
         ua: &[f64; 3],
         ub: &[f64; 3],
         fa: &mut [f64; 3],
         fb: &mut [f64; 3],
     ) {
         self.of.springs.add_pair(lanes, k, ua, ub, fa, fb);
-        for p in 0..3 {
-            fa[p] += pa[p];
-            fb[p] += pb[p];
-        }
+        add_correction(correction, fa, fb);
     }
     fn add_ground(&self, face: &Face<Block<3>>, ua: &[f64; 3], fa: &mut [f64; 3]) {
         self.of.springs.add_ground(face, ua, fa);
@@ -253,13 +323,67 @@ impl Couplings<3> for Pairs<'_> {
     }
 }
 
+/// [`Pairs`] whose blocks carry failing interfaces ([`WithFailure`], its laws acting on the
+/// jump of `q`).
+struct FailingPairs<'a> {
+    pairs: Pairs<'a>,
+    failing: WithFailure<'a, Rigid, 3>,
+}
+
+impl Couplings<3> for FailingPairs<'_> {
+    type Ref = Block<3>;
+    const PREFETCH: bool = true;
+    const RUNS: bool = false;
+    const WIDE: bool = false;
+    #[inline(always)]
+    fn faces(&self) -> &[Face<Block<3>>] {
+        self.pairs.faces()
+    }
+    /// What the block carries, and the correction's forces on `a` and `b`.
+    type Coupling<'b>
+        = ((&'b Block<3>, &'b Carry<[f64; 2]>, Jump), [[f64; 3]; 2])
+    where
+        Self: 'b;
+    #[inline(always)]
+    fn coupling<'b>(&'b self, face: &'b Face<Block<3>>) -> Self::Coupling<'b> {
+        (self.failing.coupling(face), self.pairs.correction(face))
+    }
+    #[inline(always)]
+    fn add_pair(
+        &self,
+        lanes: impl Lanes,
+        (carried, correction): ((&Block<3>, &Carry<[f64; 2]>, Jump), [[f64; 3]; 2]),
+        ua: &[f64; 3],
+        ub: &[f64; 3],
+        fa: &mut [f64; 3],
+        fb: &mut [f64; 3],
+    ) {
+        self.failing.add_pair(lanes, carried, ua, ub, fa, fb);
+        add_correction(correction, fa, fb);
+    }
+    fn add_ground(&self, face: &Face<Block<3>>, ua: &[f64; 3], fa: &mut [f64; 3]) {
+        self.pairs.add_ground(face, ua, fa);
+    }
+    #[inline(always)]
+    fn add_own(&self, e: usize, ue: &[f64; 3], f: &mut [f64; 3]) {
+        self.pairs.add_own(e, ue, f);
+    }
+}
+
 impl Correction for AssembledPoisson {
     fn kind(&self) -> EvaluatorKind {
         EvaluatorKind::Assembled
     }
-    fn internal_force(&self, u: &[f64], f: &mut [f64], q: &[f64]) {
+    fn internal_force(&self, u: &[f64], f: &mut [f64], q: &[f64], failure: Option<Failure<'_>>) {
         let pairs = Pairs { of: self, q };
-        self.springs.sweep().evaluate(&pairs, u, f);
+        let sweep = self.springs.sweep();
+        match failure {
+            Some(failure) => {
+                let failing = self.springs.with_failure(failure).jumped(q);
+                sweep.evaluate(&FailingPairs { pairs, failing }, u, f);
+            }
+            None => sweep.evaluate(&pairs, u, f),
+        }
     }
     fn advance(
         &self,
@@ -267,11 +391,18 @@ impl Correction for AssembledPoisson {
         loaded: Option<&[u32]>,
         update: &Update,
         q: &[f64],
+        failure: Option<Failure<'_>>,
     ) -> f64 {
         let pairs = Pairs { of: self, q };
-        self.springs
-            .sweep()
-            .advance(&pairs, u, v, force, loaded, update)
+        let sweep = self.springs.sweep();
+        match failure {
+            Some(failure) => {
+                let failing = self.springs.with_failure(failure).jumped(q);
+                let pairs = FailingPairs { pairs, failing };
+                sweep.advance(&pairs, u, v, force, loaded, update)
+            }
+            None => sweep.advance(&pairs, u, v, force, loaded, update),
+        }
     }
     fn bytes(&self) -> usize {
         use std::mem::size_of_val;
@@ -411,6 +542,19 @@ impl FacetPressures {
         }
         let most = (0..n).map(|e| 1 + self.sides(e).len()).max().unwrap_or(0);
         (blocks, most)
+    }
+
+    /// [`FacetPressures::cells`] with `s = G U − s_p`, less the plastic moments `plastic` of
+    /// the failing interfaces; `moment` gets `G U`.
+    fn cells_less(&self, u: &[f64], plastic: &[f64], q: &mut [f64], moment: &mut [f64]) {
+        let (u, _) = u.as_chunks::<3>();
+        for_each_chunk_pair(q, moment, CHUNK, |first, q, moment| {
+            for (k, (q, m)) in q.iter_mut().zip(moment).enumerate() {
+                let e = first + k;
+                *m = self.moment(e, u);
+                *q = self.scale[e] * (*m - plastic[e]);
+            }
+        });
     }
 
     /// The cells' `q_e = Λ_e s_e` at `u`, from the springs alone (the loads' share is in `P`).
@@ -563,10 +707,15 @@ mod tests {
     use crate::input::scene::Scene;
 
     fn voronoi(nu: f64) -> Model {
+        voronoi_with(nu, "")
+    }
+
+    /// [`voronoi`] with `interface` added to the material.
+    fn voronoi_with(nu: f64, interface: &str) -> Model {
         Model::build(
             &Scene::from_json(&format!(
                 r#"{{"name": "p", "thickness": 0.5, "plane": "stress", "formulation": {{"kind": "rigid-poisson"}},
-                "materials": {{"m": {{"E": 1e10, "nu": {nu}, "rho": 2000}}}},
+                "materials": {{"m": {{"E": 1e10, "nu": {nu}, "rho": 2000{interface}}}}},
                 "bodies": [{{"name": "b", "material": "m",
                     "mesh": {{"kind": "voronoi", "origin": [0, 0], "size": [1, 1], "sites": 300, "seed": 3, "lloyd": 30}}}}],
                 "time": {{"dt": 1e-6, "steps": 1}}}}"#
@@ -670,6 +819,50 @@ mod tests {
                 worst <= 1e-12 * scale,
                 "assembled against {name}: {worst:e} of {scale:e}"
             );
+        }
+    }
+
+    /// Interfaces that can fail but stay elastic give the correction's forces of the elastic
+    /// sweep in both evaluators, to round-off: the failing sweeps carry the same jump; and a
+    /// weak law, which yields, changes them.
+    #[test]
+    fn failing_sweeps_carry_the_correction() {
+        use crate::force::evaluator::build;
+        use crate::force::failure;
+        use crate::input::scene::EvaluatorKind;
+        let law = |f_t: f64| {
+            format!(
+                r#", "interface": {{"kind": "mohr-coulomb", "tensile_strength": {f_t}, "cohesion": {f_t}, "friction_angle": 30}}"#
+            )
+        };
+        let u: Vec<f64> = (0..3 * voronoi(0.3).elements.len())
+            .map(|k| 1e-5 * ((k as f64 * 0.7).sin() + 0.3 * (k as f64 * 1.9).cos()))
+            .collect();
+        let elastic = |kind| {
+            let mut f = vec![0.0; u.len()];
+            build(&voronoi(0.3), kind).internal_force(&u, &mut f);
+            f
+        };
+        let failing = |kind, f_t| {
+            let m = voronoi_with(0.3, &law(f_t));
+            let plastic = failure::build(&m).expect("failing interfaces");
+            let mut state = plastic.initial();
+            let mut f = vec![0.0; u.len()];
+            build(&m, kind).internal_force_failing(&u, &mut f, (&*plastic, &mut state));
+            f
+        };
+        for kind in [EvaluatorKind::Assembled, EvaluatorKind::ElementWise] {
+            let want = elastic(kind);
+            let scale = want.iter().fold(0.0f64, |s, x| s.max(x.abs()));
+            let diff = |f: &[f64]| {
+                want.iter()
+                    .zip(f)
+                    .fold(0.0f64, |s, (a, b)| s.max((a - b).abs()))
+            };
+            let strong = diff(&failing(kind, 1e12));
+            assert!(strong <= 1e-12 * scale, "{kind:?}: {strong:e} of {scale:e}");
+            let weak = diff(&failing(kind, 1e4));
+            assert!(weak > 1e-3 * scale, "{kind:?}: a weak law changed {weak:e}");
         }
     }
 
