@@ -1,7 +1,9 @@
 //! `rbsm calibrate` (issue 44, item 3): the calibration's inverse where it is known, and bad
 //! calibration files refused by key.
 
-use rbsm::analysis::calibrate::{calibrate, run_local, CalibrationSpec};
+use rbsm::analysis::calibrate::{
+    calibrate, run_local, specimen, CalibrationSpec, Facet, Job, Test,
+};
 
 /// On squares the facets' strengths are the material's: a bar in tension carries its stress
 /// on the facets across it, which open at `f_t'`; a prism between smooth platens carries it
@@ -100,6 +102,12 @@ fn bad_calibration_files_name_the_key() {
             "law.friction_residual",
             "[0, 0.6]",
         ),
+        (
+            "/formulation",
+            serde_json::json!({"kind": "hybrid", "penalty": -1.0}),
+            "formulation.penalty",
+            "> 0",
+        ),
     ];
     for (pointer, value, key, range) in cases {
         let mut v = base.clone();
@@ -171,4 +179,40 @@ fn the_tension_peak_holds_at_half_the_speed() {
     let (fast, slow) = (peak(1.0), peak(2.0));
     assert!(fast > 2e6, "{fast}");
     assert!((fast / slow - 1.0).abs() < 0.01, "{fast} against {slow}");
+}
+
+/// The specimens are of the spec's `formulation`: round 0's elastic job on Voronoi cells
+/// finds the material's `ν` with `rigid-poisson`, and the rigid lattice's (below 0.15) without.
+#[test]
+fn the_specimens_take_the_formulation() {
+    let nu = |formulation: &str| {
+        let spec = CalibrationSpec::from_json(&format!(
+            r#"{{"name": "c", "rho": 2400, "width": 0.05, "formulation": {formulation},
+                "targets": {{"E": 3e10, "nu": 0.18, "tensile_strength": 3e6, "fracture_energy": 100,
+                            "compressive_strength": 3e7}},
+                "cells": {{"sizes": [0.005], "seeds": [1]}}}}"#
+        ))
+        .unwrap();
+        let job = Job {
+            round: 0,
+            test: Test::Elastic,
+            size: 0.005,
+            seed: 1,
+            facet: Facet {
+                e: 3e10,
+                nu: 0.18,
+                tensile_strength: 3e6,
+                shear_strength: 7.5e6,
+                fracture_energy: 100.0,
+            },
+        };
+        specimen(&spec, &job).unwrap().second
+    };
+    let poisson = nu(r#"{"kind": "rigid-poisson"}"#);
+    assert!(
+        (poisson / 0.18 - 1.0).abs() < 0.03,
+        "rigid-poisson ν = {poisson}"
+    );
+    let rigid = nu(r#"{"kind": "rigid"}"#);
+    assert!(rigid < 0.15, "rigid ν = {rigid}");
 }
