@@ -32,7 +32,7 @@ use crate::force::failure::{FailingInterfaces, FailureState, Jump};
 use crate::input::scene::EvaluatorKind;
 use crate::lanes::{spread, Lanes, Wide};
 use crate::mesh::geometry::Vec2;
-use crate::model::formulation::{Hybrid, Kinematics, Rigid, Springs};
+use crate::model::formulation::{Formulation, Hybrid, Kinematics, Rigid, Springs};
 use crate::model::mass::Update;
 use crate::model::{Model, GROUND};
 
@@ -182,6 +182,10 @@ struct ByLaw<K: Kernel<N>, const N: usize> {
     records: Vec<Record<K, N>>,
     /// Per failing interface, its elastic record and its [`Screen`]; empty unless `K` screens.
     screens: Vec<(Record<K, N>, Screen)>,
+    /// Per failing interface of a `rigid-poisson` model, `t L k_s h`: what the odd part of the
+    /// correction's jump, `(q_a − q_b) g`, adds to `t L |λ₁|` per unit `|q_a − q_b|`
+    /// ([`Kernel::screened_jumped`]); empty otherwise.
+    jump_odd: Vec<f64>,
 }
 
 /// The mark of a [`ByLaw`] face whose interface fails.
@@ -232,10 +236,23 @@ impl<K: Kernel<N>, const N: usize> ByLaw<K, N> {
         } else {
             Vec::new()
         };
+        let jump_odd = if K::SCREENS && model.formulation == Formulation::RigidPoisson {
+            failing
+                .iter()
+                .map(|&k| {
+                    let i = &model.interfaces[k as usize];
+                    let [_, k_s] = model.law_of(i).springs([i.k_n, i.k_s]);
+                    model.thickness * i.length * k_s * i.gauss_offset()
+                })
+                .collect()
+        } else {
+            Vec::new()
+        };
         ByLaw {
             faces,
             records: kept,
             screens,
+            jump_odd,
         }
     }
 }
@@ -287,7 +304,7 @@ impl<K: Kernel<N>, const N: usize> Couplings<N> for ByLawSweep<'_, K, N> {
     ) {
         if record & BY_LAW != 0 {
             let j = (record & !BY_LAW) as usize;
-            if K::SCREENS && jump.is_none() {
+            if K::SCREENS {
                 let screens = &self.by_law.screens;
                 #[cfg(target_arch = "x86_64")]
                 if let Some(ahead) = screens.get(j + BY_LAW_AHEAD) {
@@ -295,7 +312,18 @@ impl<K: Kernel<N>, const N: usize> Couplings<N> for ByLawSweep<'_, K, N> {
                 }
                 if self.failing.is_fresh(j, self.state) {
                     let (record, screen) = &screens[j];
-                    if let Some([on_a, on_b]) = K::screened(record, ua, ub, screen) {
+                    let passed = match jump {
+                        None => K::screened(record, ua, ub, screen),
+                        Some([qa, qb]) => K::screened_jumped(
+                            record,
+                            ua,
+                            ub,
+                            screen,
+                            record.da * qa - record.db * qb,
+                            self.by_law.jump_odd[j] * (qa - qb).abs(),
+                        ),
+                    };
+                    if let Some([on_a, on_b]) = passed {
                         sub(fa, &on_a);
                         sub(fb, &on_b);
                         return;
@@ -402,6 +430,19 @@ pub trait Kernel<const N: usize>: Kinematics<N> + Sized {
     ) -> Option<[[f64; N]; 2]> {
         None
     }
+    /// [`Kernel::screened`] under the Poisson correction: [`Kernel::jumped_forces`] with the
+    /// jump's midpoint value `extra`, where its odd part adds at most `odd` to `t L |λ₁|`.
+    #[inline(always)]
+    fn screened_jumped(
+        _f: &Record<Self, N>,
+        _ua: &[f64; N],
+        _ub: &[f64; N],
+        _screen: &Screen,
+        _extra: Vec2,
+        _odd: f64,
+    ) -> Option<[[f64; N]; 2]> {
+        None
+    }
 }
 
 /// A disc of tractions `|λ| ≤ r` about the origin for an edge of length `L`, as
@@ -476,6 +517,21 @@ impl Kernel<3> for Rigid {
         let [on_a, on_b] = Self::face_forces(f, ua, Some(ub));
         let w = f.odd * (ub[2] - ua[2]);
         (on_a[0].abs() + on_a[1].abs() + w.abs() * per_h <= reach).then_some([on_a, on_b])
+    }
+    /// The jump's odd part `(q_a − q_b) g` lies along the edge: `t L |λ₁|` grows by at most
+    /// `t L k_s h |q_a − q_b|` (`odd`).
+    #[inline(always)]
+    fn screened_jumped(
+        f: &Record<Self, 3>,
+        ua: &[f64; 3],
+        ub: &[f64; 3],
+        &[per_h, reach]: &Screen,
+        extra: Vec2,
+        odd: f64,
+    ) -> Option<[[f64; 3]; 2]> {
+        let [on_a, on_b] = rigid_forces(f, ua, Some(ub), Some(extra));
+        let w = f.odd * (ub[2] - ua[2]);
+        (on_a[0].abs() + on_a[1].abs() + w.abs() * per_h + odd <= reach).then_some([on_a, on_b])
     }
 }
 
@@ -999,7 +1055,10 @@ impl<K: Kernel<N>, const N: usize> Evaluator for ElementWise<K, N> {
     fn bytes(&self) -> usize {
         use std::mem::size_of_val;
         let by_law = self.by_law.as_ref().map_or(0, |b| {
-            size_of_val(&b.faces[..]) + size_of_val(&b.records[..]) + size_of_val(&b.screens[..])
+            size_of_val(&b.faces[..])
+                + size_of_val(&b.records[..])
+                + size_of_val(&b.screens[..])
+                + size_of_val(&b.jump_odd[..])
         });
         self.faces.bytes() + size_of_val(&self.interior().0[..]) + self.sweep.bytes() + by_law
     }
