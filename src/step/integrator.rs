@@ -569,7 +569,7 @@ impl<'a> CentralDifference<'a> {
         self.force_clear = false;
         let elastic = if energy {
             let offset = self.failure.as_ref().map_or(0.0, |(p, s)| {
-                p.energy_offset(&self.u, s) + self.evaluator.energy_offset((*p, s))
+                p.energy_offset(&self.u, s) + self.evaluator.energy_offset(&self.u, (*p, s))
             }) + self
                 .elements
                 .as_ref()

@@ -44,11 +44,11 @@ pub trait Evaluator: Send + Sync {
         self.internal_force(u, f);
         plastic.add_plastic(u, state, f);
     }
-    /// What its last [`Evaluator::internal_force_failing`] adds to `½ Uᵀ f_int` beyond the
-    /// elastic energy and [`PlasticForces::energy_offset`], with the failing interfaces in
-    /// `state` as it left them (J): zero but for the Poisson correction's share
+    /// What its last [`Evaluator::internal_force_failing`], at `u`, adds to `½ Uᵀ f_int`
+    /// beyond the elastic energy and [`PlasticForces::energy_offset`], with the failing
+    /// interfaces in `state` as it left them (J): zero but for the Poisson correction's share
     /// ([`WithPoisson`]).
-    fn energy_offset(&self, _failure: (&dyn PlasticForces, &FailureState)) -> f64 {
+    fn energy_offset(&self, _u: &[f64], _failure: (&dyn PlasticForces, &FailureState)) -> f64 {
         0.0
     }
     /// The bytes of data it holds, all of which one evaluation reads.

@@ -30,7 +30,7 @@ use crate::model::formulation::{Kinematics, Rigid};
 use crate::model::mass::Update;
 use crate::model::poisson::{load_moment, springs, Poisson};
 use crate::model::{Model, GROUND};
-use crate::parallel::{for_each_chunk, for_each_chunk_pair, CHUNK};
+use crate::parallel::for_each_chunk;
 use std::sync::Mutex;
 
 /// A rigid evaluator that steps with the Poisson correction's forces of the cells' `q`.
@@ -63,11 +63,10 @@ pub struct WithPoisson<C: Correction> {
     thickness: f64,
 }
 
-/// The cells' buffers of an evaluation: `q`, and where interfaces fail the springs' moments
-/// `G U` and the plastic ones `s_p` that `s = G U − s_p` loses (what the energy books need).
+/// The cells' buffers of an evaluation: `q`, and where interfaces fail the plastic moments
+/// `s_p` that `s = G U − s_p` loses.
 struct Cells {
     q: Vec<f64>,
-    moment: Vec<f64>,
     plastic: Vec<f64>,
 }
 
@@ -81,7 +80,6 @@ impl<C: Correction> WithPoisson<C> {
             correction,
             cells: Mutex::new(Cells {
                 q: vec![0.0; n],
-                moment: vec![0.0; failing],
                 plastic: vec![0.0; failing],
             }),
             thickness: model.thickness,
@@ -97,11 +95,10 @@ impl<C: Correction> WithPoisson<C> {
             Some((plastic, state)) => {
                 let Cells {
                     q,
-                    moment,
                     plastic: moments,
                 } = &mut *cells;
                 failing_of::<Rigid, 3>(*plastic).plastic_moments(state, self.thickness, moments);
-                self.rows.cells_less(u, moments, q, moment);
+                self.rows.cells_less(u, moments, q);
             }
             None => self.rows.cells(u, &mut cells.q),
         }
@@ -122,18 +119,26 @@ impl<C: Correction> Evaluator for WithPoisson<C> {
         self.correction
             .internal_force(u, f, &cells.q, Some(failure));
     }
-    /// `½ t Σ_c (q_c (G U)_c − Λ_c s_c²)`, `s = G U − s_p` with the plastic moments of `state`,
-    /// of the last evaluation: `½ Uᵀ f_P` less the correction's energy `½ t Σ Λ s²`.
-    fn energy_offset(&self, (plastic, state): (&dyn PlasticForces, &FailureState)) -> f64 {
+    /// `½ t Σ_c (q_c (G U)_c − Λ_c s_c²)`, `q` of the last evaluation (at `u`) and
+    /// `s = G U − s_p` with the plastic moments of `state`: `½ Uᵀ f_P` less the correction's
+    /// energy `½ t Σ Λ s²`.
+    fn energy_offset(
+        &self,
+        u: &[f64],
+        (plastic, state): (&dyn PlasticForces, &FailureState),
+    ) -> f64 {
         let mut cells = self.cells.lock().unwrap_or_else(|e| e.into_inner());
         let Cells {
             q,
-            moment,
             plastic: moments,
         } = &mut *cells;
         failing_of::<Rigid, 3>(plastic).plastic_moments(state, self.thickness, moments);
-        let offset: f64 = (q.iter().zip(&*moment).zip(&*moments).zip(&self.rows.scale))
-            .map(|(((q, m), p), scale)| q * m - scale * (m - p) * (m - p))
+        let (u, _) = u.as_chunks::<3>();
+        let offset: f64 = (0..q.len())
+            .map(|e| {
+                let (m, s) = (self.rows.moment(e, u), self.rows.scale[e]);
+                q[e] * m - s * (m - moments[e]) * (m - moments[e])
+            })
             .sum();
         0.5 * self.thickness * offset
     }
@@ -545,14 +550,13 @@ impl FacetPressures {
     }
 
     /// [`FacetPressures::cells`] with `s = G U − s_p`, less the plastic moments `plastic` of
-    /// the failing interfaces; `moment` gets `G U`.
-    fn cells_less(&self, u: &[f64], plastic: &[f64], q: &mut [f64], moment: &mut [f64]) {
+    /// the failing interfaces.
+    fn cells_less(&self, u: &[f64], plastic: &[f64], q: &mut [f64]) {
         let (u, _) = u.as_chunks::<3>();
-        for_each_chunk_pair(q, moment, CHUNK, |first, q, moment| {
-            for (k, (q, m)) in q.iter_mut().zip(moment).enumerate() {
+        for_each_chunk(q, |first, chunk| {
+            for (k, q) in chunk.iter_mut().enumerate() {
                 let e = first + k;
-                *m = self.moment(e, u);
-                *q = self.scale[e] * (*m - plastic[e]);
+                *q = self.scale[e] * (self.moment(e, u) - plastic[e]);
             }
         });
     }
