@@ -291,7 +291,8 @@ impl<K: Kernel<N>, const N: usize> Couplings<N> for ByLawSweep<'_, K, N> {
         (face.record, jump)
     }
     /// A sweep computes each face once: the points of a failing interface are its alone. A
-    /// failing interface is screened on its elastic record where the correction adds no jump.
+    /// fresh failing interface is screened on its elastic record, with the correction's jump
+    /// where there is one ([`Kernel::screened_jumped`]).
     #[inline(always)]
     fn add_pair(
         &self,
