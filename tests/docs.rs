@@ -51,6 +51,7 @@ fn the_bundled_scenes_table_quotes_the_scenes() {
         ("tension_bar.json", "{} Voronoi cells"),
         ("beam_drop.json", "{} Voronoi cells"),
         ("brazilian_disk.json", "{} Voronoi cells"),
+        ("notched_beam.json", "{} Voronoi cells"),
     ] {
         let sites = &scene_json(name)["bodies"][0]["mesh"]["sites"];
         contains(

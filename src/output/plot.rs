@@ -80,6 +80,23 @@ pub fn log_log(
     })
 }
 
+/// Named series of `(x, y)` as lines on linear axes (a load–displacement curve over its
+/// reference).
+///
+/// # Errors
+/// plotters cannot draw the chart, or `path` cannot be written.
+pub fn lines(
+    path: &Path,
+    title: &str,
+    x_label: &str,
+    y_label: &str,
+    series: &[(&str, Vec<(f64, f64)>)],
+) -> Result<()> {
+    svg_file(path, (760, 460), |root| {
+        panel(root, path, title, x_label, y_label, series, false)
+    })
+}
+
 /// Error against wall time of the points `(wall_s, error, on_front, label)`: every point as a
 /// grey dot, the Pareto front as a line through red diamonds labelled with their settings.
 ///
