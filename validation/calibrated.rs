@@ -1,8 +1,9 @@
 //! Calibrated fracture (issue 44): the material of `examples/calibrate/concrete.json`
 //! calibrated by `rbsm calibrate`, its figures per cell size against the goals, and benchmarks
 //! that took no part in the calibration: Brazilian splitting of Voronoi disks of the calibrated
-//! material, against the target `f_t`; and, for the concrete of `examples/calibrate/gregoire.json`,
-//! a notched beam in three-point bending against the experiment that concrete comes from. Too long for the main report (its wall time is at the
+//! material, against the target `f_t`; and, for the concrete of
+//! `examples/calibrate/gregoire.json`, a notched beam in three-point bending against the
+//! experiment that concrete comes from. Too long for the main report (its wall time is at the
 //! end of what it writes): `cargo run --release --example calibrated` writes
 //! `validation/calibrated.md`; given another calibration file,
 //! `cargo run --release --example calibrated -- examples/calibrate/<name>.json` writes
