@@ -443,10 +443,10 @@ fn notched_beam(
          the crack mouth opening (CMOD) measured over 20 mm across the notch. Its concrete: \
          `E` = 37 GPa, `f_t` = 3.9 MPa, `G_F` = 143.2 J/m², ρ = 2346 kg/m³ (the values `pypd`'s \
          model of the same test takes; `examples/calibrate/gregoire.json` targets them, with \
-         `ν` = 0.2 and `f_c` = 10 `f_t`, which were not measured for it here and bear little on \
-         a notched beam's peak). The experiment's band of load–CMOD curves (the lowest and \
-         highest specimen) peaks between {} and {} N; the reference peak is their middle, {:.0} \
-         N.\n\n\
+         `ν` = 0.2 and `f_c` = 10 `f_t`, our choices, which bear little on a notched beam's \
+         peak). The experiment's band of load–CMOD curves (at each opening, the lowest and the \
+         highest load among its specimens: an envelope) peaks between {} and {} N; the \
+         reference is the middle of those two peaks, {:.0} N.\n\n\
          The model: `examples/scenes/notched_beam.json` with the calibrated material, its \
          Voronoi cells (the outline's area over `h²` sites) at the calibration's cell sizes and \
          seeds; the notch a slot {:.1} mm wide (a narrower one cuts some of the coarsest \
@@ -454,7 +454,7 @@ fn notched_beam(
          the load a clamp on `v` under the load point, each over 5 mm of the surface, moving \
          down at {} m/s; local damping 0.8. CMOD from the probes `cmod_left` and `cmod_right` \
          on the bottom face, 10 mm either side of the notch.\n\n\
-         | h (m) | sites | seed | peak (N) | / reference | CMOD at the peak (mm) | broken | steps | wall (s) |\n\
+         | h (m) | sites | seed | peak (N) | / reference | CMOD at the peak (mm) | broken at the end | steps | wall (s) |\n\
          |---|---|---|---|---|---|---|---|---|",
         BEAM_PEAKS[0],
         BEAM_PEAKS[1],
@@ -559,12 +559,12 @@ fn notched_beam(
     }
     let _ = writeln!(
         md,
-        "\nThe same beam as an independent computation of the cohesive crack the calibration \
-         aims at: cut into squares of `D`/20, the notch a cut along a column of facets, the \
-         material's own `E`, `ν`, `f_t` and `G_F` on the facets (on squares they are the \
+        "\nThe same beam without the calibration and without the crack's winding path: cut \
+         into squares of `D`/20, the notch a cut along a column of facets, the material's own \
+         `E`, `ν`, `f_t` and `G_F` on the facets (on squares a facet's `f_t` and `G_F` are the \
          material's; the calibrated law's ratios for the rest), so that the crack runs straight \
-         up the ligament in pure opening with the law's linear softening; and with less \
-         fracture energy, to see what the peak owes to it.\n\n\
+         up the ligament in pure opening with the facet law's exponential softening; and with \
+         less fracture energy, to see what the peak owes to it.\n\n\
          | squares | peak (N) | / reference | CMOD at the peak (mm) |\n|---|---|---|---|"
     );
     for g in [1.0, 0.5, 0.3] {
