@@ -751,11 +751,35 @@ fn ground_springs_on_part_of_a_side() {
     };
     assert!(v(0.475) < 0.0, "the beam sags");
     assert!((v(0.275) - v(0.725)).abs() <= 1e-9 * v(0.475).abs());
+    // A strip narrower than a cell: part of one edge, on the same line.
+    let strip = beam(serde_json::json!([
+        {"kind": "ground-spring", "edge": "bottom", "span": [0.31, 0.32]},
+        {"kind": "ground-spring", "edge": "bottom", "span": [0.74, 0.76], "components": ["n"]}]));
+    let setup = Setup::new(
+        &Scene::from_json(&strip.to_string()).unwrap(),
+        &Overrides::default(),
+    )
+    .unwrap();
+    let held: Vec<(f64, f64, f64)> = setup
+        .model
+        .interfaces
+        .iter()
+        .filter(|i| i.b == rbsm::model::GROUND)
+        .map(|i| (i.p1.x.min(i.p2.x), i.p1.x.max(i.p2.x), i.length))
+        .collect();
+    let want = [(0.31, 0.32), (0.74, 0.75), (0.75, 0.76)];
+    assert_eq!(held.len(), want.len(), "{held:?}");
+    for (h, w) in held.iter().zip(want) {
+        assert!(
+            (h.0 - w.0).abs() < 1e-12 && (h.1 - w.1).abs() < 1e-12 && (h.2 - 0.01).abs() < 1e-12,
+            "{held:?}"
+        );
+    }
     let none = beam(serde_json::json!([
-        {"kind": "ground-spring", "edge": "bottom", "span": [0.3, 0.31]}]));
+        {"kind": "ground-spring", "edge": "bottom", "span": [1.5, 1.6]}]));
     expect(
         &error_of(&none),
-        &["bodies[0].supports[0].span", "no edge of side"],
+        &["bodies[0].supports[0].span", "no edge of side", "overlaps"],
     );
     let reversed = beam(serde_json::json!([
         {"kind": "ground-spring", "edge": "bottom", "span": [0.5, 0.1]}]));

@@ -1043,8 +1043,9 @@ pub struct GroundSpringSpec {
     #[serde(default = "both_components")]
     #[schemars(length(min = 1))]
     pub components: Vec<Component>,
-    /// Only the edges of the side whose midpoints lie in `[from, to]` (m) along it: `x` on
-    /// `bottom` and `top`, `y` on `left` and `right` (a bearing plate, a pad under a beam).
+    /// Only the part of the side in `[from, to]` (m) along it: `x` on `bottom` and `top`, `y`
+    /// on `left` and `right` (a bearing plate, a pad under a beam, of any width: an edge partly
+    /// in the range is held over that part only).
     #[serde(default)]
     pub span: Option<[f64; 2]>,
 }

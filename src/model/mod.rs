@@ -509,10 +509,14 @@ impl Model {
                     span,
                 }) => {
                     let span_field = at(&format!("supports[{k}].span"));
-                    for e in supported_edges(mesh, edge, span, &field, &span_field)? {
+                    for (e, [p1, p2]) in
+                        supported_edges(mesh, edge, span, true, &field, &span_field)?
+                    {
                         let mut iface = self
                             .interface(first + e.cell as usize, None, mesh, e.v1, e.v2, material)
                             .map_err(|m| Error::mesh(&spec.name, e.cell as usize, m))?;
+                        // A span may hold part of an edge: a bearing strip on the same line.
+                        (iface.p1, iface.p2, iface.length) = (p1, p2, (p2 - p1).norm());
                         if !components.contains(&Component::N) {
                             iface.k_n = 0.0;
                         }
@@ -540,7 +544,7 @@ impl Model {
                     };
                     let mut moving = Vec::new();
                     let span_field = at(&format!("supports[{k}].span"));
-                    for e in supported_edges(mesh, edge, span, &field, &span_field)? {
+                    for (e, _) in supported_edges(mesh, edge, span, false, &field, &span_field)? {
                         let el = first + e.cell as usize;
                         self.fixed.extend(which.iter().map(|&d| el * nd + d));
                         moving.extend(which.iter().filter(|&&d| d < 2).map(|&d| (el * nd + d, d)));
@@ -850,37 +854,57 @@ fn side_edges<'m>(
     mesh.edges_in(set).map_err(|m| Error::scene(field, m))
 }
 
-/// The boundary edges a support holds: those of its side or group (an error naming `field`
-/// when there are none), and with a `span`, only the side's edges whose midpoints lie in it
-/// along the side (an error naming `span_field` when none does).
+/// The boundary edges a support holds, each with the part of it held (its ends): those of its
+/// side or group (an error naming `field` when there are none); with a `span`, only the side's
+/// edges in it along the side (an error naming `span_field` when none is): with `clip` (a strip
+/// of ground springs) every edge that overlaps the span, cut to it; without (a clamp, which
+/// holds whole elements) the edges whose midpoints lie in it, whole.
 fn supported_edges<'m>(
     mesh: &'m Mesh,
     set: &EdgeSet,
     span: &Option<[f64; 2]>,
+    clip: bool,
     field: &str,
     span_field: &str,
-) -> Result<Vec<&'m crate::mesh::BoundaryEdge>> {
-    let mut edges = side_edges(mesh, set, field)?;
-    if let (Some([from, to]), EdgeSet::Side(side)) = (span, set) {
-        let along = |e: &&crate::mesh::BoundaryEdge| {
-            let m = 0.5 * (mesh.vertices[e.v1 as usize] + mesh.vertices[e.v2 as usize]);
-            match side {
-                Side::Bottom | Side::Top => m.x,
-                Side::Left | Side::Right => m.y,
+) -> Result<Vec<(&'m crate::mesh::BoundaryEdge, [Vec2; 2])>> {
+    let ends = |e: &crate::mesh::BoundaryEdge| [e.v1, e.v2].map(|v| mesh.vertices[v as usize]);
+    let edges = side_edges(mesh, set, field)?;
+    let (Some([from, to]), EdgeSet::Side(side)) = (span, set) else {
+        return Ok(edges.into_iter().map(|e| (e, ends(e))).collect());
+    };
+    let along = |p: Vec2| match side {
+        Side::Bottom | Side::Top => p.x,
+        Side::Left | Side::Right => p.y,
+    };
+    let held: Vec<_> = edges
+        .into_iter()
+        .filter_map(|e| {
+            let [p1, p2] = ends(e);
+            let (s1, s2) = (along(p1), along(p2));
+            if !clip {
+                return (*from..=*to)
+                    .contains(&(0.5 * (s1 + s2)))
+                    .then_some((e, [p1, p2]));
             }
+            // The edge's parameters where it enters and leaves the span.
+            let at = |s: f64| ((s - s1) / (s2 - s1)).clamp(0.0, 1.0);
+            let (t1, t2) = (at(*from), at(*to));
+            let (t1, t2) = (t1.min(t2), t1.max(t2));
+            (t2 - t1 > 1e-9).then(|| (e, [p1 + t1 * (p2 - p1), p1 + t2 * (p2 - p1)]))
+        })
+        .collect();
+    if held.is_empty() {
+        let what = if clip {
+            "overlaps"
+        } else {
+            "has its midpoint in"
         };
-        edges.retain(|e| (*from..=*to).contains(&along(e)));
-        if edges.is_empty() {
-            return Err(Error::scene(
-                span_field,
-                format!(
-                    "no edge of side `{side:?}` has its midpoint in {:?}",
-                    [from, to]
-                ),
-            ));
-        }
+        return Err(Error::scene(
+            span_field,
+            format!("no edge of side `{side:?}` {what} {:?}", [from, to]),
+        ));
     }
-    Ok(edges)
+    Ok(held)
 }
 
 /// The law of a material's interfaces in a scene: `None` for the elastic one (the model's
