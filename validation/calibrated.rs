@@ -18,8 +18,12 @@ use std::f64::consts::PI;
 use std::fmt::Write as _;
 use std::path::Path;
 
+#[path = "cohesive.rs"]
+mod cohesive;
 #[path = "fixtures/disk.rs"]
 mod disk;
+#[path = "q8.rs"]
+mod q8;
 
 /// The goals of issue 44 on the mean over the seeds at each cell size.
 const GOAL_FT: f64 = 0.05;
@@ -27,6 +31,8 @@ const GOAL_GF: f64 = 0.10;
 const GOAL_RATIO: f64 = 0.10;
 const GOAL_SPLIT: f64 = 0.10;
 const GOAL_BEAM: f64 = 0.10;
+/// The continuum reference's element size (m) for the notched beam (`cohesive.rs`).
+const FE_H: f64 = 0.000625;
 
 fn main() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
@@ -384,10 +390,7 @@ fn bend(scene: &Value) -> Bent {
         .chunks(n)
         .map(|row| (1e3 * (row[right] - row[left]), row[force]))
         .collect();
-    let at_peak = curve
-        .iter()
-        .copied()
-        .fold((0.0, f64::MIN), |a, p| if p.1 > a.1 { p } else { a });
+    let at_peak = peak_of(&curve);
     Bent {
         peak: out.summary.clamps[0].peak_force,
         cmod_at_peak: at_peak.0,
@@ -432,6 +435,11 @@ fn notched_beam(
             .abs();
     let clamp = &base["bodies"][0]["supports"][2];
     let speed = -clamp["velocity"][1].as_f64().unwrap();
+    let width = |k: usize| {
+        let span = &base["bodies"][0]["supports"][k]["span"];
+        [0, 1].map(|i| span[i].as_f64().unwrap())
+    };
+    let (strip, load) = (width(0), width(2));
     let reference = 0.5 * (BEAM_PEAKS[0] + BEAM_PEAKS[1]);
     let _ = writeln!(
         md,
@@ -450,9 +458,10 @@ fn notched_beam(
          The model: `examples/scenes/notched_beam.json` with the calibrated material, its \
          Voronoi cells (the outline's area over `h²` sites) at the calibration's cell sizes and \
          seeds; the notch a slot {:.1} mm wide (a narrower one cuts some of the coarsest \
-         cells in two, which the mesher refuses); the supports clamps on `v` (the left one on `u` too) and \
-         the load a clamp on `v` under the load point, each over 5 mm of the surface, moving \
-         down at {} m/s; local damping 0.8. CMOD from the probes `cmod_left` and `cmod_right` \
+         cells in two, which the mesher refuses); the supports ground springs on strips {:.2} mm \
+         wide (the right one a roller: normal springs only), narrower than a cell so that the \
+         beam turns over them as over the experiment's rollers; the load a clamp on `v` over \
+         {:.0} mm of the top face, moving down at {} m/s; local damping 0.8. CMOD from the probes `cmod_left` and `cmod_right` \
          on the bottom face, 10 mm either side of the notch.\n\n\
          | h (m) | sites | seed | peak (N) | / reference | CMOD at the peak (mm) | broken at the end | steps | wall (s) |\n\
          |---|---|---|---|---|---|---|---|---|",
@@ -460,6 +469,8 @@ fn notched_beam(
         BEAM_PEAKS[1],
         reference,
         1e3 * (outline[3][0] - outline[2][0]),
+        1e3 * (strip[1] - strip[0]),
+        1e3 * (load[1] - load[0]),
         speed
     );
     let mut series: Vec<(String, Vec<(f64, f64)>)> = vec![
@@ -513,6 +524,11 @@ fn notched_beam(
         }
         means.push((h, Stat::of(peaks.into_iter())));
     }
+    let cohesive = continuum(&base, spec, 1.0, None, FE_H);
+    series.push((
+        "continuum, the material's own cohesive crack".into(),
+        cohesive.clone(),
+    ));
     let mut slow = scene_at(checked, seed);
     let clamp = &mut slow["bodies"][0]["supports"][2];
     clamp["velocity"][1] = json!(-0.5 * speed);
@@ -564,17 +580,60 @@ fn notched_beam(
          `E`, `ν`, `f_t` and `G_F` on the facets (on squares a facet's `f_t` and `G_F` are the \
          material's; the calibrated law's ratios for the rest), so that the crack runs straight \
          up the ligament in pure opening with the facet law's exponential softening; and with \
-         less fracture energy, to see what the peak owes to it.\n\n\
-         | squares | peak (N) | / reference | CMOD at the peak (mm) |\n|---|---|---|---|"
+         less fracture energy, to see what the peak owes to it. Beside it, an independent \
+         computation of the same cohesive crack: the beam as an elastic continuum (square \
+         8-node elements of {FE_H} m, plane stress, the targets' `E` and `ν`, supports held in \
+         `v` over the strips' width, the load a pressure over the clamp's) with Hillerborg's \
+         fictitious crack up the ligament, `σ = f_t e^{{−f_t w / G_F}}` in the crack's opening `w` \
+         (the facet law in pure opening), solved by Petersson's influence method under CMOD \
+         control (`validation/cohesive.rs`).\n\n\
+         | `G_F` | squares: peak (N) | / reference | CMOD at the peak (mm) | continuum: peak (N) \
+         | / reference | CMOD at the peak (mm) | squares / continuum |\n\
+         |---|---|---|---|---|---|---|---|"
     );
     for g in [1.0, 0.5, 0.3] {
         let b = bend(&squares(&base, spec, r, g));
+        let (cmod, fe) = peak_of(&if g == 1.0 {
+            cohesive.clone()
+        } else {
+            continuum(&base, spec, g, None, FE_H)
+        });
         let _ = writeln!(
             md,
-            "| `G_F` × {g} | {:.0} | {:.3} | {:.4} |",
+            "| × {g} | {:.0} | {:.3} | {:.4} | {fe:.0} | {:.3} | {cmod:.4} | {:.3} |",
             b.peak,
             b.peak / reference,
-            b.cmod_at_peak
+            b.cmod_at_peak,
+            fe / reference,
+            b.peak / fe
+        );
+    }
+    // What the supports do: the continuum's peak on other strip widths and elements.
+    let fe = peak_of(&cohesive).1;
+    let _ = writeln!(
+        md,
+        "\nThe supports matter: a support that holds `v` over a width holds the beam's \
+         turning there too. The continuum's peak with the material's own `G_F`:\n\n\
+         | supports held over | elements (m) | peak (N) | / reference | / the strips' |\n\
+         |---|---|---|---|---|"
+    );
+    for (w, h) in [
+        (None, 0.5 * FE_H),
+        (Some(0.0), FE_H),
+        (Some(0.0025), FE_H),
+        (Some(0.005), FE_H),
+    ] {
+        let p = peak_of(&continuum(&base, spec, 1.0, w, h)).1;
+        let what = match w {
+            None => format!("the strips ({:.2} mm)", 1e3 * (strip[1] - strip[0])),
+            Some(0.0) => "a point".into(),
+            Some(w) => format!("{:.1} mm", 1e3 * w),
+        };
+        let _ = writeln!(
+            md,
+            "| {what} | {h} | {p:.0} | {:.3} | {:.3} |",
+            p / reference,
+            p / fe
         );
     }
 }
@@ -583,18 +642,7 @@ fn notched_beam(
 /// notch a cut of no width along the column of facets at mid-span), with the targets' `E`, `ν`,
 /// `f_t` and `g` × `G_F` on the facets and the calibrated law's ratios for the rest.
 fn squares(base: &Value, spec: &CalibrationSpec, r: &CalibrationReport, g: f64) -> Value {
-    let mesh = &base["bodies"][0]["mesh"];
-    let outline: Vec<[f64; 2]> =
-        serde_json::from_value(mesh["domain"]["vertices"].clone()).unwrap();
-    let (length, depth) = (
-        mesh["size"][0].as_f64().unwrap(),
-        mesh["size"][1].as_f64().unwrap(),
-    );
-    let notch = outline
-        .iter()
-        .map(|v| v[1])
-        .filter(|&y| y < depth)
-        .fold(0.0, f64::max);
+    let (length, depth, notch) = outline(base);
     let h = depth / 20.0;
     let (nx, ny) = ((length / h).round() as usize, 20);
     let (mid, cut) = (nx / 2, (notch / h).round() as usize);
@@ -636,4 +684,62 @@ fn squares(base: &Value, spec: &CalibrationSpec, r: &CalibrationReport, g: f64) 
     scene["bodies"][0]["mesh"] =
         json!({ "kind": "polygons", "vertices": vertices, "cells": cells });
     scene
+}
+
+/// The notched beam's length, depth and notch depth, from its mesh's box and outline.
+fn outline(base: &Value) -> (f64, f64, f64) {
+    let mesh = &base["bodies"][0]["mesh"];
+    let vertices: Vec<[f64; 2]> =
+        serde_json::from_value(mesh["domain"]["vertices"].clone()).unwrap();
+    let [length, depth] = [0, 1].map(|k| mesh["size"][k].as_f64().unwrap());
+    let notch = vertices
+        .iter()
+        .map(|v| v[1])
+        .filter(|&y| y < depth)
+        .fold(0.0, f64::max);
+    (length, depth, notch)
+}
+
+/// The notched beam of `base` as a continuum with a cohesive crack up its ligament
+/// (`cohesive.rs`): its outline, thickness, supports (the ground-spring strips, or strips
+/// `support_width` wide at the same places), load, CMOD gauge, and the targets' `E`, `ν`, `f_t`
+/// and `g` × `G_F`. Its load–CMOD curve (mm, N) to 0.2 mm on elements `h` square.
+fn continuum(
+    base: &Value,
+    spec: &CalibrationSpec,
+    g: f64,
+    support_width: Option<f64>,
+    h: f64,
+) -> Vec<(f64, f64)> {
+    let (length, depth, notch) = outline(base);
+    let body = &base["bodies"][0];
+    let span = |k: usize| [0, 1].map(|i| body["supports"][k]["span"][i].as_f64().unwrap());
+    let [s0, s1, load] = [span(0), span(1), span(2)];
+    let x = |k: usize| base["output"]["probes"][k]["at"][0].as_f64().unwrap();
+    let t = spec.targets;
+    let beam = cohesive::Beam {
+        length,
+        span: 0.5 * (s1[0] + s1[1] - s0[0] - s0[1]),
+        depth,
+        notch,
+        thickness: base["thickness"].as_f64().unwrap(),
+        e: t.e,
+        nu: t.nu,
+        f_t: t.tensile_strength,
+        g_f: g * t.fracture_energy,
+        support_width: support_width.unwrap_or(s0[1] - s0[0]),
+        load_width: load[1] - load[0],
+        gauge: 0.5 * (x(1) - x(0)),
+    };
+    let cmods: Vec<f64> = (0..=400).map(|i| 5e-7 * i as f64).collect();
+    let loads = cohesive::load_cmod(&beam, h, &cmods);
+    cmods.iter().zip(loads).map(|(c, p)| (1e3 * c, p)).collect()
+}
+
+/// The highest load of a load–CMOD curve and the CMOD there.
+fn peak_of(curve: &[(f64, f64)]) -> (f64, f64) {
+    curve.iter().fold(
+        (0.0, f64::MIN),
+        |a, &(c, p)| if p > a.1 { (c, p) } else { a },
+    )
 }

@@ -2,6 +2,7 @@
 //! (Q8), plane stress, consistent mass, 3 × 3 Gauss, on a rectangle clamped on its left edge.
 //! Dense generalised eigen solve: fine for the ~1000-DOF meshes used here.
 
+use crate::q8::{self, Lattice};
 use nalgebra::{DMatrix, SMatrix};
 
 /// The lowest `k` circular frequencies (rad/s) of a cantilever `length × depth`, thickness `t`,
@@ -18,101 +19,13 @@ pub fn cantilever_frequencies(
     ny: usize,
     k: usize,
 ) -> Vec<f64> {
-    // Nodes on a (2nx+1) × (2ny+1) lattice, minus the element centres.
-    let (cols, rows) = (2 * nx + 1, 2 * ny + 1);
-    let mut id = vec![usize::MAX; cols * rows];
-    let mut coords = Vec::new();
-    for j in 0..rows {
-        for i in 0..cols {
-            if i % 2 == 1 && j % 2 == 1 {
-                continue;
-            }
-            id[i + cols * j] = coords.len();
-            coords.push((
-                length * i as f64 / (cols - 1) as f64,
-                depth * j as f64 / (rows - 1) as f64,
-            ));
-        }
-    }
-    let n = 2 * coords.len();
+    let mesh = Lattice::new(length, depth, nx, ny);
+    let n = 2 * mesh.coords.len();
     let (mut kg, mut mg) = (DMatrix::<f64>::zeros(n, n), DMatrix::<f64>::zeros(n, n));
-    let d = e / (1.0 - nu * nu)
-        * SMatrix::<f64, 3, 3>::new(1.0, nu, 0.0, nu, 1.0, 0.0, 0.0, 0.0, 0.5 * (1.0 - nu));
-    let (hx, hy) = (length / nx as f64, depth / ny as f64);
-    let gauss = [-(0.6f64).sqrt(), 0.0, (0.6f64).sqrt()];
-    let weight = [5.0 / 9.0, 8.0 / 9.0, 5.0 / 9.0];
-    // Serendipity nodes in natural coordinates, counter-clockwise from the lower-left corner.
-    let nat = [
-        (-1.0, -1.0),
-        (1.0, -1.0),
-        (1.0, 1.0),
-        (-1.0, 1.0),
-        (0.0, -1.0),
-        (1.0, 0.0),
-        (0.0, 1.0),
-        (-1.0, 0.0),
-    ];
+    let (ke, me) = q8::matrices(mesh.h, t, &q8::plane_stress(e, nu), rho);
     for ej in 0..ny {
         for ei in 0..nx {
-            let (i0, j0) = (2 * ei, 2 * ej);
-            let lattice = [
-                (0, 0),
-                (2, 0),
-                (2, 2),
-                (0, 2),
-                (1, 0),
-                (2, 1),
-                (1, 2),
-                (0, 1),
-            ];
-            let nodes: Vec<usize> = lattice
-                .iter()
-                .map(|&(a, b)| id[(i0 + a) + cols * (j0 + b)])
-                .collect();
-            let (mut ke, mut me) = (
-                SMatrix::<f64, 16, 16>::zeros(),
-                SMatrix::<f64, 16, 16>::zeros(),
-            );
-            for (gx, wx) in gauss.iter().zip(weight) {
-                for (gy, wy) in gauss.iter().zip(weight) {
-                    let (xi, eta) = (*gx, *gy);
-                    let mut shape = [0.0; 8];
-                    let mut dxi = [0.0; 8];
-                    let mut deta = [0.0; 8];
-                    for (a, &(s, r)) in nat.iter().enumerate() {
-                        if a < 4 {
-                            shape[a] =
-                                0.25 * (1.0 + s * xi) * (1.0 + r * eta) * (s * xi + r * eta - 1.0);
-                            dxi[a] = 0.25 * s * (1.0 + r * eta) * (2.0 * s * xi + r * eta);
-                            deta[a] = 0.25 * r * (1.0 + s * xi) * (s * xi + 2.0 * r * eta);
-                        } else if s == 0.0 {
-                            shape[a] = 0.5 * (1.0 - xi * xi) * (1.0 + r * eta);
-                            dxi[a] = -xi * (1.0 + r * eta);
-                            deta[a] = 0.5 * r * (1.0 - xi * xi);
-                        } else {
-                            shape[a] = 0.5 * (1.0 + s * xi) * (1.0 - eta * eta);
-                            dxi[a] = 0.5 * s * (1.0 - eta * eta);
-                            deta[a] = -eta * (1.0 + s * xi);
-                        }
-                    }
-                    // Rectangular element: x = x0 + (1 + ξ) hx/2, so d/dx = (2/hx) d/dξ.
-                    let det = 0.25 * hx * hy;
-                    let w = wx * wy * det * t;
-                    let mut b = SMatrix::<f64, 3, 16>::zeros();
-                    let mut nmat = SMatrix::<f64, 2, 16>::zeros();
-                    for a in 0..8 {
-                        let (dx, dy) = (2.0 / hx * dxi[a], 2.0 / hy * deta[a]);
-                        b[(0, 2 * a)] = dx;
-                        b[(1, 2 * a + 1)] = dy;
-                        b[(2, 2 * a)] = dy;
-                        b[(2, 2 * a + 1)] = dx;
-                        nmat[(0, 2 * a)] = shape[a];
-                        nmat[(1, 2 * a + 1)] = shape[a];
-                    }
-                    ke += w * b.transpose() * d * b;
-                    me += (w * rho) * nmat.transpose() * nmat;
-                }
-            }
+            let nodes = mesh.element(ei, ej);
             for p in 0..16 {
                 for q in 0..16 {
                     let (gp, gq) = (2 * nodes[p / 2] + p % 2, 2 * nodes[q / 2] + q % 2);
@@ -123,7 +36,7 @@ pub fn cantilever_frequencies(
         }
     }
     let free: Vec<usize> = (0..n)
-        .filter(|&dof| coords[dof / 2].0 > 1e-12 * length)
+        .filter(|&dof| mesh.coords[dof / 2].0 > 1e-12 * length)
         .collect();
     let kf = DMatrix::from_fn(free.len(), free.len(), |i, j| kg[(free[i], free[j])]);
     let mf = DMatrix::from_fn(free.len(), free.len(), |i, j| mg[(free[i], free[j])]);
@@ -149,8 +62,7 @@ pub fn cst_static(
     q: (f64, f64),
 ) -> Vec<(f64, f64)> {
     let n = 2 * vertices.len();
-    let d = e / (1.0 - nu * nu)
-        * SMatrix::<f64, 3, 3>::new(1.0, nu, 0.0, nu, 1.0, 0.0, 0.0, 0.0, 0.5 * (1.0 - nu));
+    let d = q8::plane_stress(e, nu);
     let mut k = DMatrix::<f64>::zeros(n, n);
     let mut f = nalgebra::DVector::<f64>::zeros(n);
     for tri in triangles {

@@ -22,6 +22,8 @@ mod fracture;
 #[path = "../examples/interface_failure.rs"]
 #[allow(dead_code)]
 mod interface_failure;
+#[path = "q8.rs"]
+mod q8;
 mod trade;
 
 use rbsm::analysis::eigen::{self, Method};
