@@ -38,6 +38,10 @@ pub struct Beam {
 /// `h` (m) square: `h` must divide the half length, the depth, the notch, the support's place,
 /// the gauge and half the widths of the supports and of the load.
 pub fn load_cmod(beam: &Beam, h: f64, cmods: &[f64]) -> Vec<f64> {
+    assert!(
+        beam.load_width > 0.0,
+        "the load is a pressure over a width > 0"
+    );
     let half = 0.5 * beam.length;
     let (nx, ny) = (
         (half / h).round() as usize,
@@ -171,7 +175,12 @@ pub fn load_cmod(beam: &Beam, h: f64, cmods: &[f64]) -> Vec<f64> {
     let mut z = DVector::<f64>::zeros(nl + 1); // u on the ligament, then P
     let mut loads = Vec::with_capacity(cmods.len());
     for &cmod in cmods {
-        loop {
+        for round in 0.. {
+            assert!(
+                round <= 2 * nl,
+                "the crack's open set cycles at CMOD {cmod} m"
+            );
+            let mut converged = false;
             for _ in 0..100 {
                 let (u, p) = (z.rows(0, nl), z[nl]);
                 let r = &k_l * u + &b * p;
@@ -202,9 +211,14 @@ pub fn load_cmod(beam: &Beam, h: f64, cmods: &[f64]) -> Vec<f64> {
                 if step.rows(0, nl).amax() <= 1e-13 * z.rows(0, nl).amax().max(1e-12)
                     && step[nl].abs() <= 1e-12 * z[nl].abs().max(1.0)
                 {
+                    converged = true;
                     break;
                 }
             }
+            assert!(
+                converged,
+                "Newton's method did not converge at CMOD {cmod} m"
+            );
             let (u, p) = (z.rows(0, nl), z[nl]);
             let r = &k_l * u + &b * p;
             let mut changed = false;
