@@ -642,7 +642,7 @@ fn notched_beam(
 /// notch a cut of no width along the column of facets at mid-span), with the targets' `E`, `ν`,
 /// `f_t` and `g` × `G_F` on the facets and the calibrated law's ratios for the rest.
 fn squares(base: &Value, spec: &CalibrationSpec, r: &CalibrationReport, g: f64) -> Value {
-    let (length, depth, notch) = outline(base);
+    let (length, depth, notch) = dimensions(base);
     let h = depth / 20.0;
     let (nx, ny) = ((length / h).round() as usize, 20);
     let (mid, cut) = (nx / 2, (notch / h).round() as usize);
@@ -687,7 +687,7 @@ fn squares(base: &Value, spec: &CalibrationSpec, r: &CalibrationReport, g: f64) 
 }
 
 /// The notched beam's length, depth and notch depth, from its mesh's box and outline.
-fn outline(base: &Value) -> (f64, f64, f64) {
+fn dimensions(base: &Value) -> (f64, f64, f64) {
     let mesh = &base["bodies"][0]["mesh"];
     let vertices: Vec<[f64; 2]> =
         serde_json::from_value(mesh["domain"]["vertices"].clone()).unwrap();
@@ -711,7 +711,7 @@ fn continuum(
     support_width: Option<f64>,
     h: f64,
 ) -> Vec<(f64, f64)> {
-    let (length, depth, notch) = outline(base);
+    let (length, depth, notch) = dimensions(base);
     let body = &base["bodies"][0];
     let span = |k: usize| [0, 1].map(|i| body["supports"][k]["span"][i].as_f64().unwrap());
     let [s0, s1, load] = [span(0), span(1), span(2)];

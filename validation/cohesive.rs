@@ -123,7 +123,9 @@ pub fn load_cmod(beam: &Beam, h: f64, cmods: &[f64]) -> Vec<f64> {
             if ei == nx - 1 && mesh.coords[nodes[1]].1 >= beam.notch - tol {
                 // The right edge (corners 1, 2, middle 5) lies on the ligament.
                 for (node, w) in [nodes[1], nodes[2], nodes[5]].into_iter().zip(simpson) {
-                    let k = ligament.iter().position(|&l| l == node).unwrap();
+                    let Place::Ligament(k) = place[2 * node] else {
+                        unreachable!("a node of the ligament's edge is on the ligament")
+                    };
                     area[k] += w * hy * beam.thickness;
                 }
             }
