@@ -145,6 +145,13 @@ pub struct Disk {
     pub strip: f64,
 }
 
+impl Disk {
+    /// Its material's characteristic length `E G_F / f_t²` (m).
+    pub fn l_ch(&self) -> f64 {
+        self.e * self.g_f / (self.f_t * self.f_t)
+    }
+}
+
 /// The disk's elements (a quarter, `n × n`) and its strips' load at each opening of
 /// `openings` (m, increasing from zero) of the crack at the disk's centre: the load `P` (N) on
 /// each strip, which the opening there follows from first cracking, up to the first load at

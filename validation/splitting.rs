@@ -94,13 +94,15 @@ fn main() {
          |---|---|---|---|---|---|"
     );
     let hondros = (1.0 - (strip / d).powi(2)).powf(-1.5);
-    let (mut peaks, mut first_concrete) = (Vec::new(), 0.0);
+    let (mut peaks, mut first_concrete, mut past) = (Vec::new(), 0.0, None);
     for n in [FINER[0], N, FINER[1]] {
-        let (first, peak, at, area) = split(&disk(&concrete, d, strip), n);
+        // On the tables' elements, followed past the split as well.
+        let (first, peak, at, beyond, area) = follow(&disk(&concrete, d, strip), n, n == N);
+        let peak = peak.expect("the calibrations' disks split");
         if n == N {
             first_concrete = first;
+            past = Some((peak, at, beyond));
         }
-        let peak = peak.expect("the calibrations' disks split");
         let _ = writeln!(
             md,
             "| {n} × {n} | {:.1e} | {first:.4} | {hondros:.4} | {peak:.4} | {:.4} |",
@@ -109,14 +111,14 @@ fn main() {
         );
         peaks.push(peak);
     }
-    let (_, peak, at, beyond, _) = follow(&disk(&concrete, d, strip), N, true);
+    let (peak, at, beyond) = past.expect("the tables' elements are among the checks'");
     let (lowest, back) = beyond.expect("the concrete's disk splits, and its load climbs again");
     let _ = writeln!(
         md,
         "\nPast the split ({:.4} `f_t` at an opening of {:.4} mm at the centre, {N} × {N}) the \
          load falls to {lowest:.4} `f_t`, then climbs back above the split from an opening of \
          {:.4} mm on: the halves stay bonded to the strips.",
-        peak.expect("the concrete's disk splits"),
+        peak,
         at * 1e3,
         back * 1e3
     );
@@ -149,7 +151,7 @@ fn main() {
     for (name, report) in CALIBRATIONS {
         let targets = targets(name);
         let disk = disk(&targets, d, strip);
-        let l_ch = disk.e * disk.g_f / (disk.f_t * disk.f_t);
+        let l_ch = disk.l_ch();
         let peak = split(&disk, N).1.expect("the calibrations' disks split");
         let voronoi = means(&read(report));
         split_range = (split_range.0.min(peak), split_range.1.max(peak));
@@ -208,10 +210,7 @@ fn main() {
          from first cracking without falling by 0.5 %.\n\n\
          | D (m) | D / l_ch |"
     );
-    let l_ch = {
-        let c = disk(&concrete, d, strip);
-        c.e * c.g_f / (c.f_t * c.f_t)
-    };
+    let l_ch = disk(&concrete, d, strip).l_ch();
     for b in strips {
         let _ = write!(md, " b/D = {b:.3} |");
     }
