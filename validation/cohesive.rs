@@ -143,6 +143,9 @@ pub struct Disk {
     /// The strips' width, each centred on the loaded diameter: the strip holds the arc within
     /// half of it of that diameter, in both directions.
     pub strip: f64,
+    /// A rigid block under each strip, if any: as wide as the strip, from the arc down to
+    /// this distance (m) from the centre. A clamp that holds whole cells holds such a block.
+    pub block: Option<f64>,
 }
 
 impl Disk {
@@ -191,7 +194,13 @@ pub fn split_load(
     let coords: Vec<(f64, f64)> = lattice.coords.iter().map(|&c| map(c)).collect();
     // The crack's path: the loaded diameter from the centre up, less its top node, which the
     // strip holds. Symmetry: `v` held on the other diameter; the strip: `u` held, `v = −p`.
-    let on_strip = |(xi, eta): (f64, f64)| eta >= 1.0 - tol && xi <= s + tol;
+    let on_strip = |(xi, eta): (f64, f64)| {
+        let in_block = disk.block.is_some_and(|y| {
+            let (x, at) = map((xi, eta));
+            x <= 0.5 * disk.strip * (1.0 + tol) && at >= y
+        });
+        (eta >= 1.0 - tol && xi <= s + tol) || in_block
+    };
     let crack = path(&lattice.coords, |c| c.0 <= tol && !on_strip(c));
     let mut place = vec![Place::Free(0); 2 * coords.len()];
     for (k, &node) in crack.iter().enumerate() {
