@@ -192,8 +192,8 @@ pub fn split_load(
     let lattice = Lattice::new(1.0, 1.0, n, n);
     let tol = 1e-9;
     let coords: Vec<(f64, f64)> = lattice.coords.iter().map(|&c| map(c)).collect();
-    // The crack's path: the loaded diameter from the centre up, less its top node, which the
-    // strip holds. Symmetry: `v` held on the other diameter; the strip: `u` held, `v = −p`.
+    // The crack's path: the loaded diameter from the centre up, less the nodes the strip (and
+    // its block) holds. Symmetry: `v` held on the other diameter; the strip: `u` held, `v = −p`.
     let on_strip = |(xi, eta): (f64, f64)| {
         let in_block = disk.block.is_some_and(|y| {
             let (x, at) = map((xi, eta));
