@@ -18,6 +18,10 @@ use std::f64::consts::PI;
 use std::fmt::Write as _;
 use std::path::Path;
 
+use beam::{at_half_speed, bend, continuum, dimensions, notch_slot, outline_area, peak_of};
+
+#[path = "beam.rs"]
+mod beam;
 #[path = "cohesive.rs"]
 mod cohesive;
 #[path = "fixtures/disk.rs"]
@@ -33,6 +37,8 @@ const GOAL_SPLIT: f64 = 0.10;
 const GOAL_BEAM: f64 = 0.10;
 /// The continuum reference's element size (m) for the notched beam (`cohesive.rs`).
 const FE_H: f64 = 0.000625;
+/// The continuum's steps of CMOD (m), 400 of them: to 0.2 mm.
+const CMOD: f64 = 5e-7;
 
 fn main() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
@@ -365,42 +371,6 @@ const BEAM_BAND: [(f64, f64, f64); 24] = [
 /// The band's peaks (N), lower and upper, from the same digitised band at its full resolution.
 const BEAM_PEAKS: [f64; 2] = [933.0, 1114.0];
 
-/// One beam run: its load–CMOD curve (mm, N), peak load, CMOD there, broken interfaces, steps
-/// and wall time.
-struct Bent {
-    curve: Vec<(f64, f64)>,
-    peak: f64,
-    cmod_at_peak: f64,
-    broken: usize,
-    steps: u64,
-    wall: f64,
-}
-
-/// Runs a notched-beam scene (its moving clamp's reaction and its two `cmod_*` probes).
-fn bend(scene: &Value) -> Bent {
-    use rbsm::analysis::run::{simulate, RunParams, Silent};
-    let parsed = Scene::from_json(&scene.to_string()).unwrap();
-    let setup = Setup::new(&parsed, &Overrides::default()).unwrap();
-    let out = simulate(&setup, &RunParams::default(), None, &mut Silent).unwrap();
-    let n = out.columns.len();
-    let column = |name: &str| out.columns.iter().position(|c| c.ends_with(name)).unwrap();
-    let (force, left, right) = (column("_force"), column("cmod_left"), column("cmod_right"));
-    let curve: Vec<(f64, f64)> = out
-        .history
-        .chunks(n)
-        .map(|row| (1e3 * (row[right] - row[left]), row[force]))
-        .collect();
-    let at_peak = peak_of(&curve);
-    Bent {
-        peak: out.summary.clamps[0].peak_force,
-        cmod_at_peak: at_peak.0,
-        broken: out.summary.failure.as_ref().map_or(0, |f| f.broken),
-        steps: out.summary.steps,
-        wall: out.summary.wall_time_s,
-        curve,
-    }
-}
-
 /// The half-notched beam of `examples/scenes/notched_beam.json` with the calibrated material, at
 /// the calibration's cell sizes and seeds, against the experiment's band; once at half the
 /// clamp's speed, the check the speed needs (`docs/scene.md`, *Quasi-static runs*).
@@ -423,16 +393,7 @@ fn notched_beam(
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let text = std::fs::read_to_string(root.join("examples/scenes/notched_beam.json")).unwrap();
     let base: Value = serde_json::from_str(&text).unwrap();
-    let mesh = &base["bodies"][0]["mesh"];
-    let outline: Vec<[f64; 2]> =
-        serde_json::from_value(mesh["domain"]["vertices"].clone()).unwrap();
-    let area = 0.5
-        * outline
-            .iter()
-            .zip(outline.iter().cycle().skip(1))
-            .map(|(a, b)| a[0] * b[1] - b[0] * a[1])
-            .sum::<f64>()
-            .abs();
+    let area = outline_area(&base);
     let clamp = &base["bodies"][0]["supports"][2];
     let speed = -clamp["velocity"][1].as_f64().unwrap();
     let width = |k: usize| {
@@ -468,7 +429,7 @@ fn notched_beam(
         BEAM_PEAKS[0],
         BEAM_PEAKS[1],
         reference,
-        1e3 * (outline[3][0] - outline[2][0]),
+        1e3 * notch_slot(&base),
         1e3 * (strip[1] - strip[0]),
         1e3 * (load[1] - load[0]),
         speed
@@ -524,17 +485,12 @@ fn notched_beam(
         }
         means.push((h, Stat::of(peaks.into_iter())));
     }
-    let cohesive = continuum(&base, spec, 1.0, None, FE_H);
+    let cohesive = continuum(&base, spec, 1.0, None, FE_H, CMOD);
     series.push((
         "continuum, the material's own cohesive crack".into(),
         cohesive.clone(),
     ));
-    let mut slow = scene_at(checked, seed);
-    let clamp = &mut slow["bodies"][0]["supports"][2];
-    clamp["velocity"][1] = json!(-0.5 * speed);
-    clamp["ramp"] = json!(2.0 * clamp["ramp"].as_f64().unwrap());
-    slow["time"]["end"] = json!(2.0 * slow["time"]["end"].as_f64().unwrap());
-    let half = bend(&slow);
+    let half = bend(&at_half_speed(&scene_at(checked, seed)));
     let svg = "validation/notched_beam.svg";
     let named: Vec<(&str, Vec<(f64, f64)>)> = series
         .iter()
@@ -596,7 +552,7 @@ fn notched_beam(
         let (cmod, fe) = peak_of(&if g == 1.0 {
             cohesive.clone()
         } else {
-            continuum(&base, spec, g, None, FE_H)
+            continuum(&base, spec, g, None, FE_H, CMOD)
         });
         let _ = writeln!(
             md,
@@ -623,7 +579,7 @@ fn notched_beam(
         (Some(0.0025), FE_H),
         (Some(0.005), FE_H),
     ] {
-        let p = peak_of(&continuum(&base, spec, 1.0, w, h)).1;
+        let p = peak_of(&continuum(&base, spec, 1.0, w, h, CMOD)).1;
         let what = match w {
             None => format!("the strips ({:.2} mm)", 1e3 * (strip[1] - strip[0])),
             Some(0.0) => "a point".into(),
@@ -684,62 +640,4 @@ fn squares(base: &Value, spec: &CalibrationSpec, r: &CalibrationReport, g: f64) 
     scene["bodies"][0]["mesh"] =
         json!({ "kind": "polygons", "vertices": vertices, "cells": cells });
     scene
-}
-
-/// The notched beam's length, depth and notch depth, from its mesh's box and outline.
-fn dimensions(base: &Value) -> (f64, f64, f64) {
-    let mesh = &base["bodies"][0]["mesh"];
-    let vertices: Vec<[f64; 2]> =
-        serde_json::from_value(mesh["domain"]["vertices"].clone()).unwrap();
-    let [length, depth] = [0, 1].map(|k| mesh["size"][k].as_f64().unwrap());
-    let notch = vertices
-        .iter()
-        .map(|v| v[1])
-        .filter(|&y| y < depth)
-        .fold(0.0, f64::max);
-    (length, depth, notch)
-}
-
-/// The notched beam of `base` as a continuum with a cohesive crack up its ligament
-/// (`cohesive.rs`): its outline, thickness, supports (the ground-spring strips, or strips
-/// `support_width` wide at the same places), load, CMOD gauge, and the targets' `E`, `ν`, `f_t`
-/// and `g` × `G_F`. Its load–CMOD curve (mm, N) to 0.2 mm on elements `h` square.
-fn continuum(
-    base: &Value,
-    spec: &CalibrationSpec,
-    g: f64,
-    support_width: Option<f64>,
-    h: f64,
-) -> Vec<(f64, f64)> {
-    let (length, depth, notch) = dimensions(base);
-    let body = &base["bodies"][0];
-    let span = |k: usize| [0, 1].map(|i| body["supports"][k]["span"][i].as_f64().unwrap());
-    let [s0, s1, load] = [span(0), span(1), span(2)];
-    let x = |k: usize| base["output"]["probes"][k]["at"][0].as_f64().unwrap();
-    let t = spec.targets;
-    let beam = cohesive::Beam {
-        length,
-        span: 0.5 * (s1[0] + s1[1] - s0[0] - s0[1]),
-        depth,
-        notch,
-        thickness: base["thickness"].as_f64().unwrap(),
-        e: t.e,
-        nu: t.nu,
-        f_t: t.tensile_strength,
-        g_f: g * t.fracture_energy,
-        support_width: support_width.unwrap_or(s0[1] - s0[0]),
-        load_width: load[1] - load[0],
-        gauge: 0.5 * (x(1) - x(0)),
-    };
-    let cmods: Vec<f64> = (0..=400).map(|i| 5e-7 * i as f64).collect();
-    let loads = cohesive::load_cmod(&beam, h, &cmods);
-    cmods.iter().zip(loads).map(|(c, p)| (1e3 * c, p)).collect()
-}
-
-/// The highest load of a load–CMOD curve and the CMOD there.
-fn peak_of(curve: &[(f64, f64)]) -> (f64, f64) {
-    curve.iter().fold(
-        (0.0, f64::MIN),
-        |a, &(c, p)| if p > a.1 { (c, p) } else { a },
-    )
 }
