@@ -6,7 +6,7 @@
 //! (`cohesive::split_load`); then with rigid blocks in place of the strips, as wide and deep as
 //! the cells that the Voronoi disks' clamps hold (measured on the library's meshes, [`clamped`]).
 //!
-//! `cargo run --release --example splitting` writes `validation/splitting.md` (a few seconds);
+//! `cargo run --release --example splitting` writes `validation/splitting.md` (15 seconds);
 //! it reads the Voronoi disks' means from the committed `validation/calibrated*.md`.
 
 #[path = "cohesive.rs"]
