@@ -285,6 +285,41 @@ fn the_hybrid_footing_levels_off_at_its_conic_collapse_load() {
     );
 }
 
+/// The conic program's mechanism flows normal to the elements' strength, and its stresses are
+/// the ones that dissipate it (Tresca, plane strain): every element's stress lies within `c`,
+/// its plastic strain rate has no volume change, and where it flows its stress does the
+/// dissipation `c √((ε̇_x − ε̇_y)² + γ̇²)` (complementary slackness). The stresses come from each
+/// element's equilibrium and the rates from the cones' multipliers, so a sign or a scale lost
+/// in either fails here.
+#[test]
+fn the_conic_mechanism_flows_normal_to_the_elements_strength() {
+    let s = setup(&footing(10, 0.1), EvaluatorKind::Assembled);
+    let lp = collapse::analyse(&s, None, Points::Gauss).unwrap();
+    let rate = |e: &[f64; 3]| (e[0] - e[1]).hypot(e[2]);
+    let largest = lp.strain_rates.iter().map(rate).fold(0.0, f64::max);
+    assert!(largest > 0.0, "the elements do not flow");
+    let mut flowing = 0;
+    for (sigma, e) in lp.stresses.iter().zip(&lp.strain_rates) {
+        let radius = (0.5 * (sigma[0] - sigma[1])).hypot(sigma[2]);
+        assert!(radius <= C * (1.0 + 1e-6), "R = {radius} Pa above c");
+        assert!(
+            (e[0] + e[1]).abs() <= 1e-6 * largest,
+            "a Tresca element changes volume: {e:?}"
+        );
+        let m = rate(e);
+        if m > 1e-3 * largest {
+            flowing += 1;
+            let power = sigma[0] * e[0] + sigma[1] * e[1] + sigma[2] * e[2];
+            assert!(
+                (power - C * m).abs() <= 1e-4 * C * m,
+                "σ:ε̇ = {power}, c |ε̇| = {}",
+                C * m
+            );
+        }
+    }
+    assert!(flowing > 0, "no element flows");
+}
+
 /// A run stopped at its end and resumed from its state (as a checkpoint does) ends with the
 /// same bits as one run straight through: the elements' plastic strains are part of the state.
 #[test]
