@@ -285,39 +285,74 @@ fn the_hybrid_footing_levels_off_at_its_conic_collapse_load() {
     );
 }
 
-/// The conic program's mechanism flows normal to the elements' strength, and its stresses are
-/// the ones that dissipate it (Tresca, plane strain): every element's stress lies within `c`,
-/// its plastic strain rate has no volume change, and where it flows its stress does the
-/// dissipation `c √((ε̇_x − ε̇_y)² + γ̇²)` (complementary slackness). The stresses come from each
-/// element's equilibrium and the rates from the cones' multipliers, so a sign or a scale lost
-/// in either fails here.
+/// The conic program's mechanism flows normal to the strengths, and its stresses are the ones
+/// that dissipate it (Mohr–Coulomb, φ = 30°, plane strain; the footing of the tests above):
+/// every element's stress lies within `R + p sin φ ≤ c cos φ`; its plastic strain rate dilates
+/// as associated flow says, `ε̇_x + ε̇_y = sin φ |ε̇|` with `|ε̇| = √((ε̇_x − ε̇_y)² + γ̇²)`; where
+/// it flows its stress does the dissipation `c cos φ |ε̇|` (complementary slackness); and the
+/// interfaces' jumps, which `tractions.csv` computes from the elements' velocities and strain
+/// rates through the formulation's own displacement field, open as associated flow says,
+/// `opening ≥ tan φ |slip|`. The stresses come from each element's equilibrium and the rates
+/// from the cones' multipliers: a sign lost in either fails the power, a scale lost in the rates
+/// (against the velocities) the jumps, a wrong pressure coefficient the dilatancy.
 #[test]
-fn the_conic_mechanism_flows_normal_to_the_elements_strength() {
-    let s = setup(&footing(10, 0.1), EvaluatorKind::Assembled);
+fn the_conic_mechanism_flows_normal_to_the_strengths() {
+    let mut scene = footing(10, 0.1);
+    let phi = 30f64.to_radians();
+    scene["materials"]["clay"]["interface"]["friction_angle"] = json!(30);
+    scene["materials"]["clay"]["element"] =
+        json!({"kind": "mohr-coulomb", "cohesion": C, "friction_angle": 30});
+    let s = setup(&scene, EvaluatorKind::Assembled);
     let lp = collapse::analyse(&s, None, Points::Gauss).unwrap();
+    let (sin, cos) = phi.sin_cos();
     let rate = |e: &[f64; 3]| (e[0] - e[1]).hypot(e[2]);
     let largest = lp.strain_rates.iter().map(rate).fold(0.0, f64::max);
     assert!(largest > 0.0, "the elements do not flow");
     let mut flowing = 0;
     for (sigma, e) in lp.stresses.iter().zip(&lp.strain_rates) {
-        let radius = (0.5 * (sigma[0] - sigma[1])).hypot(sigma[2]);
-        assert!(radius <= C * (1.0 + 1e-6), "R = {radius} Pa above c");
+        let (p, radius) = (
+            0.5 * (sigma[0] + sigma[1]),
+            (0.5 * (sigma[0] - sigma[1])).hypot(sigma[2]),
+        );
         assert!(
-            (e[0] + e[1]).abs() <= 1e-6 * largest,
-            "a Tresca element changes volume: {e:?}"
+            radius + p * sin <= C * cos + 1e-6 * C,
+            "σ = {sigma:?} Pa outside the criterion"
         );
         let m = rate(e);
+        assert!(
+            (e[0] + e[1] - sin * m).abs() <= 1e-5 * largest,
+            "ε̇ = {e:?}: not the associated dilatancy"
+        );
         if m > 1e-3 * largest {
             flowing += 1;
             let power = sigma[0] * e[0] + sigma[1] * e[1] + sigma[2] * e[2];
             assert!(
-                (power - C * m).abs() <= 1e-4 * C * m,
-                "σ:ε̇ = {power}, c |ε̇| = {}",
-                C * m
+                (power - C * cos * m).abs() <= 1e-4 * C * m,
+                "σ:ε̇ = {power}, c cos φ |ε̇| = {}",
+                C * cos * m
             );
         }
     }
     assert!(flowing > 0, "no element flows");
+    let dir = tempfile::tempdir().unwrap();
+    collapse::write(dir.path(), &s, &lp).unwrap();
+    let csv = std::fs::read_to_string(dir.path().join("tractions.csv")).unwrap();
+    let jumps: Vec<[f64; 2]> = csv
+        .lines()
+        .skip(1)
+        .map(|row| {
+            let f: Vec<&str> = row.split(',').collect();
+            [f[8].parse().unwrap(), f[9].parse().unwrap()]
+        })
+        .collect();
+    let largest_jump = jumps.iter().map(|j| j[0].hypot(j[1])).fold(0.0, f64::max);
+    assert!(largest_jump > 0.0, "no interface moves");
+    for [opening, slip] in jumps {
+        assert!(
+            opening >= phi.tan() * slip.abs() - 1e-5 * largest_jump,
+            "an interface opens by {opening} while it slips by {slip}"
+        );
+    }
 }
 
 /// A run stopped at its end and resumed from its state (as a checkpoint does) ends with the

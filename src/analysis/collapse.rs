@@ -1,5 +1,6 @@
 //! Limit analysis (`rbsm limit`, the README's *Commands*): the collapse load of the discrete
-//! model a scene builds, by linear programming. RBSM began as discrete limit analysis (Kawai):
+//! model a scene builds, by conic programming (a linear program where no element has a strength).
+//! RBSM began as discrete limit analysis (Kawai):
 //! a structure of rigid elements collapses when enough of its interfaces reach their strength.
 //!
 //! **The static problem**, on the explicit law's own Gauss points. Unknowns: the traction
@@ -29,7 +30,7 @@
 //! unknowns and three rows: the interior-point method factors a KKT system of the unknowns and
 //! constraints at every iteration, and on a 10,240-element hybrid footing that system shrinks
 //! from 274,904 to 213,920 rows and its factor from 9.3e8 to 3.2e8 multiply-adds (in the
-//! minimum-degree order the solver gives it), the solve from 47 s to 16 s. The strain rates of
+//! minimum-degree order the solver gives it), the solve from 46 s to 16 s. The strain rates of
 //! the mechanism are then the cones' multipliers mapped back, `Cᵀ z_c/(t A)`.
 //!
 //! The solver is Clarabel (an interior-point conic solver in Rust, `LDLᵀ` by QDLDL); the
@@ -94,7 +95,7 @@ pub struct CollapseReport {
     pub failing_interfaces: usize,
     /// The unknowns and the constraints of the linear program.
     pub unknowns: usize,
-    /// Equilibrium rows plus strength rows.
+    /// Equilibrium rows, interface strength rows and the rows of the elements' cones.
     pub constraints: usize,
     /// The solver's iterations.
     pub iterations: u32,
@@ -265,6 +266,13 @@ pub fn analyse(
     let yielding: Vec<usize> = (0..model.elements.len())
         .filter(|&e| model.elements[e].strength.is_some())
         .collect();
+    if !yielding.is_empty() && nd != 6 {
+        return Err(Error::scene(
+            "materials.*.element",
+            "an element strength needs the hybrid formulation (its stress lives in the strain \
+             DOFs): rigid elements cannot yield inside",
+        ));
+    }
     let mut stress_of = vec![[Stress::Free(usize::MAX); 3]; yielding.len()];
     let mut strain_row = vec![usize::MAX; n];
     let mut strain_rows: Vec<Vec<(usize, f64)>> = Vec::new();
@@ -627,6 +635,7 @@ fn csc(m: usize, mut columns: Vec<Vec<(usize, f64)>>) -> CscMatrix<f64> {
     for column in &mut columns {
         column.sort_unstable_by_key(|&(r, _)| r);
         let mut last = usize::MAX;
+        let start = rowval.len();
         for &(r, v) in column.iter() {
             if r == last {
                 *nzval.last_mut().expect("an entry") += v;
@@ -636,6 +645,16 @@ fn csc(m: usize, mut columns: Vec<Vec<(usize, f64)>>) -> CscMatrix<f64> {
                 last = r;
             }
         }
+        // Entries that cancelled (a cone's `x₁` row reads `(f_x − f_y)/2`) are left out.
+        let mut kept = start;
+        for k in start..rowval.len() {
+            if nzval[k] != 0.0 {
+                (rowval[kept], nzval[kept]) = (rowval[k], nzval[k]);
+                kept += 1;
+            }
+        }
+        rowval.truncate(kept);
+        nzval.truncate(kept);
         colptr.push(rowval.len());
     }
     CscMatrix::new(m, columns.len(), colptr, rowval, nzval)
