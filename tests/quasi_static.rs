@@ -62,9 +62,7 @@ fn local_damping_settles_on_the_static_solution() {
 fn the_books_close_with_local_damping() {
     let drift = [(0.5, 2000), (0.25, 4000)].map(|(f, steps)| {
         let (_, o) = cantilever(VORONOI, 0.8, steps, f);
-        let col = |name: &str| o.columns.iter().position(|c| c == name).unwrap();
-        let row = &o.history[o.history.len() - o.columns.len()..];
-        let (damping, work) = (row[col("damping")], row[col("external_work")]);
+        let (damping, work) = (o.last("damping").unwrap(), o.last("external_work").unwrap());
         let drift = o.summary.energy.max_relative_drift;
         eprintln!("Δt_crit × {f}: damping took {damping:e} J of {work:e} J; drift {drift:e}");
         assert!(

@@ -27,13 +27,11 @@ pub fn bend(scene: &Value) -> Bent {
     let parsed = Scene::from_json(&scene.to_string()).unwrap();
     let setup = Setup::new(&parsed, &Overrides::default()).unwrap();
     let out = simulate(&setup, &RunParams::default(), None, &mut Silent).unwrap();
-    let n = out.columns.len();
-    let column = |name: &str| out.columns.iter().position(|c| c.ends_with(name)).unwrap();
-    let (force, left, right) = (column("_force"), column("cmod_left"), column("cmod_right"));
-    let curve: Vec<(f64, f64)> = out
-        .history
-        .chunks(n)
-        .map(|row| (1e3 * (row[right] - row[left]), row[force]))
+    let column = |name: &str| out.series(name).expect("the beam's columns");
+    let curve: Vec<(f64, f64)> = column("cmod_right")
+        .zip(column("cmod_left"))
+        .zip(column("_force"))
+        .map(|((right, left), force)| (1e3 * (right - left), force))
         .collect();
     let at_peak = peak_of(&curve);
     Bent {

@@ -100,9 +100,18 @@ impl Outcome {
     /// The last row's value in the first column whose name ends with `suffix` (`"_force"`: the
     /// first moving clamp's reaction); `None` without such a column or rows.
     pub fn last(&self, suffix: &str) -> Option<f64> {
+        self.series(suffix)?.last()
+    }
+
+    /// The values, row by row, of the first column whose name ends with `suffix` (`"t"`: the
+    /// time, the first column); `None` without such a column.
+    pub fn series(&self, suffix: &str) -> Option<impl Iterator<Item = f64> + '_> {
         let k = self.columns.iter().position(|c| c.ends_with(suffix))?;
-        let n = self.columns.len();
-        (self.history.len() >= n).then(|| self.history[self.history.len() - n + k])
+        Some(
+            self.history
+                .chunks_exact(self.columns.len())
+                .map(move |row| row[k]),
+        )
     }
 }
 
