@@ -268,14 +268,11 @@ fn explicit(scene: &Value, p: &Problem) -> ([f64; 2], u64, usize, f64) {
         ..RunParams::default()
     };
     let out = run::simulate(&s, &params, None, &mut Silent).unwrap();
-    let n = out.columns.len();
-    let force = out
-        .columns
-        .iter()
-        .position(|c| c.ends_with("_force"))
-        .expect("the clamp's force column");
-    let rows = out.history.len() / n;
-    let earlier = out.history[(2 * rows / 3) * n + force];
+    let force: Vec<f64> = out
+        .series("_force")
+        .expect("the clamp's force column")
+        .collect();
+    let earlier = force[2 * force.len() / 3];
     (
         [
             out.last("_force").expect("the clamp's force column") / p.unit,
@@ -391,7 +388,37 @@ pub fn collapse(r: &mut Report) {
         1e-6,
     );
     explicit_section(r, &problems);
-    r.line("**Reading.** *Rigid elements* reach a closed form only where the mesh holds its mechanism: crossed triangles give the upper bounds of their 0°, 45° and 90° interfaces whatever their size (6 c for Prandtl, 4 for the cut; 2 c for the squeeze with φ = 0, whose slip planes are at 45°; +37 % and +54 % with φ = 30°, where the planes would have to turn); gmsh's triangles stay 12–19 % high with φ = 0 and lock with φ = 30° (the load grows with refinement); Voronoi cells lock everywhere, tens to thousands of times the reference, or with no mechanism the program can find (φ = 30°), as §11 found by stepping. *Hybrid elastic* elements collapse exactly as rigid ones (below). *Plastic hybrid elements* unlock the triangles: on both kinds the error falls with refinement, and the finest meshes are within the goal of 5 % (the checks below) except the φ = 30° footing on gmsh's triangles, 8.6 % at h = 0.04 m (23.8 %, 13.7 %, 8.6 %: about halved per halving of h, so h = 0.02 m, four times the elements, would be needed). On Voronoi cells plastic elements bring the footing from twelve times Prandtl down to +20 % at 6400 cells, and the squeeze with φ = 30° to +2.7 %, falling with refinement; the squeeze with φ = 0 falls more slowly (+433 %, +207 %, +57 %): the cells' constant strain must follow a shear band across randomly inclined faces whose slip does not dilate. The vertical cut on Voronoi cells stays thousands of per cent high even with plastic elements (falling with refinement); we have not found why: its mechanism concentrates in the clipped cells at the crest, and a free face with clipped cells is what that problem has and the others do not. Checking the interface strengths at the ends instead of the Gauss points is a stronger condition, so its load is never higher: on triangles with plastic elements within 4 % of the Gauss points' on the coarsest meshes and within 2 % on the finest, up to 40 % lower on Voronoi cells, where the interfaces carry more of the mechanism.\n");
+    squeeze_against_cut_off(r, &problems[2]);
+    r.line("**Reading.** *Rigid elements* reach a closed form only where the mesh holds its mechanism: crossed triangles give the upper bounds of their 0°, 45° and 90° interfaces whatever their size (6 c for Prandtl, 4 for the cut; 2 c for the squeeze with φ = 0, whose slip planes are at 45°; +37 % and +54 % with φ = 30°, where the planes would have to turn); gmsh's triangles stay 12–19 % high with φ = 0 and lock with φ = 30° (the load grows with refinement); Voronoi cells lock everywhere, tens to thousands of times the reference, or with no mechanism the program can find (φ = 30°), as §11 found by stepping. *Hybrid elastic* elements collapse exactly as rigid ones (below). *Plastic hybrid elements* unlock the triangles: on both kinds the error falls with refinement, and the finest meshes are within the goal of 5 % (the checks below) except the φ = 30° footing on gmsh's triangles, 8.6 % at h = 0.04 m (23.8 %, 13.7 %, 8.6 %: about halved per halving of h, so h = 0.02 m, four times the elements, would be needed). On Voronoi cells plastic elements bring the footing from twelve times Prandtl down to +20 % at 6400 cells, and the squeeze with φ = 30° to +2.7 %, falling with refinement; the squeeze with φ = 0 stays far above (+409 %, +166 %, +57 %): the cells' constant strain must follow a shear band across randomly inclined faces whose slip does not dilate, so the band must open, and its value is set by the interfaces' tensile strength rather than by the cells (*The Voronoi squeeze and its cut-off*, below). The vertical cut on Voronoi cells stays thousands of per cent high even with plastic elements (falling with refinement); we have not found why: its mechanism concentrates in the clipped cells at the crest, and a free face with clipped cells is what that problem has and the others do not. Checking the interface strengths at the ends instead of the Gauss points is a stronger condition, so its load is never higher: on triangles with plastic elements within 4 % of the Gauss points' on the coarsest meshes and within 2 % on the finest, up to 40 % lower on Voronoi cells, where the interfaces carry more of the mechanism.\n");
+}
+
+/// The φ = 0 squeeze on 400 Voronoi cells with plastic hybrid elements, its interfaces' tensile
+/// strength from 10 c to 10⁶ c: how the collapse value follows the cut-off, and where the program
+/// stops being accurate.
+fn squeeze_against_cut_off(r: &mut Report, p: &Problem) {
+    r.line("#### The Voronoi squeeze and its cut-off\n");
+    r.line("The φ = 0 squeeze of the table above on 400 Voronoi cells with plastic hybrid elements (Gauss points), the interfaces' tensile strength `f_t` from 10 c to 10⁶ c (the table's is 10⁴ c, meant as no cut-off).\n");
+    r.line("| f_t / c | q/c | iterations |");
+    r.line("|---|---|---|");
+    let mut values = Vec::new();
+    for ratio in [1e1, 1e2, 1e3, 1e4, 1e5, 1e6] {
+        let mut scene = p.scene(Mesh::Voronoi(400), true, true);
+        scene["materials"]["soil"]["interface"]["tensile_strength"] = json!(ratio * C);
+        let (q, report) = limit(&setup(&scene), p, Points::Gauss).unwrap();
+        r.line(&format!("| {ratio:.0e} | {q:.3} | {} |", report.iterations));
+        values.push(q);
+    }
+    let monotone = values.windows(2).all(|w| w[1] >= w[0]);
+    r.line(&format!("\nThe collapse value grows with the cut-off ({:.2} c at 10 c, {:.2} c at 10³ c): the band's opening is paid at the tensile strength, so the cells lock as the rigid ones do, only less. {} The previous version of this report, whose program kept the elements' stresses as unknowns of their own (the same program, written otherwise), read 6.131 c at 10⁴ c where this one reads {:.3} c, and 10.652 c against 10.174 c on 100 cells, though both stopped as solved; on the other problems the two agree to every digit shown. So the Voronoi squeeze's figures with φ = 0 are good to about 15 %, and what they show (a band that must open) does not hang on them.\n",
+        values[0],
+        values[2],
+        if monotone {
+            "Above 10³ c the program loses accuracy: its bounds then span four to six orders of magnitude."
+        } else {
+            "Above 10³ c the program loses accuracy: the value does not grow monotonically with `f_t` there, which an exact solution must (a larger strength can only raise the load)."
+        },
+        values[3],
+    ));
 }
 
 /// Explicit runs of the footing on crossed triangles h = 0.1 m: the clamp's reaction at 1.5 cm
@@ -439,5 +466,109 @@ fn explicit_section(r: &mut Report, problems: &[Problem]) {
     }
     r.line("");
     let [earlier, last] = steep;
-    r.line(&format!("With φ = 0 the three explicit runs lie within about 1 % of the program's load at 1.5 cm, the rigid and hybrid elastic ones still rising slowly towards it. With φ = 30° the explicit footing is still rising steeply ({earlier:.1} c at 1 cm, {last:.1} c at 1.5 cm): its interfaces slide without dilating, and a material whose flow is not associated collapses at no more than the associated limit load (Radenkovic's bound), which is what the program computes; how far below it this footing levels off needs a longer travel than this section runs.\n"));
+    r.line(&format!("With φ = 0 the three explicit runs lie within about 1 % of the program's load at 1.5 cm, the rigid and hybrid elastic ones still rising slowly towards it. With φ = 30° the explicit footing is still rising steeply at 1.5 cm ({earlier:.1} c at 1 cm, {last:.1} c at 1.5 cm); below it runs on.\n"));
+    frictional_plateau(r, &problems[1], mesh);
+}
+
+/// The φ = 30° footing pushed on to 6 cm, where it levels off, under three settings of the
+/// quasi-static controls: its plateau, the share of the work that local damping takes there,
+/// and the load the material's own dissipation accounts for, against the program's.
+fn frictional_plateau(r: &mut Report, p: &Problem, mesh: Mesh) {
+    let base = p.scene(mesh, true, true);
+    let (program, _) = limit(&setup(&base), p, Points::Gauss).unwrap();
+    r.line("#### The φ = 30° footing pushed on to 6 cm\n");
+    r.line("The same model and clamp to 6 cm (the clamp's displacement), at the section's settings, at half the clamp's speed, and with local damping 0.3. *Plateau*: the mean reaction from 4 to 6 cm. *Damping's share*: the work local damping takes from 4 to 6 cm over the work the clamp puts in. *Material's load*: the plateau times the share of that work the material dissipates (the elements' plastic work, the interfaces' friction and cut-off work): the load whose power the material's own dissipation accounts for. *Stored*: the share of that work that goes into the elastic and kinetic energies.\n");
+    r.line("| clamp speed (m/s) | local damping | q/c at 1.5 / 3 / 5 / 6 cm | plateau q/c | damping's share | stored | material's load q/c | against the program | steps |");
+    r.line("|---|---|---|---|---|---|---|---|---|");
+    r.timing("\n## 12. The φ = 30° footing pushed on to 6 cm (crossed h = 0.1 m)\n");
+    r.timing("| clamp speed (m/s) | local damping | seconds |");
+    r.timing("|---|---|---|");
+    let mut rows = Vec::new();
+    for (speed, local) in [(0.1, 0.8), (0.05, 0.8), (0.1, 0.3)] {
+        let mut scene = base.clone();
+        scene["local_damping"] = json!(local);
+        scene["bodies"][0]["supports"][3]["velocity"] = json!([0, -speed]);
+        scene["time"]["end"] = json!(0.005 / 2.0 + 0.06 / speed);
+        let start = std::time::Instant::now();
+        let s = setup(&scene);
+        let params = RunParams {
+            keep_history: true,
+            ..RunParams::default()
+        };
+        let out = run::simulate(&s, &params, None, &mut Silent).unwrap();
+        let column = |name: &str| {
+            out.series(name)
+                .unwrap_or_else(|| panic!("the column {name}"))
+                .collect::<Vec<f64>>()
+        };
+        let settlement: Vec<f64> = column("_disp").iter().map(|d| 100.0 * d).collect();
+        let q: Vec<f64> = column("_force").iter().map(|f| f / p.unit).collect();
+        let work = column("external_work");
+        let sum = |names: &[&str]| -> Vec<f64> {
+            let columns: Vec<Vec<f64>> = names.iter().map(|n| column(n)).collect();
+            (0..work.len())
+                .map(|i| columns.iter().map(|c| c[i]).sum())
+                .collect()
+        };
+        let at = |cm: f64| {
+            (0..settlement.len())
+                .min_by(|&a, &b| {
+                    (settlement[a] - cm)
+                        .abs()
+                        .total_cmp(&(settlement[b] - cm).abs())
+                })
+                .expect("a history")
+        };
+        let (from, to) = (at(4.0), at(6.0));
+        let plateau = q[from..=to].iter().sum::<f64>() / (to - from + 1) as f64;
+        let of_work = |x: &[f64]| (x[to] - x[from]) / (work[to] - work[from]);
+        let share = of_work(&column("damping"));
+        let stored = of_work(&sum(&["elastic", "kinetic"]));
+        let material = plateau * of_work(&sum(&["plastic", "friction", "fracture"]));
+        r.line(&format!(
+            "| {speed} | {local} | {:.2} / {:.2} / {:.2} / {:.2} | {plateau:.2} | {:.1} % | {:.2} % | {material:.2} | {:+.1} % | {} |",
+            q[at(1.5)],
+            q[at(3.0)],
+            q[at(5.0)],
+            q[at(6.0)],
+            100.0 * share,
+            100.0 * stored,
+            100.0 * (material / program - 1.0),
+            out.summary.steps
+        ));
+        r.timing(&format!(
+            "| {speed} | {local} | {:.1} |",
+            start.elapsed().as_secs_f64()
+        ));
+        rows.push((plateau, share, material));
+    }
+    r.line("");
+    let [(fast, fast_share, _), (slow, slow_share, _), (light, light_share, _)] =
+        [rows[0], rows[1], rows[2]];
+    let off = |m: f64| 100.0 * (m / program - 1.0);
+    let (low, high) = rows.iter().fold((f64::MAX, f64::MIN), |(lo, hi), row| {
+        (lo.min(off(row.2)), hi.max(off(row.2)))
+    });
+    let falls = |share: f64| {
+        if share < fast_share {
+            "falls"
+        } else {
+            "does not fall"
+        }
+    };
+    r.line(&format!("The program's load is {program:.2} c. At the section's settings the footing's plateau reads {fast:.1} c ({:+.1} % from the program's), and local damping takes {:.1} % of the clamp's work on it: with friction in the mechanism the unbalanced forces that local damping opposes do not vanish while it moves, as they do where it slides without friction (§11.6). The damping's share {} with the clamp's speed ({:.1} % at half of it, where the plateau reads {slow:.1} c) and {} with the coefficient ({:.1} % at 0.3: {light:.1} c). The material's load lies {low:+.1} % to {high:+.1} % from the program's in the three runs. Radenkovic's bound says the explicit model, whose interfaces slide without dilating while its elements' flow is associated, collapses at no more than the program's load (a material whose flow is not associated collapses at no more than the associated limit load): {}. A frictional mechanism stepped under local damping is read with its damping's share in view, or at a speed where that share is small (`docs/scene.md`, *Quasi-static runs*).\n",
+        off(fast),
+        100.0 * fast_share,
+        falls(slow_share),
+        100.0 * slow_share,
+        falls(light_share),
+        100.0 * light_share,
+        if high <= 0.0 {
+            "the three readings lie below it".to_string()
+        } else if low >= 0.0 {
+            format!("the three readings lie above it, by up to {high:.1} %: the reading's accuracy here")
+        } else {
+            "the three readings lie on both sides of it, within their spread".to_string()
+        },
+    ));
 }

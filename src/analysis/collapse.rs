@@ -28,9 +28,11 @@
 //! from its own equilibrium on its strain DOFs, `G_s λ + t A σ = P_s` (the interior term of
 //! eq. 15), written into its strength's cones directly ([`Stress`]) rather than kept as three
 //! unknowns and three rows: the interior-point method factors a KKT system of the unknowns and
-//! constraints at every iteration, and on a 10,240-element hybrid footing that system shrinks
-//! from 274,904 to 213,920 rows and its factor from 9.3e8 to 3.2e8 multiply-adds (in the
-//! minimum-degree order the solver gives it), the solve from 46 s to 16 s. The strain rates of
+//! constraints at every iteration, and on a 10,240-element hybrid footing of crossed triangles
+//! that system shrinks from 274,904 to 213,920 rows and its factor from 9.3e8 to 3.2e8
+//! multiply-adds (in the minimum-degree order the solver gives it), the solve from 46 s to
+//! 16 s; on gmsh's 9,224 triangles of the same footing the solve takes as long as before
+//! (33 s both). The strain rates of
 //! the mechanism are then the cones' multipliers mapped back, `Cᵀ z_c/(t A)`.
 //!
 //! The solver is Clarabel (an interior-point conic solver in Rust, `LDLᵀ` by QDLDL); the
