@@ -26,7 +26,7 @@
 //! stress, so hybrid elements with elastic interiors collapse as rigid ones of the same shapes.
 //! One with a strength (Tresca or Mohr–Coulomb, [`crate::model::plasticity`]) takes its stress
 //! from its own equilibrium on its strain DOFs, `G_s λ + t A σ = P_s` (the interior term of
-//! eq. 15), written into its strength's cones directly ([`Stress`]) rather than kept as three
+//! eq. 15), written into its strength's cones directly rather than kept as three
 //! unknowns and three rows: the interior-point method factors a KKT system of the unknowns and
 //! constraints at every iteration, and on a 10,240-element hybrid footing of crossed triangles
 //! that system shrinks from 274,904 to 213,920 rows and its factor from 9.3e8 to 3.2e8
