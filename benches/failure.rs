@@ -223,9 +223,8 @@ fn main() {
         step of the same mesh are the medians of the ratios sample by sample (a shared machine \
         drifts between samples: a ratio of medians taken minutes apart moved by a third); \
         *broken* counts the interfaces broken at the end of the shortest sample. Rigid-poisson's \
-        laws act on its correction's jump; its assembled blocks know the springs' traction \
-        alone, so they return-map every failing interface where the element-wise sweep screens \
-        the fresh ones.\n\n\
+        laws act on its correction's jump, which both evaluators' screens of a fresh interface \
+        bound (the assembled blocks from the cells' `q` and a lever kept per block).\n\n\
         | elements | formulation | evaluator | threads | elastic ns | stays elastic ns | ratio | \
         cracks ns | ratio | broken interfaces |\n|---:|---|---|---:|---:|---:|---:|---:|---:|---:|\n",
     );

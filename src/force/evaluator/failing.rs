@@ -3,8 +3,9 @@
 //! points of the failing interfaces between its two elements and adds their plastic part, in
 //! one pass of the sweep ([`super::sweep`]), evaluating or stepping. A block that carries one
 //! interface, in its initial state, first screens it on the products the block has computed
-//! (`K_abᵀ U_a − K_ab U_b` is the interface's resultant traction; [`Screened`]), and reads
-//! nothing else where the screen passes. (The element-wise evaluator gives a failing
+//! (`K_abᵀ U_a − K_ab U_b` is the interface's resultant traction; [`Screened`]; under the
+//! Poisson correction with a bound of its jump, [`Jumped`]), and reads nothing else where the
+//! screen passes. (The element-wise evaluator gives a failing
 //! interface its whole traction through its law instead, `super::element_wise`.)
 
 use super::assembled::{Assembled, Block};
@@ -12,12 +13,31 @@ use super::sweep::{place, Couplings, Face};
 use crate::force::failure::{self, FailingInterfaces, FailureState, Jump, PlasticForces};
 use crate::lanes::Lanes;
 use crate::mesh::geometry::Vec2;
-use crate::model::formulation::{Hybrid, Kinematics, Rigid};
+use crate::model::formulation::{Formulation, Hybrid, Kinematics, Rigid};
 use crate::model::{Interface, Model};
 
 /// Per coupling of the assembled evaluator (in the order of its sweep), what it carries of the
-/// failing interfaces ([`Carry`]).
-pub(super) struct Carried<S>(Vec<Carry<S>>);
+/// failing interfaces ([`Carry`]), and under the Poisson correction what its screen adds for
+/// the correction's jump ([`Jumped`]).
+pub(super) struct Carried<S> {
+    carries: Vec<Carry<S>>,
+    /// Per coupling, empty unless the model is `rigid-poisson`.
+    jumped: Vec<Jumped>,
+}
+
+/// What the correction's jump `j(x) = q_a (x − x_a) − q_b (x − x_b)` adds to the
+/// [screen](Screened) of a rigid coupling that carries one failing interface: its midpoint value
+/// `j₀ = q_a d_a − q_b d_b` (`d` from each centroid to the edge's midpoint) gives the force
+/// `t L S j₀`, with `|t L S j₀|₁ ≤ |q_a| t L |S d_a|₁ + |q_b| t L |S d_b|₁`, and its odd part
+/// `(q_a − q_b) g` along the edge adds `t L k_s' h |q_a − q_b|` to `t L |S δ₁|`; a bound of both
+/// added to the screen's left side keeps it a sufficient test. `[t L |S d_a|₁, t L |S d_b|₁,
+/// t L k_s' h]`.
+pub(super) type Jumped = [f64; 3];
+
+/// What [`WithFailure`] reads of a coupling: its block, what it carries, and under the Poisson
+/// correction its elements' `[q_a, q_b]` with its [`Jumped`].
+pub(super) type Carrying<'b, S, const N: usize> =
+    (&'b Block<N>, &'b Carry<S>, Option<([f64; 2], &'b Jumped)>);
 
 /// What one coupling carries: a range of [`Model::failing_interfaces`], and the
 /// [screen](Screened) of the one it carries (one that never passes where it carries more). One
@@ -44,8 +64,15 @@ pub trait Screened<const N: usize>: Kinematics<N> {
     /// The screen of interface `i` with springs `(k_n', k_s')`, disc `r` and thickness `t`.
     fn screen(i: &Interface, springs: [f64; 2], r: f64, t: f64) -> Self::Screen;
     /// Whether the interface passes, at a midpoint force `T` (either sign) and DOFs `ua`,
-    /// `ub`.
-    fn passes(screen: &Self::Screen, force: [f64; 2], ua: &[f64; N], ub: &[f64; N]) -> bool;
+    /// `ub`, with `extra` added to the left side of its test (the bound of the Poisson
+    /// correction's jump, [`Jumped`]; 0 without).
+    fn passes(
+        screen: &Self::Screen,
+        force: [f64; 2],
+        extra: f64,
+        ua: &[f64; N],
+        ub: &[f64; N],
+    ) -> bool;
 }
 
 /// Rigid: `δ₁ = (θ_b − θ_a) ẑ × g = (θ_b − θ_a) h n`, so `t L |S δ₁| = t L k_n' h |θ_b − θ_a|`;
@@ -60,10 +87,11 @@ impl Screened<3> for Rigid {
     fn passes(
         &[per_rotation, reach]: &[f64; 2],
         [tx, ty]: [f64; 2],
+        extra: f64,
         ua: &[f64; 3],
         ub: &[f64; 3],
     ) -> bool {
-        tx.abs() + ty.abs() + per_rotation * (ub[2] - ua[2]).abs() <= reach
+        tx.abs() + ty.abs() + per_rotation * (ub[2] - ua[2]).abs() + extra <= reach
     }
 }
 
@@ -80,12 +108,13 @@ impl Screened<6> for Hybrid {
     fn passes(
         &[gx, gy, k_max, reach]: &[f64; 4],
         [tx, ty]: [f64; 2],
+        extra: f64,
         ua: &[f64; 6],
         ub: &[f64; 6],
     ) -> bool {
         let jump: [f64; 6] = std::array::from_fn(|p| ub[p] - ua[p]);
         let odd = Self::gradient(&jump, Vec2::new(gx, gy));
-        tx.abs() + ty.abs() + k_max * (odd.x.abs() + odd.y.abs()) <= reach
+        tx.abs() + ty.abs() + k_max * (odd.x.abs() + odd.y.abs()) + extra <= reach
     }
 }
 
@@ -115,7 +144,25 @@ impl<S: Copy> Carried<S> {
             })
             .collect();
         let mut taken = vec![false; pairs.len()];
-        let carried = faces
+        // Where the coupling carries one interface under the Poisson correction: what its
+        // screen adds per unit of the jump (`Jumped`).
+        let jumped = |f: &Face<R>, [start, end]: [u32; 2]| -> Jumped {
+            if end != start + 1 {
+                return [0.0; 3];
+            }
+            let i = &model.interfaces[failing[start as usize] as usize];
+            let [k_n, k_s] = model.law_of(i).springs([i.k_n, i.k_s]);
+            let tl = model.thickness * i.length;
+            let lever = |e: u32| {
+                let d = i.midpoint() - model.elements[e as usize].props.centroid;
+                let (dn, ds) = (i.normal.dot(&d), i.tangent.dot(&d));
+                let sd = k_n * dn * i.normal + k_s * ds * i.tangent;
+                tl * (sd.x.abs() + sd.y.abs())
+            };
+            [lever(f.a), lever(f.b), tl * k_s * i.gauss_offset()]
+        };
+        let mut jumps = Vec::new();
+        let carries = faces
             .iter()
             .map(|f| {
                 // The failing interfaces are sorted by their elements.
@@ -131,6 +178,9 @@ impl<S: Copy> Carried<S> {
                     [start as u32, end as u32]
                 };
                 taken[range[0] as usize..range[1] as usize].fill(true);
+                if model.formulation == Formulation::RigidPoisson {
+                    jumps.push(jumped(f, range));
+                }
                 Carry {
                     range,
                     screen: if range[1] == range[0] + 1 {
@@ -145,7 +195,10 @@ impl<S: Copy> Carried<S> {
             taken.iter().all(|&t| t),
             "every failing interface lies in a coupling"
         );
-        Carried(carried)
+        Carried {
+            carries,
+            jumped: jumps,
+        }
     }
 }
 
@@ -189,7 +242,7 @@ impl<'a, K: Screened<N>, const N: usize> WithFailure<'a, K, N> {
     ) -> Self {
         let failing = failing_of::<K, N>(plastic);
         let carried = carried.expect("an evaluator built for a model whose interfaces fail");
-        assert_eq!(carried.0.len(), assembled.faces().len());
+        assert_eq!(carried.carries.len(), assembled.faces().len());
         WithFailure {
             assembled,
             carried,
@@ -247,7 +300,7 @@ impl<K: Screened<N>, const N: usize> Couplings<N> for WithFailure<'_, K, N> {
         self.assembled.faces()
     }
     type Coupling<'b>
-        = (&'b Block<N>, &'b Carry<K::Screen>, Jump)
+        = Carrying<'b, K::Screen, N>
     where
         Self: 'b;
     /// The sweep names a coupling by its place in [`Couplings::faces`] (a reference into it),
@@ -255,15 +308,17 @@ impl<K: Screened<N>, const N: usize> Couplings<N> for WithFailure<'_, K, N> {
     #[inline(always)]
     fn coupling<'b>(&'b self, face: &'b Face<Block<N>>) -> Self::Coupling<'b> {
         let jump = self.q.map(|q| [q[face.a as usize], q[face.b as usize]]);
-        (&face.record, &self.carried.0[self.index(face)], jump)
+        let k = self.index(face);
+        let jump = jump.map(|q| (q, &self.carried.jumped[k]));
+        (&face.record, &self.carried.carries[k], jump)
     }
-    /// A fresh interface carried alone is screened on the block's products where the correction
-    /// adds no jump.
+    /// A fresh interface carried alone is screened on the block's products, and its bound of
+    /// the correction's jump where there is one ([`Jumped`]).
     #[inline(always)]
     fn add_pair(
         &self,
         _: impl Lanes,
-        (block, carry, jump): (&Block<N>, &Carry<K::Screen>, Jump),
+        (block, carry, jumped): Carrying<'_, K::Screen, N>,
         ua: &[f64; N],
         ub: &[f64; N],
         fa: &mut [f64; N],
@@ -279,12 +334,15 @@ impl<K: Screened<N>, const N: usize> Couplings<N> for WithFailure<'_, K, N> {
             return;
         }
         let force = [on_b[0] - on_a[0], on_b[1] - on_a[1]];
-        if jump.is_none()
-            && K::passes(&carry.screen, force, ua, ub)
+        let slack = jumped.map_or(0.0, |([qa, qb], &[per_a, per_b, per_odd])| {
+            per_a * qa.abs() + per_b * qb.abs() + per_odd * (qa - qb).abs()
+        });
+        if K::passes(&carry.screen, force, slack, ua, ub)
             && self.failing.is_fresh(start, self.state)
         {
             return;
         }
+        let jump = jumped.map(|(q, _)| q);
         let [plastic_a, plastic_b] = self.plastic_forces(start..end, ua, ub, jump);
         for p in 0..N {
             fa[p] += plastic_a[p];

@@ -19,10 +19,10 @@
 //! so the result does not depend on the thread count.
 
 use super::assembled::Block;
-use super::failing::{failing_of, Carry, WithFailure};
+use super::failing::{failing_of, Carrying, WithFailure};
 use super::sweep::{place, Couplings, Face};
 use crate::force::evaluator::{Assembled, ElementWise, Evaluator, Failure, FusedStep};
-use crate::force::failure::{FailureState, Jump, PlasticForces};
+use crate::force::failure::{FailureState, PlasticForces};
 use crate::input::scene::EvaluatorKind;
 use crate::lanes::Lanes;
 use crate::mesh::geometry::Vec2;
@@ -346,7 +346,7 @@ impl Couplings<3> for FailingPairs<'_> {
     }
     /// What the block carries, and the correction's forces on `a` and `b`.
     type Coupling<'b>
-        = ((&'b Block<3>, &'b Carry<[f64; 2]>, Jump), [[f64; 3]; 2])
+        = (Carrying<'b, [f64; 2], 3>, [[f64; 3]; 2])
     where
         Self: 'b;
     #[inline(always)]
@@ -357,7 +357,7 @@ impl Couplings<3> for FailingPairs<'_> {
     fn add_pair(
         &self,
         lanes: impl Lanes,
-        (carried, correction): ((&Block<3>, &Carry<[f64; 2]>, Jump), [[f64; 3]; 2]),
+        (carried, correction): (Carrying<'_, [f64; 2], 3>, [[f64; 3]; 2]),
         ua: &[f64; 3],
         ub: &[f64; 3],
         fa: &mut [f64; 3],
