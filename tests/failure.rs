@@ -55,6 +55,29 @@ fn run_through(
     (cd.u.clone(), rows, report)
 }
 
+/// Runs `scene` to its end with both evaluators, energies every `every` steps, and checks that
+/// they follow the same trajectory to round-off and break the same interfaces, some: their
+/// energies (assembled, element-wise). `what` names the case in a failure.
+fn cracks_alike_in_both_evaluators(
+    scene: &Value,
+    every: u64,
+    what: &str,
+) -> [Vec<rbsm::step::integrator::Energy>; 2] {
+    let (ua, rows_a, report_a) = run_through(scene, EvaluatorKind::Assembled, every);
+    let (ue, rows_e, report_e) = run_through(scene, EvaluatorKind::ElementWise, every);
+    let scale = ua.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let diff = common::max_abs_diff(&ua, &ue);
+    assert!(diff <= 1e-9 * scale, "{what}: |ΔU| = {diff:e} of {scale:e}");
+    let broken = |r: &[rbsm::force::failure::InterfaceFailure]| {
+        r.iter()
+            .filter(|i| i.status == InterfaceStatus::Broken)
+            .count()
+    };
+    assert!(broken(&report_a) > 0, "{what}: the bar did not crack");
+    assert_eq!(broken(&report_a), broken(&report_e), "{what}");
+    [rows_a, rows_e]
+}
+
 /// A run of `setup` to its end without a folder: its summary, history and final state.
 fn in_memory(setup: &Setup) -> rbsm::analysis::run::Outcome {
     rbsm::analysis::run::simulate(
@@ -159,24 +182,7 @@ fn both_evaluators_agree_while_a_bar_cracks_and_the_energy_balance_closes() {
     for formulation in ["rigid", "rigid-poisson"] {
         let mut scene = bundled("tension_bar.json");
         scene["formulation"] = json!({ "kind": formulation });
-        let (ua, rows_a, report_a) = run_through(&scene, EvaluatorKind::Assembled, 100);
-        let (ue, rows_e, report_e) = run_through(&scene, EvaluatorKind::ElementWise, 100);
-        let scale = ua.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-        let diff = common::max_abs_diff(&ua, &ue);
-        assert!(
-            diff <= 1e-9 * scale,
-            "{formulation}: |ΔU| = {diff:e} of {scale:e}"
-        );
-        let broken = |r: &[rbsm::force::failure::InterfaceFailure]| {
-            r.iter()
-                .filter(|i| i.status == InterfaceStatus::Broken)
-                .count()
-        };
-        assert!(
-            broken(&report_a) > 0,
-            "{formulation}: the bar did not crack"
-        );
-        assert_eq!(broken(&report_a), broken(&report_e), "{formulation}");
+        let [rows_a, rows_e] = cracks_alike_in_both_evaluators(&scene, 100, formulation);
         for rows in [&rows_a, &rows_e] {
             let last = rows.last().unwrap();
             assert!(last.fracture > 1.0, "fracture work {} J", last.fracture);
@@ -807,24 +813,8 @@ fn the_facet_law_cracks_the_bar_alike_in_both_evaluators_with_the_books_closed()
         // Exponential softening leaves 1 % of the strength at 4.6 G_t / f_t of opening: the
         // clamp travels 0.4 mm instead of 0.15 mm.
         scene["time"]["end"] = json!(8e-3);
-        let (ua, rows_a, report_a) = run_through(&scene, EvaluatorKind::Assembled, 100);
-        let (ue, rows_e, report_e) = run_through(&scene, EvaluatorKind::ElementWise, 100);
-        let scale = ua.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-        let diff = common::max_abs_diff(&ua, &ue);
-        assert!(
-            diff <= 1e-9 * scale,
-            "{formulation}: |ΔU| = {diff:e} of {scale:e}"
-        );
-        let broken = |r: &[rbsm::force::failure::InterfaceFailure]| {
-            r.iter()
-                .filter(|i| i.status == InterfaceStatus::Broken)
-                .count()
-        };
-        assert!(
-            broken(&report_a) > 0,
-            "{formulation}: the bar did not crack"
-        );
-        assert_eq!(broken(&report_a), broken(&report_e));
+        let [rows_a, rows_e] =
+            cracks_alike_in_both_evaluators(&scene, 100, &formulation.to_string());
         let (drift_a, drift_e) = (common::energy_drift(&rows_a), common::energy_drift(&rows_e));
         assert!((drift_a - drift_e).abs() <= 1e-6 * drift_e.abs().max(1e-12));
         scene["time"]["dt_factor"] = json!(0.25);
