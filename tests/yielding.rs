@@ -433,3 +433,56 @@ fn the_outputs_show_the_elements_plastic_strain() {
     let text = std::fs::read_to_string(frame).unwrap();
     assert!(text.contains("Name=\"plastic_strain\"") && text.contains("Name=\"yielding\""));
 }
+
+/// A live load acts on a hybrid element's strains too. One unit square (`t` = 0.5 m, plane
+/// strain) whose rigid DOFs are held, with a Tresca strength `c` and no interface, pressed by a
+/// traction `q₀` on its top edge: the traction's work on `ε_y` is `−q₀ t ∫(y − y_c) dx = −q₀ t/2`
+/// and on `ε_x` and `γ_xy` nothing, so the element's stress is `σ_y = −α q₀ / 2`,
+/// `σ_x = τ_xy = 0`, and it yields at `α q₀ = 4 c`, flowing by normality with
+/// `ε̇_x = −ε̇_y > 0`. Without the load's part on the strains it could not collapse.
+#[test]
+fn a_live_traction_loads_the_strains_of_a_hybrid_element() {
+    let (c, q0) = (1e5, 1e4);
+    let mut scene = json!({
+        "name": "one", "thickness": 0.5, "plane": "strain",
+        "formulation": {"kind": "hybrid", "penalty": 100},
+        "materials": {"m": {"E": 1e8, "nu": 0.3, "rho": 2000,
+            "element": {"kind": "tresca", "cohesion": c}}},
+        "bodies": [{"name": "b", "material": "m",
+            "mesh": {"kind": "grid", "origin": [0, 0], "size": [1, 1], "cells": [1, 1]},
+            "supports": [{"kind": "clamp", "edge": "bottom", "dofs": ["u", "v", "theta"]}],
+            "loads": [{"kind": "traction", "edge": "top", "value": [0.0, -q0]}]}],
+        "time": {"dt": 1e-6, "steps": 1}
+    });
+    let s = setup(&scene, EvaluatorKind::Assembled);
+    let r = collapse::analyse(&s, None, Points::Gauss).unwrap();
+    assert!(
+        (r.collapse - 4.0 * c / q0).abs() < 1e-6 * r.collapse,
+        "α = {}",
+        r.collapse
+    );
+    let [sx, sy, txy] = r.stresses[0];
+    assert!(
+        sx.abs() < 1e-6 * c && txy.abs() < 1e-6 * c && (sy + 2.0 * c).abs() < 1e-6 * c,
+        "σ = {:?}",
+        r.stresses[0]
+    );
+    let [ex, ey, gxy] = r.strain_rates[0];
+    assert!(ex > 0.0 && ey < 0.0, "ε̇ = {:?}", r.strain_rates[0]);
+    assert!(
+        (ex + ey).abs() < 1e-6 * ex && gxy.abs() < 1e-6 * ex,
+        "ε̇ = {:?}",
+        r.strain_rates[0]
+    );
+    assert_eq!(r.velocities[0], [0.0; 3]);
+    // The same traction on the element's side: `σ_x = −α q₀/2`, the same load.
+    scene["bodies"][0]["loads"] =
+        json!([{"kind": "traction", "edge": "right", "value": [-q0, 0.0]}]);
+    let s = setup(&scene, EvaluatorKind::Assembled);
+    let r = collapse::analyse(&s, None, Points::Gauss).unwrap();
+    assert!(
+        (r.collapse - 4.0 * c / q0).abs() < 1e-6 * r.collapse,
+        "α = {} from the side",
+        r.collapse
+    );
+}
