@@ -439,7 +439,8 @@ fn the_outputs_show_the_elements_plastic_strain() {
 /// traction `q₀` on its top edge: the traction's work on `ε_y` is `−q₀ t ∫(y − y_c) dx = −q₀ t/2`
 /// and on `ε_x` and `γ_xy` nothing, so the element's stress is `σ_y = −α q₀ / 2`,
 /// `σ_x = τ_xy = 0`, and it yields at `α q₀ = 4 c`, flowing by normality with
-/// `ε̇_x = −ε̇_y > 0`. Without the load's part on the strains it could not collapse.
+/// `ε̇_x = −ε̇_y > 0`. Without the load's part on the strains it could not collapse. A
+/// mechanism without a translation is scaled by its strain rates.
 #[test]
 fn a_live_traction_loads_the_strains_of_a_hybrid_element() {
     let (c, q0) = (1e5, 1e4);
@@ -475,6 +476,13 @@ fn a_live_traction_loads_the_strains_of_a_hybrid_element() {
         r.strain_rates[0]
     );
     assert_eq!(r.velocities[0], [0.0; 3]);
+    // The mechanism is reported so that its fastest vertex moves at 1: the corners, half a
+    // metre from the centroid each way, at `ε̇_x √(½² + ½²)`.
+    assert!(
+        (ex - 2f64.sqrt()).abs() < 1e-6,
+        "ε̇ = {:?}",
+        r.strain_rates[0]
+    );
     // The same traction on the element's side: `σ_x = −α q₀/2`, the same load.
     scene["bodies"][0]["loads"] =
         json!([{"kind": "traction", "edge": "right", "value": [-q0, 0.0]}]);

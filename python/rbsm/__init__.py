@@ -377,8 +377,9 @@ class LimitResult:
     report: Dict[str, Any]
     """``rbsm limit --json``: what grows, the collapse load, the program's size and time."""
     velocities: np.ndarray
-    """The collapse mechanism, ``(elements, 3)``: ``u̇, v̇, θ̇`` per element, the largest
-    translation 1 (one optimal field: motions that cost nothing may be part of it)."""
+    """The collapse mechanism, ``(elements, 3)``: ``u̇, v̇, θ̇`` per element, scaled so that the
+    largest speed of an element's vertex is 1, rotations and strain rates included (one
+    optimal field: motions that cost nothing may be part of it)."""
     tractions: np.ndarray
     """Tractions at collapse, ``(interfaces, 2, 2)``: ``[σ, τ]`` (Pa) at each Gauss point."""
     centroids: np.ndarray

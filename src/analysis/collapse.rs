@@ -15,7 +15,8 @@
 //! `R = Σ_d (G λ − P_dead)_d v̂_d`.
 //!
 //! **Its dual** is the kinematic problem: the multipliers of the equilibrium rows are the
-//! element velocities of the collapse mechanism (scaled so that the live loads do unit power),
+//! element velocities of the collapse mechanism (at the scale where the live loads do unit
+//! power; reported so that the largest speed of an element's vertex is 1),
 //! those of the strength rows the plastic rates, normal to the surface (associated flow). At the
 //! optimum the two give one value: the collapse load of the discrete model, which the explicit
 //! run with the same strength, perfectly plastic, reaches where its flow is associated as well
@@ -104,7 +105,7 @@ pub struct CollapseReport {
     /// Wall time of the solve (s), set-up included.
     pub seconds: f64,
     /// The element velocities of the mechanism `[u̇, v̇, θ̇]` per element, scaled so that the
-    /// largest translation speed is 1.
+    /// largest speed of an element's vertex is 1 (rotations and strain rates included).
     #[serde(skip)]
     pub velocities: Vec<[f64; 3]>,
     /// The plastic strain rates `[ε̇_x, ε̇_y, γ̇_xy]` of the mechanism per element, on the same
@@ -558,10 +559,10 @@ pub fn analyse(
             }
         }
     }
-    let largest = velocities
-        .iter()
-        .map(|v| v[0].hypot(v[1]))
-        .fold(0.0f64, f64::max);
+    let largest = crate::output::largest_vertex_displacement(
+        model,
+        &mechanism(model, &velocities, &strain_rates),
+    );
     if largest > 0.0 {
         for v in velocities.iter_mut().chain(&mut strain_rates) {
             v.iter_mut().for_each(|x| *x /= largest);
@@ -662,9 +663,23 @@ fn csc(m: usize, mut columns: Vec<Vec<(usize, f64)>>) -> CscMatrix<f64> {
     CscMatrix::new(m, columns.len(), colptr, rowval, nzval)
 }
 
+/// The mechanism's DOFs over the model: each element's `velocities` and, hybrid, its
+/// `strain_rates`.
+fn mechanism(model: &Model, velocities: &[[f64; 3]], strain_rates: &[[f64; 3]]) -> Vec<f64> {
+    let nd = model.formulation.ndof();
+    let mut shape = vec![0.0; model.n_dofs()];
+    for (e, v) in velocities.iter().enumerate() {
+        shape[e * nd..e * nd + 3].copy_from_slice(v);
+    }
+    for (e, r) in strain_rates.iter().enumerate() {
+        shape[e * nd + 3..e * nd + 6].copy_from_slice(r);
+    }
+    shape
+}
+
 /// Writes what `rbsm limit --out DIR` gives: `summary.json` (the report), the collapse
 /// mechanism as `mechanism.vtu` (its velocities as the frame's velocity, its displacement
-/// scaled for viewing: the largest translation a tenth of the model's size) and
+/// scaled for viewing: the largest vertex displacement a tenth of the model's size) and
 /// `mechanism.svg` (the mesh moved along the mechanism over the reference), and
 /// `tractions.csv` (per interface and Gauss point, `σ` and `τ` in Pa: a statically admissible
 /// field at collapse; and the mechanism's opening and slip rates there, on the scale of its
@@ -678,13 +693,7 @@ pub fn write(dir: &std::path::Path, setup: &Setup, report: &CollapseReport) -> R
     let model = &setup.model;
     crate::output::write_json(&dir.join("summary.json"), report)?;
     let nd = model.formulation.ndof();
-    let mut shape = vec![0.0; model.n_dofs()];
-    for (e, v) in report.velocities.iter().enumerate() {
-        shape[e * nd..e * nd + 3].copy_from_slice(v);
-    }
-    for (e, r) in report.strain_rates.iter().enumerate() {
-        shape[e * nd + 3..e * nd + 6].copy_from_slice(r);
-    }
+    let shape = mechanism(model, &report.velocities, &report.strain_rates);
     crate::output::vtk::write_shape(&dir.join("mechanism.vtu"), model, &shape, &shape)?;
     let caption = format!("{}: collapse mechanism", model.name);
     let svg = crate::output::drawing::displaced_svg(model, &shape, &caption);

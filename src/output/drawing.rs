@@ -271,11 +271,7 @@ pub fn model_svg(model: &Model) -> String {
 /// outline (grey). `caption` is printed above with the scale factor.
 pub fn displaced_svg(model: &Model, u: &[f64], caption: &str) -> String {
     let elements = element_polygons(model, displacement(model, u));
-    let largest = elements
-        .iter()
-        .flat_map(|p| p.2.iter())
-        .map(|d| d.norm())
-        .fold(0.0, f64::max);
+    let largest = super::largest_vertex_displacement(model, u);
     let (lo, hi) = all_vertices(model).fold(
         (Vec2::repeat(f64::MAX), Vec2::repeat(f64::MIN)),
         |(lo, hi), p| (lo.inf(&p), hi.sup(&p)),

@@ -716,6 +716,28 @@ pub fn read_final_state(path: &Path, model: &Model) -> Result<FinalState> {
     })
 }
 
+/// The largest displacement of an element's vertex under `u` (`ndof` per element: a mode
+/// shape, a mechanism), rotations and strains included: what the drawings and frames of a
+/// shape scale to a tenth of the model's size.
+pub fn largest_vertex_displacement(model: &Model, u: &[f64]) -> f64 {
+    let nd = model.formulation.ndof();
+    let mut largest = 0.0f64;
+    for body in &model.bodies {
+        for c in 0..body.mesh.n_cells() {
+            let e = body.first_element + c;
+            let centroid = model.elements[e].props.centroid;
+            for &k in body.mesh.cell(c) {
+                let x = body.mesh.vertices[k as usize];
+                let d = model
+                    .formulation
+                    .displacement(&u[e * nd..(e + 1) * nd], x - centroid);
+                largest = largest.max(d.norm());
+            }
+        }
+    }
+    largest
+}
+
 /// Writes any serialisable value as pretty JSON, atomically ([`write_atomic`]).
 ///
 /// # Errors

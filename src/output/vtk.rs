@@ -444,7 +444,7 @@ fn write_grid(
 }
 
 /// Writes each mode shape as `DIR/mode_NNN.vtu` and the collection `DIR/modes.pvd` (one time
-/// step per mode: its number), scaled so that the largest translation is a tenth of
+/// step per mode: its number), scaled so that the largest vertex displacement is a tenth of
 /// the model's size (shapes are `M`-normalised, their scale is arbitrary).
 ///
 /// # Errors
@@ -464,8 +464,9 @@ pub fn write_mode_shapes(dir: &Path, model: &Model, shapes: &[Vec<f64>]) -> Resu
 }
 
 /// Writes `shape` (DOFs over the model: a mode, a mechanism) as one frame, its displacement
-/// scaled so that the largest element translation is a tenth of the model's size, with `v` as
-/// its velocity.
+/// scaled so that the largest displacement of an element's vertex (rotations and strains
+/// included, [`crate::output::largest_vertex_displacement`]) is a tenth of the model's size,
+/// with `v` as its velocity.
 ///
 /// # Errors
 /// As [`write_frame`].
@@ -480,10 +481,7 @@ pub fn write_shape(path: &Path, model: &Model, shape: &[f64], v: &[f64]) -> Resu
         hi = hi.sup(&h);
     }
     let size = (hi - lo).norm();
-    let nd = model.formulation.ndof();
-    let max = (0..model.elements.len())
-        .map(|e| shape[e * nd].hypot(shape[e * nd + 1]))
-        .fold(0.0, f64::max);
+    let max = crate::output::largest_vertex_displacement(model, shape);
     let scale = if max > 0.0 { 0.1 * size / max } else { 1.0 };
     let u: Vec<f64> = shape.iter().map(|x| x * scale).collect();
     write_frame(path, model, (&u, v), &[], Placement::Linear)
