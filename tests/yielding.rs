@@ -444,24 +444,29 @@ fn the_outputs_show_the_elements_plastic_strain() {
 #[test]
 fn a_live_traction_loads_the_strains_of_a_hybrid_element() {
     let (c, q0) = (1e5, 1e4);
-    let mut scene = json!({
-        "name": "one", "thickness": 0.5, "plane": "strain",
-        "formulation": {"kind": "hybrid", "penalty": 100},
-        "materials": {"m": {"E": 1e8, "nu": 0.3, "rho": 2000,
-            "element": {"kind": "tresca", "cohesion": c}}},
-        "bodies": [{"name": "b", "material": "m",
-            "mesh": {"kind": "grid", "origin": [0, 0], "size": [1, 1], "cells": [1, 1]},
-            "supports": [{"kind": "clamp", "edge": "bottom", "dofs": ["u", "v", "theta"]}],
-            "loads": [{"kind": "traction", "edge": "top", "value": [0.0, -q0]}]}],
-        "time": {"dt": 1e-6, "steps": 1}
-    });
-    let s = setup(&scene, EvaluatorKind::Assembled);
-    let r = collapse::analyse(&s, None, Points::Gauss).unwrap();
-    assert!(
-        (r.collapse - 4.0 * c / q0).abs() < 1e-6 * r.collapse,
-        "α = {}",
-        r.collapse
-    );
+    // The collapse of the square under `q₀` on `edge`, pressing it.
+    let collapse_under = |edge: &str, value: [f64; 2]| {
+        let scene = json!({
+            "name": "one", "thickness": 0.5, "plane": "strain",
+            "formulation": {"kind": "hybrid", "penalty": 100},
+            "materials": {"m": {"E": 1e8, "nu": 0.3, "rho": 2000,
+                "element": {"kind": "tresca", "cohesion": c}}},
+            "bodies": [{"name": "b", "material": "m",
+                "mesh": {"kind": "grid", "origin": [0, 0], "size": [1, 1], "cells": [1, 1]},
+                "supports": [{"kind": "clamp", "edge": "bottom", "dofs": ["u", "v", "theta"]}],
+                "loads": [{"kind": "traction", "edge": edge, "value": value}]}],
+            "time": {"dt": 1e-6, "steps": 1}
+        });
+        let s = setup(&scene, EvaluatorKind::Assembled);
+        let r = collapse::analyse(&s, None, Points::Gauss).unwrap();
+        assert!(
+            (r.collapse - 4.0 * c / q0).abs() < 1e-6 * r.collapse,
+            "α = {} pressed on its {edge} edge",
+            r.collapse
+        );
+        r
+    };
+    let r = collapse_under("top", [0.0, -q0]);
     let [sx, sy, txy] = r.stresses[0];
     assert!(
         sx.abs() < 1e-6 * c && txy.abs() < 1e-6 * c && (sy + 2.0 * c).abs() < 1e-6 * c,
@@ -484,13 +489,5 @@ fn a_live_traction_loads_the_strains_of_a_hybrid_element() {
         r.strain_rates[0]
     );
     // The same traction on the element's side: `σ_x = −α q₀/2`, the same load.
-    scene["bodies"][0]["loads"] =
-        json!([{"kind": "traction", "edge": "right", "value": [-q0, 0.0]}]);
-    let s = setup(&scene, EvaluatorKind::Assembled);
-    let r = collapse::analyse(&s, None, Points::Gauss).unwrap();
-    assert!(
-        (r.collapse - 4.0 * c / q0).abs() < 1e-6 * r.collapse,
-        "α = {} from the side",
-        r.collapse
-    );
+    collapse_under("right", [-q0, 0.0]);
 }
