@@ -266,24 +266,30 @@ fn explicit<const K: usize>(
     cm: [f64; K],
 ) -> ([f64; K], u64, usize, f64) {
     let start = std::time::Instant::now();
-    let s = setup(scene);
+    let out = with_history(scene);
+    let (settlement, force) = (column(&out, "_disp"), column(&out, "_force"));
+    (
+        cm.map(|cm| force[nearest(&settlement, 0.01 * cm)] / p.unit),
+        out.summary.steps,
+        out.summary.elements,
+        start.elapsed().as_secs_f64(),
+    )
+}
+
+/// The run of `scene` to its end, its history kept.
+fn with_history(scene: &Value) -> run::Outcome {
     let params = RunParams {
         keep_history: true,
         ..RunParams::default()
     };
-    let out = run::simulate(&s, &params, None, &mut Silent).unwrap();
-    let column = |name: &str| {
-        out.series(name)
-            .unwrap_or_else(|| panic!("the column {name}"))
-            .collect::<Vec<f64>>()
-    };
-    let (settlement, force) = (column("_disp"), column("_force"));
-    (
-        cm.map(|cm| force[nearest(&settlement, 0.01 * cm)] / p.unit),
-        out.summary.steps,
-        s.model.elements.len(),
-        start.elapsed().as_secs_f64(),
-    )
+    run::simulate(&setup(scene), &params, None, &mut Silent).unwrap()
+}
+
+/// The history column of `out` whose name ends with `suffix`, row by row.
+fn column(out: &run::Outcome, suffix: &str) -> Vec<f64> {
+    out.series(suffix)
+        .unwrap_or_else(|| panic!("the column {suffix}"))
+        .collect()
 }
 
 /// The index of the value of `series` nearest to `x`.
@@ -509,22 +515,12 @@ fn frictional_plateau(r: &mut Report, p: &Problem, mesh: Mesh, program: f64) {
         scene["bodies"][0]["supports"][3]["velocity"] = json!([0, -speed]);
         scene["time"]["end"] = json!(0.005 / 2.0 + 0.06 / speed);
         let start = std::time::Instant::now();
-        let s = setup(&scene);
-        let params = RunParams {
-            keep_history: true,
-            ..RunParams::default()
-        };
-        let out = run::simulate(&s, &params, None, &mut Silent).unwrap();
-        let column = |name: &str| {
-            out.series(name)
-                .unwrap_or_else(|| panic!("the column {name}"))
-                .collect::<Vec<f64>>()
-        };
-        let settlement: Vec<f64> = column("_disp").iter().map(|d| 100.0 * d).collect();
-        let q: Vec<f64> = column("_force").iter().map(|f| f / p.unit).collect();
-        let work = column("external_work");
+        let out = with_history(&scene);
+        let settlement: Vec<f64> = column(&out, "_disp").iter().map(|d| 100.0 * d).collect();
+        let q: Vec<f64> = column(&out, "_force").iter().map(|f| f / p.unit).collect();
+        let work = column(&out, "external_work");
         let sum = |names: &[&str]| -> Vec<f64> {
-            let columns: Vec<Vec<f64>> = names.iter().map(|n| column(n)).collect();
+            let columns: Vec<Vec<f64>> = names.iter().map(|n| column(&out, n)).collect();
             (0..work.len())
                 .map(|i| columns.iter().map(|c| c[i]).sum())
                 .collect()
@@ -533,7 +529,7 @@ fn frictional_plateau(r: &mut Report, p: &Problem, mesh: Mesh, program: f64) {
         let (from, to) = (at(4.0), at(6.0));
         let plateau = q[from..=to].iter().sum::<f64>() / (to - from + 1) as f64;
         let of_work = |x: &[f64]| (x[to] - x[from]) / (work[to] - work[from]);
-        let share = of_work(&column("damping"));
+        let share = of_work(&column(&out, "damping"));
         let stored = of_work(&sum(&["elastic", "kinetic"]));
         let material = plateau * of_work(&sum(&["plastic", "friction", "fracture"]));
         r.line(&format!(
