@@ -292,6 +292,12 @@ fn column(out: &run::Outcome, suffix: &str) -> Vec<f64> {
         .collect()
 }
 
+/// The time (s) the footing's clamp, ramped over 5 ms to `speed` (m/s), takes to move `travel`
+/// (m).
+fn travel_time(travel: f64, speed: f64) -> f64 {
+    0.005 / 2.0 + travel / speed
+}
+
 /// The index of the value of `series` nearest to `x`.
 fn nearest(series: &[f64], x: f64) -> usize {
     (0..series.len())
@@ -459,7 +465,7 @@ fn explicit_section(r: &mut Report, problems: &[Problem]) {
         (&problems[1], true, true, "hybrid plastic"),
     ] {
         let mut scene = p.scene(mesh, hybrid, plastic);
-        scene["time"]["end"] = json!(0.005 / 2.0 + 0.03 / 0.1);
+        scene["time"]["end"] = json!(travel_time(0.03, 0.1));
         let (program, report) = limit(&setup(&scene), p, Points::Gauss).unwrap();
         let ([one, two, three], steps, elements, seconds) = explicit(&scene, p, [1.0, 2.0, 3.0]);
         r.line(&format!(
@@ -513,7 +519,7 @@ fn frictional_plateau(r: &mut Report, p: &Problem, mesh: Mesh, program: f64) {
         let mut scene = base.clone();
         scene["local_damping"] = json!(local);
         scene["bodies"][0]["supports"][3]["velocity"] = json!([0, -speed]);
-        scene["time"]["end"] = json!(0.005 / 2.0 + 0.06 / speed);
+        scene["time"]["end"] = json!(travel_time(0.06, speed));
         let start = std::time::Instant::now();
         let out = with_history(&scene);
         let settlement: Vec<f64> = column(&out, "_disp").iter().map(|d| 100.0 * d).collect();
