@@ -27,7 +27,9 @@
 //!
 //! The state of a point: `δ_p`, `κ = [ψ, κ_c]`, the works (fracture: opening and cohesion;
 //! friction: friction and the cap's compaction). A point is broken once `ψ ≥ ln 100` (1 % of
-//! its strength left, then dropped: it keeps the cap and friction, and hands over to contact).
+//! its strength left, then dropped: it keeps the cap and friction, and hands over to contact);
+//! its crack closes with its faces, pressing them only once they touch
+//! ([`LawPoint::close_crack`]).
 
 use crate::model::law::{InterfaceLaw, LawPoint};
 
@@ -129,8 +131,11 @@ impl InterfaceLaw for Facet {
     /// The stress-boundary update at `δ` on springs `k`: the trial `k (δ − δ_p)`, scaled back
     /// to the softened tension–shear surface along its direction, or in compression returned
     /// to the cap and then to the friction surface; the softening, the compaction and the
-    /// works updated (each return implicit, the work the exact area under the softening).
+    /// works updated (each return implicit, the work the exact area under the softening). A
+    /// broken point's crack closes with its faces ([`LawPoint::close_crack`]).
     fn update(&self, k: [f64; 2], delta: [f64; 2], point: &mut LawPoint) -> ([f64; 2], bool) {
+        // Broken: a crack, which closes with its faces.
+        let closed = self.is_broken(point) && point.close_crack(delta[0]);
         let mut sigma = k[0] * (delta[0] - point.p[0]);
         let mut tau = k[1] * (delta[1] - point.p[1]);
         let alpha = k[1] / k[0];
@@ -174,7 +179,7 @@ impl InterfaceLaw for Facet {
         if flowed {
             point.p = [delta[0] - sigma / k[0], delta[1] - tau / k[1]];
         }
-        ([sigma, tau], flowed)
+        ([sigma, tau], flowed || closed)
     }
     /// Once 1 % of the strength is left ([`BROKEN`]).
     fn is_broken(&self, point: &LawPoint) -> bool {

@@ -100,6 +100,24 @@ pub struct LawPoint {
     pub friction: f64,
 }
 
+impl LawPoint {
+    /// Closes the crack of a broken point (eq. 11 once its law's strength is spent) with its
+    /// faces, which are `δ_n` apart while `δ_n ≥ 0` and touch where `δ_n < 0`: the plastic
+    /// opening is kept at `δ_p,n ≤ max(δ_n, 0)`, at no work, so that the law's springs press
+    /// the faces only once they touch, with `k_n δ_n`. Without it a crack that had opened by `w`
+    /// would push back with `k_n (δ_n − w)` as soon as it began to close, its faces still `δ_n`
+    /// apart. Returns whether `δ_p` moved.
+    #[inline(always)]
+    pub fn close_crack(&mut self, delta_n: f64) -> bool {
+        let gap = delta_n.max(0.0);
+        let moved = self.p[0] > gap;
+        if moved {
+            self.p[0] = gap;
+        }
+        moved
+    }
+}
+
 /// Linear elastic springs (eqs. 11, 12): `λ = diag(k_n, k_s) δ`, the default law.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct Elastic;
@@ -128,8 +146,8 @@ impl InterfaceLaw for Elastic {
 /// linear softening has spent `G_f` and `G_f,II` per unit area: written in displacement, the
 /// dissipated energy does not depend on the element size. The law keeps `1 / w_n` and
 /// `1 / w_s`, so that its return mapping multiplies where it would divide. An interface with
-/// `ξ = 1` is broken: it keeps compression and Coulomb friction, `|τ| ≤ −σ tan φ`, and
-/// nothing else.
+/// `ξ = 1` is broken: a crack, which keeps compression once its faces touch (`δ_n < 0`,
+/// [`LawPoint::close_crack`]) and Coulomb friction, `|τ| ≤ −σ tan φ`, and nothing else.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Strength {
     /// Tensile strength `f_t` (Pa).
@@ -213,8 +231,9 @@ impl InterfaceLaw for Strength {
     /// traction lies on the softening curve and the work booked is the work done; when an
     /// increment exhausts the strength, the traction returns to the broken surface instead.
     /// Where the softening is steeper than the spring (`k < f_t / w_n`, a snap-back at the
-    /// point) the strength of the start of the update is used. An exhausted point that opens
-    /// carries nothing and dissipates nothing: its `δ_p` follows `δ`, with no return. Returns
+    /// point) the strength of the start of the update is used. An exhausted point is a crack
+    /// that closes with its faces ([`LawPoint::close_crack`]): open, it carries nothing and
+    /// dissipates nothing, its `δ_p` following `δ` with no return. Returns
     /// whether the point flowed. It divides in its two returns, by `k − slope` (or `k`), for the
     /// cut-off's apex `c / tan φ` in tension, and where an increment exhausts a strength; the
     /// rest multiplies.
@@ -226,15 +245,17 @@ impl InterfaceLaw for Strength {
         } else {
             self.softening(point)
         };
+        // Exhausted: a crack, which closes with its faces.
+        let closed = xi >= 1.0 && point.close_crack(delta[0]);
         let mut sigma = k[0] * (delta[0] - point.p[0]);
-        if xi >= 1.0 && sigma > 0.0 {
+        if xi >= 1.0 && sigma >= 0.0 {
             // Exhausted and open: it carries nothing, `δ_p` follows `δ` (what the returns below
             // give, to round-off, with no division and no work).
             let dp = [delta[0] - point.p[0], delta[1] - point.p[1]];
             point.p = delta;
             point.kappa[0] += dp[0];
             point.kappa[1] += dp[1].abs();
-            return ([0.0; 2], dp != [0.0; 2]);
+            return ([0.0; 2], closed || dp != [0.0; 2]);
         }
         // The cut-off scales with `1 − ξ` and is not negative: compression never reaches it, so
         // its division is needed in tension only.
@@ -296,7 +317,7 @@ impl InterfaceLaw for Strength {
             point.friction += friction;
             point.fracture += work - friction;
         }
-        ([sigma, tau], flowed)
+        ([sigma, tau], flowed || closed)
     }
     /// Whether the point's strength is exhausted.
     fn is_broken(&self, point: &LawPoint) -> bool {
