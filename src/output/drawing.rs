@@ -137,7 +137,7 @@ impl Canvas {
 }
 
 /// Every element as `(body, its vertices, at(e, x) of each vertex x)`.
-fn element_polygons(
+pub(super) fn element_polygons(
     model: &Model,
     at: impl Fn(usize, Vec2) -> Vec2,
 ) -> Vec<(usize, Vec<Vec2>, Vec<Vec2>)> {
@@ -159,7 +159,10 @@ fn element_polygons(
 }
 
 /// The displacement `N_e(x) U_e` of element `e` at `x` (`u`: `ndof` per element).
-fn displacement<'a>(model: &'a Model, u: &'a [f64]) -> impl Fn(usize, Vec2) -> Vec2 + 'a {
+pub(super) fn displacement<'a>(
+    model: &'a Model,
+    u: &'a [f64],
+) -> impl Fn(usize, Vec2) -> Vec2 + 'a {
     let nd = model.formulation.ndof();
     move |e, x| {
         model.formulation.displacement(

@@ -720,22 +720,11 @@ pub fn read_final_state(path: &Path, model: &Model) -> Result<FinalState> {
 /// shape, a mechanism), rotations and strains included: what the drawings and frames of a
 /// shape scale to a tenth of the model's size.
 pub fn largest_vertex_displacement(model: &Model, u: &[f64]) -> f64 {
-    let nd = model.formulation.ndof();
-    let mut largest = 0.0f64;
-    for body in &model.bodies {
-        for c in 0..body.mesh.n_cells() {
-            let e = body.first_element + c;
-            let centroid = model.elements[e].props.centroid;
-            for &k in body.mesh.cell(c) {
-                let x = body.mesh.vertices[k as usize];
-                let d = model
-                    .formulation
-                    .displacement(&u[e * nd..(e + 1) * nd], x - centroid);
-                largest = largest.max(d.norm());
-            }
-        }
-    }
-    largest
+    drawing::element_polygons(model, drawing::displacement(model, u))
+        .iter()
+        .flat_map(|p| p.2.iter())
+        .map(|d| d.norm())
+        .fold(0.0, f64::max)
 }
 
 /// Writes any serialisable value as pretty JSON, atomically ([`write_atomic`]).
