@@ -4,20 +4,18 @@
 //! against the target, its standard error, the median, and the three seeds the calibration ran
 //! beside the twelve.
 //!
-//! `cargo run --release --example notched_seeds` writes `validation/notched_seeds.md` (about 15
+//! `cargo run --release --example notched_seeds` writes `validation/notched_seeds.md` (about 17
 //! minutes on two cores).
 
+#[path = "fixtures/calibrations.rs"]
+mod calibrations;
+
+use calibrations::{reported_material, CALIBRATIONS};
 use rbsm::analysis::calibrate::{run_local, CalibrationSpec, Facet, Job, Stat, Test};
 use serde_json::Value;
 use std::fmt::Write as _;
 use std::path::Path;
 
-/// The calibrations: their file stem and the report that gives their material.
-const CALIBRATIONS: [(&str, &str); 3] = [
-    ("concrete", "calibrated.md"),
-    ("concrete_poisson", "calibrated_concrete_poisson.md"),
-    ("gregoire", "calibrated_gregoire.md"),
-];
 /// The seeds of each size.
 const SEEDS: u64 = 12;
 
@@ -41,12 +39,12 @@ fn main() {
         let spec =
             CalibrationSpec::from_file(&root.join(format!("examples/calibrate/{name}.json")))
                 .unwrap();
-        let facet = reported_facet(&root.join("validation").join(report));
+        let facet = reported_facet(&root.join(report));
         let t = spec.targets;
         let l_ch = t.e * t.fracture_energy / (t.tensile_strength * t.tensile_strength);
         let _ = writeln!(
             md,
-            "\n## {name} (`examples/calibrate/{name}.json`, `validation/{report}`)\n\n\
+            "\n## {name} (`examples/calibrate/{name}.json`, `{report}`)\n\n\
              `l_ch` = {l_ch:.3} m, `w` = {} m ({:.2} `l_ch`); `formulation` {}.\n\n\
              | h (m) | `G_F` / target, seeds 1–12 | seeds 1–3: mean | seeds 1–12: mean (standard \
              error) | median | CV |\n|---|---|---|---|---|---|",
@@ -101,19 +99,9 @@ fn main() {
     println!("wrote validation/notched_seeds.md");
 }
 
-/// The facet parameters of the material a calibration's report gives (its line
-/// `material "<name>": {...}`).
+/// The facet parameters of the material a calibration's report gives.
 fn reported_facet(report: &Path) -> Facet {
-    let text = std::fs::read_to_string(report).unwrap();
-    let block: Value = text
-        .lines()
-        .find_map(|l| {
-            let l = l.trim();
-            l.starts_with("material \"")
-                .then(|| serde_json::from_str(&l[l.find('{')?..]).ok())
-                .flatten()
-        })
-        .unwrap_or_else(|| panic!("{} reports its material", report.display()));
+    let block = reported_material(&std::fs::read_to_string(report).unwrap());
     let law = &block["interface"];
     let number = |v: &Value| v.as_f64().expect("a number");
     Facet {

@@ -9,6 +9,8 @@
 
 #[path = "beam.rs"]
 mod beam;
+#[path = "fixtures/calibrations.rs"]
+mod calibrations;
 #[path = "cohesive.rs"]
 mod cohesive;
 #[path = "q8.rs"]
@@ -35,12 +37,8 @@ fn main() {
     let base: Value = serde_json::from_str(&text).unwrap();
     // The scene carries the calibrated material: the one `calibrated` reports.
     let report = std::fs::read_to_string(root.join("validation/calibrated_gregoire.md")).unwrap();
-    let reported = report
-        .lines()
-        .find_map(|l| l.trim().strip_prefix("material \"concrete\": "))
-        .expect("calibrated_gregoire.md reports its material");
     assert_eq!(
-        serde_json::from_str::<Value>(reported).unwrap(),
+        calibrations::reported_material(&report),
         base["materials"]["concrete"],
         "examples/scenes/notched_beam.json carries the material calibrated_gregoire.md reports"
     );

@@ -6,14 +6,17 @@
 //! (`cohesive::split_load`); then with rigid blocks in place of the strips, as wide and deep as
 //! the cells that the Voronoi disks' clamps hold (measured on the library's meshes, [`clamped`]).
 //!
-//! `cargo run --release --example splitting` writes `validation/splitting.md` (15 seconds);
+//! `cargo run --release --example splitting` writes `validation/splitting.md` (about 13 seconds);
 //! it reads the Voronoi disks' means from the committed `validation/calibrated*.md`.
 
+#[path = "fixtures/calibrations.rs"]
+mod calibrations;
 #[path = "cohesive.rs"]
 mod cohesive;
 #[path = "q8.rs"]
 mod q8;
 
+use calibrations::CALIBRATIONS;
 use rbsm::input::scene::Scene;
 use rbsm::model::Model;
 use serde_json::{json, Value};
@@ -26,16 +29,6 @@ const N: usize = 32;
 const FINER: [usize; 2] = [16, 64];
 /// The finer elements under the blocks of section 3, whose depth is a few millimetres.
 const N2: usize = 64;
-
-/// The calibrations whose Voronoi disks `calibrated` reports, and the report of each.
-const CALIBRATIONS: [(&str, &str); 3] = [
-    ("concrete", "validation/calibrated.md"),
-    (
-        "concrete_poisson",
-        "validation/calibrated_concrete_poisson.md",
-    ),
-    ("gregoire", "validation/calibrated_gregoire.md"),
-];
 
 fn main() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
