@@ -125,9 +125,11 @@ fn main() {
     let mut section = String::from(
         "## What a formulation costs\n\nVoronoi panels (unit square, 2 Lloyd steps, left edge \
         on ground springs, a traction on the right), stepped by each evaluator: rigid, \
-        `rigid-poisson` (a pass over the cells for their pressures, then the rigid springs' \
-        fused sweep with the correction's tractions: element-wise as a jump on each interface, \
-        assembled as `G`'s entries pair by pair) and hybrid with `p` = 10. ns per element-step, median of 10 samples with \
+        `rigid-poisson` (the cells' pressures, then the rigid springs' fused sweep with the \
+        correction's tractions: element-wise as a jump on each interface, assembled as `G`'s \
+        entries pair by pair; the pressures gathered cell by cell before the sweep, but \
+        element-wise from 50,000 elements on, where a wave that leads the sweep sums them \
+        from the interfaces' records and only the cells on its blocks' borders are gathered) and hybrid with `p` = 10. ns per element-step, median of 10 samples with \
         the quartiles, all measured in one run of `cargo bench --bench formulations`; each \
         sample steps the three panels in turn, and the ratios to the rigid step are the medians \
         of the ratios sample by sample.\n\n\

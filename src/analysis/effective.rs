@@ -254,10 +254,10 @@ fn element_stresses(model: &Model, u: &[f64]) -> Vec<[f64; 3]> {
     let nd = model.formulation.ndof();
     let mut s = vec![[0.0; 3]; model.elements.len()];
     // `rigid-poisson`: the cells' `q` add the correction's traction to every facet.
-    let mut q = vec![0.0; model.elements.len()];
-    if model.formulation == Formulation::RigidPoisson {
-        FacetPressures::new(model).cells(u, &mut q);
-    }
+    let q = match model.formulation {
+        Formulation::RigidPoisson => FacetPressures::new(model).cells(u),
+        _ => vec![0.0; model.elements.len()],
+    };
     for i in model.interfaces.iter().filter(|i| i.b != GROUND) {
         let (points, w) = i.gauss_points();
         let [k_n, k_s] = model.law_of(i).springs([i.k_n, i.k_s]);

@@ -10,7 +10,7 @@
 //! written.
 
 use super::failing::{Carried, Screened, WithFailure};
-use super::sweep::{Couplings, Face, Sweep};
+use super::sweep::{Couplings, Face, Sweep, MAX_BLOCKS};
 use super::{Evaluator, Failure, FusedStep};
 use crate::input::scene::EvaluatorKind;
 use crate::lanes::Lanes;
@@ -216,7 +216,7 @@ impl<K: Screened<N>, const N: usize> Assembled<K, N> {
                 }
             }
         }
-        let sweep = Sweep::new(n, &mut pairs);
+        let sweep = Sweep::new(n, &mut pairs, MAX_BLOCKS);
         let carried = model
             .any_fails()
             .then(|| Carried::new::<K, N, _>(model, &pairs));
@@ -414,7 +414,11 @@ mod tests {
             assert!(diff <= 1e-12 * scale, "|Δf| = {diff:e} of {scale:e}");
             let scratch = ev.sweep.scratch.lock().unwrap();
             assert!(
-                scratch.rings.iter().flatten().all(|s| *s == [0.0; N]),
+                scratch
+                    .rings
+                    .iter()
+                    .flat_map(|r| &r.forces)
+                    .all(|s| *s == [0.0; N]),
                 "a ring was left with a pending force"
             );
             drop(scratch);

@@ -26,7 +26,8 @@
 //! ([`Inline`]): a map per interface would double the bytes a step reads.
 
 use super::failing::failing_of;
-use super::sweep::{Couplings, Face, Higher, Sweep};
+use super::poisson::Pressures;
+use super::sweep::{Couplings, Face, Higher, Sweep, LEADING_BLOCKS, MAX_BLOCKS};
 use super::{Evaluator, Failure, FusedStep, GroupedStep};
 use crate::force::failure::{FailingInterfaces, FailureState, Jump};
 use crate::input::scene::EvaluatorKind;
@@ -265,7 +266,7 @@ struct ByLawSweep<'a, K: Kernel<N>, const N: usize> {
     interior: &'a Interior,
     failing: &'a FailingInterfaces<K, N>,
     state: &'a FailureState,
-    q: Option<&'a [f64]>,
+    q: Option<&'a Pressures<'a>>,
 }
 
 impl<K: Kernel<N>, const N: usize> Couplings<N> for ByLawSweep<'_, K, N> {
@@ -287,7 +288,9 @@ impl<K: Kernel<N>, const N: usize> Couplings<N> for ByLawSweep<'_, K, N> {
         Self: 'b;
     #[inline(always)]
     fn coupling(&self, face: &Face<u32>) -> (u32, Jump) {
-        let jump = self.q.map(|q| [q[face.a as usize], q[face.b as usize]]);
+        let jump = self
+            .q
+            .map(|q| [q.get(face.a as usize), q.get(face.b as usize)]);
         (face.record, jump)
     }
     /// A sweep computes each face once: the points of a failing interface are its alone. A
@@ -354,7 +357,7 @@ impl<K: Kernel<N>, const N: usize> Couplings<N> for ByLawSweep<'_, K, N> {
     fn add_ground(&self, face: &Face<u32>, ua: &[f64; N], fa: &mut [f64; N]) {
         let r = &self.by_law.records[face.record as usize];
         let on_a = match self.q {
-            Some(q) => K::jumped_forces(r, ua, None, r.da * q[face.a as usize]),
+            Some(q) => K::jumped_forces(r, ua, None, r.da * q.get(face.a as usize)),
             None => K::face_forces(r, ua, None),
         };
         sub(fa, &on_a[0]);
@@ -363,6 +366,26 @@ impl<K: Kernel<N>, const N: usize> Couplings<N> for ByLawSweep<'_, K, N> {
     fn add_own(&self, e: usize, ue: &[f64; N], f: &mut [f64; N]) {
         self.interior.add::<K, N>(e, ue, f);
     }
+}
+
+/// An interface's shares in its elements' first moments of the spring tractions, times the
+/// thickness ([`super::poisson::Pressures`]): `t ∫ (x − x_a)·S δ ds` to `a` and
+/// `−t ∫ (x − x_b)·S δ ds` to `b`, the springs on `δ = u_b − u_a` with no correction. Of the
+/// two Gauss points `m ± g`, the odd part of the jump lies along the normal and `g` along the
+/// edge (rigid), so only the midpoint's traction `T = t L S δ₀` enters: `d_a · T` and
+/// `−d_b · T`.
+#[inline(always)]
+fn lead_shares<K: Kinematics<N>, const N: usize>(
+    f: &Record<K, N>,
+    ua: &[f64; N],
+    ub: Option<&[f64; N]>,
+) -> [f64; 2] {
+    let mut delta = -K::displacement(ua, f.da);
+    if let Some(ub) = ub {
+        delta += K::displacement(ub, f.db);
+    }
+    let t = f.springs.apply(delta);
+    [f.da.dot(&t), -f.db.dot(&t)]
 }
 
 /// `t A D` per element, acting on the strains `U_e[3..6]`: the interior term of eq. 15 (hybrid
@@ -562,12 +585,13 @@ fn rigid_forces(
 /// the cells' `q` of the step (`q_b = 0` on ground). That jump's odd part along the edge,
 /// `(q_a − q_b) g`, meets the springs as `k_s (q_a − q_b) g`, which has neither resultant nor
 /// moment over the two Gauss points: only its midpoint value `q_a d_a − q_b d_b` enters.
-struct Corrected<'a> {
+struct Corrected<'a, const WAVE: bool> {
     inline: &'a Inline<Rigid, 3>,
-    q: &'a [f64],
+    q: &'a Pressures<'a>,
 }
 
-impl Couplings<3> for Corrected<'_> {
+/// With `WAVE`, the cells' wave leads the sweep ([`Pressures`]).
+impl<const WAVE: bool> Couplings<3> for Corrected<'_, WAVE> {
     type Ref = Record<Rigid, 3>;
     const PREFETCH: bool = true;
     const RUNS: bool = false;
@@ -585,7 +609,7 @@ impl Couplings<3> for Corrected<'_> {
     #[inline(always)]
     fn coupling<'b>(&'b self, face: &'b Face<Record<Rigid, 3>>) -> Self::Coupling<'b> {
         let r = &face.record;
-        let (qa, qb) = (self.q[face.a as usize], self.q[face.b as usize]);
+        let (qa, qb) = (self.q.get(face.a as usize), self.q.get(face.b as usize));
         (r, r.da * qa - r.db * qb)
     }
     #[inline(always)]
@@ -605,11 +629,26 @@ impl Couplings<3> for Corrected<'_> {
     #[inline(always)]
     fn add_ground(&self, face: &Face<Record<Rigid, 3>>, ua: &[f64; 3], fa: &mut [f64; 3]) {
         let r = &face.record;
-        let extra = r.da * self.q[face.a as usize];
+        let extra = r.da * self.q.get(face.a as usize);
         sub(fa, &rigid_forces(r, ua, None, Some(extra))[0]);
     }
     #[inline(always)]
     fn add_own(&self, _: usize, _: &[f64; 3], _: &mut [f64; 3]) {}
+    fn leads(&self) -> bool {
+        WAVE
+    }
+    #[inline(always)]
+    fn lead_pair(&self, face: &Face<Record<Rigid, 3>>, ua: &[f64; 3], ub: &[f64; 3]) -> [f64; 2] {
+        lead_shares(&face.record, ua, Some(ub))
+    }
+    #[inline(always)]
+    fn lead_ground(&self, face: &Face<Record<Rigid, 3>>, ua: &[f64; 3]) -> f64 {
+        lead_shares(&face.record, ua, None)[0]
+    }
+    #[inline(always)]
+    fn lead_done(&self, e: usize, _: &[f64; 3], s: f64) {
+        self.q.done(e, s);
+    }
 }
 
 /// A hybrid interface: 10 inputs, 10 outputs in three groups of four (two lanes unused).
@@ -886,13 +925,13 @@ impl<K: Kernel<N>, const N: usize> ElementWise<K, N> {
     /// Face records, blocks and crossing interfaces from the model's interfaces, with the
     /// springs of their laws (`force::failure` adds the plastic part of a law that is not linear).
     pub fn new(model: &Model) -> Self {
-        Self::build(model, true, true)
+        Self::build(model, true, true, MAX_BLOCKS)
     }
 
     /// [`ElementWise::new`], with shared records only if `share` ([`Store::new`]), and runs of
     /// them only if `runs` ([`Sweep::find_runs`]; never where interfaces fail, whose couplings
-    /// the sweep meets one by one, `super::failing`).
-    fn build(model: &Model, share: bool, runs: bool) -> Self {
+    /// the sweep meets one by one, `super::failing`), in at most `blocks` blocks.
+    fn build(model: &Model, share: bool, runs: bool, blocks: usize) -> Self {
         let t = model.thickness;
         // Each interface's record and the key of the records it may share ([`share_key`]).
         let (records, keys): (Vec<Record<K, N>>, Vec<_>) = model
@@ -936,7 +975,7 @@ impl<K: Kernel<N>, const N: usize> ElementWise<K, N> {
                 record: k as u32,
             })
             .collect();
-        let mut sweep = Sweep::new(model.elements.len(), &mut faces);
+        let mut sweep = Sweep::new(model.elements.len(), &mut faces, blocks);
         let by_law = model
             .any_fails()
             .then(|| ByLaw::new(model, &faces, &records));
@@ -977,7 +1016,7 @@ impl<K: Kernel<N>, const N: usize> ElementWise<K, N> {
     fn by_law_sweep<'a>(
         &'a self,
         (plastic, state): Failure<'a>,
-        q: Option<&'a [f64]>,
+        q: Option<&'a Pressures<'a>>,
     ) -> ByLawSweep<'a, K, N> {
         ByLawSweep {
             q,
@@ -996,12 +1035,19 @@ impl<K: Kernel<N>, const N: usize> ElementWise<K, N> {
 /// tractions of the cells' `q` (`Corrected`; `super::poisson` computes `q`).
 impl ElementWise<Rigid, 3> {
     /// The evaluator of a `rigid-poisson` model: every interface with its record inline, whose
-    /// offsets the correction's jump needs.
-    pub fn with_poisson(model: &Model) -> Self {
-        Self::build(model, false, false)
+    /// offsets the correction's jump needs; in the larger blocks of a sweep that a wave leads
+    /// if `wave`.
+    pub fn with_poisson(model: &Model, wave: bool) -> Self {
+        let blocks = if wave { LEADING_BLOCKS } else { MAX_BLOCKS };
+        Self::build(model, false, false, blocks)
     }
 
-    fn corrected<'a>(&'a self, q: &'a [f64]) -> Corrected<'a> {
+    /// The cells whose `q` the sweep's wave leaves out ([`super::sweep::Sweep::border`]).
+    pub(super) fn border(&self) -> &[u32] {
+        self.sweep.border()
+    }
+
+    fn corrected<'a, const WAVE: bool>(&'a self, q: &'a Pressures<'a>) -> Corrected<'a, WAVE> {
         match &self.faces {
             Store::Inline(inline) => Corrected { inline, q },
             Store::Shared(_) => unreachable!("built by `with_poisson`, inline"),
@@ -1014,14 +1060,15 @@ impl ElementWise<Rigid, 3> {
         &self,
         u: &[f64],
         f: &mut [f64],
-        q: &[f64],
+        q: &Pressures<'_>,
         failure: Option<Failure<'_>>,
     ) {
         match failure {
             Some(failure) => self
                 .sweep
                 .evaluate(&self.by_law_sweep(failure, Some(q)), u, f),
-            None => self.sweep.evaluate(&self.corrected(q), u, f),
+            None if q.wave => self.sweep.evaluate(&self.corrected::<true>(q), u, f),
+            None => self.sweep.evaluate(&self.corrected::<false>(q), u, f),
         }
     }
 
@@ -1032,7 +1079,7 @@ impl ElementWise<Rigid, 3> {
         (u, v, force): (&mut [f64], &mut [f64], &mut [f64]),
         loaded: Option<&[u32]>,
         update: &Update,
-        q: &[f64],
+        q: &Pressures<'_>,
         failure: Option<Failure<'_>>,
     ) -> f64 {
         match failure {
@@ -1040,8 +1087,12 @@ impl ElementWise<Rigid, 3> {
                 let faces = self.by_law_sweep(failure, Some(q));
                 self.sweep.advance(&faces, u, v, force, loaded, update)
             }
+            None if q.wave => {
+                let faces = self.corrected::<true>(q);
+                self.sweep.advance(&faces, u, v, force, loaded, update)
+            }
             None => {
-                let faces = self.corrected(q);
+                let faces = self.corrected::<false>(q);
                 self.sweep.advance(&faces, u, v, force, loaded, update)
             }
         }
@@ -1211,7 +1262,7 @@ mod tests {
         fn check<K: Kernel<N>, const N: usize>(model: &Model) {
             let (shared, inline) = (
                 ElementWise::<K, N>::new(model),
-                ElementWise::<K, N>::build(model, false, false),
+                ElementWise::<K, N>::build(model, false, false, MAX_BLOCKS),
             );
             let Store::Shared(records) = &shared.faces else {
                 panic!("the grid's records are not shared");
@@ -1263,7 +1314,7 @@ mod tests {
         use crate::model::mass::{Mass, Update};
         fn check<K: Kernel<N>, const N: usize>(model: &Model, share: f64) {
             let runs = ElementWise::<K, N>::new(model);
-            let each = ElementWise::<K, N>::build(model, true, false);
+            let each = ElementWise::<K, N>::build(model, true, false, MAX_BLOCKS);
             let n = model.elements.len();
             let (in_runs, in_lanes, entries, _) = runs.sweep.run_elements();
             assert!(
@@ -1467,7 +1518,11 @@ mod tests {
         }
         let scratch = sweep.scratch.lock().unwrap();
         assert!(
-            scratch.rings.iter().flatten().all(|s| *s == [0.0; 3]),
+            scratch
+                .rings
+                .iter()
+                .flat_map(|r| &r.forces)
+                .all(|s| *s == [0.0; 3]),
             "a ring was left with a pending force"
         );
     }

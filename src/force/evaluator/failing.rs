@@ -9,6 +9,7 @@
 //! interface its whole traction through its law instead, `super::element_wise`.)
 
 use super::assembled::{Assembled, Block};
+use super::poisson::Pressures;
 use super::sweep::{place, Couplings, Face};
 use crate::force::failure::{self, FailingInterfaces, FailureState, Jump, PlasticForces};
 use crate::lanes::Lanes;
@@ -224,7 +225,7 @@ pub(super) struct WithFailure<'a, K: Screened<N>, const N: usize> {
     carried: &'a Carried<K::Screen>,
     failing: &'a FailingInterfaces<K, N>,
     state: &'a FailureState,
-    q: Option<&'a [f64]>,
+    q: Option<&'a Pressures<'a>>,
 }
 
 impl<'a, K: Screened<N>, const N: usize> WithFailure<'a, K, N> {
@@ -254,7 +255,7 @@ impl<'a, K: Screened<N>, const N: usize> WithFailure<'a, K, N> {
 
     /// The same couplings, whose failing interfaces' laws act on the jump of the Poisson
     /// correction's `q`.
-    pub(super) fn jumped(self, q: &'a [f64]) -> Self {
+    pub(super) fn jumped(self, q: &'a Pressures<'a>) -> Self {
         WithFailure { q: Some(q), ..self }
     }
 
@@ -307,7 +308,9 @@ impl<K: Screened<N>, const N: usize> Couplings<N> for WithFailure<'_, K, N> {
     /// which gives what it carries; with its elements' `q` under the Poisson correction.
     #[inline(always)]
     fn coupling<'b>(&'b self, face: &'b Face<Block<N>>) -> Self::Coupling<'b> {
-        let jump = self.q.map(|q| [q[face.a as usize], q[face.b as usize]]);
+        let jump = self
+            .q
+            .map(|q| [q.get(face.a as usize), q.get(face.b as usize)]);
         let k = self.index(face);
         let jump = jump.map(|q| (q, &self.carried.jumped[k]));
         (&face.record, &self.carried.carries[k], jump)

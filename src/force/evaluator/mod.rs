@@ -15,6 +15,7 @@ pub use assembled::{assemble, interface_stiffness, Assembled, BlockCsr};
 pub use element_wise::ElementWise;
 pub use poisson::{
     cells, AssembledPoisson, ElementWisePoisson, FacetPressures, PressureOperator, WithPoisson,
+    WAVE_FROM,
 };
 
 use crate::force::failure::{FailureState, PlasticForces};

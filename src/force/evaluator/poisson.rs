@@ -1,12 +1,15 @@
 //! The Poisson correction's forces (formulation `rigid-poisson`, [`crate::model::poisson`]) in
-//! the two evaluators' manners, with the rigid springs in their sweep. A step is two passes
-//! over the elements:
+//! the two evaluators' manners, with the rigid springs in their sweep. A cell's `q = Λ G U^n`
+//! needs its neighbours' `U^n`, and an element's force its neighbours' `q`:
 //!
-//! 1. the cells' `q = Λ G U^n` ([`WithPoisson`]): each cell sums the first moment `s` of its
-//!    facets' spring tractions from its own and its neighbours' `U`, through each facet's
-//!    coefficients integrated in closed form once (`G` by block rows, [`FacetPressures`]). A
-//!    cell's `q` needs its neighbours' `U^n`, and an element's force its neighbours' `q`, so
-//!    this pass comes before any element moves;
+//! 1. the cells' `q` ([`Pressures`]): each cell sums the first moment `s` of its facets' spring
+//!    tractions from its own and its neighbours' `U`. Gathered before the sweep, cell by cell,
+//!    through each facet's coefficients integrated in closed form once (`G` by block rows,
+//!    [`FacetPressures`]); or, in the element-wise sweep of a mesh of [`WAVE_FROM`] elements or
+//!    more, by a wave that leads the sweep ([`super::sweep`]) and takes each interface's shares
+//!    `d_a · T` and `−d_b · T` from the record the sweep reads next, `T = t L S δ₀` the
+//!    midpoint traction of its springs: only the cells with interfaces across the sweep's
+//!    blocks are gathered before it;
 //! 2. the rigid springs' sweep with the correction's forces, each element advanced as soon as
 //!    its force is complete: element-wise ([`ElementWisePoisson`]) each interface's springs get
 //!    the jump the correction adds, `q_a (x − x_a) − q_b (x − x_b)`, so that its traction is
@@ -15,8 +18,8 @@
 //!    `a`, `t ∂s_a/∂U_b q_a` to `b`, and `t ∂s_e/∂U_e q_e` to each element last.
 //!
 //! `t Gᵀ Λ G` is the correction's part of `K` ([`PressureOperator::triplets`]). `q` is kept in
-//! a buffer of its own (locked for an evaluation, no allocation) and computed in fixed chunks,
-//! so the result does not depend on the thread count.
+//! a buffer of its own (locked for an evaluation, no allocation), each cell's computed in an
+//! order fixed by the mesh, so the result does not depend on the thread count.
 
 use super::assembled::Block;
 use super::failing::{failing_of, Carrying, WithFailure};
@@ -31,6 +34,8 @@ use crate::model::mass::Update;
 use crate::model::poisson::{load_moment, springs, Poisson};
 use crate::model::{Model, GROUND};
 use crate::parallel::for_each_chunk;
+use rayon::prelude::*;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Mutex;
 
 /// A rigid evaluator that steps with the Poisson correction's forces of the cells' `q`.
@@ -39,7 +44,13 @@ pub trait Correction: Send + Sync {
     fn kind(&self) -> EvaluatorKind;
     /// `f = f_int(u)`: the springs' forces and the correction's of `q`, the failing
     /// interfaces `failure` return-mapped in the same pass, their laws acting on the jump of `q`.
-    fn internal_force(&self, u: &[f64], f: &mut [f64], q: &[f64], failure: Option<Failure<'_>>);
+    fn internal_force(
+        &self,
+        u: &[f64],
+        f: &mut [f64],
+        q: &Pressures<'_>,
+        failure: Option<Failure<'_>>,
+    );
     /// [`FusedStep::advance`] (or [`FusedStep::advance_failing`]) with the correction's forces
     /// of `q`.
     fn advance(
@@ -47,11 +58,50 @@ pub trait Correction: Send + Sync {
         state: (&mut [f64], &mut [f64], &mut [f64]),
         loaded: Option<&[u32]>,
         update: &Update,
-        q: &[f64],
+        q: &Pressures<'_>,
         failure: Option<Failure<'_>>,
     ) -> f64;
     /// Bytes it reads in an evaluation.
     fn bytes(&self) -> usize;
+    /// The cells whose `q` its sweep's wave leaves to [`Pressures`]' caller, in order
+    /// ([`super::sweep::Sweep::border`]); `None` if no wave leads its sweep, which reads the
+    /// `q` of every cell.
+    fn border(&self) -> Option<&[u32]>;
+}
+
+/// The cells' `q` of an evaluation, `q_e = Λ_e (s_e − s_p,e)` with `s_e` the first moment of
+/// element `e`'s spring tractions per unit thickness and `s_p` the plastic moments of failing
+/// interfaces (empty where none fail). The cells with couplings across the sweep's blocks get
+/// theirs before the sweeps (gathered through [`FacetPressures`]); the others from the
+/// sweep's leading wave, which hands each its sum `t s_e` (`done`) before any of the sweep's
+/// couplings reads it, and after no element it reads has moved. Written by one block's task
+/// and read by it (a cell's `q` in another block is read only by the crossing couplings,
+/// computed before the sweeps), so relaxed atomics order them.
+pub struct Pressures<'a> {
+    q: &'a [AtomicU64],
+    scale: &'a [f64],
+    plastic: &'a [f64],
+    per_thickness: f64,
+    /// Whether the sweep's wave gives the `q` of the cells not gathered before it.
+    pub(super) wave: bool,
+}
+
+impl Pressures<'_> {
+    /// Cell `e`'s `q`.
+    #[inline(always)]
+    pub(super) fn get(&self, e: usize) -> f64 {
+        f64::from_bits(self.q[e].load(Ordering::Relaxed))
+    }
+    /// Cell `e`'s `q` from the sum `ts = t s_e` of its facets' shares.
+    #[inline(always)]
+    pub(super) fn done(&self, e: usize, ts: f64) {
+        let s = ts * self.per_thickness;
+        self.set(e, pressure(self.scale[e], s, self.plastic.get(e)));
+    }
+    #[inline(always)]
+    fn set(&self, e: usize, q: f64) {
+        self.q[e].store(q.to_bits(), Ordering::Relaxed);
+    }
 }
 
 /// The rigid springs' evaluator with the Poisson correction: the cells' `q` (`G` by block rows),
@@ -63,11 +113,22 @@ pub struct WithPoisson<C: Correction> {
     thickness: f64,
 }
 
-/// The cells' buffers of an evaluation: `q`, and where interfaces fail the plastic moments
-/// `s_p` that `s = G U − s_p` loses.
+/// The cells' buffers of an evaluation: `q` ([`Pressures`]), and where interfaces fail the
+/// plastic moments `s_p` that `s = G U − s_p` loses.
 struct Cells {
-    q: Vec<f64>,
+    q: Vec<AtomicU64>,
     plastic: Vec<f64>,
+}
+
+/// `q = Λ (s − s_p)` of a cell with scale `Λ`, first moment `s` and plastic moment `s_p`, if
+/// its interfaces fail.
+#[inline(always)]
+fn pressure(scale: f64, s: f64, plastic: Option<&f64>) -> f64 {
+    scale
+        * match plastic {
+            Some(p) => s - p,
+            None => s,
+        }
 }
 
 impl<C: Correction> WithPoisson<C> {
@@ -79,30 +140,61 @@ impl<C: Correction> WithPoisson<C> {
             rows: FacetPressures::new(model),
             correction,
             cells: Mutex::new(Cells {
-                q: vec![0.0; n],
+                q: (0..n).map(|_| AtomicU64::new(0)).collect(),
                 plastic: vec![0.0; failing],
             }),
             thickness: model.thickness,
         }
     }
 
-    /// The cells' buffers with `q` at `u`, less the plastic moments of the failing interfaces
-    /// in `failure`'s state (a poisoned lock only means another evaluation panicked; the
-    /// buffers are scratch).
+    /// The cells' buffers with the plastic moments of the failing interfaces in `failure`'s
+    /// state and the `q` at `u` of the cells on the sweep's borders, whose sweep gives the
+    /// others (a poisoned lock only means another evaluation panicked; the buffers are
+    /// scratch).
     fn cells(&self, u: &[f64], failure: Option<&Failure<'_>>) -> std::sync::MutexGuard<'_, Cells> {
         let mut cells = self.cells.lock().unwrap_or_else(|e| e.into_inner());
-        match failure {
-            Some((plastic, state)) => {
-                let Cells {
-                    q,
-                    plastic: moments,
-                } = &mut *cells;
-                failing_of::<Rigid, 3>(*plastic).plastic_moments(state, self.thickness, moments);
-                self.rows.cells_less(u, moments, q);
-            }
-            None => self.rows.cells(u, &mut cells.q),
+        let Cells {
+            q,
+            plastic: moments,
+        } = &mut *cells;
+        if let Some((plastic, state)) = failure {
+            failing_of::<Rigid, 3>(*plastic).plastic_moments(state, self.thickness, moments);
+        }
+        let failing = failure.is_some();
+        match self.border(failing) {
+            Some(border) => self
+                .rows
+                .border(u, border, &self.pressures(q, moments, failing)),
+            None => self.rows.fill(u, if failing { moments } else { &[] }, q),
         }
         cells
+    }
+
+    /// The cells that the wave of the sweep leaves out, `None` if none leads it: where
+    /// interfaces fail the sweep gathers (its faces name their records by index, which a wave
+    /// would read a second time out of order: `cargo bench --bench failure` measured a failing
+    /// panel that stays elastic 1.6–1.7 × the elastic step with the wave, 1.3–1.4 × without).
+    fn border(&self, failing: bool) -> Option<&[u32]> {
+        match failing {
+            true => None,
+            false => self.correction.border(),
+        }
+    }
+
+    /// The cells' [`Pressures`] in `cells`' buffers, less the plastic moments if `failing`.
+    fn pressures<'a>(
+        &'a self,
+        q: &'a [AtomicU64],
+        plastic: &'a [f64],
+        failing: bool,
+    ) -> Pressures<'a> {
+        Pressures {
+            q,
+            scale: &self.rows.scale,
+            plastic: if failing { plastic } else { &[] },
+            per_thickness: 1.0 / self.thickness,
+            wave: self.border(failing).is_some(),
+        }
     }
 }
 
@@ -112,12 +204,13 @@ impl<C: Correction> Evaluator for WithPoisson<C> {
     }
     fn internal_force(&self, u: &[f64], f: &mut [f64]) {
         let cells = self.cells(u, None);
-        self.correction.internal_force(u, f, &cells.q, None);
+        let q = self.pressures(&cells.q, &cells.plastic, false);
+        self.correction.internal_force(u, f, &q, None);
     }
     fn internal_force_failing(&self, u: &[f64], f: &mut [f64], failure: Failure<'_>) {
         let cells = self.cells(u, Some(&failure));
-        self.correction
-            .internal_force(u, f, &cells.q, Some(failure));
+        let q = self.pressures(&cells.q, &cells.plastic, true);
+        self.correction.internal_force(u, f, &q, Some(failure));
     }
     /// `½ t Σ_c (q_c (G U)_c − Λ_c s_c²)`, `q` of the last evaluation (at `u`) and
     /// `s = G U − s_p` with the plastic moments of `state`: `½ Uᵀ f_P` less the correction's
@@ -137,7 +230,8 @@ impl<C: Correction> Evaluator for WithPoisson<C> {
         let offset: f64 = (0..q.len())
             .map(|e| {
                 let (m, s) = (self.rows.moment(e, u), self.rows.scale[e]);
-                q[e] * m - s * (m - moments[e]) * (m - moments[e])
+                let q = f64::from_bits(q[e].load(Ordering::Relaxed));
+                q * m - s * (m - moments[e]) * (m - moments[e])
             })
             .sum();
         0.5 * self.thickness * offset
@@ -160,8 +254,9 @@ impl<C: Correction> FusedStep for WithPoisson<C> {
         update: &Update,
     ) -> f64 {
         let cells = self.cells(u, None);
+        let q = self.pressures(&cells.q, &cells.plastic, false);
         self.correction
-            .advance((u, v, force), loaded, update, &cells.q, None)
+            .advance((u, v, force), loaded, update, &q, None)
     }
     fn advance_failing(
         &self,
@@ -173,22 +268,38 @@ impl<C: Correction> FusedStep for WithPoisson<C> {
         failure: Failure<'_>,
     ) -> f64 {
         let cells = self.cells(u, Some(&failure));
+        let q = self.pressures(&cells.q, &cells.plastic, true);
         self.correction
-            .advance((u, v, force), loaded, update, &cells.q, Some(failure))
+            .advance((u, v, force), loaded, update, &q, Some(failure))
     }
 }
 
 /// The element-wise sweep of a `rigid-poisson` model: the rigid springs with the correction's
-/// jump on each interface.
+/// jump on each interface, led by the cells' wave on a large mesh.
 pub struct ElementWisePoisson {
     springs: ElementWise<Rigid, 3>,
+    wave: bool,
 }
 
+/// The fewest elements whose element-wise sweep a wave leads (its cells' `q`). The wave reads
+/// each interface's record once with the sweep where the gather reads `G`'s coefficients too
+/// (`cargo bench --bench formulations`: 2.1–2.2 → 1.7–1.8 × the rigid step at 10⁶ elements,
+/// out of the cache), but it does more arithmetic (2.3–2.4 × at 10⁴, where the data stay in
+/// the cache, against 2.0–2.1 × with the gather). Between 10⁴ and 10⁵, not tuned.
+pub const WAVE_FROM: usize = 50_000;
+
 impl ElementWisePoisson {
-    /// The evaluator of a `rigid-poisson` model.
+    /// The evaluator of a `rigid-poisson` model, led by the wave from [`WAVE_FROM`] elements.
     pub fn new(model: &Model) -> Self {
+        Self::with_wave(model, model.elements.len() >= WAVE_FROM)
+    }
+
+    /// The evaluator of a `rigid-poisson` model, its sweep led by the cells' wave if `wave`,
+    /// else after every cell's `q` gathered.
+    pub fn with_wave(model: &Model, wave: bool) -> Self {
         ElementWisePoisson {
-            springs: ElementWise::with_poisson(model),
+            springs: ElementWise::with_poisson(model, wave),
+            wave,
         }
     }
 }
@@ -197,7 +308,13 @@ impl Correction for ElementWisePoisson {
     fn kind(&self) -> EvaluatorKind {
         EvaluatorKind::ElementWise
     }
-    fn internal_force(&self, u: &[f64], f: &mut [f64], q: &[f64], failure: Option<Failure<'_>>) {
+    fn internal_force(
+        &self,
+        u: &[f64],
+        f: &mut [f64],
+        q: &Pressures<'_>,
+        failure: Option<Failure<'_>>,
+    ) {
         self.springs.internal_force_corrected(u, f, q, failure);
     }
     fn advance(
@@ -205,7 +322,7 @@ impl Correction for ElementWisePoisson {
         state: (&mut [f64], &mut [f64], &mut [f64]),
         loaded: Option<&[u32]>,
         update: &Update,
-        q: &[f64],
+        q: &Pressures<'_>,
         failure: Option<Failure<'_>>,
     ) -> f64 {
         self.springs
@@ -213,6 +330,9 @@ impl Correction for ElementWisePoisson {
     }
     fn bytes(&self) -> usize {
         self.springs.bytes()
+    }
+    fn border(&self) -> Option<&[u32]> {
+        self.wave.then(|| self.springs.border())
     }
 }
 
@@ -262,7 +382,7 @@ impl AssembledPoisson {
 /// [`AssembledPoisson`]'s pairs in the sweep, with the cells' `q`.
 struct Pairs<'a> {
     of: &'a AssembledPoisson,
-    q: &'a [f64],
+    q: &'a Pressures<'a>,
 }
 
 impl Pairs<'_> {
@@ -270,7 +390,7 @@ impl Pairs<'_> {
     #[inline(always)]
     fn correction(&self, face: &Face<Block<3>>) -> [[f64; 3]; 2] {
         let [on_a, on_b] = &self.of.pairs[place(self.faces(), face)];
-        let (qa, qb) = (self.q[face.a as usize], self.q[face.b as usize]);
+        let (qa, qb) = (self.q.get(face.a as usize), self.q.get(face.b as usize));
         [on_a.map(|c| c * qb), on_b.map(|c| c * qa)]
     }
 }
@@ -321,7 +441,7 @@ impl Couplings<3> for Pairs<'_> {
     #[inline(always)]
     fn add_own(&self, e: usize, ue: &[f64; 3], f: &mut [f64; 3]) {
         self.of.springs.add_own(e, ue, f);
-        let q = self.q[e];
+        let q = self.q.get(e);
         for (f, c) in f.iter_mut().zip(&self.of.own[e]) {
             *f += c * q;
         }
@@ -379,7 +499,13 @@ impl Correction for AssembledPoisson {
     fn kind(&self) -> EvaluatorKind {
         EvaluatorKind::Assembled
     }
-    fn internal_force(&self, u: &[f64], f: &mut [f64], q: &[f64], failure: Option<Failure<'_>>) {
+    fn internal_force(
+        &self,
+        u: &[f64],
+        f: &mut [f64],
+        q: &Pressures<'_>,
+        failure: Option<Failure<'_>>,
+    ) {
         let pairs = Pairs { of: self, q };
         let sweep = self.springs.sweep();
         match failure {
@@ -395,7 +521,7 @@ impl Correction for AssembledPoisson {
         (u, v, force): (&mut [f64], &mut [f64], &mut [f64]),
         loaded: Option<&[u32]>,
         update: &Update,
-        q: &[f64],
+        q: &Pressures<'_>,
         failure: Option<Failure<'_>>,
     ) -> f64 {
         let pairs = Pairs { of: self, q };
@@ -412,6 +538,9 @@ impl Correction for AssembledPoisson {
     fn bytes(&self) -> usize {
         use std::mem::size_of_val;
         self.springs.bytes() + size_of_val(&self.pairs[..]) + size_of_val(&self.own[..])
+    }
+    fn border(&self) -> Option<&[u32]> {
+        None
     }
 }
 
@@ -549,37 +678,47 @@ impl FacetPressures {
         (blocks, most)
     }
 
-    /// [`FacetPressures::cells`] with `s = G U − s_p`, less the plastic moments `plastic` of
-    /// the failing interfaces.
-    fn cells_less(&self, u: &[f64], plastic: &[f64], q: &mut [f64]) {
+    /// The cells' `q_e = Λ_e s_e` at `u`, from the springs alone (the loads' share is in `P`).
+    pub fn cells(&self, u: &[f64]) -> Vec<f64> {
+        let mut q: Vec<AtomicU64> = (0..self.own.len()).map(|_| AtomicU64::new(0)).collect();
+        self.fill(u, &[], &mut q);
+        q.into_iter()
+            .map(|q| f64::from_bits(q.into_inner()))
+            .collect()
+    }
+
+    /// Every cell's `q` at `u`, less its plastic moment in `plastic` (empty where none fail),
+    /// each from its facets gathered, in fixed chunks.
+    fn fill(&self, u: &[f64], plastic: &[f64], q: &mut [AtomicU64]) {
         let (u, _) = u.as_chunks::<3>();
         for_each_chunk(q, |first, chunk| {
             for (k, q) in chunk.iter_mut().enumerate() {
                 let e = first + k;
-                *q = self.scale[e] * (self.moment(e, u) - plastic[e]);
+                let q_e = pressure(self.scale[e], self.moment(e, u), plastic.get(e));
+                *q.get_mut() = q_e.to_bits();
             }
         });
     }
 
-    /// The cells' `q_e = Λ_e s_e` at `u`, from the springs alone (the loads' share is in `P`).
-    pub fn cells(&self, u: &[f64], q: &mut [f64]) {
+    /// The `q` at `u` of the `border` cells, those the sweep's wave leaves out, each from its
+    /// facets gathered.
+    fn border(&self, u: &[f64], border: &[u32], q: &Pressures<'_>) {
         let (u, _) = u.as_chunks::<3>();
-        for_each_chunk(q, |first, chunk| {
-            for (k, q) in chunk.iter_mut().enumerate() {
-                let e = first + k;
-                *q = self.scale[e] * self.moment(e, u);
-            }
+        border.par_iter().with_min_len(256).for_each(|&e| {
+            let e = e as usize;
+            q.set(
+                e,
+                pressure(self.scale[e], self.moment(e, u), q.plastic.get(e)),
+            );
         });
     }
 }
-
 /// The cells' `q_e = λ' tr ε_e / 2μ` of a `rigid-poisson` model at `u` under its loads at
 /// their full value: what the correction's tractions on its facets are made of
 /// ([`crate::model::poisson::correction`]; the static analysis reports them).
 pub fn cells(model: &Model, u: &[f64]) -> Vec<f64> {
     let facets = FacetPressures::new(model);
-    let mut q = vec![0.0; model.elements.len()];
-    facets.cells(u, &mut q);
+    let mut q = facets.cells(u);
     for l in &model.loads {
         let e = l.element as usize;
         q[e] += facets.scale[e] * load_moment(model, e, l.point, l.force);
@@ -716,12 +855,41 @@ mod tests {
 
     /// [`voronoi`] with `interface` added to the material.
     fn voronoi_with(nu: f64, interface: &str) -> Model {
+        voronoi_of(nu, interface, "\"sites\": 300, \"seed\": 3, \"lloyd\": 30")
+    }
+
+    /// A Voronoi panel of 6,000 cells: two blocks of the sweep, with cells on their border
+    /// (the wave leaves their `q` to a gather before the sweeps, [`Pressures`]).
+    fn two_blocks() -> Model {
+        voronoi_of(0.3, "", "\"sites\": 6000, \"seed\": 5, \"lloyd\": 2")
+    }
+
+    /// Each evaluator of a `rigid-poisson` model: assembled, element-wise after every cell's
+    /// `q` gathered, and element-wise led by the cells' wave.
+    fn evaluators(m: &Model) -> [(&'static str, Box<dyn Evaluator>); 3] {
+        [
+            (
+                "assembled",
+                Box::new(WithPoisson::new(m, AssembledPoisson::new(m))),
+            ),
+            (
+                "element-wise",
+                Box::new(WithPoisson::new(m, ElementWisePoisson::with_wave(m, false))),
+            ),
+            (
+                "element-wise led",
+                Box::new(WithPoisson::new(m, ElementWisePoisson::with_wave(m, true))),
+            ),
+        ]
+    }
+
+    fn voronoi_of(nu: f64, interface: &str, sites: &str) -> Model {
         Model::build(
             &Scene::from_json(&format!(
                 r#"{{"name": "p", "thickness": 0.5, "plane": "stress", "formulation": {{"kind": "rigid-poisson"}},
                 "materials": {{"m": {{"E": 1e10, "nu": {nu}, "rho": 2000{interface}}}}},
                 "bodies": [{{"name": "b", "material": "m",
-                    "mesh": {{"kind": "voronoi", "origin": [0, 0], "size": [1, 1], "sites": 300, "seed": 3, "lloyd": 30}}}}],
+                    "mesh": {{"kind": "voronoi", "origin": [0, 0], "size": [1, 1], {sites}}}}}],
                 "time": {{"dt": 1e-6, "steps": 1}}}}"#
             ))
             .unwrap(),
@@ -777,27 +945,33 @@ mod tests {
     }
 
     /// The two evaluators' corrections, and `K`'s triplets, give the same force on any `U`; `K`
-    /// is symmetric.
+    /// is symmetric. On one block of the sweep, and on two, where the cells on their border
+    /// take their `q` before the sweep.
     #[test]
     fn the_evaluators_agree_on_any_displacement() {
-        use crate::force::evaluator::{build, stiffness_triplets};
-        use crate::input::scene::EvaluatorKind;
-        let m = voronoi(0.3);
+        let two = two_blocks();
+        assert!(
+            ElementWise::with_poisson(&two, true).border().len() > 100,
+            "cells on the border"
+        );
+        for m in [voronoi(0.3), two] {
+            evaluators_agree(&m);
+        }
+    }
+
+    fn evaluators_agree(m: &Model) {
+        use crate::force::evaluator::stiffness_triplets;
         let n = m.n_dofs();
         let u: Vec<f64> = (0..n)
             .map(|k| 1e-4 * ((k as f64 * 0.7).sin() + 0.3 * (k as f64 * 1.9).cos()))
             .collect();
-        let force = |kind| {
+        let [fa, fe, fl] = evaluators(m).map(|(_, ev)| {
             let mut f = vec![0.0; n];
-            build(&m, kind).internal_force(&u, &mut f);
+            ev.internal_force(&u, &mut f);
             f
-        };
-        let (fa, fe) = (
-            force(EvaluatorKind::Assembled),
-            force(EvaluatorKind::ElementWise),
-        );
+        });
         let mut fk = vec![0.0; n];
-        let k = stiffness_triplets(&m);
+        let k = stiffness_triplets(m);
         for &(r, c, v) in &k {
             fk[r] += v * u[c];
         }
@@ -814,7 +988,7 @@ mod tests {
             );
         }
         let scale = fa.iter().fold(0.0f64, |s, x| s.max(x.abs()));
-        for (name, g) in [("element-wise", &fe), ("triplets", &fk)] {
+        for (name, g) in [("element-wise", &fe), ("led", &fl), ("triplets", &fk)] {
             let worst = fa
                 .iter()
                 .zip(g)
@@ -831,9 +1005,7 @@ mod tests {
     /// weak law, which yields, changes them.
     #[test]
     fn failing_sweeps_carry_the_correction() {
-        use crate::force::evaluator::build;
         use crate::force::failure;
-        use crate::input::scene::EvaluatorKind;
         let law = |f_t: f64| {
             format!(
                 r#", "interface": {{"kind": "mohr-coulomb", "tensile_strength": {f_t}, "cohesion": {f_t}, "friction_angle": 30}}"#
@@ -842,50 +1014,88 @@ mod tests {
         let u: Vec<f64> = (0..3 * voronoi(0.3).elements.len())
             .map(|k| 1e-5 * ((k as f64 * 0.7).sin() + 0.3 * (k as f64 * 1.9).cos()))
             .collect();
-        let elastic = |kind| {
+        let elastic = evaluators(&voronoi(0.3)).map(|(_, ev)| {
             let mut f = vec![0.0; u.len()];
-            build(&voronoi(0.3), kind).internal_force(&u, &mut f);
+            ev.internal_force(&u, &mut f);
             f
-        };
-        let failing = |kind, f_t| {
+        });
+        let failing = |f_t| {
             let m = voronoi_with(0.3, &law(f_t));
             let plastic = failure::build(&m).expect("failing interfaces");
-            let mut state = plastic.initial();
-            let mut f = vec![0.0; u.len()];
-            build(&m, kind).internal_force_failing(&u, &mut f, (&*plastic, &mut state));
-            f
+            evaluators(&m).map(|(name, ev)| {
+                let mut state = plastic.initial();
+                let mut f = vec![0.0; u.len()];
+                ev.internal_force_failing(&u, &mut f, (&*plastic, &mut state));
+                (name, f)
+            })
         };
-        for kind in [EvaluatorKind::Assembled, EvaluatorKind::ElementWise] {
-            let want = elastic(kind);
+        let (strong, weak) = (failing(1e12), failing(1e4));
+        for ((want, (name, strong)), (_, weak)) in elastic.iter().zip(strong).zip(weak) {
             let scale = want.iter().fold(0.0f64, |s, x| s.max(x.abs()));
             let diff = |f: &[f64]| {
                 want.iter()
                     .zip(f)
                     .fold(0.0f64, |s, (a, b)| s.max((a - b).abs()))
             };
-            let strong = diff(&failing(kind, 1e12));
-            assert!(strong <= 1e-12 * scale, "{kind:?}: {strong:e} of {scale:e}");
-            let weak = diff(&failing(kind, 1e4));
-            assert!(weak > 1e-3 * scale, "{kind:?}: a weak law changed {weak:e}");
+            let strong = diff(&strong);
+            assert!(strong <= 1e-12 * scale, "{name}: {strong:e} of {scale:e}");
+            let weak = diff(&weak);
+            assert!(weak > 1e-3 * scale, "{name}: a weak law changed {weak:e}");
         }
     }
 
+    /// The wave gives the same bits on one and two threads (two blocks, cells on their
+    /// border), and so does the gather of the same evaluator where interfaces yield.
+    #[test]
+    fn the_wave_does_not_depend_on_the_thread_count() {
+        use crate::force::failure;
+        let law = r#", "interface": {"kind": "mohr-coulomb", "tensile_strength": 1e4, "cohesion": 1e4, "friction_angle": 30}"#;
+        let m = voronoi_of(0.3, law, "\"sites\": 6000, \"seed\": 5, \"lloyd\": 2");
+        let plastic = failure::build(&m).expect("failing interfaces");
+        let ev = WithPoisson::new(&m, ElementWisePoisson::with_wave(&m, true));
+        let u: Vec<f64> = (0..m.n_dofs())
+            .map(|k| 1e-5 * ((k as f64 * 0.7).sin() + 0.3 * (k as f64 * 1.9).cos()))
+            .collect();
+        let forces = |threads| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            pool.install(|| {
+                let (mut elastic, mut failing) = (vec![0.0; u.len()], vec![0.0; u.len()]);
+                ev.internal_force(&u, &mut elastic);
+                let mut state = plastic.initial();
+                ev.internal_force_failing(&u, &mut failing, (&*plastic, &mut state));
+                (elastic, failing)
+            })
+        };
+        let (one, two) = (forces(1), forces(2));
+        let bits = |f: &[f64]| f.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert!(bits(&one.0) == bits(&two.0), "elastic");
+        assert!(bits(&one.1) == bits(&two.1), "failing");
+        assert!(bits(&one.0) != bits(&one.1), "the law yields");
+    }
+
     /// A fused step of either evaluator is the evaluation followed by the update, loads
-    /// included, to round-off: the correction's forces reach every element in the sweep.
+    /// included, to round-off: the correction's forces reach every element in the sweep, and
+    /// the cells' `q` are those of `U` at `t_n` though elements move while the wave leads
+    /// (one block of the sweep, and two).
     #[test]
     fn a_fused_step_is_the_evaluation_then_the_update() {
-        use crate::force::evaluator::build;
-        use crate::input::scene::EvaluatorKind;
+        for m in [voronoi(0.3), two_blocks()] {
+            fused_step_is_evaluation_then_update(&m);
+        }
+    }
+
+    fn fused_step_is_evaluation_then_update(m: &Model) {
         use crate::model::mass::{Mass, Update};
-        let m = voronoi(0.3);
         let n = m.n_dofs();
-        let mass = Mass::new(&m);
+        let mass = Mass::new(m);
         let u0: Vec<f64> = (0..n).map(|k| 1e-4 * (k as f64 * 0.37).sin()).collect();
         let v0: Vec<f64> = (0..n).map(|k| 1e-2 * (k as f64 * 0.91).cos()).collect();
         let load: Vec<f64> = (0..n).map(|k| if k % 5 == 0 { 1e3 } else { 0.0 }).collect();
         let dt = 1e-7;
-        for kind in [EvaluatorKind::Assembled, EvaluatorKind::ElementWise] {
-            let ev = build(&m, kind);
+        for (kind, ev) in evaluators(m) {
             let (mut u, mut v, mut f) = (u0.clone(), v0.clone(), vec![0.0; n]);
             ev.internal_force(&u, &mut f);
             f.iter_mut().zip(&load).for_each(|(f, p)| *f += p);
@@ -898,7 +1108,7 @@ mod tests {
             };
             let fused = ev.fused().expect("rigid-poisson steps fused");
             fused.advance(&mut uf, &mut vf, &mut force, None, &update);
-            assert!(force.iter().all(|&x| x == 0.0), "{kind:?} left a force");
+            assert!(force.iter().all(|&x| x == 0.0), "{kind} left a force");
             for (name, a, b) in [("U", &u, &uf), ("v", &v, &vf)] {
                 let scale = a.iter().fold(0.0f64, |s, x| s.max(x.abs()));
                 let worst = a
@@ -907,7 +1117,7 @@ mod tests {
                     .fold(0.0f64, |s, (x, y)| s.max((x - y).abs()));
                 assert!(
                     worst <= 1e-13 * scale,
-                    "{kind:?} {name}: {worst:e} of {scale:e}"
+                    "{kind} {name}: {worst:e} of {scale:e}"
                 );
             }
         }

@@ -34,10 +34,19 @@
 //! where the element-by-element layout needs a transpose each way. Its runs go in lanes only
 //! where their couplings meet whole groups (rows a multiple of four elements long on a grid).
 //!
+//! A sweep may carry a wave that leads it ([`Couplings::leads`]): a sum per element of what its
+//! couplings read of `U` at `t_n` (the Poisson correction's first moments, whose `q` every
+//! coupling of the element then needs). The wave goes through the couplings of the element as
+//! far ahead as the block's couplings reach, so that an element's sum is complete before the
+//! sweep's first coupling to it, and read before any element it reads has moved; its sums
+//! wait in a ring of their own. It reads each coupling's record shortly before the sweep does,
+//! which then finds it in the cache: one stream of records for both.
+//!
 //! Parallel sweeps run over fixed blocks of consecutive elements. A coupling from one block
 //! into a later one is computed before the sweeps, from the state at `t_n`, and handed to both
 //! blocks. Every element sums its couplings in their order whatever the blocks and the threads,
-//! so the result does not depend on the thread count.
+//! so the result does not depend on the thread count. A wave leaves out the elements with
+//! couplings to other blocks ([`Sweep::border`]), whose sums the caller gives before the sweeps.
 
 use crate::lanes::grouped::{as_groups, as_groups_mut};
 use crate::lanes::{lane, set_lane, Lanes, Plain, Wide};
@@ -140,6 +149,26 @@ pub(super) trait Couplings<const N: usize>: Sync {
     const OWN: bool = true;
     /// Adds element `e`'s own term to its force `f`, last.
     fn add_own(&self, e: usize, ue: &[f64; N], f: &mut [f64; N]);
+    /// Whether the sweep carries a wave that leads it: a sum `s` per element of what each of
+    /// its couplings reads of `U` at `t_n` ([`Couplings::lead_pair`]), completed
+    /// ([`Couplings::lead_done`]) as many elements ahead of the sweep as its couplings reach,
+    /// before any element it reads has moved and before any coupling of the sweep uses it
+    /// (the Poisson correction's cells' `q`). Not for couplings that form runs. The elements
+    /// with couplings across blocks ([`Sweep::border`]) are left out: theirs come before the
+    /// sweeps.
+    fn leads(&self) -> bool {
+        false
+    }
+    /// The wave's shares of a coupling between two elements, to `a`'s sum and to `b`'s.
+    fn lead_pair(&self, _face: &Face<Self::Ref>, _ua: &[f64; N], _ub: &[f64; N]) -> [f64; 2] {
+        [0.0; 2]
+    }
+    /// The wave's share of a coupling to the ground.
+    fn lead_ground(&self, _face: &Face<Self::Ref>, _ua: &[f64; N]) -> f64 {
+        0.0
+    }
+    /// Element `e`'s sum `s` of the wave is complete but for its own share.
+    fn lead_done(&self, _e: usize, _ue: &[f64; N], _s: f64) {}
 }
 
 /// Where [`Couplings::add_pairs`] puts the forces on the pairs' higher elements.
@@ -175,6 +204,11 @@ pub(super) struct Block {
     pub(super) ring: usize,
     /// Runs of consecutive elements whose couplings repeat ([`Sweep::find_runs`]), in order.
     runs: Vec<Run>,
+    /// How far its inner couplings reach, `max(b − a)`: how far a wave leads the sweep
+    /// ([`Couplings::leads`]).
+    reach: usize,
+    /// Its elements with couplings to or from other blocks, as a range of `Sweep::border`.
+    border: Range<usize>,
 }
 
 /// Consecutive elements of a block, by their index in it, each with couplings equal to the
@@ -217,7 +251,11 @@ const MAX_WIDTH: usize = 4;
 /// Elements per block: at least this many, and at most 64 blocks in all (fewer couplings
 /// cross blocks on large meshes).
 const MIN_BLOCK: usize = 4096;
-const MAX_BLOCKS: usize = 64;
+pub(super) const MAX_BLOCKS: usize = 64;
+/// At most this many blocks for a sweep that a wave leads ([`Couplings::leads`]): its elements
+/// on the blocks' borders are gathered one by one before the sweeps, and 16 blocks of a
+/// 10⁶-element Voronoi panel leave 3 % of them there, 64 blocks 13 %.
+pub(super) const LEADING_BLOCKS: usize = 16;
 
 /// How many couplings ahead of the sweep their records are asked for, and half as many ahead
 /// the `U` of their higher element. The hardware prefetchers stop at every 4 KiB page, which
@@ -234,6 +272,9 @@ pub(super) struct Sweep<const N: usize> {
     /// Per block, the couplings that end in it as `(b, index into crossing)`, ordered by
     /// `b` and then in coupling order.
     pub(super) incoming: Vec<(u32, u32)>,
+    /// The elements with couplings into other blocks, block by block in order: those a wave
+    /// leaves to the caller ([`Couplings::leads`]).
+    border: Vec<u32>,
     /// The crossing couplings' forces and the blocks' rings.
     pub(super) scratch: Mutex<Scratch<N>>,
 }
@@ -242,17 +283,25 @@ pub(super) struct Sweep<const N: usize> {
 /// one ring of pending forces per block.
 pub(super) struct Scratch<const N: usize> {
     crossing: Vec<[[f64; N]; 2]>,
-    pub(super) rings: Vec<Vec<[f64; N]>>,
+    pub(super) rings: Vec<Ring<N>>,
     /// Per block, `Σ v̄ᵀ M_e v̄` of a damped step ([`ElementUpdate::element`]).
     powers: Vec<f64>,
 }
 
+/// A block's ring of pending forces, and of a leading wave's sums ([`Couplings::leads`]),
+/// slot by slot.
+pub(super) struct Ring<const N: usize> {
+    pub(super) forces: Vec<[f64; N]>,
+    wave: Vec<f64>,
+}
+
 impl<const N: usize> Sweep<N> {
     /// Orders the couplings of `n` elements for the sweep, each with `a < b` or `b` the
-    /// [`GROUND`]: by `(a, b)`, then in each block those inside it first.
-    pub(super) fn new<R>(n: usize, faces: &mut [Face<R>]) -> Self {
+    /// [`GROUND`]: by `(a, b)`, then in each block (at most `blocks` of them) those inside it
+    /// first.
+    pub(super) fn new<R>(n: usize, faces: &mut [Face<R>], blocks: usize) -> Self {
         faces.sort_by_key(|f| (f.a, f.b));
-        let len = MIN_BLOCK.max(n.div_ceil(MAX_BLOCKS)).next_multiple_of(4);
+        let len = MIN_BLOCK.max(n.div_ceil(blocks)).next_multiple_of(4);
         let (mut blocks, mut crossing) = (Vec::new(), Vec::new());
         for first in (0..n).step_by(len) {
             let elements = first..(first + len).min(n);
@@ -266,7 +315,8 @@ impl<const N: usize> Sweep<N> {
                 .iter()
                 .map(|f| (f.b - f.a) as usize)
                 .max();
-            let ring = (reach.unwrap_or(0) + 1).next_power_of_two().max(4);
+            let reach = reach.unwrap_or(0);
+            let ring = (reach + 1).next_power_of_two().max(4);
             let before = crossing.len();
             crossing.extend(
                 (inner..here.end)
@@ -281,9 +331,11 @@ impl<const N: usize> Sweep<N> {
                 incoming: 0..0,
                 ring,
                 runs: Vec::new(),
+                reach,
+                border: 0..0,
             });
         }
-        let mut incoming = Vec::new();
+        let (mut incoming, mut border) = (Vec::new(), Vec::new());
         for block in &mut blocks {
             let before = incoming.len();
             incoming.extend(crossing.iter().enumerate().filter_map(|(c, &k)| {
@@ -295,16 +347,40 @@ impl<const N: usize> Sweep<N> {
             }));
             incoming[before..].sort_unstable();
             block.incoming = before..incoming.len();
+            let first = border.len();
+            border.extend(incoming[block.incoming.clone()].iter().map(|&(b, _)| b));
+            border.extend(
+                crossing[block.outgoing.clone()]
+                    .iter()
+                    .map(|&k| faces[k as usize].a),
+            );
+            border[first..].sort_unstable();
+            let mut kept = first;
+            for j in first..border.len() {
+                if kept == first || border[j] != border[kept - 1] {
+                    border[kept] = border[j];
+                    kept += 1;
+                }
+            }
+            border.truncate(kept);
+            block.border = first..kept;
         }
         let scratch = Mutex::new(Scratch {
             crossing: vec![[[0.0; N]; 2]; crossing.len()],
-            rings: blocks.iter().map(|b| vec![[0.0; N]; b.ring]).collect(),
+            rings: blocks
+                .iter()
+                .map(|b| Ring {
+                    forces: vec![[0.0; N]; b.ring],
+                    wave: vec![0.0; b.ring],
+                })
+                .collect(),
             powers: vec![0.0; blocks.len()],
         });
         Sweep {
             blocks,
             crossing,
             incoming,
+            border,
             scratch,
         }
     }
@@ -415,6 +491,12 @@ impl<const N: usize> Sweep<N> {
         (elements, in_lanes, entries, entries_in_lanes)
     }
 
+    /// The elements with couplings into other blocks, in order: those whose sums a leading
+    /// wave leaves to the caller, who gives them before the sweeps ([`Couplings::leads`]).
+    pub(super) fn border(&self) -> &[u32] {
+        &self.border
+    }
+
     /// Whether some of its runs go four elements at a time in lanes in a grouped step.
     pub(super) fn in_lanes(&self) -> bool {
         self.blocks
@@ -443,7 +525,7 @@ impl<const N: usize> Sweep<N> {
             crossing, rings, ..
         } = &mut *scratch;
         type Parts<'a, const N: usize> = (
-            (&'a Block, &'a mut Vec<[f64; N]>),
+            (&'a Block, &'a mut Ring<N>),
             (&'a [[f64; N]], &'a mut [[f64; N]]),
         );
         let work = |((block, ring), (u, f)): Parts<N>| {
@@ -483,7 +565,7 @@ impl<const N: usize> Sweep<N> {
             powers,
         } = &mut *scratch;
         type Parts<'a, const N: usize> = (
-            ((&'a Block, &'a mut Vec<[f64; N]>), &'a mut f64),
+            ((&'a Block, &'a mut Ring<N>), &'a mut f64),
             ((&'a mut [[f64; N]], &'a mut [[f64; N]]), &'a mut [[f64; N]]),
         );
         let work = |(((block, ring), power), ((u, v), force)): Parts<N>| {
@@ -492,7 +574,6 @@ impl<const N: usize> Sweep<N> {
                 let at = |e: usize| l.partition_point(|&x| (x as usize) < e);
                 &l[at(block.elements.start)..at(block.elements.end)]
             });
-            let ring = &mut ring[..];
             update.resolve(
                 block.elements.clone(),
                 AdvanceBlock {
@@ -551,7 +632,7 @@ impl<const N: usize> Sweep<N> {
             crossing, rings, ..
         } = &mut *scratch;
         type Parts<'a, const N: usize> = (
-            (&'a Block, &'a mut Vec<[f64; N]>),
+            (&'a Block, &'a mut Ring<N>),
             (
                 ((&'a mut [Wide<N>], &'a mut [Wide<N>]), &'a [Wide<N>]),
                 &'a mut [[f64; N]],
@@ -624,7 +705,7 @@ impl<const N: usize> Sweep<N> {
         couplings: &C,
         block: &Block,
         crossing: &[[[f64; N]; 2]],
-        ring: &mut [[f64; N]],
+        ring: &mut Ring<N>,
         state: S,
     ) {
         #[cfg(target_arch = "x86_64")]
@@ -650,12 +731,13 @@ impl<const N: usize> Sweep<N> {
         couplings: &C,
         block: &Block,
         crossing: &[[[f64; N]; 2]],
-        ring: &mut [[f64; N]],
+        Ring { forces: ring, wave }: &mut Ring<N>,
         mut state: S,
     ) {
         let first = block.elements.start;
         let mask = ring.len() - 1;
         let ring = &mut ring[..=mask];
+        let wave = &mut wave[..=mask];
         let incoming = &self.incoming[block.incoming.clone()];
         let crossing_out = &crossing[block.outgoing.clone()];
         let mut out = 0;
@@ -681,9 +763,18 @@ impl<const N: usize> Sweep<N> {
         };
         let mut runs = block.runs.iter();
         let mut run = runs.next().unwrap_or(&none).clone();
+        let (leads, border) = (couplings.leads(), &self.border[block.border.clone()]);
+        debug_assert!(!(leads && C::RUNS), "a wave leads no sweep with runs");
+        let mut lead = Lead::default();
         let mut i = 0;
         while i < block.elements.len() {
             let e = first + i;
+            // The wave reaches as far ahead as the couplings of element `i`.
+            if leads {
+                let end = (i + block.reach + 1).min(block.elements.len());
+                let at = (first, &mut *wave, &mut lead, &state);
+                Self::lead(couplings, (inner, rest, border), at, end);
+            }
             // A coupling from an earlier block enters the ring as soon as the ring reaches its
             // element, before any coupling of this block does: coupling order.
             if i >= next_entry {
@@ -723,7 +814,8 @@ impl<const N: usize> Sweep<N> {
             let mut f = take_slot(ring, i & mask, S::GROUPED);
             let ue = *state.u(i);
             while let Some(face) = inner.get(k).filter(|face| face.a as usize == e) {
-                if C::PREFETCH {
+                // A leading wave has brought them into the cache.
+                if C::PREFETCH && !leads {
                     if let Some(ahead) = inner.get(k + PREFETCH_AHEAD) {
                         prefetch(ahead);
                     }
@@ -758,6 +850,53 @@ impl<const N: usize> Sweep<N> {
             couplings.add_own(e, &ue, &mut f);
             state.complete(e, i, &mut f);
             i += 1;
+        }
+    }
+
+    /// Takes a block's leading wave ([`Couplings::leads`]) through its elements up to `end`
+    /// (by their index in the block, `first` the block's first element), none of which, nor
+    /// any element they couple with, has moved: each element's sum from the wave's ring, its
+    /// couplings' shares (to the ring for the higher element), its own, done. The wave leaves
+    /// out the couplings to other blocks, and the `border` elements' sums.
+    #[inline(always)]
+    fn lead<C: Couplings<N>, S: BlockState<N>>(
+        couplings: &C,
+        (inner, rest, border): (Faces<'_, C::Ref>, Faces<'_, C::Ref>, &[u32]),
+        (first, wave, at, state): (usize, &mut [f64], &mut Lead, &S),
+        end: usize,
+    ) {
+        let mask = wave.len() - 1;
+        while at.next < end {
+            let (i, e) = (at.next, first + at.next);
+            let ue = *state.u(i);
+            let mut s = std::mem::take(&mut wave[i & mask]);
+            while let Some(face) = inner.get(at.inner).filter(|face| face.a as usize == e) {
+                if C::PREFETCH {
+                    if let Some(ahead) = inner.get(at.inner + PREFETCH_AHEAD) {
+                        prefetch(ahead);
+                    }
+                    if let Some(ahead) = inner.get(at.inner + PREFETCH_AHEAD / 2) {
+                        state.prefetch_u(ahead.b as usize - first);
+                    }
+                }
+                at.inner += 1;
+                let j = face.b as usize - first;
+                let [sa, sb] = couplings.lead_pair(face, &ue, &state.u(j));
+                s += sa;
+                wave[j & mask] += sb;
+            }
+            while let Some(face) = rest.get(at.rest).filter(|face| face.a as usize == e) {
+                at.rest += 1;
+                if face.b == GROUND {
+                    s += couplings.lead_ground(face, &ue);
+                }
+            }
+            if border.get(at.border) == Some(&(e as u32)) {
+                at.border += 1;
+            } else {
+                couplings.lead_done(e, &ue, s);
+            }
+            at.next += 1;
         }
     }
 
@@ -919,6 +1058,19 @@ impl<const N: usize> Sweep<N> {
     }
 }
 
+/// Couplings in sweep order.
+type Faces<'a, R> = &'a [Face<R>];
+
+/// Where a block's leading wave is ([`Sweep::lead`]): its next element (in the block), and
+/// the next of its inner couplings, of the others, and of its border elements.
+#[derive(Default)]
+struct Lead {
+    next: usize,
+    inner: usize,
+    rest: usize,
+    border: usize,
+}
+
 /// [`Sweep::sweep_in_order`] as the task that AVX2 code runs: a closure would not be inlined
 /// into it when large (a hybrid sweep), and then calls its vector instructions one by one.
 #[cfg(target_arch = "x86_64")]
@@ -928,7 +1080,7 @@ struct InOrder<'a, C, S, const N: usize> {
     couplings: &'a C,
     block: &'a Block,
     crossing: &'a [[[f64; N]; 2]],
-    ring: &'a mut [[f64; N]],
+    ring: &'a mut Ring<N>,
     state: S,
 }
 
@@ -1268,7 +1420,7 @@ struct AdvanceBlock<'a, C, const N: usize> {
     couplings: &'a C,
     block: &'a Block,
     crossing: &'a [[[f64; N]; 2]],
-    ring: &'a mut [[f64; N]],
+    ring: &'a mut Ring<N>,
     u: &'a mut [[f64; N]],
     v: &'a mut [[f64; N]],
     force: &'a mut [[f64; N]],
@@ -1407,9 +1559,9 @@ mod tests {
             }
         }
         let mut each_faces = faces.clone();
-        let each = Sweep::<2>::new(n, &mut each_faces);
+        let each = Sweep::<2>::new(n, &mut each_faces, MAX_BLOCKS);
         let mut run_faces = faces;
-        let mut runs = Sweep::<2>::new(n, &mut run_faces);
+        let mut runs = Sweep::<2>::new(n, &mut run_faces, MAX_BLOCKS);
         runs.find_runs(&mut run_faces);
         assert!(runs.blocks.len() >= 3 && !runs.crossing.is_empty());
         let (_, _, entries, in_lanes) = runs.run_elements();
