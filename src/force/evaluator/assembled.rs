@@ -10,7 +10,7 @@
 //! written.
 
 use super::failing::{Carried, Screened, WithFailure};
-use super::sweep::{Couplings, Face, Sweep, MAX_BLOCKS};
+use super::sweep::{Couplings, Face, Sweep};
 use super::{Evaluator, Failure, FusedStep};
 use crate::input::scene::EvaluatorKind;
 use crate::lanes::Lanes;
@@ -216,7 +216,7 @@ impl<K: Screened<N>, const N: usize> Assembled<K, N> {
                 }
             }
         }
-        let sweep = Sweep::new(n, &mut pairs, MAX_BLOCKS);
+        let sweep = Sweep::new(n, &mut pairs, false);
         let carried = model
             .any_fails()
             .then(|| Carried::new::<K, N, _>(model, &pairs));

@@ -27,7 +27,7 @@
 
 use super::failing::failing_of;
 use super::poisson::Pressures;
-use super::sweep::{Couplings, Face, Higher, Sweep, LEADING_BLOCKS, MAX_BLOCKS};
+use super::sweep::{Couplings, Face, Higher, Sweep};
 use super::{Evaluator, Failure, FusedStep, GroupedStep};
 use crate::force::failure::{FailingInterfaces, FailureState, Jump};
 use crate::input::scene::EvaluatorKind;
@@ -925,13 +925,13 @@ impl<K: Kernel<N>, const N: usize> ElementWise<K, N> {
     /// Face records, blocks and crossing interfaces from the model's interfaces, with the
     /// springs of their laws (`force::failure` adds the plastic part of a law that is not linear).
     pub fn new(model: &Model) -> Self {
-        Self::build(model, true, true, MAX_BLOCKS)
+        Self::build(model, true, true, false)
     }
 
     /// [`ElementWise::new`], with shared records only if `share` ([`Store::new`]), and runs of
     /// them only if `runs` ([`Sweep::find_runs`]; never where interfaces fail, whose couplings
-    /// the sweep meets one by one, `super::failing`), in at most `blocks` blocks.
-    fn build(model: &Model, share: bool, runs: bool, blocks: usize) -> Self {
+    /// the sweep meets one by one, `super::failing`), for a wave if `wave` ([`Sweep::new`]).
+    fn build(model: &Model, share: bool, runs: bool, wave: bool) -> Self {
         let t = model.thickness;
         // Each interface's record and the key of the records it may share ([`share_key`]).
         let (records, keys): (Vec<Record<K, N>>, Vec<_>) = model
@@ -975,7 +975,7 @@ impl<K: Kernel<N>, const N: usize> ElementWise<K, N> {
                 record: k as u32,
             })
             .collect();
-        let mut sweep = Sweep::new(model.elements.len(), &mut faces, blocks);
+        let mut sweep = Sweep::new(model.elements.len(), &mut faces, wave);
         let by_law = model
             .any_fails()
             .then(|| ByLaw::new(model, &faces, &records));
@@ -1038,8 +1038,7 @@ impl ElementWise<Rigid, 3> {
     /// offsets the correction's jump needs; in the larger blocks of a sweep that a wave leads
     /// if `wave`.
     pub fn with_poisson(model: &Model, wave: bool) -> Self {
-        let blocks = if wave { LEADING_BLOCKS } else { MAX_BLOCKS };
-        Self::build(model, false, false, blocks)
+        Self::build(model, false, false, wave)
     }
 
     /// The cells whose `q` the sweep's wave leaves out ([`super::sweep::Sweep::border`]).
@@ -1262,7 +1261,7 @@ mod tests {
         fn check<K: Kernel<N>, const N: usize>(model: &Model) {
             let (shared, inline) = (
                 ElementWise::<K, N>::new(model),
-                ElementWise::<K, N>::build(model, false, false, MAX_BLOCKS),
+                ElementWise::<K, N>::build(model, false, false, false),
             );
             let Store::Shared(records) = &shared.faces else {
                 panic!("the grid's records are not shared");
@@ -1314,7 +1313,7 @@ mod tests {
         use crate::model::mass::{Mass, Update};
         fn check<K: Kernel<N>, const N: usize>(model: &Model, share: f64) {
             let runs = ElementWise::<K, N>::new(model);
-            let each = ElementWise::<K, N>::build(model, true, false, MAX_BLOCKS);
+            let each = ElementWise::<K, N>::build(model, true, false, false);
             let n = model.elements.len();
             let (in_runs, in_lanes, entries, _) = runs.sweep.run_elements();
             assert!(

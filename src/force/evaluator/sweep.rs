@@ -251,11 +251,11 @@ const MAX_WIDTH: usize = 4;
 /// Elements per block: at least this many, and at most 64 blocks in all (fewer couplings
 /// cross blocks on large meshes).
 const MIN_BLOCK: usize = 4096;
-pub(super) const MAX_BLOCKS: usize = 64;
+const MAX_BLOCKS: usize = 64;
 /// At most this many blocks for a sweep that a wave leads ([`Couplings::leads`]): its elements
 /// on the blocks' borders are gathered one by one before the sweeps, and 16 blocks of a
 /// 10⁶-element Voronoi panel leave 3 % of them there, 64 blocks 13 %.
-pub(super) const LEADING_BLOCKS: usize = 16;
+const LEADING_BLOCKS: usize = 16;
 
 /// How many couplings ahead of the sweep their records are asked for, and half as many ahead
 /// the `U` of their higher element. The hardware prefetchers stop at every 4 KiB page, which
@@ -275,6 +275,8 @@ pub(super) struct Sweep<const N: usize> {
     /// The elements with couplings into other blocks, block by block in order: those a wave
     /// leaves to the caller ([`Couplings::leads`]).
     border: Vec<u32>,
+    /// Whether a wave may lead it: its blocks have the wave's rings.
+    wave: bool,
     /// The crossing couplings' forces and the blocks' rings.
     pub(super) scratch: Mutex<Scratch<N>>,
 }
@@ -297,10 +299,11 @@ pub(super) struct Ring<const N: usize> {
 
 impl<const N: usize> Sweep<N> {
     /// Orders the couplings of `n` elements for the sweep, each with `a < b` or `b` the
-    /// [`GROUND`]: by `(a, b)`, then in each block (at most `blocks` of them) those inside it
-    /// first.
-    pub(super) fn new<R>(n: usize, faces: &mut [Face<R>], blocks: usize) -> Self {
+    /// [`GROUND`]: by `(a, b)`, then in each block those inside it first; in the blocks of a
+    /// sweep that a wave leads, with its ring, if `wave` ([`Couplings::leads`]).
+    pub(super) fn new<R>(n: usize, faces: &mut [Face<R>], wave: bool) -> Self {
         faces.sort_by_key(|f| (f.a, f.b));
+        let blocks = if wave { LEADING_BLOCKS } else { MAX_BLOCKS };
         let len = MIN_BLOCK.max(n.div_ceil(blocks)).next_multiple_of(4);
         let (mut blocks, mut crossing) = (Vec::new(), Vec::new());
         for first in (0..n).step_by(len) {
@@ -371,7 +374,7 @@ impl<const N: usize> Sweep<N> {
                 .iter()
                 .map(|b| Ring {
                     forces: vec![[0.0; N]; b.ring],
-                    wave: vec![0.0; b.ring],
+                    wave: vec![0.0; if wave { b.ring } else { 0 }],
                 })
                 .collect(),
             powers: vec![0.0; blocks.len()],
@@ -381,6 +384,7 @@ impl<const N: usize> Sweep<N> {
             crossing,
             incoming,
             border,
+            wave,
             scratch,
         }
     }
@@ -514,6 +518,11 @@ impl<const N: usize> Sweep<N> {
             + size_of_val(&self.incoming[..])
             + self.crossing.len() * size_of::<[[f64; N]; 2]>()
             + rings * size_of::<[f64; N]>()
+            + if self.wave {
+                rings * size_of::<f64>()
+            } else {
+                0
+            }
     }
 
     /// `f = f_int(u)`, parallel over blocks.
@@ -737,7 +746,6 @@ impl<const N: usize> Sweep<N> {
         let first = block.elements.start;
         let mask = ring.len() - 1;
         let ring = &mut ring[..=mask];
-        let wave = &mut wave[..=mask];
         let incoming = &self.incoming[block.incoming.clone()];
         let crossing_out = &crossing[block.outgoing.clone()];
         let mut out = 0;
@@ -765,6 +773,8 @@ impl<const N: usize> Sweep<N> {
         let mut run = runs.next().unwrap_or(&none).clone();
         let (leads, border) = (couplings.leads(), &self.border[block.border.clone()]);
         debug_assert!(!(leads && C::RUNS), "a wave leads no sweep with runs");
+        assert!(!leads || wave.len() > mask, "a sweep built for a wave");
+        let wave = if leads { &mut wave[..=mask] } else { &mut [] };
         let mut lead = Lead::default();
         let mut i = 0;
         while i < block.elements.len() {
@@ -1559,9 +1569,9 @@ mod tests {
             }
         }
         let mut each_faces = faces.clone();
-        let each = Sweep::<2>::new(n, &mut each_faces, MAX_BLOCKS);
+        let each = Sweep::<2>::new(n, &mut each_faces, false);
         let mut run_faces = faces;
-        let mut runs = Sweep::<2>::new(n, &mut run_faces, MAX_BLOCKS);
+        let mut runs = Sweep::<2>::new(n, &mut run_faces, false);
         runs.find_runs(&mut run_faces);
         assert!(runs.blocks.len() >= 3 && !runs.crossing.is_empty());
         let (_, _, entries, in_lanes) = runs.run_elements();
