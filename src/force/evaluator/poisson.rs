@@ -172,8 +172,9 @@ impl<C: Correction> WithPoisson<C> {
 
     /// The cells that the wave of the sweep leaves out, `None` if none leads it: where
     /// interfaces fail the sweep gathers (its faces name their records by index, which a wave
-    /// would read a second time out of order: `cargo bench --bench failure` measured a failing
-    /// panel that stays elastic 1.6–1.7 × the elastic step with the wave, 1.3–1.4 × without).
+    /// would read a second time out of order: `cargo bench --bench failure` stepped a failing
+    /// 10⁵-element panel that stays elastic in 118 ns per element led, 68 ns gathered, on one
+    /// thread).
     fn border(&self, failing: bool) -> Option<&[u32]> {
         match failing {
             true => None,
