@@ -646,7 +646,7 @@ impl<const WAVE: bool> Couplings<3> for Corrected<'_, WAVE> {
         lead_shares(&face.record, ua, None)[0]
     }
     #[inline(always)]
-    fn lead_done(&self, e: usize, _: &[f64; 3], s: f64) {
+    fn lead_done(&self, e: usize, s: f64) {
         self.q.done(e, s);
     }
 }

@@ -167,8 +167,8 @@ pub(super) trait Couplings<const N: usize>: Sync {
     fn lead_ground(&self, _face: &Face<Self::Ref>, _ua: &[f64; N]) -> f64 {
         0.0
     }
-    /// Element `e`'s sum `s` of the wave is complete but for its own share.
-    fn lead_done(&self, _e: usize, _ue: &[f64; N], _s: f64) {}
+    /// Element `e`'s sum `s` of the wave is complete.
+    fn lead_done(&self, _e: usize, _s: f64) {}
 }
 
 /// Where [`Couplings::add_pairs`] puts the forces on the pairs' higher elements.
@@ -866,7 +866,7 @@ impl<const N: usize> Sweep<N> {
     /// Takes a block's leading wave ([`Couplings::leads`]) through its elements up to `end`
     /// (by their index in the block, `first` the block's first element), none of which, nor
     /// any element they couple with, has moved: each element's sum from the wave's ring, its
-    /// couplings' shares (to the ring for the higher element), its own, done. The wave leaves
+    /// couplings' shares (to the ring for the higher element), done. The wave leaves
     /// out the couplings to other blocks, and the `border` elements' sums.
     #[inline(always)]
     fn lead<C: Couplings<N>, S: BlockState<N>>(
@@ -904,7 +904,7 @@ impl<const N: usize> Sweep<N> {
             if border.get(at.border) == Some(&(e as u32)) {
                 at.border += 1;
             } else {
-                couplings.lead_done(e, &ue, s);
+                couplings.lead_done(e, s);
             }
             at.next += 1;
         }
