@@ -17,7 +17,7 @@ use crate::model::law::InterfaceLaw;
 use crate::model::loads::Loads;
 use crate::model::mass::{Mass, Update};
 use crate::model::{Model, Prescribed};
-use crate::parallel::for_each_chunk;
+use crate::parallel::{for_each_chunk, STREAM_CHUNK};
 use crate::step::balance::Balance;
 use crate::step::grouped::{Groups, MIN_STRETCH};
 use crate::step::local::LocalDamping;
@@ -881,7 +881,7 @@ impl<'a> CentralDifference<'a> {
     fn finish_step(&mut self, dt: f64) {
         self.pending = false;
         self.ledger.external_work += self.loads.work_increment(self.t, dt, |d| self.v[d]);
-        for_each_chunk(&mut self.u, |first, u| {
+        for_each_chunk(&mut self.u, STREAM_CHUNK, |first, u| {
             let v = &self.v[first..first + u.len()];
             for (u, v) in u.iter_mut().zip(v) {
                 *u += dt * v;

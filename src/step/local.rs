@@ -53,7 +53,7 @@ impl LocalDamping {
         for_each_chunk_pair(
             &mut self.force,
             force,
-            crate::parallel::CHUNK,
+            crate::parallel::STREAM_CHUNK,
             |first, d, f| {
                 let (v, free) = (&v[first..first + d.len()], &free[first..first + d.len()]);
                 for (((d, f), v), free) in d.iter_mut().zip(f.iter_mut()).zip(v).zip(free) {

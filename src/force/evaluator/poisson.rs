@@ -33,7 +33,7 @@ use crate::model::formulation::{Kinematics, Rigid};
 use crate::model::mass::Update;
 use crate::model::poisson::{load_moment, springs, Poisson};
 use crate::model::{Model, GROUND};
-use crate::parallel::for_each_chunk;
+use crate::parallel::{for_each_chunk, CHUNK};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Mutex;
@@ -692,7 +692,7 @@ impl FacetPressures {
     /// each from its facets gathered, in fixed chunks.
     fn fill(&self, u: &[f64], plastic: &[f64], q: &mut [AtomicU64]) {
         let (u, _) = u.as_chunks::<3>();
-        for_each_chunk(q, |first, chunk| {
+        for_each_chunk(q, CHUNK, |first, chunk| {
             for (k, q) in chunk.iter_mut().enumerate() {
                 let e = first + k;
                 let q_e = pressure(self.scale[e], self.moment(e, u), plastic.get(e));
