@@ -88,9 +88,10 @@ pub fn formulations(r: &mut Report) {
          triangles the effective `ν` is 0.33 for 0.25. *Hybrid* passes every patch as `1/p` (its `E` 9–10 % soft at \
          `p` = 10, §7.1) and is the formulation for triangles (bending within 3 % at `p` = 10); on rectangles and \
          Voronoi cells it locks as `p` grows (+15 to +34 % already at `p` = 10, §7.3) and its `Δt_crit` falls as \
-         `1/√p`. Cost per step (`cargo bench --bench formulations`, `benches/summary.md`): rigid-poisson adds a pass \
-         over the cells for their pressures to the rigid sweep, which carries the correction (1.7–2.5 × the rigid \
-         step); hybrid with `p` = 10 is dearer still (3.1–5 ×). \
+         `1/√p`. Cost per step (`cargo bench --bench formulations`, `benches/summary.md`): rigid-poisson adds the \
+         cells' pressures to the rigid sweep, which carries the correction; they are gathered in a pass of their own \
+         before the sweep, or, element-wise from 50,000 elements on, summed by a wave that leads it (1.7–2.4 × the \
+         rigid step in the summary's last run); hybrid with `p` = 10 is dearer still (3.3–5 ×). \
          Failure (§14.3): in every formulation the law bounds the material's traction (for rigid-poisson, its springs' \
          plus its correction's), so the bar of squares cracks at `f_t`; on Voronoi cells the correction changes the peak \
          by 0.1 % and the fracture work by 2 %: what lifts the Voronoi bar above `f_t` is its crack's path through \
