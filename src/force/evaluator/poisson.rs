@@ -95,11 +95,12 @@ impl Pressures<'_> {
     /// Cell `e`'s `q` from the sum `ts = t s_e` of its facets' shares.
     #[inline(always)]
     pub(super) fn done(&self, e: usize, ts: f64) {
-        let s = ts * self.per_thickness;
-        self.set(e, pressure(self.scale[e], s, self.plastic.get(e)));
+        self.set(e, ts * self.per_thickness);
     }
+    /// Cell `e`'s `q` from its first moment `s` per unit thickness.
     #[inline(always)]
-    fn set(&self, e: usize, q: f64) {
+    fn set(&self, e: usize, s: f64) {
+        let q = pressure(self.scale[e], s, self.plastic.get(e));
         self.q[e].store(q.to_bits(), Ordering::Relaxed);
     }
 }
@@ -707,10 +708,7 @@ impl FacetPressures {
         let (u, _) = u.as_chunks::<3>();
         border.par_iter().with_min_len(256).for_each(|&e| {
             let e = e as usize;
-            q.set(
-                e,
-                pressure(self.scale[e], self.moment(e, u), q.plastic.get(e)),
-            );
+            q.set(e, self.moment(e, u));
         });
     }
 }
