@@ -63,7 +63,8 @@ enum Command {
         #[arg(long)]
         dt: Option<f64>,
     },
-    /// The collapse load of the scene's discrete model by linear programming (limit analysis).
+    /// The collapse load of the scene's discrete model by conic programming (limit analysis; a
+    /// linear program where no element has a strength).
     Limit {
         /// Scene file.
         scene: PathBuf,

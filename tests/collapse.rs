@@ -133,6 +133,27 @@ fn unbounded_infeasible_and_contact_are_refused() {
     elastic["materials"]["m"]["interface"] = json!({"kind": "elastic"});
     let e = collapse(&elastic, None).unwrap_err().to_string();
     assert!(e.contains("does not collapse"), "{e}");
+    // The bundled cantilever, all its interfaces elastic: the solver, given equalities alone,
+    // returned a load factor of 0 as solved.
+    let bundled = |name: &str| {
+        let path = format!("{}/examples/scenes/{name}", env!("CARGO_MANIFEST_DIR"));
+        let scene = Scene::from_file(&path).unwrap();
+        collapse::analyse(
+            &Setup::new(&scene, &Overrides::default()).unwrap(),
+            None,
+            Default::default(),
+        )
+        .unwrap_err()
+        .to_string()
+    };
+    let e = bundled("cantilever.json");
+    assert!(e.contains("does not collapse"), "{e}");
+    // A law the program does not know is named with its body.
+    let e = bundled("brazilian_disk.json");
+    assert!(
+        e.contains("bodies[0].material") && e.contains("`facet`"),
+        "{e}"
+    );
 
     // Gravity held while the push grows: a weight beyond the cut-off pulls the block off.
     let mut hanging = scene(column(2), [1e3, C, 0.0], push.clone());

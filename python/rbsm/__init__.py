@@ -372,7 +372,7 @@ def effective(scene: SceneLike, *, threads: Optional[int] = None) -> Dict[str, A
 
 @dataclass
 class LimitResult:
-    """``rbsm limit``: the collapse load of the scene's discrete model by linear programming."""
+    """``rbsm limit``: the collapse load of the scene's discrete model by conic programming."""
 
     report: Dict[str, Any]
     """``rbsm limit --json``: what grows, the collapse load, the program's size and time."""

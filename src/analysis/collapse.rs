@@ -344,10 +344,15 @@ pub fn analyse(
         let law = model.law_of(i);
         let strength: Option<&Strength> = if i.b != GROUND && model.fails(i) {
             Some(law.as_strength().ok_or_else(|| {
+                let body = model.elements[i.a as usize].body as usize;
                 Error::scene(
-                    "materials.*.interface",
-                    "rbsm limit knows the interface strength of the scene's laws (Mohr–Coulomb \
-                     with cut-off); a failing interface has a law of its own",
+                    format!("bodies[{body}].material"),
+                    format!(
+                        "the interfaces of body `{}` follow a law that rbsm limit cannot write \
+                         into its program (the `facet` law, or a law given in code): it knows \
+                         `mohr-coulomb` and `softening` (at its unsoftened strength)",
+                        model.bodies[body].name
+                    ),
                 )
             })?)
         } else {
@@ -393,6 +398,16 @@ pub fn analyse(
                 strength_rows.push((row(tan_phi, -1.0), c));
             }
         }
+    }
+    // Nothing bounds a mechanism: the program is unbounded, which the solver does not tell when
+    // it has no inequality (it returns a solution of the equalities alone).
+    if failing == 0 && yielding.is_empty() {
+        return Err(Error::scene(
+            "materials.*.interface",
+            "the model does not collapse: none of its interfaces can fail and no element has a \
+             strength; give the interfaces a strength (`mohr-coulomb` or `softening`) or the \
+             elements one (`materials.*.element`, hybrid)",
+        ));
     }
     columns.resize(n_lambda + free_stresses, Vec::new());
     let alpha = columns.len();
