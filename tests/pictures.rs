@@ -234,6 +234,59 @@ fn plot_draws_energies_and_probes_of_a_run_and_refuses_an_empty_directory() {
     );
 }
 
+/// The works a failing, damped model adds to its history are energies, drawn with the others;
+/// a moving clamp's displacement and reaction are panels of their own with their units; none of
+/// them is a probe.
+#[test]
+fn plot_draws_the_works_as_energies_and_the_clamps_apart_from_the_probes() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = Scene::from_file(format!(
+        "{}/examples/scenes/squeeze.json",
+        env!("CARGO_MANIFEST_DIR")
+    ))
+    .unwrap();
+    let opts = rbsm::analysis::setup::Overrides {
+        steps: Some(3000),
+        ..Default::default()
+    };
+    rbsm::analysis::run::run(
+        &rbsm::analysis::setup::Setup::new(&scene, &opts).unwrap(),
+        &Default::default(),
+        dir.path(),
+        &mut rbsm::analysis::run::Silent,
+    )
+    .unwrap();
+    let history = std::fs::read_to_string(dir.path().join("history.csv")).unwrap();
+    let header: Vec<&str> = history.lines().next().unwrap().split(',').collect();
+    for column in [
+        "fracture",
+        "friction",
+        "damping",
+        "block_s1_disp",
+        "block_s1_force",
+    ] {
+        assert!(header.contains(&column), "{column} in {header:?}");
+    }
+    let written = rbsm::output::plot::histories(dir.path()).unwrap();
+    let energies = texts(&std::fs::read_to_string(&written[0]).unwrap());
+    for name in ["external_work", "fracture", "damping"] {
+        assert!(energies.iter().any(|t| t == name), "{name} in {energies:?}");
+    }
+    let panels = texts(&std::fs::read_to_string(&written[1]).unwrap());
+    assert!(
+        !panels.iter().any(|t| t.starts_with("probe")),
+        "the squeeze has no probe: {panels:?}"
+    );
+    for text in [
+        "clamp block_s1: its displacement along its velocity",
+        "block_s1_disp (m)",
+        "clamp block_s1: its reaction along its velocity",
+        "block_s1_force (N)",
+    ] {
+        assert!(panels.iter().any(|t| t == text), "{text} in {panels:?}");
+    }
+}
+
 #[test]
 fn the_commands_write_the_pictures() {
     let dir = tempfile::tempdir().unwrap();

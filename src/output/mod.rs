@@ -158,8 +158,18 @@ const DAMPING_COLUMN: &str = "damping";
 const CLAMP_COLUMNS: [&str; 2] = ["disp", "force"];
 
 /// The columns of a moving clamp named `name` ([`crate::model::Prescribed::name`]).
-fn clamp_columns(name: &str) -> [String; 2] {
+pub(crate) fn clamp_columns(name: &str) -> [String; 2] {
     CLAMP_COLUMNS.map(|c| format!("{name}_{c}"))
+}
+
+/// The columns of `history.csv` that are energies or works (J): [`HISTORY_COLUMNS`] after `t`,
+/// then those a model may add (failure, plastic flow, damping).
+pub(crate) fn energy_columns() -> impl Iterator<Item = &'static str> {
+    HISTORY_COLUMNS[1..]
+        .iter()
+        .chain(&FAILURE_COLUMNS)
+        .chain(&[PLASTIC_COLUMN, DAMPING_COLUMN])
+        .copied()
 }
 
 /// Refuses a probe of `probes` (the scene's `output.probes`, of which `model` is the model)
@@ -171,10 +181,8 @@ fn clamp_columns(name: &str) -> [String; 2] {
 /// # Errors
 /// A probe's name is one of those columns.
 pub fn refuse_own_columns(model: &Model, probes: &[crate::input::scene::ProbeSpec]) -> Result<()> {
-    let own: std::collections::HashSet<String> = HISTORY_COLUMNS
-        .iter()
-        .chain(&FAILURE_COLUMNS)
-        .chain(&[PLASTIC_COLUMN, DAMPING_COLUMN])
+    let own: std::collections::HashSet<String> = std::iter::once(HISTORY_COLUMNS[0])
+        .chain(energy_columns())
         .map(|c| c.to_string())
         .chain(model.prescribed.iter().flat_map(|p| clamp_columns(&p.name)))
         .collect();

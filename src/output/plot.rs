@@ -364,13 +364,10 @@ fn svg_file(
     crate::output::write_atomic(path, text.as_bytes())
 }
 
-/// The columns of a run's `history.csv` that are energies (J), the rest being probes: those
-/// of [`crate::output::HISTORY_COLUMNS`] after `t`.
-const ENERGIES: &[&str] = crate::output::HISTORY_COLUMNS.split_at(1).1;
-
 /// Draws the histories that runs left in `dir`, as SVG beside them, and returns the files written:
-/// - `history.csv` of `rbsm run`: `energies.svg` (each energy that is not zero throughout, J,
-///   against `t`) and `probes.svg` (one panel per probe);
+/// - `history.csv` of `rbsm run`: `energies.svg` (each energy or work that is not zero
+///   throughout, J, against `t`) and `probes.svg` (one panel per probe, and two per moving
+///   clamp: its displacement and its reaction);
 /// - `fraction_F.csv` of `rbsm stability --out`: `stability.svg`, the stored (kinetic +
 ///   elastic) energy of each run relative to the first it stored, on a log scale: bounded below
 ///   `Δt_crit`, growing geometrically (a straight line) above it until the guard stops the run.
@@ -396,8 +393,9 @@ pub fn histories(dir: &Path) -> Result<Vec<std::path::PathBuf>> {
     Ok(written)
 }
 
-/// `energies.svg` and, when the run had probes, `probes.svg` from a run's `history` in `dir`;
-/// returns the files written.
+/// `energies.svg` and, when the run had probes or moving clamps, `probes.svg` from a run's
+/// `history` in `dir`; returns the files written. The clamps' columns and the probes' units are
+/// read from the run's `summary.json` when it is there.
 fn run_plots(dir: &Path, history: &Path) -> Result<Vec<std::path::PathBuf>> {
     let mut written = Vec::new();
     let columns = read_csv(history)?;
@@ -412,9 +410,10 @@ fn run_plots(dir: &Path, history: &Path) -> Result<Vec<std::path::PathBuf>> {
             .zip(c.values.iter().copied())
             .collect::<Vec<_>>()
     };
+    let is_energy = |c: &Column| crate::output::energy_columns().any(|e| e == c.name);
     let energies: Vec<(&str, Vec<(f64, f64)>)> = columns
         .iter()
-        .filter(|c| ENERGIES.contains(&c.name.as_str()) && c.values.iter().any(|v| *v != 0.0))
+        .filter(|c| is_energy(c) && c.values.iter().any(|v| *v != 0.0))
         .map(|c| (c.name.as_str(), pairs(c)))
         .collect();
     let path = dir.join("energies.svg");
@@ -430,12 +429,9 @@ fn run_plots(dir: &Path, history: &Path) -> Result<Vec<std::path::PathBuf>> {
         )
     })?;
     written.push(path);
-    let probes: Vec<&Column> = columns[1..]
-        .iter()
-        .filter(|c| !ENERGIES.contains(&c.name.as_str()))
-        .collect();
+    let probes: Vec<&Column> = columns[1..].iter().filter(|c| !is_energy(c)).collect();
     if !probes.is_empty() {
-        // The units from the run's summary, when it is there.
+        // The clamps and the probes' units from the run's summary, when it is there.
         let summary: serde_json::Value = crate::input::scene::read_text_limited(
             &dir.join("summary.json"),
             MAX_CSV_BYTES,
@@ -444,27 +440,47 @@ fn run_plots(dir: &Path, history: &Path) -> Result<Vec<std::path::PathBuf>> {
         .ok()
         .and_then(|t| serde_json::from_str(&t).ok())
         .unwrap_or_default();
-        let unit = |name: &str| {
-            let listed = summary["probes"]
-                .as_array()
-                .into_iter()
-                .flatten()
-                .find(|p| p["name"] == name);
-            match listed.and_then(|p| p["unit"].as_str()) {
+        let listed = |key: &str| summary[key].as_array().cloned().unwrap_or_default();
+        // `(title, axis)` of a column: a moving clamp's displacement or reaction, or a probe.
+        let clamps = listed("clamps");
+        let probe_units = listed("probes");
+        let label = |name: &str| {
+            for clamp in clamps.iter().filter_map(|c| c["name"].as_str()) {
+                let [disp, force] = crate::output::clamp_columns(clamp);
+                if name == disp {
+                    return (
+                        format!("clamp {clamp}: its displacement along its velocity"),
+                        format!("{name} (m)"),
+                    );
+                }
+                if name == force {
+                    return (
+                        format!("clamp {clamp}: its reaction along its velocity"),
+                        format!("{name} (N)"),
+                    );
+                }
+            }
+            let unit = probe_units
+                .iter()
+                .find(|p| p["name"] == name)
+                .and_then(|p| p["unit"].as_str());
+            let unit = match unit {
                 Some("1") => "strain".to_string(),
                 Some(u) => format!("({u})"),
                 None => "(m, rad or strain)".to_string(),
-            }
+            };
+            (format!("probe {name}"), format!("{name} {unit}"))
         };
         let path = dir.join("probes.svg");
         svg_file(&path, (820, 260 * probes.len() as u32), |root| {
             for (area, c) in root.split_evenly((probes.len(), 1)).iter().zip(&probes) {
+                let (title, axis) = label(&c.name);
                 panel(
                     area,
                     &path,
-                    &format!("probe {}", c.name),
+                    &title,
                     "t (s)",
-                    &format!("{} {}", c.name, unit(&c.name)),
+                    &axis,
                     &[(c.name.as_str(), pairs(c))],
                     false,
                 )?;
