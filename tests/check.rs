@@ -29,10 +29,41 @@ fn a_good_scene_is_described() {
     assert_eq!(r["loads"], 8);
     assert!(r["contact"].is_null());
     let (dt, crit) = (r["dt"].as_f64().unwrap(), r["dt_crit"].as_f64().unwrap());
+    // The step is the `dt_factor` of the `Δt_crit` a run settles to a few digits, the
+    // `Δt_crit` reported is to full precision.
     assert!(
-        (dt / crit - 0.9).abs() < 1e-12
+        (dt / crit - 0.9).abs() < 1e-4
             && r["steps"].as_u64().unwrap() == (0.1 / dt - 1e-9).ceil() as u64
     );
+    // The time step is the run's, to the bit (on this hybrid footing the Lanczos `Δt_crit` a
+    // run settles to and the full one differ in the fifth digit).
+    let (code, stdout, stderr) = check(&["examples/scenes/footing_hybrid.json", "--json"]);
+    assert_eq!(code, 0, "{stderr}");
+    let r: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+    let (dt, crit) = (r["dt"].as_f64().unwrap(), r["dt_crit"].as_f64().unwrap());
+    assert!(
+        dt != 0.5 * crit && (dt / crit - 0.5).abs() < 1e-4,
+        "{dt} {crit}"
+    );
+    let out = tempfile::tempdir().unwrap();
+    let run = Command::new(env!("CARGO_BIN_EXE_rbsm"))
+        .args([
+            "run",
+            "examples/scenes/footing_hybrid.json",
+            "--quiet",
+            "--steps",
+            "1",
+        ])
+        .arg("--out")
+        .arg(out.path())
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .unwrap();
+    assert!(run.status.success());
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.path().join("summary.json")).unwrap())
+            .unwrap();
+    assert_eq!(summary["dt"].as_f64(), Some(dt));
     assert!(r["memory_bytes"].as_u64().unwrap() > 1920 * 8 * 6);
     // With contact: the pairs it would track.
     let (code, stdout, _) = check(&["examples/scenes/hopping_block.json", "--json"]);

@@ -539,10 +539,11 @@ fn check_py(
     threads: Option<usize>,
 ) -> PyResult<String> {
     let scene = scene(path, text, base_dir)?;
+    // The setup a run takes, so that its `dt` is the run's (`rbsm check`).
     let overrides = Overrides {
         evaluator: self::evaluator(evaluator)?,
         dt,
-        ..Overrides::exact()
+        ..Default::default()
     };
     // `check` reads the input and writes nothing: every error is the input's.
     let (result, signal) = detached(py, threads, None, || {

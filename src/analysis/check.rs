@@ -77,8 +77,10 @@ pub struct ContactCheck {
 /// interrupted one.
 pub const UNSTABLE_EXIT: u8 = 4;
 
-/// Checks everything a run of the setup would build (mesh, model, probes, `Δt_crit`, the time
-/// step; the setup has built the rest) without stepping.
+/// Checks everything a run of the setup would build (mesh, model, probes, `Δt_crit` to full
+/// precision, the time step; the setup has built the rest) without stepping. The time step
+/// reported is the setup's: that of a run when the setup is built as a run's (a `dt_factor`
+/// taken of `Δt_crit` to [`crate::analysis::limit::FOR_STEP`]).
 ///
 /// # Errors
 /// A probe of the scene names an element outside the model, a point `at` in no element or a DOF the
