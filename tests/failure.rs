@@ -416,6 +416,16 @@ fn bad_strengths_and_clamps_name_the_key() {
         err.contains("bodies[0].supports[1].velocity[0]") && err.contains("`u`"),
         "{err}"
     );
+    // A ramp with no velocity to raise would leave the clamp fixed without a word.
+    let mut scene = bundled("tension_bar.json");
+    scene["bodies"][0]["supports"][1]["velocity"] = json!(null);
+    let err = Scene::from_json(&scene.to_string())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("bodies[0].supports[1].ramp") && err.contains("`velocity`"),
+        "{err}"
+    );
 }
 
 /// `examples/scenes/beam_drop.json` coarsened to 60 cells and cut at 40 ms: the beam lands on

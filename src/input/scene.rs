@@ -1065,7 +1065,8 @@ pub struct ClampSpec {
     /// reaction. A component other than 0 needs its DOF clamped.
     #[serde(default)]
     pub velocity: Option<[f64; 2]>,
-    /// Time over which the velocity rises linearly from zero (s), ≥ 0: a smooth start.
+    /// Time over which the velocity rises linearly from zero (s), ≥ 0: a smooth start; only
+    /// with a `velocity`.
     #[serde(default)]
     #[schemars(transform = RAMP.schema())]
     pub ramp: f64,
@@ -1853,7 +1854,15 @@ impl SupportSpec {
                         }
                     }
                 }
-                RAMP.check(&key("ramp"), *ramp)
+                RAMP.check(&key("ramp"), *ramp)?;
+                if *ramp > 0.0 && velocity.is_none() {
+                    return Err(Error::scene(
+                        key("ramp"),
+                        "is the time over which the clamp's `velocity` rises, and the clamp has \
+                         none: give it a `velocity` or remove the ramp",
+                    ));
+                }
+                Ok(())
             }
         }
     }
