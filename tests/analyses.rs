@@ -227,7 +227,8 @@ fn mechanism_names_the_free_modes() {
         .unwrap()
         .to_string();
     assert!(
-        err.contains("mechanism (1 free rigid mode)")
+        err.contains("`bodies[0].supports`")
+            && err.contains("mechanism (1 free rigid mode)")
             && err.contains("body `b` can translate along (1.000, 0.000)"),
         "{err}"
     );

@@ -147,7 +147,10 @@ fn unsupported_files_and_names_are_refused_clearly() {
         "{e}"
     );
     let e = error_for(&write("junk.msh", "hello"), "left");
-    assert!(e.contains("not a gmsh MSH file"), "{e}");
+    assert!(
+        e.contains("not a gmsh MSH file") && e.contains("`bodies[0].mesh.path`: "),
+        "{e}"
+    );
     // A data size the MSH reader panicked on (found by fuzzing), and a header cut short.
     let e = error_for(
         &write(

@@ -234,13 +234,13 @@ pub fn analyse(
     }
     let Some(multiplier) = multiplier.or_else(|| Multiplier::of(model)) else {
         return Err(Error::scene(
-            "bodies[].loads",
+            "bodies[*].loads",
             "nothing to grow: the scene has no loads, no gravity and no moving clamp",
         ));
     };
     if multiplier == Multiplier::Clamps && model.prescribed.len() != 1 {
         return Err(Error::scene(
-            "bodies[].supports",
+            "bodies[*].supports",
             format!(
                 "rbsm limit on the clamps takes one moving clamp (a clamp with `velocity`); the \
                  scene has {}",
@@ -307,12 +307,12 @@ pub fn analyse(
         Multiplier::Clamps => (&vec![0.0; n], &total),
     };
     if multiplier != Multiplier::Clamps && live.iter().all(|&p| p == 0.0) {
-        let what = match multiplier {
-            Multiplier::Gravity => "gravity",
-            _ => "loads",
+        let (what, key) = match multiplier {
+            Multiplier::Gravity => ("gravity", "gravity"),
+            _ => ("loads", "bodies[*].loads"),
         };
         return Err(Error::scene(
-            "bodies[].loads",
+            key,
             format!("rbsm limit on the {what}: the scene has none"),
         ));
     }
@@ -523,7 +523,7 @@ pub fn analyse(
         SolverStatus::Solved | SolverStatus::AlmostSolved => {}
         SolverStatus::PrimalInfeasible | SolverStatus::AlmostPrimalInfeasible => {
             return Err(Error::scene(
-                "bodies[].loads",
+                "bodies[*].loads",
                 "the model cannot carry its dead load with the strengths of its interfaces \
                  (the program is infeasible): it collapses under the loads held at their value",
             ))

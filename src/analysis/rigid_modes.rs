@@ -13,6 +13,8 @@ use nalgebra::DMatrix;
 pub struct FreeMode {
     /// Which elements move: a whole body, or a range of its elements.
     pub what: String,
+    /// The index of their body in the scene.
+    pub body: usize,
     /// The motion: a translation direction or a rotation centre.
     pub motion: Motion,
 }
@@ -164,6 +166,7 @@ pub fn free_modes(model: &Model, evaluator: &dyn Evaluator) -> Vec<FreeMode> {
             };
             out.push(FreeMode {
                 what: describe(model, g),
+                body: model.elements[g[0]].body as usize,
                 motion,
             });
         }

@@ -54,15 +54,16 @@ impl StaticSolution {
 /// Solves `K U = P` for the model's loads at their full value (gravity included).
 ///
 /// # Errors
-/// The model is a mechanism: it has free rigid modes, named in the error (`bodies[].supports`); or
-/// `K_ff` is not positive definite although no free rigid mode was found.
+/// The model is a mechanism: it has free rigid modes, named in the error (under
+/// `bodies[k].supports` of the first one's body); or `K_ff` is not positive definite although
+/// no free rigid mode was found.
 pub fn solve(model: &Model) -> Result<StaticSolution> {
     let ev = evaluator::build(model, EvaluatorKind::Assembled);
     let modes = free_modes(model, ev.as_ref());
-    if !modes.is_empty() {
+    if let Some(first) = modes.first() {
         let list: Vec<String> = modes.iter().map(|m| m.to_string()).collect();
         return Err(Error::scene(
-            "bodies[].supports",
+            format!("bodies[{}].supports", first.body),
             format!(
                 "the model is a mechanism ({}): {}; add supports that restrain them",
                 crate::output::count(modes.len(), "free rigid mode", "free rigid modes"),
@@ -75,7 +76,7 @@ pub fn solve(model: &Model) -> Result<StaticSolution> {
     let p = Loads::new(model).static_vector(model.n_dofs());
     let llt = sys.k.sp_cholesky(faer::Side::Lower).map_err(|e| {
         Error::scene(
-            "bodies[].supports",
+            "bodies[*].supports",
             format!("K_ff is not positive definite ({e:?}) although no free rigid mode was found"),
         )
     })?;

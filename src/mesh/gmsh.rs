@@ -24,17 +24,23 @@ pub struct EdgeGroup {
 /// The largest MSH file read (bytes).
 pub const MAX_MESH_BYTES: u64 = 2 << 30;
 
-/// Reads the mesh of body `body` from the MSH 4.1 file `path`.
+/// Reads the mesh of body `body` from the MSH 4.1 file `path`, named in the scene at `at`
+/// (`bodies[0].mesh`).
 ///
 /// # Errors
 /// `path` cannot be read, is not a regular file or is larger than [`MAX_MESH_BYTES`]; it is not an
 /// MSH 4.1 file with 8-byte data, of 3-node triangles and 4-node quadrilaterals with 2-node lines
 /// for groups; or its cells do not form a valid mesh (as [`Mesh::from_polygons`] checks), or a
 /// group's line is not an edge of a cell.
-pub fn read(body: &str, path: &Path) -> Result<Mesh> {
+pub fn read(body: &str, at: &str, path: &Path) -> Result<Mesh> {
     let bytes = crate::input::scene::read_limited(path, MAX_MESH_BYTES, "a mesh file")?;
-    let field = format!("mesh `{body}` ({})", path.display());
-    let fail = |message: String| Error::scene(field.clone(), message);
+    let field = format!("{at}.path");
+    let fail = |message: String| {
+        Error::scene(
+            field.clone(),
+            format!("{} (body `{body}`): {message}", path.display()),
+        )
+    };
     check_header(&bytes, &fail)?;
     // The reader panics on some malformed files; that is an error in the file, not a crash.
     let parsed = std::panic::catch_unwind(|| mshio::parse_msh_bytes(&bytes))

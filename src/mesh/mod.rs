@@ -85,12 +85,13 @@ pub fn cells_of(mesh: &MeshSpec) -> Option<u64> {
 }
 
 impl Mesh {
-    /// The mesh a body's scene entry asks for (the one place that reads `mesh.kind`).
+    /// The mesh a body's scene entry `spec` asks for (the one place that reads `mesh.kind`),
+    /// `at` its place in the scene (`bodies[0].mesh`).
     ///
     /// # Errors
     /// As the generator the entry names: [`grid::grid`], [`voronoi::voronoi`],
     /// [`Mesh::from_polygons`] or [`gmsh::read`].
-    pub fn from_spec(body: &str, spec: &MeshSpec) -> Result<Mesh> {
+    pub fn from_spec(body: &str, at: &str, spec: &MeshSpec) -> Result<Mesh> {
         let v = |p: &[f64; 2]| Vec2::new(p[0], p[1]);
         match spec {
             MeshSpec::Grid(GridSpec {
@@ -123,7 +124,7 @@ impl Mesh {
             MeshSpec::Polygons(PolygonsSpec { vertices, cells }) => {
                 Mesh::from_polygons(body, vertices.iter().map(v).collect(), cells)
             }
-            MeshSpec::Gmsh(GmshSpec { path }) => crate::mesh::gmsh::read(body, path),
+            MeshSpec::Gmsh(GmshSpec { path }) => crate::mesh::gmsh::read(body, at, path),
         }
     }
 

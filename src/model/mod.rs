@@ -396,7 +396,7 @@ impl Model {
                         .map_err(|m| Error::scene(format!("bodies[{bi}].mesh.domain"), m))?;
                 }
             }
-            let mut mesh = Mesh::from_spec(&spec.name, &spec.mesh)?;
+            let mut mesh = Mesh::from_spec(&spec.name, &format!("bodies[{bi}].mesh"), &spec.mesh)?;
             if crate::mesh::cells_of(&spec.mesh).is_none() {
                 expected += mesh.n_cells() as u64;
                 memory::ensure_fits(scene, expected)?;
