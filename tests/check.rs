@@ -118,6 +118,39 @@ fn a_bad_scene_is_refused_with_its_field() {
     let (code, _, stderr) = check(&[neg.to_str().unwrap()]);
     assert_eq!(code, 1);
     assert!(stderr.contains("materials.concrete.E"), "{stderr}");
+    // A value of the wrong type is named with the type a scene's author knows, and a file cut
+    // short is said so without a key path it has not reached.
+    let cases = [
+        (
+            r#""thickness": 0.1"#,
+            r#""thickness": "0.1""#,
+            "expected a number",
+        ),
+        (
+            r#""dt_factor": 0.9"#,
+            r#""dt_factor": true"#,
+            "expected a number",
+        ),
+    ];
+    for (from, to, says) in cases {
+        assert!(text.contains(from), "{from}");
+        std::fs::write(
+            &neg,
+            text.replace(from, to)
+                .replace("../meshes/cantilever.msh", msh),
+        )
+        .unwrap();
+        let (code, _, stderr) = check(&[neg.to_str().unwrap()]);
+        assert_eq!(code, 1);
+        assert!(stderr.contains(says) && !stderr.contains("f64"), "{stderr}");
+    }
+    std::fs::write(&neg, &text[..text.len() / 2]).unwrap();
+    let (code, _, stderr) = check(&[neg.to_str().unwrap()]);
+    assert_eq!(code, 1);
+    assert!(
+        stderr.contains("EOF") && !stderr.contains("`?`"),
+        "{stderr}"
+    );
 }
 
 /// A valid scene whose time step is above `Δt_crit` is described, and exits 4: a run of it would

@@ -1321,6 +1321,22 @@ pub fn schema() -> serde_json::Value {
     serde_json::Value::from(schemars::schema_for!(Scene))
 }
 
+/// `message` of the JSON reader with the Rust types it expects said as a scene's author knows
+/// them: `expected f64` as a number, `expected usize` as a whole number ≥ 0.
+fn plain_types(message: &str) -> String {
+    const TYPES: [(&str, &str); 6] = [
+        ("expected f64", "expected a number"),
+        ("expected usize", "expected a whole number ≥ 0"),
+        ("expected u64", "expected a whole number ≥ 0"),
+        ("expected u32", "expected a whole number ≥ 0"),
+        ("expected i64", "expected a whole number"),
+        ("expected i32", "expected a whole number"),
+    ];
+    TYPES.iter().fold(message.to_string(), |m, (rust, plain)| {
+        m.replace(rust, plain)
+    })
+}
+
 impl Scene {
     /// Reads and validates a scene file.
     ///
@@ -1383,6 +1399,7 @@ impl Scene {
                 message = rest.to_string();
             }
             if data {
+                message = plain_types(&message);
                 // A missing key is named by the path it should have.
                 if let Some(key) = message
                     .strip_prefix("missing field `")
@@ -1400,7 +1417,8 @@ impl Scene {
                 // Not an object at all: placed by line and column.
                 message.push_str(&located);
             }
-            let message = if path == "." {
+            // `?`: the reader stopped before any key (a file cut short).
+            let message = if path == "." || path == "?" {
                 message
             } else {
                 format!("at `{path}`: {message}")
