@@ -31,7 +31,7 @@ fn named<T: Named + Send + Sync>() -> impl clap::builder::TypedValueParser<Value
     about = "Rigid-Bodies-Spring Model in 2D with explicit dynamics"
 )]
 struct Cli {
-    /// Worker threads (default: all cores).
+    /// Worker threads (default, or 0: all cores).
     #[arg(long, global = true)]
     threads: Option<usize>,
     /// No progress bar and no information lines on standard error.

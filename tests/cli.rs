@@ -212,6 +212,17 @@ fn an_unknown_key_is_the_key_of_its_error() {
         ),
         (Some(1), Some("parse"), bad.to_str())
     );
+    // A run told to write into a file is refused under `--out`.
+    let (code, v) = json(&["run", &scene("cantilever"), "--out", bad.to_str().unwrap()]);
+    assert_eq!(
+        (code, v["error"]["key"].as_str()),
+        (Some(1), Some("--out")),
+        "{v}"
+    );
+    assert!(v["error"]["message"]
+        .as_str()
+        .unwrap()
+        .contains("is a file"));
 }
 
 /// `plot`'s folder is described in its help, and `schema`, whose output is JSON already,

@@ -334,6 +334,15 @@ fn prepare_folder(
     let Some(out) = out else {
         return Ok(None);
     };
+    if out.exists() && !out.is_dir() {
+        return Err(Error::scene(
+            "--out",
+            format!(
+                "`{}` is a file: name a folder (new or a run's) for the outputs",
+                out.display()
+            ),
+        ));
+    }
     if !params.resume {
         std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
         clear_previous(out)?;
