@@ -65,6 +65,10 @@ fn every_command_answers_json_with_json() {
     let (code, v) = json(&["eigen", &cantilever, "--modes", "2"]);
     assert_eq!(code, Some(0));
     assert_eq!(v["frequencies_hz"].as_array().unwrap().len(), 2);
+    assert_eq!(v["with_contact"], false);
+    // A block on the ground: its ω_max is the contact's, which the report says.
+    let (code, v) = json(&["eigen", &scene("hopping_block")]);
+    assert_eq!((code, &v["with_contact"]), (Some(0), &Value::Bool(true)));
     // Errors too: the key at fault and the message, on standard output.
     let bad = tmp.path().join("bad.json");
     std::fs::write(&bad, r#"{"name": "x", "thickness": -1}"#).unwrap();

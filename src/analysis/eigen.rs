@@ -329,6 +329,9 @@ pub struct EigenReport {
     pub omega_max: f64,
     /// `2/ω_max` (s).
     pub dt_crit: f64,
+    /// Whether `ω_max` and `Δt_crit` include the contact springs' estimate (a scene with
+    /// contact: the run's limit); the modes never do.
+    pub with_contact: bool,
     /// `dense` or `sparse`.
     pub method: &'static str,
     /// The mode shapes, for the files of [`write()`].
@@ -369,6 +372,7 @@ pub fn analyse(setup: &Setup, params: &EigenParams) -> Result<EigenReport> {
         omega: modes.omega.clone(),
         omega_max: setup.omega_max(),
         dt_crit: setup.dt_crit(),
+        with_contact: setup.contact.is_some(),
         method: modes.method,
         modes,
     })
@@ -383,6 +387,12 @@ impl Report for EigenReport {
             self.omega_max,
             self.dt_crit
         );
+        if self.with_contact {
+            t.push_str(
+                "  (ω_max and Δt_crit with the contact springs' estimate; the modes below are \
+                 the bonded springs' alone)\n",
+            );
+        }
         for (i, f) in self.frequencies_hz.iter().enumerate() {
             t.push_str(&format!("  mode {:>3}: {:.6e} Hz\n", i + 1, f));
         }

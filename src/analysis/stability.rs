@@ -368,6 +368,9 @@ impl Report for StabilityReport {
                 if b.safe { "safe" } else { "UNSAFE" }
             ));
         }
+        if !self.bounds.iter().any(|b| b.name == "gershgorin") {
+            t.push_str("  (gershgorin and single-body need a lumped mass; this one has blocks)\n");
+        }
         t.push_str(&format!(
             "  empirical       Δt = {:.6e} s  ratio {:.4}\n",
             self.empirical.dt, self.empirical.ratio
