@@ -177,16 +177,16 @@ fn a_mode_drawing_moves_the_largest_vertex_a_tenth_of_the_model_size() {
     );
 }
 
-#[test]
-fn plot_draws_energies_and_probes_of_a_run_and_refuses_an_empty_directory() {
+/// The bundled scene `name` run for `steps` steps into a new folder.
+fn bundled_run(name: &str, steps: u64) -> tempfile::TempDir {
     let dir = tempfile::tempdir().unwrap();
     let scene = Scene::from_file(format!(
-        "{}/examples/scenes/cantilever.json",
+        "{}/examples/scenes/{name}.json",
         env!("CARGO_MANIFEST_DIR")
     ))
     .unwrap();
     let opts = rbsm::analysis::setup::Overrides {
-        steps: Some(400),
+        steps: Some(steps),
         ..Default::default()
     };
     rbsm::analysis::run::run(
@@ -196,6 +196,12 @@ fn plot_draws_energies_and_probes_of_a_run_and_refuses_an_empty_directory() {
         &mut rbsm::analysis::run::Silent,
     )
     .unwrap();
+    dir
+}
+
+#[test]
+fn plot_draws_energies_and_probes_of_a_run_and_refuses_an_empty_directory() {
+    let dir = bundled_run("cantilever", 400);
     let written = rbsm::output::plot::histories(dir.path()).unwrap();
     assert_eq!(
         written,
@@ -239,23 +245,7 @@ fn plot_draws_energies_and_probes_of_a_run_and_refuses_an_empty_directory() {
 /// them is a probe.
 #[test]
 fn plot_draws_the_works_as_energies_and_the_clamps_apart_from_the_probes() {
-    let dir = tempfile::tempdir().unwrap();
-    let scene = Scene::from_file(format!(
-        "{}/examples/scenes/squeeze.json",
-        env!("CARGO_MANIFEST_DIR")
-    ))
-    .unwrap();
-    let opts = rbsm::analysis::setup::Overrides {
-        steps: Some(3000),
-        ..Default::default()
-    };
-    rbsm::analysis::run::run(
-        &rbsm::analysis::setup::Setup::new(&scene, &opts).unwrap(),
-        &Default::default(),
-        dir.path(),
-        &mut rbsm::analysis::run::Silent,
-    )
-    .unwrap();
+    let dir = bundled_run("squeeze", 3000);
     let history = std::fs::read_to_string(dir.path().join("history.csv")).unwrap();
     let header: Vec<&str> = history.lines().next().unwrap().split(',').collect();
     for column in [
