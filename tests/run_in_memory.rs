@@ -68,3 +68,56 @@ fn a_run_without_a_folder_cannot_resume() {
         .to_string();
     assert!(e.contains("resume") && e.contains("folder"), "{e}");
 }
+
+/// A run resumed with its history kept (the Python package's `resume=True`) holds the whole
+/// history, the rows before the checkpoint read back from `history.csv`: the same bits as a run
+/// that was never stopped.
+#[test]
+fn a_resumed_run_keeps_the_whole_history() {
+    struct StopAt(u64, std::sync::Arc<std::sync::atomic::AtomicBool>);
+    impl rbsm::analysis::run::Monitor for StopAt {
+        fn info(&mut self, _: &str) {}
+        fn progress(&mut self, step: u64, _: u64) {
+            if step >= self.0 {
+                self.1.store(true, std::sync::atomic::Ordering::Relaxed);
+            }
+        }
+    }
+    let path = format!(
+        "{}/examples/scenes/cantilever.json",
+        env!("CARGO_MANIFEST_DIR")
+    );
+    let mut v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+    v["output"]["checkpoint_every"] = 500.into();
+    v["output"]["every"] = 100.into();
+    let scene = Scene::from_json(&v.to_string()).unwrap();
+    let overrides = Overrides {
+        steps: Some(3000),
+        ..Default::default()
+    };
+    let s = Setup::new(&scene, &overrides).unwrap();
+    let keep = RunParams {
+        keep_history: true,
+        ..Default::default()
+    };
+    let (whole, stopped) = (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
+    let reference = simulate(&s, &keep, Some(whole.path()), &mut Silent).unwrap();
+    let flag = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let first = RunParams {
+        interrupt: Some(flag.clone()),
+        ..Default::default()
+    };
+    let cut = simulate(&s, &first, Some(stopped.path()), &mut StopAt(1700, flag)).unwrap();
+    assert!(cut.summary.steps < 3000);
+    let resume = RunParams {
+        resume: true,
+        keep_history: true,
+        ..Default::default()
+    };
+    let resumed = simulate(&s, &resume, Some(stopped.path()), &mut Silent).unwrap();
+    let bits = |x: &[f64]| x.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+    assert_eq!(resumed.columns, reference.columns);
+    assert_eq!(bits(&resumed.history), bits(&reference.history));
+    assert_eq!(bits(&resumed.u), bits(&reference.u));
+}

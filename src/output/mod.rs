@@ -377,12 +377,15 @@ impl History {
     }
 
     /// Opens the history of an earlier run to go on after its first `len` bytes (the rows up to
-    /// a checkpoint); the rest is cut off. Rows kept in memory start at the checkpoint. A
-    /// symbolic link in its place is replaced by a file of those bytes, its target left alone.
+    /// a checkpoint); the rest is cut off. With `keep`, those rows are read back into memory
+    /// first (each value was written in the form that reads back to its bits), so that the rows
+    /// kept cover the whole run. A symbolic link in its place is replaced by a file of those
+    /// bytes, its target left alone.
     ///
     /// # Errors
     /// `dir/history.csv` is missing, is neither a file nor a symbolic link, holds fewer than `len`
-    /// bytes, or cannot be read, cut back to `len` bytes or (in place of a link) written.
+    /// bytes, or cannot be read, cut back to `len` bytes or (in place of a link) written; with
+    /// `keep`, a row up to `len` is not as many numbers as the header has columns.
     pub fn resume(dir: &Path, columns: Columns, len: u64, keep: bool) -> Result<History> {
         use std::io::{Read, Seek};
         let path = dir.join("history.csv");
@@ -426,11 +429,53 @@ impl History {
                 )),
             ));
         };
-        Ok(History {
+        let mut h = History {
             file: Some((file, path, len)),
             columns,
-            rows: keep.then(Vec::new),
-        })
+            rows: None,
+        };
+        if keep {
+            h.rows = Some(h.rows_written()?);
+        }
+        Ok(h)
+    }
+
+    /// The rows of `history.csv` written so far, read back as numbers.
+    fn rows_written(&self) -> Result<Vec<f64>> {
+        let Some((_, path, len)) = &self.file else {
+            return Ok(Vec::new());
+        };
+        let width = self.header().len();
+        let bad = |line: usize| {
+            Error::io(
+                path,
+                std::io::Error::other(format!(
+                    "line {line} is not {width} numbers: the run cannot be resumed with its \
+                     history kept"
+                )),
+            )
+        };
+        let mut bytes = Vec::new();
+        std::io::Read::read_to_end(
+            &mut std::io::Read::take(
+                std::fs::File::open(path).map_err(|e| Error::io(path, e))?,
+                *len,
+            ),
+            &mut bytes,
+        )
+        .map_err(|e| Error::io(path, e))?;
+        let text = String::from_utf8(bytes).map_err(|_| bad(1))?;
+        let mut rows = Vec::new();
+        for (k, line) in text.lines().enumerate().skip(1) {
+            let before = rows.len();
+            for v in line.split(',') {
+                rows.push(v.parse::<f64>().map_err(|_| bad(k + 1))?);
+            }
+            if rows.len() - before != width {
+                return Err(bad(k + 1));
+            }
+        }
+        Ok(rows)
     }
 
     /// The column names: [`HISTORY_COLUMNS`], then those of the model.
