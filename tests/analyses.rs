@@ -521,6 +521,18 @@ fn a_diverged_stability_run_gives_its_reason() {
     );
     let line = text.lines().find(|l| l.contains("run at 0.500")).unwrap();
     assert!(line.contains("ok, 500 steps, energy drift"), "{line}");
+    // Runs of no step would bisect to nonsense (an empirical limit of 1e148 s).
+    let e = rbsm::analysis::stability::analyse(
+        &setup,
+        &rbsm::analysis::stability::StabilityParams {
+            fractions: vec![0.5],
+            steps: 0,
+        },
+    )
+    .err()
+    .unwrap()
+    .to_string();
+    assert!(e.contains("--steps") && e.contains("≥ 1"), "{e}");
     let json = serde_json::to_value(&report).unwrap();
     assert!(json["fractions"][1]["max_relative_drift"].is_null());
     assert_eq!(json["fractions"][1]["reason"], reason);

@@ -324,8 +324,15 @@ pub struct StabilityParams {
 /// (bisection to `1e-4`) and undamped runs at the given fractions of `Δt_crit`.
 ///
 /// # Errors
-/// A fraction of `params.fractions` is not a finite number > 0 (`--fractions`).
+/// A fraction of `params.fractions` is not a finite number > 0 (`--fractions`), or
+/// `params.steps` is 0 (`--steps`).
 pub fn analyse(setup: &Setup, params: &StabilityParams) -> Result<StabilityReport> {
+    if params.steps == 0 {
+        return Err(Error::scene(
+            "--steps",
+            "must be ≥ 1: each run of the bisection and of the fractions takes that many steps",
+        ));
+    }
     if let Some(f) = params
         .fractions
         .iter()
