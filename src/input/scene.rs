@@ -1826,7 +1826,8 @@ fn mesh_file(field: &str, path: &Path) -> Result<()> {
             kind_of(&m.file_type())
         ),
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => format!(
-            "no file `{}` (a relative path starts at the scene file's directory)",
+            "no file `{}` (a relative path starts at the scene file's directory, or for a \
+             scene given as text, at its base folder: the current one unless one is given)",
             path.display()
         ),
         Err(e) => format!("`{}`: {e}", path.display()),
