@@ -108,6 +108,19 @@ fn bad_calibration_files_name_the_key() {
             "formulation.penalty",
             "> 0",
         ),
+        // Read by the JSON reader: the key path too, and the type as the author knows it.
+        (
+            "/tolerance/tensile_strength",
+            serde_json::json!("0.01"),
+            "tolerance.tensile_strength",
+            "expected a number",
+        ),
+        (
+            "/tolerance/tensile_strenght",
+            serde_json::json!(0.01),
+            "tolerance.tensile_strenght",
+            "unknown field",
+        ),
     ];
     for (pointer, value, key, range) in cases {
         let mut v = base.clone();
@@ -125,11 +138,9 @@ fn bad_calibration_files_name_the_key() {
     }
     let mut v = base.clone();
     v["targets"]["G_F"] = serde_json::json!(100);
-    let e = CalibrationSpec::from_json(&v.to_string())
-        .err()
-        .unwrap()
-        .to_string();
-    assert!(e.contains("unknown field `G_F`"), "{e}");
+    let e = CalibrationSpec::from_json(&v.to_string()).err().unwrap();
+    assert!(e.to_string().contains("unknown field `G_F`"), "{e}");
+    assert_eq!(e.parts().1, "targets.G_F");
     CalibrationSpec::from_json(&base.to_string()).unwrap();
 }
 

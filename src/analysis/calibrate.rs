@@ -244,10 +244,7 @@ impl CalibrationSpec {
     /// # Errors
     /// As [`CalibrationSpec::from_file`].
     pub fn from_json(text: &str) -> Result<CalibrationSpec> {
-        let spec: CalibrationSpec = serde_json::from_str(text).map_err(|e| Error::Parse {
-            path: "calibration".into(),
-            message: e.to_string(),
-        })?;
+        let spec: CalibrationSpec = crate::input::scene::from_json_text(text)?;
         spec.validate()?;
         Ok(spec)
     }

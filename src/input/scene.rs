@@ -1321,6 +1321,64 @@ pub fn schema() -> serde_json::Value {
     serde_json::Value::from(schemars::schema_for!(Scene))
 }
 
+/// A value of type `T` read from JSON `text` (a scene, a calibration): an error in well-formed
+/// JSON (a wrong value, key or type) is a [`Error::Scene`] named by its key path, the rest a
+/// [`Error::Parse`] placed by line and column.
+pub(crate) fn from_json_text<T: serde::de::DeserializeOwned>(text: &str) -> Result<T> {
+    let de = &mut serde_json::Deserializer::from_str(text);
+    serde_path_to_error::deserialize(de).map_err(|e| {
+        let mut path = e.path().to_string();
+        let inner = e.into_inner();
+        // Where serde_json placed the error, which it appends to its message.
+        let located = format!(" at line {} column {}", inner.line(), inner.column());
+        let data = inner.classify() == serde_json::error::Category::Data;
+        let mut message = inner.to_string();
+        if data {
+            // Well-formed JSON with a wrong value, key or type is named by its key path
+            // (below), which also holds for a scene built in memory (a Python dict) whose
+            // text nobody has seen: the line and column go.
+            if let Some(m) = message.strip_suffix(&located) {
+                message = m.to_string();
+            }
+        }
+        // A variant's own path (see `variant`) continues the outer one.
+        if let Some((sub, rest)) = message.strip_prefix('`').and_then(|r| r.split_once("`: ")) {
+            path = if path == "." {
+                sub.to_string()
+            } else {
+                format!("{path}.{sub}")
+            };
+            message = rest.to_string();
+        }
+        if data {
+            message = plain_types(&message);
+            // A missing key is named by the path it should have.
+            if let Some(key) = message
+                .strip_prefix("missing field `")
+                .and_then(|r| r.strip_suffix('`'))
+            {
+                path = if path == "." {
+                    key.to_string()
+                } else {
+                    format!("{path}.{key}")
+                };
+            }
+            if path != "." {
+                return Error::scene(path, message);
+            }
+            // Not an object at all: placed by line and column.
+            message.push_str(&located);
+        }
+        // `?`: the reader stopped before any key (a file cut short).
+        let message = if path == "." || path == "?" {
+            message
+        } else {
+            format!("at `{path}`: {message}")
+        };
+        Error::parse("<json>", message)
+    })
+}
+
 /// `message` of the JSON reader with the Rust types it expects said as a scene's author knows
 /// them: `expected f64` as a number, `expected usize` as a whole number ≥ 0.
 fn plain_types(message: &str) -> String {
@@ -1373,58 +1431,7 @@ impl Scene {
     /// Parses a scene whose relative mesh paths start at `dir`, then validates it.
     fn parse(text: &str, dir: Option<&Path>) -> Result<Scene> {
         refuse_duplicate_keys(text)?;
-        let de = &mut serde_json::Deserializer::from_str(text);
-        let mut scene: Scene = serde_path_to_error::deserialize(de).map_err(|e| {
-            let mut path = e.path().to_string();
-            let inner = e.into_inner();
-            // Where serde_json placed the error, which it appends to its message.
-            let located = format!(" at line {} column {}", inner.line(), inner.column());
-            let data = inner.classify() == serde_json::error::Category::Data;
-            let mut message = inner.to_string();
-            if data {
-                // Well-formed JSON with a wrong value, key or type is named by its key path
-                // (below), which also holds for a scene built in memory (a Python dict) whose
-                // text nobody has seen: the line and column go.
-                if let Some(m) = message.strip_suffix(&located) {
-                    message = m.to_string();
-                }
-            }
-            // A variant's own path (see `variant`) continues the outer one.
-            if let Some((sub, rest)) = message.strip_prefix('`').and_then(|r| r.split_once("`: ")) {
-                path = if path == "." {
-                    sub.to_string()
-                } else {
-                    format!("{path}.{sub}")
-                };
-                message = rest.to_string();
-            }
-            if data {
-                message = plain_types(&message);
-                // A missing key is named by the path it should have.
-                if let Some(key) = message
-                    .strip_prefix("missing field `")
-                    .and_then(|r| r.strip_suffix('`'))
-                {
-                    path = if path == "." {
-                        key.to_string()
-                    } else {
-                        format!("{path}.{key}")
-                    };
-                }
-                if path != "." {
-                    return Error::scene(path, message);
-                }
-                // Not an object at all: placed by line and column.
-                message.push_str(&located);
-            }
-            // `?`: the reader stopped before any key (a file cut short).
-            let message = if path == "." || path == "?" {
-                message
-            } else {
-                format!("at `{path}`: {message}")
-            };
-            Error::parse("<json>", message)
-        })?;
+        let mut scene: Scene = from_json_text(text)?;
         if let Some(dir) = dir {
             for body in &mut scene.bodies {
                 if let MeshSpec::Gmsh(GmshSpec { path }) = &mut body.mesh {
