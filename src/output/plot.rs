@@ -20,6 +20,39 @@ fn range(values: impl Iterator<Item = f64>, factor: f64) -> std::ops::Range<f64>
     lo / factor..hi * factor
 }
 
+/// A log axis over `range` whose labels and grid lines are at `m × 10^k`: labelled at
+/// `m` = 1, 2 and 5 (only `m` = 1 over more than three decades), light lines at every
+/// `m` = 1..9. plotters' own log axis drew the next decade's line twice and a hundred light lines
+/// in each decade, bunched at its top (a grey band on `tradeoff.svg`).
+fn log_axis(
+    range: std::ops::Range<f64>,
+) -> plotters::coord::combinators::WithKeyPoints<LogCoord<f64>> {
+    let (lo, hi) = (range.start, range.end);
+    let marks = |mantissas: &[f64]| -> Vec<f64> {
+        let mut points = Vec::new();
+        let mut decade = 10f64.powf(lo.log10().floor());
+        while decade <= hi {
+            points.extend(
+                mantissas
+                    .iter()
+                    .map(|m| m * decade)
+                    .filter(|x| (lo..=hi).contains(x)),
+            );
+            decade *= 10.0;
+        }
+        points
+    };
+    let labelled: &[f64] = if hi / lo > 1e3 {
+        &[1.0]
+    } else {
+        &[1.0, 2.0, 5.0]
+    };
+    range
+        .log_scale()
+        .with_key_points(marks(labelled))
+        .with_light_points(marks(&[1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0]))
+}
+
 /// Named series of `(x, y)` as lines with markers on log–log axes (non-positive points are
 /// left out).
 ///
@@ -40,8 +73,8 @@ pub fn log_log(
             .x_label_area_size(40)
             .y_label_area_size(70)
             .build_cartesian_2d(
-                range(all().map(|p| p.0), 1.3).log_scale(),
-                range(all().map(|p| p.1), 2.0).log_scale(),
+                log_axis(range(all().map(|p| p.0), 1.3)),
+                log_axis(range(all().map(|p| p.1), 2.0)),
             )
             .map_err(|e| failed(path, e))?;
         chart
@@ -110,8 +143,8 @@ pub fn pareto(path: &Path, title: &str, points: &[(f64, f64, bool, String)]) -> 
             .x_label_area_size(40)
             .y_label_area_size(70)
             .build_cartesian_2d(
-                range(points.iter().map(|p| p.0), 1.5).log_scale(),
-                range(points.iter().map(|p| p.1), 2.0).log_scale(),
+                log_axis(range(points.iter().map(|p| p.0), 1.5)),
+                log_axis(range(points.iter().map(|p| p.1), 2.0)),
             )
             .map_err(|e| failed(path, e))?;
         chart
@@ -585,7 +618,28 @@ fn stability_plot(dir: &Path) -> Result<Option<std::path::PathBuf>> {
 
 #[cfg(test)]
 mod tests {
-    use super::tick;
+    use super::{log_axis, tick};
+
+    #[test]
+    fn log_axes_mark_each_value_once() {
+        use plotters::coord::ranged1d::{BoldPoints, LightPoints, Ranged};
+        // Two decades, as `rbsm tradeoff`'s errors: 1, 2 and 5 labelled, every m × 10^k lined.
+        let axis = log_axis(3e-4..3e-2);
+        let bold = axis.key_points(BoldPoints(10));
+        let light = axis.key_points(LightPoints::new(10, 100));
+        let close = |a: &[f64], b: &[f64]| {
+            a.len() == b.len() && a.iter().zip(b).all(|(x, y)| (x - y).abs() <= 1e-12 * y)
+        };
+        assert!(
+            close(&bold, &[5e-4, 1e-3, 2e-3, 5e-3, 1e-2, 2e-2]),
+            "{bold:?}"
+        );
+        assert_eq!(light.len(), 7 + 9 + 3, "{light:?}");
+        assert!(light.windows(2).all(|w| w[1] > w[0] * 1.05), "{light:?}");
+        // Over more than three decades, the decades alone are labelled.
+        let bold = log_axis(2e-7..3e-2).key_points(BoldPoints(10));
+        assert!(close(&bold, &[1e-6, 1e-5, 1e-4, 1e-3, 1e-2]), "{bold:?}");
+    }
 
     #[test]
     fn ticks_show_no_float_noise_and_stay_distinct() {
