@@ -115,6 +115,18 @@ fn scene(
     .map_err(|e| raise_failed(input(e)))
 }
 
+/// The option `key`'s `value` as a count of at least `least`: a negative or too small one is
+/// refused by its key (as the command line refuses it), not by Python's `OverflowError`.
+fn count(key: &str, value: i64, least: u64) -> PyResult<u64> {
+    match u64::try_from(value) {
+        Ok(v) if v >= least => Ok(v),
+        _ => Err(option_error(
+            key,
+            &format!("must be ≥ {least}, got {value}"),
+        )),
+    }
+}
+
 /// The option `key` named `name`, refused as the command line refuses it.
 fn named<T: std::str::FromStr<Err = String>>(key: &str, name: &str) -> PyResult<T> {
     name.parse().map_err(|why: String| option_error(key, &why))
@@ -130,15 +142,14 @@ fn evaluator(name: Option<String>) -> PyResult<Option<EvaluatorKind>> {
 /// completes.
 fn detached<R: Send>(
     py: Python<'_>,
-    threads: Option<usize>,
+    threads: Option<i64>,
     stop: Option<&Arc<AtomicBool>>,
     work: impl FnOnce() -> R + Send,
 ) -> PyResult<(R, Option<PyErr>)> {
-    let pool = match threads {
-        Some(0) => return Err(option_error("threads", "must be ≥ 1")),
+    let pool = match threads.map(|n| count("threads", n, 1)).transpose()? {
         Some(n) => Some(
             rayon::ThreadPoolBuilder::new()
-                .num_threads(n)
+                .num_threads(n as usize)
                 .build()
                 .map_err(|e| option_error("threads", &e.to_string()))?,
         ),
@@ -220,10 +231,10 @@ fn run_py<'py>(
     evaluator: Option<String>,
     dt: Option<f64>,
     dt_factor: Option<f64>,
-    steps: Option<u64>,
+    steps: Option<i64>,
     exact_dt_crit: bool,
     resume: bool,
-    threads: Option<usize>,
+    threads: Option<i64>,
 ) -> PyResult<Bound<'py, PyDict>> {
     if dt.is_some() && dt_factor.is_some() {
         return Err(option_error("dt", "give `dt` or `dt_factor`, not both"));
@@ -233,7 +244,7 @@ fn run_py<'py>(
         evaluator: self::evaluator(evaluator)?,
         dt,
         dt_factor,
-        steps,
+        steps: steps.map(|n| count("steps", n, 0)).transpose()?,
         exact_dt_crit,
         ..Default::default()
     };
@@ -322,7 +333,7 @@ fn effective_py(
     path: Option<PathBuf>,
     text: Option<String>,
     base_dir: Option<PathBuf>,
-    threads: Option<usize>,
+    threads: Option<i64>,
 ) -> PyResult<String> {
     let scene = scene(path, text, base_dir)?;
     let (result, signal) = detached(py, threads, None, || {
@@ -342,7 +353,7 @@ fn static_py<'py>(
     text: Option<String>,
     base_dir: Option<PathBuf>,
     out: Option<PathBuf>,
-    threads: Option<usize>,
+    threads: Option<i64>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let scene = scene(path, text, base_dir)?;
     let (result, signal) = detached(py, threads, None, || {
@@ -379,21 +390,22 @@ fn limit_py<'py>(
     on: Option<String>,
     points: String,
     out: Option<PathBuf>,
-    threads: Option<usize>,
+    threads: Option<i64>,
 ) -> PyResult<Bound<'py, PyDict>> {
     use rbsm::analysis::collapse::{self, Multiplier, Points};
     let points: Points = points
         .parse()
-        .map_err(|e: String| PyValueError::new_err(format!("points: {e}")))?;
+        .map_err(|e: String| option_error("points", &e))?;
     let on = match on.as_deref() {
         None => None,
         Some("loads") => Some(Multiplier::Loads),
         Some("gravity") => Some(Multiplier::Gravity),
         Some("clamps") => Some(Multiplier::Clamps),
         Some(other) => {
-            return Err(PyValueError::new_err(format!(
-                "on: {other:?} is not one of loads, gravity, clamps"
-            )))
+            return Err(option_error(
+                "on",
+                &format!("{other:?} is not one of loads, gravity, clamps"),
+            ))
         }
     };
     let scene = scene(path, text, base_dir)?;
@@ -447,16 +459,19 @@ fn eigen_py<'py>(
     path: Option<PathBuf>,
     text: Option<String>,
     base_dir: Option<PathBuf>,
-    modes: usize,
+    modes: i64,
     method: String,
     out: Option<PathBuf>,
     vtk: Option<PathBuf>,
     svg: Option<PathBuf>,
-    threads: Option<usize>,
+    threads: Option<i64>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let method: eigen::Method = named("method", &method)?;
     let scene = scene(path, text, base_dir)?;
-    let params = eigen::EigenParams { modes, method };
+    let params = eigen::EigenParams {
+        modes: count("modes", modes, 0)? as usize,
+        method,
+    };
     let (result, signal) = detached(py, threads, None, || {
         let setup = Setup::new(&scene, &Overrides::exact()).map_err(input)?;
         let report = eigen::analyse(&setup, &params)?;
@@ -496,12 +511,15 @@ fn stability_py<'py>(
     text: Option<String>,
     base_dir: Option<PathBuf>,
     fractions: Vec<f64>,
-    steps: u64,
+    steps: i64,
     out: Option<PathBuf>,
-    threads: Option<usize>,
+    threads: Option<i64>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let scene = scene(path, text, base_dir)?;
-    let params = stability::StabilityParams { fractions, steps };
+    let params = stability::StabilityParams {
+        fractions,
+        steps: count("steps", steps, 0)?,
+    };
     let (result, signal) = detached(py, threads, None, || {
         let setup = Setup::new(&scene, &Overrides::exact()).map_err(input)?;
         let report = stability::analyse(&setup, &params)?;
@@ -536,7 +554,7 @@ fn check_py(
     base_dir: Option<PathBuf>,
     evaluator: Option<String>,
     dt: Option<f64>,
-    threads: Option<usize>,
+    threads: Option<i64>,
 ) -> PyResult<String> {
     let scene = scene(path, text, base_dir)?;
     // The setup a run takes, so that its `dt` is the run's (`rbsm check`).
@@ -581,7 +599,7 @@ fn study_point(
     text: Option<String>,
     base_dir: Option<PathBuf>,
     settings: Vec<(String, String)>,
-    threads: Option<usize>,
+    threads: Option<i64>,
 ) -> PyResult<String> {
     let scene = scene(path, text, base_dir)?;
     let settings = self::settings(settings)?;
@@ -643,7 +661,7 @@ fn calibration_job(
     py: Python<'_>,
     spec: String,
     job: String,
-    threads: Option<usize>,
+    threads: Option<i64>,
 ) -> PyResult<String> {
     use rbsm::analysis::calibrate;
     let spec = calibrate::CalibrationSpec::from_json(&spec).map_err(py_error)?;

@@ -200,6 +200,9 @@ def test_bad_options_raise_with_their_name(scenes):
         ({"dt": 1e-6, "dt_factor": 0.5}, "dt"),
         ({"threads": 0}, "threads"),
         ({"steps": 0}, "--steps"),
+        # Negative counts: named, not Python's OverflowError.
+        ({"threads": -1}, "threads"),
+        ({"steps": -1}, "steps"),
     ]:
         with pytest.raises(rbsm.SceneError) as err:
             rbsm.run(scene, **kwargs)
@@ -207,6 +210,13 @@ def test_bad_options_raise_with_their_name(scenes):
     with pytest.raises(rbsm.SceneError) as err:
         rbsm.eigen(scene, method="fastest")
     assert err.value.key == "method"
+    with pytest.raises(rbsm.SceneError) as err:
+        rbsm.eigen(scene, modes=-1)
+    assert err.value.key == "modes"
+    for kwargs, key in [({"on": "wind"}, "on"), ({"points": "mid"}, "points")]:
+        with pytest.raises(rbsm.SceneError) as err:
+            rbsm.limit(scenes / "squeeze.json", **kwargs)
+        assert err.value.key == key, (kwargs, err.value)
     with pytest.raises(rbsm.OutputError):
         rbsm.run(scene, steps=10, out="/proc/no/such/folder")
 
