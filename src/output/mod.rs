@@ -440,9 +440,10 @@ impl History {
         Ok(h)
     }
 
-    /// The rows of `history.csv` written so far, read back as numbers.
+    /// The rows of `history.csv`, as many bytes as written so far (the whole file once
+    /// [`History::resume`] has cut it back), read back as numbers.
     fn rows_written(&self) -> Result<Vec<f64>> {
-        let Some((_, path, len)) = &self.file else {
+        let Some((_, path, _)) = &self.file else {
             return Ok(Vec::new());
         };
         let width = self.header().len();
@@ -455,16 +456,7 @@ impl History {
                 )),
             )
         };
-        let mut bytes = Vec::new();
-        std::io::Read::read_to_end(
-            &mut std::io::Read::take(
-                std::fs::File::open(path).map_err(|e| Error::io(path, e))?,
-                *len,
-            ),
-            &mut bytes,
-        )
-        .map_err(|e| Error::io(path, e))?;
-        let text = String::from_utf8(bytes).map_err(|_| bad(1))?;
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
         let mut rows = Vec::new();
         for (k, line) in text.lines().enumerate().skip(1) {
             let before = rows.len();
