@@ -378,15 +378,6 @@ fn a_cracking_run_writes_the_state_of_each_failing_interface_beside_the_frames()
 /// without failure in the same folder removes them.
 #[test]
 fn crack_frames_resume_byte_for_byte_and_go_with_the_next_run() {
-    struct StopAt(u64, std::sync::Arc<std::sync::atomic::AtomicBool>);
-    impl rbsm::analysis::run::Monitor for StopAt {
-        fn info(&mut self, _: &str) {}
-        fn progress(&mut self, step: u64, _: u64) {
-            if step >= self.0 {
-                self.1.store(true, std::sync::atomic::Ordering::Relaxed);
-            }
-        }
-    }
     let mut v = tension_bar();
     v["output"]["checkpoint_every"] = 1000.into();
     let s = Scene::from_json(&v.to_string()).unwrap();
@@ -403,7 +394,10 @@ fn crack_frames_resume_byte_for_byte_and_go_with_the_next_run() {
         &setup,
         &params,
         stopped.path(),
-        &mut StopAt(2600, flag.clone()),
+        &mut common::StopAt {
+            at: 2600,
+            flag: flag.clone(),
+        },
     )
     .unwrap();
     assert_eq!(summary.status, RunStatus::Interrupted);
@@ -456,7 +450,7 @@ fn crack_frames_resume_byte_for_byte_and_go_with_the_next_run() {
 #[cfg(unix)]
 #[test]
 fn a_run_writes_through_no_link() {
-    use rbsm::analysis::run::{self, Monitor, RunParams};
+    use rbsm::analysis::run::{self, RunParams};
     use std::sync::atomic::{AtomicBool, Ordering};
     use std::sync::Arc;
     let mut v = bundled("cantilever");
@@ -488,22 +482,17 @@ fn a_run_writes_through_no_link() {
     };
     let planted: Vec<_> = names.iter().map(|n| plant(n)).collect();
     // Stopped by its interrupt flag after its checkpoint at step 300.
-    struct StopAt(u64, Arc<AtomicBool>);
-    impl Monitor for StopAt {
-        fn info(&mut self, _: &str) {}
-        fn progress(&mut self, step: u64, _: u64) {
-            if step >= self.0 {
-                self.1.store(true, Ordering::SeqCst);
-            }
-        }
-    }
+    let stop_at = |at, flag: &Arc<AtomicBool>| common::StopAt {
+        at,
+        flag: flag.clone(),
+    };
     let flag = Arc::new(AtomicBool::new(false));
     let params = |resume| RunParams {
         resume,
         interrupt: Some(flag.clone()),
         keep_history: false,
     };
-    let first = run::run(&setup, &params(false), &out, &mut StopAt(330, flag.clone())).unwrap();
+    let first = run::run(&setup, &params(false), &out, &mut stop_at(330, &flag)).unwrap();
     assert_eq!(first.status, RunStatus::Interrupted);
     for (name, target) in names.iter().zip(&planted) {
         assert_eq!(
@@ -521,13 +510,7 @@ fn a_run_writes_through_no_link() {
     std::fs::remove_file(&history).unwrap();
     std::os::unix::fs::symlink(&copy, &history).unwrap();
     flag.store(false, Ordering::SeqCst);
-    let end = run::run(
-        &setup,
-        &params(true),
-        &out,
-        &mut StopAt(u64::MAX, flag.clone()),
-    )
-    .unwrap();
+    let end = run::run(&setup, &params(true), &out, &mut stop_at(u64::MAX, &flag)).unwrap();
     assert_eq!(end.status, RunStatus::Ok);
     assert_eq!(
         std::fs::read(&copy).unwrap(),
@@ -542,7 +525,7 @@ fn a_run_writes_through_no_link() {
         &setup,
         &params(false),
         &whole,
-        &mut StopAt(u64::MAX, flag.clone()),
+        &mut stop_at(u64::MAX, &flag),
     )
     .unwrap();
     assert_eq!(

@@ -1,6 +1,8 @@
 //! A run without a folder (the Python package's): the history and final state in memory are
 //! those a run with a folder writes, to the bit.
 
+mod common;
+
 use rbsm::analysis::run::{simulate, RunParams, Silent};
 use rbsm::analysis::setup::{Overrides, Setup};
 use rbsm::input::scene::Scene;
@@ -74,15 +76,6 @@ fn a_run_without_a_folder_cannot_resume() {
 /// that was never stopped.
 #[test]
 fn a_resumed_run_keeps_the_whole_history() {
-    struct StopAt(u64, std::sync::Arc<std::sync::atomic::AtomicBool>);
-    impl rbsm::analysis::run::Monitor for StopAt {
-        fn info(&mut self, _: &str) {}
-        fn progress(&mut self, step: u64, _: u64) {
-            if step >= self.0 {
-                self.1.store(true, std::sync::atomic::Ordering::Relaxed);
-            }
-        }
-    }
     let path = format!(
         "{}/examples/scenes/cantilever.json",
         env!("CARGO_MANIFEST_DIR")
@@ -108,7 +101,8 @@ fn a_resumed_run_keeps_the_whole_history() {
         interrupt: Some(flag.clone()),
         ..Default::default()
     };
-    let cut = simulate(&s, &first, Some(stopped.path()), &mut StopAt(1700, flag)).unwrap();
+    let mut stop = common::StopAt { at: 1700, flag };
+    let cut = simulate(&s, &first, Some(stopped.path()), &mut stop).unwrap();
     assert!(cut.summary.steps < 3000);
     let resume = RunParams {
         resume: true,

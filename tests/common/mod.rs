@@ -150,3 +150,19 @@ impl rbsm::force::evaluator::Evaluator for Unfused<'_> {
         self.0.bytes()
     }
 }
+
+/// A run's monitor that raises `flag` (the run's interrupt) once the run reaches step `at`: a
+/// Ctrl-C at a known step.
+pub struct StopAt {
+    pub at: u64,
+    pub flag: std::sync::Arc<std::sync::atomic::AtomicBool>,
+}
+
+impl run::Monitor for StopAt {
+    fn info(&mut self, _: &str) {}
+    fn progress(&mut self, step: u64, _: u64) {
+        if step >= self.at {
+            self.flag.store(true, std::sync::atomic::Ordering::Relaxed);
+        }
+    }
+}
