@@ -390,6 +390,18 @@ def _job_failed(payload: Dict[str, Any], why: str) -> Dict[str, Any]:
     return {"job": payload["job"], "measured": None, "failure": why}
 
 
+def _read_input(path: Path) -> str:
+    """The text of an input file; one that cannot be read raises :class:`SceneError` of kind
+    ``io`` with the file as ``key``, as a scene file does."""
+    try:
+        return path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as e:
+        why = e.strerror if isinstance(e, OSError) and e.strerror else str(e)
+        error = _rbsm.SceneError(f"{path}: {why}")
+        error.kind, error.key, error.message = "io", str(path), why
+        raise error from e
+
+
 class CalibrationFailed(RuntimeError):
     """A specimen run of a calibration failed; ``job`` is the run (test, cell size, seed,
     material) and the message says why."""
@@ -424,7 +436,7 @@ def calibrate(
     if isinstance(spec, Mapping):
         text = json.dumps(spec)
     else:
-        text = Path(spec).read_text(encoding="utf-8")
+        text = _read_input(Path(spec))
     done: List[str] = []
     while True:
         step = json.loads(_rbsm.calibration_next(text, done))

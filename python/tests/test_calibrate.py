@@ -64,3 +64,11 @@ def test_a_bad_target_is_refused_by_its_key():
     spec["targets"]["fracture_energy"] = -1
     with pytest.raises(rbsm.SceneError, match="targets.fracture_energy"):
         rbsm.calibrate(spec)
+
+
+def test_a_calibration_file_that_cannot_be_read_is_a_scene_error(tmp_path):
+    missing = tmp_path / "nope.json"
+    with pytest.raises(rbsm.SceneError) as err:
+        rbsm.calibrate(missing)
+    e = err.value
+    assert (e.kind, e.key) == ("io", str(missing)) and "No such file" in e.message, str(e)
