@@ -441,33 +441,27 @@ impl History {
     }
 
     /// The rows of `history.csv`, as many bytes as written so far (the whole file once
-    /// [`History::resume`] has cut it back), read back as numbers.
+    /// [`History::resume`] has cut it back), read back as numbers ([`plot::read_csv`]).
     fn rows_written(&self) -> Result<Vec<f64>> {
         let Some((_, path, _)) = &self.file else {
             return Ok(Vec::new());
         };
-        let width = self.header().len();
-        let bad = |line: usize| {
-            Error::io(
+        let columns = plot::read_csv(path)?;
+        if columns.len() != self.header().len() {
+            return Err(Error::io(
                 path,
                 std::io::Error::other(format!(
-                    "line {line} is not {width} numbers: the run cannot be resumed with its \
-                     history kept"
+                    "{} columns where this run has {}: the run cannot be resumed with its \
+                     history kept",
+                    columns.len(),
+                    self.header().len()
                 )),
-            )
-        };
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-        let mut rows = Vec::new();
-        for (k, line) in text.lines().enumerate().skip(1) {
-            let before = rows.len();
-            for v in line.split(',') {
-                rows.push(v.parse::<f64>().map_err(|_| bad(k + 1))?);
-            }
-            if rows.len() - before != width {
-                return Err(bad(k + 1));
-            }
+            ));
         }
-        Ok(rows)
+        let rows = columns.first().map_or(0, |c| c.values.len());
+        Ok((0..rows)
+            .flat_map(|r| columns.iter().map(move |c| c.values[r]))
+            .collect())
     }
 
     /// The column names: [`HISTORY_COLUMNS`], then those of the model.

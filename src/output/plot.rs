@@ -215,15 +215,17 @@ fn invalid(path: &Path, message: &str) -> Error {
 /// thinned with `output.every` before it can be drawn.
 pub const MAX_CSV_BYTES: u64 = 1 << 30;
 
-/// Reads a CSV file of numbers under one header line, as the runs write them; a file that is
-/// not a regular one or is larger than [`MAX_CSV_BYTES`] is refused before it is read.
+/// Reads a CSV file of numbers under one header line, as the runs write them (to plot it, or a
+/// history to resume); a file that is not a regular one or is larger than [`MAX_CSV_BYTES`] is
+/// refused before it is read.
 ///
 /// # Errors
 /// `path` cannot be read, is not a regular file, is larger than [`MAX_CSV_BYTES`] or is not UTF-8;
 /// or it has no header line, a row with another number of fields than the header, or a field that
 /// is not a number (the error names the line).
 pub fn read_csv(path: &Path) -> Result<Vec<Column>> {
-    let text = crate::input::scene::read_text_limited(path, MAX_CSV_BYTES, "a CSV file to plot")?;
+    let text =
+        crate::input::scene::read_text_limited(path, MAX_CSV_BYTES, "a CSV file of numbers")?;
     let bad = |line: usize, message: String| invalid(path, &format!("line {line}: {message}"));
     let mut lines = text.lines();
     let mut columns: Vec<Column> = lines
