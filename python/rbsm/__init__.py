@@ -81,7 +81,7 @@ class Scene:
         base_dir: Optional[PathLike] = None,
     ) -> None:
         if isinstance(source, Mapping):
-            self._set(text=json.dumps(source), base_dir=base_dir)
+            self._set(text=_json_text(source), base_dir=base_dir)
         elif isinstance(source, str) and source.lstrip().startswith("{"):
             self._set(text=source, base_dir=base_dir)
         elif isinstance(source, (str, os.PathLike)):
@@ -150,6 +150,28 @@ class Scene:
 
 
 SceneLike = Union[Scene, PathLike, Mapping[str, Any]]
+
+
+def _json_text(data: Mapping[str, Any]) -> str:
+    """``data`` as JSON text. A number that is not finite (``nan``, ``inf``), which JSON
+    cannot hold, raises :class:`SceneError` of kind ``scene`` with its JSON path as ``key``,
+    as the scene's reader names a number out of its range."""
+
+    def check(x: Any, path: str) -> None:
+        if isinstance(x, float) and not np.isfinite(x):
+            message = f"must be a finite number, got {x}"
+            error = SceneError(f"scene: `{path}`: {message}")
+            error.kind, error.key, error.message = "scene", path, message
+            raise error
+        if isinstance(x, Mapping):
+            for k, v in x.items():
+                check(v, f"{path}.{k}" if path else str(k))
+        elif isinstance(x, (list, tuple)):
+            for k, v in enumerate(x):
+                check(v, f"{path}[{k}]")
+
+    check(data, "")
+    return json.dumps(data)
 
 
 def _scene(scene: SceneLike) -> Scene:

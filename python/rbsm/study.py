@@ -434,7 +434,9 @@ def calibrate(
     report's ``rounds``) or ``None``. A run that fails raises :class:`CalibrationFailed`.
     """
     if isinstance(spec, Mapping):
-        text = json.dumps(spec)
+        from . import _json_text
+
+        text = _json_text(spec)
     else:
         text = _read_input(Path(spec))
     done: List[str] = []

@@ -66,6 +66,14 @@ def test_a_bad_target_is_refused_by_its_key():
         rbsm.calibrate(spec)
 
 
+def test_a_target_json_cannot_hold_is_refused_by_its_key():
+    spec = json.loads(json.dumps(SPEC))
+    spec["targets"]["tensile_strength"] = float("nan")
+    with pytest.raises(rbsm.SceneError) as err:
+        rbsm.calibrate(spec)
+    assert (err.value.kind, err.value.key) == ("scene", "targets.tensile_strength")
+
+
 def test_a_calibration_file_that_cannot_be_read_is_a_scene_error(tmp_path):
     missing = tmp_path / "nope.json"
     with pytest.raises(rbsm.SceneError) as err:

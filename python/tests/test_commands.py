@@ -336,6 +336,21 @@ def test_a_key_at_fault_is_named_by_its_json_path_from_a_dict_a_string_and_a_fil
     assert err.value.key == "formulation.penalty"
 
 
+def test_a_number_json_cannot_hold_is_named_by_its_json_path(scenes):
+    scene = json.loads((scenes / "cantilever.json").read_text())
+    scene["materials"]["concrete"]["E"] = float("nan")
+    scene["bodies"][0]["loads"][0]["value"][1] = float("-inf")
+    with pytest.raises(rbsm.SceneError) as err:
+        rbsm.Scene(scene)
+    e = err.value
+    assert (e.kind, e.key) == ("scene", "materials.concrete.E"), str(e)
+    assert "finite" in e.message and "nan" in e.message, str(e)
+    scene["materials"]["concrete"]["E"] = 3e10
+    with pytest.raises(rbsm.SceneError) as err:
+        rbsm.Scene(scene)
+    assert err.value.key == "bodies[0].loads[0].value[1]", str(err.value)
+
+
 def test_an_input_file_that_cannot_be_read_is_a_scene_error(scenes, tmp_path):
     missing = tmp_path / "nope.json"
     with pytest.raises(rbsm.SceneError) as err:
