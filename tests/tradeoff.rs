@@ -84,7 +84,8 @@ fn the_column_converges_to_the_bar_and_the_front_is_marked() {
         );
         assert!(err("1", f) < 0.05);
     }
-    // Every point is measured; the front holds the cheapest point and the most accurate one.
+    // Every point is measured; the front holds the most accurate point, and the cheapest one
+    // unless a more accurate point's runs overlap it in time.
     assert!(report
         .points
         .iter()
@@ -114,7 +115,10 @@ fn the_column_converges_to_the_bar_and_the_front_is_marked() {
         .iter()
         .min_by(|a, b| a.error.unwrap().total_cmp(&b.error.unwrap()))
         .unwrap();
-    assert!(cheapest.pareto && best.pareto);
+    let overlapped = report.points.iter().any(|q| {
+        q.error.unwrap() < cheapest.error.unwrap() && q.wall_range_s[0] <= cheapest.wall_range_s[1]
+    });
+    assert!(best.pareto && (cheapest.pareto || overlapped));
     for p in report.points.iter().filter(|p| p.pareto) {
         let beaten = report
             .points

@@ -76,10 +76,12 @@ fn error(t: &Trade, settings: &[&str]) -> f64 {
 
 pub fn trade_section(r: &mut Report) {
     r.line("## 9. Speed against accuracy\n");
-    r.line("Each point is one run; its error is measured against the scene's closed form, the theory of the hopping block, \
-            or else the finest run of the sweep; the errors are deterministic. Wall time (the model, `Δt_crit` by Lanczos and \
-            the time loop, single runs on the machine that ran the validation) and the Pareto front it gives are in \
-            `validation/timings.md` and `validation/timings/`, which git does not track.\n");
+    r.line("Each point's error is measured against the scene's closed form, the theory of the hopping block, or else the \
+            finest run of the sweep; the errors are deterministic. Wall time (the model, `Δt_crit` by Lanczos and the time \
+            loop: the median of runs repeated until their stepping adds up to 0.2 s, at most 25, on the machine that ran the \
+            validation, with their range) and the Pareto front it gives (where two points' ranges of runs overlap, the time \
+            does not decide between them) are in `validation/timings.md` and `validation/timings/`, which git does not \
+            track.\n");
     r.line("### 9.1 Column under a step end load, against the bar's modal series\n");
     let c = trade(
         r,

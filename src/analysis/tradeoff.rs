@@ -1,7 +1,8 @@
 //! Speed against accuracy: one scene run over a sweep of time steps, mesh resolutions,
 //! formulations, evaluators and contact models. Each point reports its error against a
 //! reference, its wall time, steps, peak memory and `Δt_crit`; the points that no other point
-//! beats in both error and time form the Pareto front.
+//! beats in both error and time form the Pareto front, where a time within another's spread
+//! of runs is no better and no worse than it ([`mark_pareto`]).
 //!
 //! The reference is the scene's closed form or theory ([`ReferenceSpec`]) when it has one,
 //! otherwise the finest run of the sweep (highest refinement, then smallest time step), named in
@@ -188,7 +189,9 @@ pub struct Point {
     pub status: PointStatus,
     /// Relative error against the reference; `None` when the run diverged.
     pub error: Option<f64>,
-    /// Whether no other point has both a smaller error and a smaller wall time.
+    /// Whether no other point beats it: an error as small and a wall time clearly smaller
+    /// (its slowest run faster than this point's fastest), or a smaller error and a wall time
+    /// not clearly larger (its fastest run no slower than this point's slowest).
     pub pareto: bool,
 }
 
@@ -868,14 +871,23 @@ impl Bar {
     }
 }
 
-/// Marks the points on the Pareto front of (wall time, error).
+/// Marks the points on the Pareto front of (wall time, error) ([`Point::pareto`]). Times are
+/// compared by the ranges of the points' runs, so that timing noise does not decide the front:
+/// of two points whose runs overlap in time, the one with the smaller error beats the other;
+/// a point of one run has a range of one time.
 fn mark_pareto(points: &mut [Point]) {
-    let snapshot: Vec<(f64, Option<f64>)> = points.iter().map(|p| (p.wall_s, p.error)).collect();
+    let snapshot: Vec<([f64; 2], Option<f64>)> =
+        points.iter().map(|p| (p.wall_range_s, p.error)).collect();
     for (i, p) in points.iter_mut().enumerate() {
         let Some(e) = p.error else { continue };
-        p.pareto = !snapshot.iter().enumerate().any(|(j, &(w, other))| {
-            j != i && other.is_some_and(|o| (o <= e && w < p.wall_s) || (o < e && w <= p.wall_s))
-        });
+        let [fastest, slowest] = p.wall_range_s;
+        p.pareto = !snapshot
+            .iter()
+            .enumerate()
+            .any(|(j, &([min, max], other))| {
+                j != i
+                    && other.is_some_and(|o| (o <= e && max < fastest) || (o < e && min <= slowest))
+            });
     }
 }
 
@@ -985,5 +997,60 @@ impl TradeoffReport {
             ));
         }
         (csv, md)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A point with `error` whose runs took `[fastest, slowest]` s.
+    fn point(error: Option<f64>, [fastest, slowest]: [f64; 2]) -> Point {
+        Point {
+            settings: Vec::new(),
+            elements: 1,
+            dofs: 3,
+            dt: 1.0,
+            dt_crit: 1.0,
+            steps: 1,
+            setup_s: 0.0,
+            stepping_s: 0.5 * (fastest + slowest),
+            wall_s: 0.5 * (fastest + slowest),
+            runs: 3,
+            wall_range_s: [fastest, slowest],
+            peak_mib: None,
+            status: PointStatus::Ok,
+            error,
+            pareto: false,
+        }
+    }
+
+    fn front(points: &mut [Point]) -> Vec<bool> {
+        mark_pareto(points);
+        points.iter().map(|p| p.pareto).collect()
+    }
+
+    /// Of two points whose runs overlap in time, the one with the smaller error is on the front
+    /// whichever median is smaller; apart in time, both are, the faster one with the larger
+    /// error; a point beaten in both is off it, and so is a point with no error.
+    #[test]
+    fn timing_noise_does_not_decide_the_front() {
+        // Overlapping runs: the accurate one wins, even with the larger median.
+        let mut overlap = [point(Some(1e-3), [1.0, 1.4]), point(Some(1e-2), [0.9, 1.1])];
+        assert_eq!(front(&mut overlap), [true, false]);
+        // Apart: a trade, both on the front.
+        let mut apart = [point(Some(1e-3), [1.2, 1.4]), point(Some(1e-2), [0.9, 1.1])];
+        assert_eq!(front(&mut apart), [true, true]);
+        // Beaten in both; equal errors, the clearly faster one alone; no error.
+        let mut beaten = [
+            point(Some(1e-3), [1.0, 1.1]),
+            point(Some(1e-2), [2.0, 2.1]),
+            point(Some(1e-3), [1.5, 1.6]),
+            point(None, [0.1, 0.2]),
+        ];
+        assert_eq!(front(&mut beaten), [true, false, false, false]);
+        // Equal errors, overlapping runs: neither beats the other.
+        let mut tied = [point(Some(1e-3), [1.0, 1.2]), point(Some(1e-3), [1.1, 1.3])];
+        assert_eq!(front(&mut tied), [true, true]);
     }
 }
