@@ -32,6 +32,10 @@
 //! tangential displacement at the piece's centre of pressure, summed over the steps since it
 //! formed) and `δ̄_n` its mean depth: it follows the penetration profile, and the Coulomb
 //! limit `k_s |s| ≤ μ k_n δ̄_n` (a return mapping on `s`) holds at every point of the piece.
+//! Its springs store `½ k_s s² Σ w (δ_n/δ̄_n)²`; where the piece alone would raise that (it
+//! grows, or its profile steepens, at a given slip), `s` is scaled to keep it: the springs are
+//! not derived from a potential, and a sticking corner rolling onto its face otherwise handed
+//! the motion energy nobody put in.
 
 use super::{frame, same, ContactStats, Frames, Ledger, Step, NONE};
 use crate::mesh::buckets::{boxes_meet, moved_beyond, BucketLists, Buckets};
@@ -92,6 +96,10 @@ struct Piece {
     face: u32,
     /// Tangential slip `s` (m).
     slip: f64,
+    /// `Σ w (δ_n/δ̄_n)²` over its Gauss points (m²): the springs' stored tangential energy is
+    /// `½ k_s s²` times it.
+    #[serde(default)]
+    spread: f64,
 }
 
 /// The state of edge-to-edge contact: targets, the neighbour list and the slips of the pieces.
@@ -737,6 +745,19 @@ impl Overlap {
             .get(block.cursor)
             .filter(|p| (p.source, p.face) == key);
         let mut slip = last.map_or(0.0, |p| p.slip);
+        // The springs' stored energy `½ k_s s² Σ w (δ_n/δ̄_n)²` may not grow with the piece
+        // alone (longer, or deeper at one end) at a given slip: the slip is scaled down to
+        // keep it, so that a sticking corner that rolls onto its face gives the motion no
+        // energy it did not take. A piece that shrinks loses what it stored over the part
+        // that left, as a piece that vanishes does.
+        let spread = if mean > 0.0 {
+            w * d.iter().map(|di| (di / mean) * (di / mean)).sum::<f64>()
+        } else {
+            0.0
+        };
+        if let Some(last) = last.filter(|p| spread > p.spread && p.spread > 0.0) {
+            slip *= (last.spread / spread).sqrt();
+        }
         // A piece that appears across a released interface (the hand-over of a broken
         // interface whose elements still overlap) appears with its whole force: it did no work
         // over the step that led here, where the ledger's trapezoid rule would count half.
@@ -769,6 +790,7 @@ impl Overlap {
             source: si,
             face,
             slip,
+            spread,
         });
         let (mut on_source, mut on_target) = ([0.0; 6], [0.0; 6]);
         for (xi, di) in gauss.into_iter().zip(d) {
