@@ -459,3 +459,50 @@ fn draw_state_shows_the_cracks_of_a_run_and_refuses_another_scenes_state() {
         assert!(!d.join("bad.svg").exists());
     }
 }
+
+/// A long ground does not shrink the bodies: the drawing shows the ground near them (the
+/// hopping block's brick, 0.21 m over 40 m of ground, used to be a dash of 4 px). A state whose
+/// bodies moved by more than a tenth of their own size (the toppling stack's bricks, turned by
+/// 0.5 rad and moved 0.1 m, which the 3 m ground used to hide) is drawn at true scale with
+/// finite rotations, each brick keeping its sides' lengths, over the ground.
+#[test]
+fn drawings_fit_the_bodies_and_draw_large_motions_at_true_scale() {
+    let m = model("hopping_block");
+    let svg = model_svg(&m);
+    let brick = points(tags(&svg, "polygon", "stroke=\"#555\"")[0]);
+    let (x0, x1) = brick
+        .iter()
+        .fold((f64::MAX, f64::MIN), |a, p| (a.0.min(p.0), a.1.max(p.0)));
+    assert!(x1 - x0 > 100.0, "the brick is {} px wide", x1 - x0);
+    let m = model("toppling_stack");
+    let nd = m.formulation.ndof();
+    let mut u = vec![0.0; m.elements.len() * nd];
+    for e in u.chunks_mut(nd) {
+        e[..3].copy_from_slice(&[0.1, -0.02, 0.5]);
+    }
+    let state = rbsm::output::FinalState {
+        t: 1.0,
+        u,
+        interfaces: Vec::new(),
+    };
+    let svg = rbsm::output::drawing::state_svg(&m, &state);
+    assert!(svg.contains("true scale"), "{}", texts(&svg)[0]);
+    assert!(!tags(&svg, "line", "stroke=\"#000\" stroke-width=\"2.5\"").is_empty());
+    let placed = tags(&svg, "polygon", "fill-opacity");
+    let reference = tags(&svg, "polygon", "stroke=\"#bbb\"");
+    assert_eq!(placed.len(), m.elements.len());
+    let sides = |tag: &str| {
+        let p = points(tag);
+        (0..p.len())
+            .map(|k| {
+                let (a, b) = (p[k], p[(k + 1) % p.len()]);
+                ((a.0 - b.0).powi(2) + (a.1 - b.1).powi(2)).sqrt()
+            })
+            .collect::<Vec<_>>()
+    };
+    for (placed, reference) in placed.iter().zip(&reference) {
+        for (a, b) in sides(placed).iter().zip(sides(reference)) {
+            assert!((a - b).abs() < 0.05, "a side of {b:.2} px drawn {a:.2} px");
+        }
+    }
+}

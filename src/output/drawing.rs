@@ -172,13 +172,51 @@ pub(super) fn displacement<'a>(
     }
 }
 
-fn all_vertices(model: &Model) -> impl Iterator<Item = Vec2> + '_ {
-    let ground = model.ground.iter().flat_map(|g| g.iter().copied());
+/// The vertices of the model's bodies.
+fn body_vertices(model: &Model) -> impl Iterator<Item = Vec2> + '_ {
     model
         .bodies
         .iter()
         .flat_map(|b| b.mesh.vertices.iter().copied())
-        .chain(ground)
+}
+
+/// The least and the largest coordinates of `points`.
+fn extent(points: impl Iterator<Item = Vec2>) -> (Vec2, Vec2) {
+    points.fold(
+        (Vec2::repeat(f64::MAX), Vec2::repeat(f64::MIN)),
+        |(lo, hi), p| (lo.inf(&p), hi.sup(&p)),
+    )
+}
+
+/// The ground segments near the bodies whose extent is `(lo, hi)`: each clipped, along its
+/// longer axis, to that extent widened by its larger side at both ends, so that 40 m of
+/// ground under a 0.2 m brick is drawn as 0.6 m of it rather than shrinking the brick to a
+/// dash; a segment wholly outside is left out.
+fn ground_near(ground: &[[Vec2; 2]], (lo, hi): (Vec2, Vec2)) -> Vec<[Vec2; 2]> {
+    let reach = (hi - lo).max();
+    ground
+        .iter()
+        .filter_map(|&[p1, p2]| {
+            let d = p2 - p1;
+            let k = if d.x.abs() >= d.y.abs() { 0 } else { 1 };
+            if d[k] == 0.0 {
+                return None;
+            }
+            let at = |x: f64| (x - p1[k]) / d[k];
+            let (a, b) = (at(lo[k] - reach), at(hi[k] + reach));
+            let (t0, t1) = (a.min(b).max(0.0), a.max(b).min(1.0));
+            (t0 < t1).then(|| [p1 + d * t0, p1 + d * t1])
+        })
+        .collect()
+}
+
+/// Draws `ground` (segments) hatched on the side away from the bodies (clockwise normal, as
+/// a scene's ground faces its bodies on the left of `from → to`).
+fn draw_ground(cv: &mut Canvas, ground: &[[Vec2; 2]]) {
+    for g in ground {
+        let t = (g[1] - g[0]).normalize();
+        cv.ground(g[0], g[1], Vec2::new(t.y, -t.x), "#000");
+    }
 }
 
 /// The model as built from its scene: elements (one fill per body), each interface as its two
@@ -187,7 +225,11 @@ fn all_vertices(model: &Model) -> impl Iterator<Item = Vec2> + '_ {
 /// red arrows (length by magnitude), gravity as an arrow in the corner and contact ground as
 /// hatched black segments. About 800 pixels on its longer side.
 pub fn model_svg(model: &Model) -> String {
-    let mut cv = Canvas::fit(all_vertices(model), 800.0);
+    let ground = ground_near(&model.ground, extent(body_vertices(model)));
+    let mut cv = Canvas::fit(
+        body_vertices(model).chain(ground.iter().flatten().copied()),
+        800.0,
+    );
     for (b, vertices, _) in element_polygons(model, |_, x| x) {
         let fill = BODY_FILLS[b % BODY_FILLS.len()];
         cv.polygon(
@@ -209,10 +251,7 @@ pub fn model_svg(model: &Model) -> String {
             cv.line(m, model.elements[i.b as usize].props.centroid, &spring);
         }
     }
-    for g in &model.ground {
-        let t = (g[1] - g[0]).normalize();
-        cv.ground(g[0], g[1], Vec2::new(t.y, -t.x), "#000");
-    }
+    draw_ground(&mut cv, &ground);
     let nd = model.formulation.ndof();
     let mut marked = usize::MAX;
     for &dof in &model.fixed {
@@ -275,10 +314,7 @@ pub fn model_svg(model: &Model) -> String {
 pub fn displaced_svg(model: &Model, u: &[f64], caption: &str) -> String {
     let elements = element_polygons(model, displacement(model, u));
     let largest = super::largest_vertex_displacement(model, u);
-    let (lo, hi) = all_vertices(model).fold(
-        (Vec2::repeat(f64::MAX), Vec2::repeat(f64::MIN)),
-        |(lo, hi), p| (lo.inf(&p), hi.sup(&p)),
-    );
+    let (lo, hi) = extent(body_vertices(model));
     let scale = if largest > 0.0 {
         0.1 * (hi - lo).max() / largest
     } else {
@@ -294,7 +330,7 @@ pub fn displaced_svg(model: &Model, u: &[f64], caption: &str) -> String {
             )
         })
         .collect();
-    let mut cv = over_reference(&polygons, 0.6);
+    let mut cv = over_reference(&polygons, 0.6, &[]);
     cv.text(
         cv.margin,
         20.0,
@@ -325,10 +361,7 @@ pub fn state_svg(model: &Model, state: &crate::output::FinalState) -> String {
         .flat_map(|p| p.2.iter())
         .map(|d| d.norm())
         .fold(0.0, f64::max);
-    let (lo, hi) = all_vertices(model).fold(
-        (Vec2::repeat(f64::MAX), Vec2::repeat(f64::MIN)),
-        |(lo, hi), p| (lo.inf(&p), hi.sup(&p)),
-    );
+    let (lo, hi) = extent(body_vertices(model));
     let size = (hi - lo).max();
     let (scale, placement) = if largest > 0.0 && largest < 0.1 * size {
         (0.1 * size / largest, Placement::Linear)
@@ -340,7 +373,7 @@ pub fn state_svg(model: &Model, state: &crate::output::FinalState) -> String {
     let polygons = element_polygons(model, |e, x| {
         placement.position(model, e, &u[e * nd..(e + 1) * nd], x)
     });
-    let mut cv = over_reference(&polygons, 0.4);
+    let mut cv = over_reference(&polygons, 0.4, &model.ground);
     let of = |status| state.interfaces.iter().filter(move |i| i.status == status);
     // Broken ones (and those released to contact) last, over the yielding ones.
     for (status, style) in [
@@ -408,13 +441,22 @@ pub fn write_mode_shapes(
     Ok(())
 }
 
-/// A canvas fitted to `polygons` (`(body, reference, placed)` per element) with the reference
-/// outlines in grey and the placed elements over them, filled by body, outlined `stroke` wide.
-fn over_reference(polygons: &[(usize, Vec<Vec2>, Vec<Vec2>)], stroke: f64) -> Canvas {
-    let points = polygons
-        .iter()
-        .flat_map(|p| p.1.iter().chain(&p.2).copied());
-    let mut cv = Canvas::fit(points, 800.0);
+/// A canvas fitted to `polygons` (`(body, reference, placed)` per element) and the parts of
+/// `ground` near them, with the reference outlines in grey, the ground hatched and the placed
+/// elements over them, filled by body, outlined `stroke` wide.
+fn over_reference(
+    polygons: &[(usize, Vec<Vec2>, Vec<Vec2>)],
+    stroke: f64,
+    ground: &[[Vec2; 2]],
+) -> Canvas {
+    let points = || {
+        polygons
+            .iter()
+            .flat_map(|p| p.1.iter().chain(&p.2).copied())
+    };
+    let ground = ground_near(ground, extent(points()));
+    let mut cv = Canvas::fit(points().chain(ground.iter().flatten().copied()), 800.0);
+    draw_ground(&mut cv, &ground);
     for (_, reference, _) in polygons {
         cv.polygon(
             reference,
