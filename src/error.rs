@@ -5,8 +5,9 @@ use thiserror::Error;
 /// What can go wrong between reading a scene and writing the last output.
 #[derive(Debug, Error)]
 pub enum Error {
-    /// A scene value is missing, unknown or out of its allowed range; `field` is the JSON path.
-    #[error("scene: `{field}`: {message}")]
+    /// A scene value is missing, unknown or out of its allowed range; `field` is the JSON path,
+    /// or the command-line option (`--steps`), which the message calls an option.
+    #[error("{} `{field}`: {message}", if field.starts_with("--") { "option" } else { "scene:" })]
     Scene {
         /// The JSON path of the value, e.g. `bodies[0].mesh.cells`.
         field: String,

@@ -287,7 +287,7 @@ fn bounds_and_empirical_limit_on_a_square_grid() {
     )
     .unwrap();
     assert!((setup.dt_crit() / dt_crit - 1.0).abs() < 1e-10);
-    let (_, ratio) = rbsm::analysis::stability::empirical_limit(&setup, 2000, 1e-3);
+    let (_, ratio) = rbsm::analysis::stability::empirical_limit(&setup, 2000, 1e-3).unwrap();
     assert!(
         (ratio - 1.0).abs() <= 0.01,
         "empirical limit at {ratio} × Δt_crit"
@@ -542,5 +542,34 @@ fn a_diverged_stability_run_gives_its_reason() {
             &json["fractions"][1]["status"]
         ),
         (&serde_json::json!("ok"), &serde_json::json!("diverged"))
+    );
+}
+
+/// On a scene whose runs excite nothing (the hopping block in free flight for 100 steps), no
+/// fraction diverges: the search for a limit stops at its bracket with a message keyed
+/// `--steps`, where it doubled the step for ever.
+#[test]
+fn stability_refuses_runs_that_cannot_show_a_limit() {
+    let scene = Scene::from_file(std::path::Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/examples/scenes/hopping_block.json"
+    )))
+    .unwrap();
+    let setup =
+        rbsm::analysis::setup::Setup::new(&scene, &rbsm::analysis::setup::Overrides::exact())
+            .unwrap();
+    let e = rbsm::analysis::stability::analyse(
+        &setup,
+        &rbsm::analysis::stability::StabilityParams {
+            fractions: vec![0.5],
+            steps: 100,
+        },
+    )
+    .err()
+    .expect("no limit to find")
+    .to_string();
+    assert!(
+        e.contains("--steps") && e.contains("free flight") && e.contains("64"),
+        "{e}"
     );
 }

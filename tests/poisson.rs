@@ -174,7 +174,7 @@ fn the_empirical_stability_limit_is_the_reported_one() {
         },
     )
     .unwrap();
-    let (_, ratio) = rbsm::analysis::stability::empirical_limit(&setup, 2000, 1e-3);
+    let (_, ratio) = rbsm::analysis::stability::empirical_limit(&setup, 2000, 1e-3).unwrap();
     assert!(
         (ratio - 1.0).abs() < 2e-3,
         "empirical limit / Δt_crit = {ratio}"

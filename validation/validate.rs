@@ -718,7 +718,7 @@ fn critical_time_step(r: &mut Report) {
         },
     )
     .unwrap();
-    let (_, ratio) = stability::empirical_limit(&grid16, 2000, 1e-4);
+    let (_, ratio) = stability::empirical_limit(&grid16, 2000, 1e-4).expect("a limit");
     r.line(&format!(
         "Empirical limit (16 × 16, base on ground springs; bisection on undamped runs of 2000 steps from a random \
          displacement, energy-growth detector, to 1e-4): **{ratio:.5} × Δt_crit**. Check: within 1 % of 1.\n"

@@ -327,8 +327,10 @@ pub struct EigenReport {
     pub omega: Vec<f64>,
     /// Largest circular frequency (rad/s).
     pub omega_max: f64,
-    /// `2/ω_max` (s).
+    /// The run's stability limit (s): `2/ω_max`, over `√(1 + α)` with local damping `α`.
     pub dt_crit: f64,
+    /// `√(1 + α)`, 1 without local damping: `2/ω_max` is `dt_crit` times it.
+    pub local_damping_factor: f64,
     /// Whether `ω_max` and `Δt_crit` include the contact springs' estimate (a scene with
     /// contact: the run's limit); the modes never do.
     pub with_contact: bool,
@@ -372,6 +374,7 @@ pub fn analyse(setup: &Setup, params: &EigenParams) -> Result<EigenReport> {
         omega: modes.omega.clone(),
         omega_max: setup.omega_max(),
         dt_crit: setup.dt_crit(),
+        local_damping_factor: setup.limit.stiffening,
         with_contact: setup.contact.is_some(),
         method: modes.method,
         modes,
@@ -387,6 +390,14 @@ impl Report for EigenReport {
             self.omega_max,
             self.dt_crit
         );
+        if self.local_damping_factor != 1.0 {
+            t.push_str(&format!(
+                "  (Δt_crit of a run with the scene's local damping α: 2/ω_max = {:.6e} s over \
+                 √(1 + α) = {:.4})\n",
+                self.dt_crit * self.local_damping_factor,
+                self.local_damping_factor
+            ));
+        }
         if self.with_contact {
             t.push_str(
                 "  (ω_max and Δt_crit with the contact springs' estimate; the modes below are \

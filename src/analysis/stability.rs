@@ -179,7 +179,7 @@ pub struct FractionRun {
     /// Why a diverged run was stopped (what the guard saw: energy growth or a NaN), with the
     /// step; `null` for `ok`.
     pub reason: Option<String>,
-    /// Largest `|total − initial|` over the largest energy seen; `null` for a diverged run,
+    /// Largest `|total − initial|` over the energy put in; `null` for a diverged run,
     /// whose total stays conserved to round-off while its stored energy grows (see `history`),
     /// so that the drift says nothing of it.
     pub max_relative_drift: Option<f64>,
@@ -245,16 +245,45 @@ pub fn run_at_fraction(setup: &Setup, fraction: f64, steps: u64) -> FractionRun 
     }
 }
 
+/// How far from `Δt_crit` the empirical limit is looked for: between `Δt_crit / BRACKET` and
+/// `BRACKET Δt_crit`.
+pub const BRACKET: f64 = 64.0;
+
 /// The empirical limit: bisection on `fraction` between a stable and an unstable run of
 /// `steps` steps each, to a relative width of `tol`. Returns `(dt, dt / Δt_crit)`.
-pub fn empirical_limit(setup: &Setup, steps: u64, tol: f64) -> (f64, f64) {
+///
+/// # Errors
+/// No run diverges up to [`BRACKET`] `Δt_crit` (nothing in the scene is excited within
+/// `steps` steps: a body in free flight, a contact not reached), or one diverges down to
+/// `Δt_crit /` [`BRACKET`]; the error is keyed `--steps`.
+pub fn empirical_limit(setup: &Setup, steps: u64, tol: f64) -> Result<(f64, f64)> {
     let stable = |f: f64| run_at_fraction(setup, f, steps).status == RunStatus::Ok;
     let (mut lo, mut hi) = (0.5, 2.0);
     while !stable(lo) {
         lo *= 0.5;
+        if lo < 1.0 / BRACKET {
+            return Err(Error::scene(
+                "--steps",
+                format!(
+                    "runs of {steps} steps diverge even at Δt_crit / {BRACKET}: the scene's \
+                     energy grows for a reason other than the time step (check it with `rbsm run`)"
+                ),
+            ));
+        }
     }
     while stable(hi) {
         hi *= 2.0;
+        if hi > BRACKET {
+            return Err(Error::scene(
+                "--steps",
+                format!(
+                    "no run of {steps} steps diverges even at {BRACKET} Δt_crit: nothing in the \
+                     scene is excited within the runs (a body in free flight, a contact not yet \
+                     reached), so they cannot show the limit; give more steps, or a scene whose \
+                     elements are coupled from the start"
+                ),
+            ));
+        }
     }
     while hi - lo > tol * lo {
         let mid = 0.5 * (lo + hi);
@@ -264,7 +293,7 @@ pub fn empirical_limit(setup: &Setup, steps: u64, tol: f64) -> (f64, f64) {
             hi = mid;
         }
     }
-    (lo * undamped_dt_crit(setup), lo)
+    Ok((lo * undamped_dt_crit(setup), lo))
 }
 
 /// Writes `fraction_F.csv` (`t,total,stored`: s, J, J) for each run of a stability analysis.
@@ -324,8 +353,8 @@ pub struct StabilityParams {
 /// (bisection to `1e-4`) and undamped runs at the given fractions of `Δt_crit`.
 ///
 /// # Errors
-/// A fraction of `params.fractions` is not a finite number > 0 (`--fractions`), or
-/// `params.steps` is 0 (`--steps`).
+/// A fraction of `params.fractions` is not a finite number > 0 (`--fractions`),
+/// `params.steps` is 0 (`--steps`), or the runs find no limit ([`empirical_limit`]).
 pub fn analyse(setup: &Setup, params: &StabilityParams) -> Result<StabilityReport> {
     if params.steps == 0 {
         return Err(Error::scene(
@@ -340,12 +369,12 @@ pub fn analyse(setup: &Setup, params: &StabilityParams) -> Result<StabilityRepor
     {
         return Err(Error::scene(
             "--fractions",
-            format!("each fraction must be > 0, got {f}"),
+            format!("each fraction must be a finite number > 0, got {f}"),
         ));
     }
     let sys = FreeSystem::new(&setup.model, &setup.mass);
     let bounds = bounds(&setup.model, &sys, &setup.mass, undamped_dt_crit(setup));
-    let (dt, ratio) = empirical_limit(setup, params.steps, 1e-4);
+    let (dt, ratio) = empirical_limit(setup, params.steps, 1e-4)?;
     let fractions = params
         .fractions
         .iter()
@@ -363,7 +392,8 @@ pub fn analyse(setup: &Setup, params: &StabilityParams) -> Result<StabilityRepor
 impl Report for StabilityReport {
     fn text(&self) -> String {
         let mut t = format!(
-            "ω_max = {:.6e} rad/s, Δt_crit = {:.6e} s\n",
+            "ω_max = {:.6e} rad/s, Δt_crit = {:.6e} s (undamped: the runs below leave the \
+             scene's damping out)\n",
             self.omega_max, self.dt_crit
         );
         for b in &self.bounds {
