@@ -478,6 +478,24 @@ fn a_softening_slope_that_overflows_is_refused() {
         "tensile_strength": 1e160, "cohesion": 1e6, "friction_angle": 30,
         "fracture_energy": least, "fracture_energy_shear": 100.0});
     Scene::from_json(&v.to_string()).unwrap();
+    // An energy so large that the exhausting opening overflows is refused by an upper bound,
+    // which passes; it used to name a lower bound the energy already met.
+    let e = softening(3e6, 9e307, 1e6, 100.0);
+    expect(
+        &e,
+        &["materials.m.interface.fracture_energy`", "must be ≤ "],
+    );
+    let most: f64 = e
+        .split("must be ≤ ")
+        .nth(1)
+        .and_then(|r| r.split(' ').next())
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!(most < 9e307, "{e}");
+    v["materials"]["m"]["interface"]["tensile_strength"] = 3e6.into();
+    v["materials"]["m"]["interface"]["fracture_energy"] = most.into();
+    Scene::from_json(&v.to_string()).unwrap();
 }
 
 /// Two bodies of one name, or a body named as a copy of an array, are refused naming the

@@ -577,6 +577,19 @@ fn softening_slope(field: &str, g: f64, strength: &str, f: f64) -> Result<()> {
     if w.is_finite() && w >= f64::MIN_POSITIVE && (f / w).is_finite() {
         return Ok(());
     }
+    let field_name = field.rsplit('.').next().unwrap_or(field);
+    if !w.is_finite() {
+        // The most energy whose opening `2 g / f` stays finite, rounded down so that it passes.
+        let most = (0.5 * f64::MAX).min(0.5 * f * f64::MAX) * (1.0 - 1e-12);
+        return Err(Error::scene(
+            field,
+            format!(
+                "{g:e} J/m² with `{strength}` {f:e} Pa gives an opening 2 {field_name}/{strength} \
+                 at which the strength is exhausted that is not a finite number (m): it must be \
+                 ≤ {most:e} J/m² for this `{strength}`"
+            ),
+        ));
+    }
     // The least energy that keeps both finite, rounded up so that it passes itself.
     let least = (0.5 * f * (f / f64::MAX)).max(0.5 * f * f64::MIN_POSITIVE) * (1.0 + 1e-12);
     Err(Error::scene(
@@ -584,8 +597,7 @@ fn softening_slope(field: &str, g: f64, strength: &str, f: f64) -> Result<()> {
         format!(
             "{g:e} J/m² with `{strength}` {f:e} Pa gives a softening slope {strength}²/(2 \
              {field_name}) that is not a finite number (Pa/m): it must be ≥ {least:e} J/m² for \
-             this `{strength}` (or lower `{strength}`)",
-            field_name = field.rsplit('.').next().unwrap_or(field)
+             this `{strength}` (or lower `{strength}`)"
         ),
     ))
 }
