@@ -153,6 +153,15 @@ fn a_run_clears_an_earlier_runs_outputs() {
     assert!(
         dir.path().join("notes.txt").exists() && dir.path().join("vtk").join("mine.vtk").exists()
     );
+    // The pictures `rbsm plot` drew of the earlier run go, and so does a frames folder that
+    // only held its frames, when the next run writes no frames.
+    rbsm::output::plot::histories(dir.path()).unwrap();
+    assert!(dir.path().join("energies.svg").exists());
+    std::fs::remove_file(dir.path().join("vtk").join("mine.vtk")).unwrap();
+    s.output.vtk = false;
+    common::run_into(&s, Some(100), dir.path());
+    assert!(!dir.path().join("energies.svg").exists() && !dir.path().join("vtk").exists());
+    assert!(dir.path().join("notes.txt").exists());
 }
 
 /// The files of the README's *Outputs* with their exact keys, header and element order.

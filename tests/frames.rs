@@ -434,13 +434,9 @@ fn crack_frames_resume_byte_for_byte_and_go_with_the_next_run() {
     }
     let golden = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/golden/frames/rigid.json");
     common::run_into(&Scene::from_file(golden).unwrap(), None, whole.path());
+    // Its frames and the folder they emptied are gone.
     assert!(!whole.path().join("cracks.pvd").exists());
-    assert_eq!(
-        std::fs::read_dir(whole.path().join("cracks"))
-            .unwrap()
-            .count(),
-        0
-    );
+    assert!(!whole.path().join("cracks").exists());
 }
 
 /// A run writes no file through a symbolic link: a link in the output folder

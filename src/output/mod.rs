@@ -286,7 +286,9 @@ pub struct EnergySummary {
     #[serde(rename = "final")]
     /// Total energy at the end (J).
     pub final_: f64,
-    /// Largest `|total − initial|` divided by the largest energy seen in the run.
+    /// Largest `|total − initial|` divided by the energy put in (the initial kinetic, elastic
+    /// and contact energy plus the largest work of the loads, clamps and gravity), up to the
+    /// last state that passed the guard.
     pub max_relative_drift: f64,
 }
 

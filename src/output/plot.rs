@@ -399,6 +399,10 @@ fn svg_file(
     crate::output::write_atomic(path, text.as_bytes())
 }
 
+/// The pictures [`histories`] draws from a run's `history.csv`: `energies.svg`, `probes.svg`
+/// (a run removes them from its folder with its other outputs).
+pub const RUN_PLOTS: [&str; 2] = ["energies.svg", "probes.svg"];
+
 /// Draws the histories that runs left in `dir`, as SVG beside them, and returns the files written:
 /// - `history.csv` of `rbsm run`: `energies.svg` (each energy or work that is not zero
 ///   throughout, J, against `t`) and `probes.svg` (one panel per probe, and two per moving
@@ -451,7 +455,7 @@ fn run_plots(dir: &Path, history: &Path) -> Result<Vec<std::path::PathBuf>> {
         .filter(|c| is_energy(c) && c.values.iter().any(|v| *v != 0.0))
         .map(|c| (c.name.as_str(), pairs(c)))
         .collect();
-    let path = dir.join("energies.svg");
+    let path = dir.join(RUN_PLOTS[0]);
     svg_file(&path, (820, 480), |root| {
         panel(
             root,
@@ -506,7 +510,7 @@ fn run_plots(dir: &Path, history: &Path) -> Result<Vec<std::path::PathBuf>> {
             };
             (format!("probe {name}"), format!("{name} {unit}"))
         };
-        let path = dir.join("probes.svg");
+        let path = dir.join(RUN_PLOTS[1]);
         svg_file(&path, (820, 260 * probes.len() as u32), |root| {
             for (area, c) in root.split_evenly((probes.len(), 1)).iter().zip(&probes) {
                 let (title, axis) = label(&c.name);

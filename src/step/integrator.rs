@@ -109,6 +109,13 @@ pub struct Snapshot<'a> {
 /// An unstable run grows geometrically and crosses it within a few hundred steps.
 pub const GROWTH_LIMIT: f64 = 4.0;
 
+/// The energy balance (the total energy, every work and dissipation booked) may not move by
+/// more than this fraction of the energy put in before a run counts as diverged. A run whose
+/// energy stays bounded but whose books break (contact stepped above its own limit, which
+/// pumps energy in and takes it out at each impact) is stopped so; a stable run keeps its
+/// balance to the step's error, 1e-3 of the energy put in on the bundled scenes.
+pub const BALANCE_LIMIT: f64 = 0.1;
+
 /// Steps between two divergence checks when no output is due sooner.
 pub const CHECK_EVERY: u64 = 100;
 
@@ -120,6 +127,9 @@ struct Good {
     u: Vec<f64>,
     /// Whole-step velocities `v^n`.
     velocity: Vec<f64>,
+    /// The energy bookkeeping of that state, so that a diverged run reports its drift and
+    /// works up to it, not the rejected steps'.
+    ledger: EnergyLedger,
 }
 
 /// Central-difference time stepping of one model with one evaluator.
@@ -255,8 +265,6 @@ struct EnergyLedger {
     initial_stored: Option<f64>,
     /// Largest `|total − total(0)|` so far.
     max_drift: f64,
-    /// Largest energy seen, the scale of the drift.
-    energy_scale: f64,
 }
 
 /// Everything a run needs to go on from a recorded step, bit for bit: the state after that
@@ -351,6 +359,7 @@ impl<'a> CentralDifference<'a> {
                 t: 0.0,
                 u: vec![0.0; n],
                 velocity: vec![0.0; n],
+                ledger: EnergyLedger::default(),
             },
             good_failure: FailureState::default(),
             fraction: None,
@@ -712,10 +721,13 @@ impl<'a> CentralDifference<'a> {
             t: self.t,
             u: state.u.clone(),
             velocity: state.velocity.clone(),
+            ledger: state.ledger,
         };
         (self.u, self.v, self.scratch) = (state.u, state.v, state.velocity);
         if let (Some(c), Some(saved)) = (self.contact.as_mut(), state.contact) {
             *c = saved;
+            // A wall time, as the summary's `step_time_s`: of this process's steps alone.
+            c.stats.time_s = 0.0;
         }
         if let (Some((_, s)), Some(mut saved)) = (self.failure.as_mut(), state.failure) {
             // Not saved: which interfaces have left the initial state, which the steps read.
@@ -752,11 +764,12 @@ impl<'a> CentralDifference<'a> {
         &self.scratch
     }
 
-    /// Largest `|total − total(0)|` so far divided by the largest energy seen in the run
-    /// (`kinetic + elastic + |potential| + |external_work|`); 0 while nothing has moved.
+    /// Largest `|total − total(0)|` so far divided by the energy put in (the guard's measure:
+    /// the initial kinetic, elastic and contact energy plus the largest work of the loads,
+    /// clamps and gravity so far); 0 while nothing has been put in.
     pub fn max_relative_drift(&self) -> f64 {
-        if self.ledger.energy_scale > 0.0 {
-            self.ledger.max_drift / self.ledger.energy_scale
+        if self.ledger.energy_in_max > 0.0 {
+            self.ledger.max_drift / self.ledger.energy_in_max
         } else {
             0.0
         }
@@ -822,8 +835,8 @@ impl<'a> CentralDifference<'a> {
             if let Some(reason) = self.guard(&energy) {
                 let (step, t) = (self.step, self.t);
                 let good = std::mem::take(&mut self.good);
-                (self.step, self.t, self.u, self.scratch) =
-                    (good.step, good.t, good.u, good.velocity);
+                (self.step, self.t, self.u, self.scratch, self.ledger) =
+                    (good.step, good.t, good.u, good.velocity, good.ledger);
                 if let Some((_, s)) = self.failure.as_mut() {
                     std::mem::swap(s, &mut self.good_failure);
                 }
@@ -853,6 +866,7 @@ impl<'a> CentralDifference<'a> {
             self.good.t = self.t;
             self.good.u.copy_from_slice(&self.u);
             self.good.velocity.copy_from_slice(&self.scratch);
+            self.good.ledger = self.ledger;
             if let Some((_, s)) = &self.failure {
                 self.good_failure.copy_from(s);
             }
@@ -1065,17 +1079,6 @@ impl<'a> CentralDifference<'a> {
             shadow + elastic + contact + potential + fracture + friction + plastic + damping
                 - external_work;
         let initial = *self.ledger.initial_total.get_or_insert(total);
-        self.ledger.energy_scale = self.ledger.energy_scale.max(
-            kinetic
-                + elastic
-                + contact
-                + potential.abs()
-                + external_work.abs()
-                + fracture
-                + friction
-                + plastic
-                + damping,
-        );
         self.ledger.max_drift = self.ledger.max_drift.max((total - initial).abs());
         Energy {
             t: self.t,
@@ -1134,6 +1137,15 @@ impl<'a> CentralDifference<'a> {
             return Some(format!(
                 "energy growth: kinetic + elastic + contact = {stored:.6e} J exceeds {limit:.4} × the energy put in ({:.6e} J); \
                  the time step is likely above the stability limit",
+                self.ledger.energy_in_max
+            ));
+        }
+        let drift = (e.total - self.ledger.initial_total.unwrap_or(e.total)).abs();
+        if self.ledger.energy_in_max > 0.0 && drift > BALANCE_LIMIT * self.ledger.energy_in_max {
+            return Some(format!(
+                "energy balance: the total energy moved by {drift:.6e} J, more than \
+                 {BALANCE_LIMIT} × the energy put in ({:.6e} J); the time step is likely above \
+                 the stability limit",
                 self.ledger.energy_in_max
             ));
         }

@@ -29,11 +29,12 @@ const OUTPUTS: [&str; 5] = [
 
 /// Removes what an earlier run left in `out` of the files a run writes (`summary.json`,
 /// `final_state.json`, `series.pvd`, `cracks.pvd`, `checkpoint.bin`, the frames
-/// `vtk/step_*.vtu`, `cracks/step_*.vtu` and files half written), so that a run that stops
+/// `vtk/step_*.vtu`, `cracks/step_*.vtu`, the folders they leave empty and files half
+/// written) and of the pictures `rbsm plot` drew from its history, so that a run that stops
 /// early never leaves an earlier run's results beside its own. Other files are left alone;
 /// `history.csv` is rewritten from its first line anyway.
 fn clear_previous(out: &Path) -> Result<()> {
-    for name in OUTPUTS {
+    for name in OUTPUTS.iter().chain(&crate::output::plot::RUN_PLOTS) {
         remove(&out.join(name))?;
         remove(&crate::output::temporary(&out.join(name)))?;
     }
@@ -49,6 +50,8 @@ fn clear_previous(out: &Path) -> Result<()> {
                 remove(&path)?;
             }
         }
+        // Only an empty folder goes; one that holds the user's files stays.
+        let _ = std::fs::remove_dir(&frames);
     }
     Ok(())
 }
@@ -301,8 +304,8 @@ impl crate::analysis::Report for Summary {
                 )
             }
             None => format!(
-                "{}: ok, {} (t = {:.6e} s) in {:.3} s; energy drift {:.3e} of the largest \
-                    energy;{} outputs in {}",
+                "{}: ok, {} (t = {:.6e} s) in {:.3} s; energy drift {:.3e} of the energy \
+                    put in;{} outputs in {}",
                 self.scene,
                 count(self.steps as usize, "step", "steps"),
                 self.t_end,

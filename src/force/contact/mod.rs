@@ -63,7 +63,7 @@ pub struct ContactStats {
     pub rebuilds: u64,
     /// Wall time spent in contact (s), over the steps that had contact work to do (edge-to-edge
     /// does not time a step whose neighbour list is empty and whose bodies stayed within its
-    /// skin: a body in flight).
+    /// skin: a body in flight); of a resumed run, since it resumed, as `step_time_s`.
     pub time_s: f64,
 }
 
