@@ -115,6 +115,37 @@ fn effective_constants_of_voronoi_cells_are_the_materials() {
     }
 }
 
+/// An element with a free edge is on the outline, whatever its neighbours: the outline of a
+/// grid 80 × 8 is its 172 elements with a free edge, and a mesh one element thick (the
+/// column's row of blocks, the cantilever as 80 × 1) or of one element (the hopping block) has
+/// nothing inside and is refused. Such meshes used to count two elements on the outline (the
+/// free edges of a row come in opposite pairs, whose normals cancel) and print `E` = 5e-18 Pa,
+/// or leak the factorisation's debug output.
+#[test]
+fn the_outline_is_every_element_with_a_free_edge() {
+    let text = |name: &str| {
+        std::fs::read_to_string(format!(
+            "{}/examples/scenes/{name}.json",
+            env!("CARGO_MANIFEST_DIR")
+        ))
+        .unwrap()
+    };
+    let bundled = |name: &str| Scene::from_json(&text(name)).unwrap();
+    let of = |scene: &Scene| effective::analyse(&Setup::new(scene, &Overrides::default()).unwrap());
+    assert_eq!(of(&bundled("cantilever")).unwrap().boundary_elements, 172);
+    let mut json: serde_json::Value = serde_json::from_str(&text("cantilever")).unwrap();
+    json["bodies"][0]["mesh"]["cells"] = serde_json::json!([80, 1]);
+    let one_row = Scene::from_json(&json.to_string()).unwrap();
+    for scene in [one_row, bundled("column_step"), bundled("hopping_block")] {
+        let e = of(&scene).err().expect("nothing inside").to_string();
+        assert!(
+            e.contains("bodies[0].mesh") && e.contains("free edge") && !e.contains("Numeric"),
+            "{}: {e}",
+            scene.name
+        );
+    }
+}
+
 /// An undamped run with the correction keeps its energy to round-off (`K` is symmetric).
 #[test]
 fn an_undamped_run_keeps_its_energy() {

@@ -11,7 +11,8 @@
 //! shear). An isotropic fit reads `E` and `ν` from `C₁₁`, `C₁₂` as the scene's
 //! `plane` says; `C₂₂` and `C₃₃` against `C₁₁` and `(C₁₁ − C₁₂)/2` say how far the mesh is
 //! from isotropic. The interior elements' stresses scatter about `σ̄`: their area-weighted RMS
-//! over `|σ̄|` is reported per case. A boundary element is one whose bonded facets do not close (`Σ L n ≠ 0`).
+//! over `|σ̄|` is reported per case. A boundary element is one with a free edge: its bonded facets
+//! do not cover its perimeter.
 
 use crate::analysis::setup::Setup;
 use crate::analysis::Report;
@@ -124,16 +125,21 @@ pub fn analyse(setup: &Setup) -> Result<EffectiveReport> {
     let model = &bare;
     let nd = model.formulation.ndof();
     let n = model.n_dofs();
-    // The outline: elements whose bonded facets do not close.
-    let mut closure = vec![Vec2::zeros(); model.elements.len()];
+    // The outline: elements whose bonded facets do not cover their perimeter (a free edge).
+    let mut bonded = vec![0.0; model.elements.len()];
     for i in model.interfaces.iter().filter(|i| i.b != GROUND) {
-        closure[i.a as usize] += i.length * i.normal;
-        closure[i.b as usize] -= i.length * i.normal;
+        bonded[i.a as usize] += i.length;
+        bonded[i.b as usize] += i.length;
     }
-    let boundary: Vec<bool> = closure
-        .iter()
-        .zip(&model.elements)
-        .map(|(s, e)| s.norm() > 1e-9 * e.props.area.sqrt())
+    let perimeter = |e: usize| {
+        let body = &model.bodies[model.elements[e].body as usize];
+        let p = body.mesh.cell_points(e - body.first_element);
+        (0..p.len())
+            .map(|k| (p[(k + 1) % p.len()] - p[k]).norm())
+            .sum::<f64>()
+    };
+    let boundary: Vec<bool> = (0..model.elements.len())
+        .map(|e| bonded[e] < (1.0 - 1e-9) * perimeter(e))
         .collect();
     let mut index = vec![usize::MAX; n];
     let mut free = Vec::new();
@@ -148,7 +154,8 @@ pub fn analyse(setup: &Setup) -> Result<EffectiveReport> {
     if free.is_empty() {
         return Err(Error::scene(
             "bodies[0].mesh",
-            "every element touches the outline: use a finer mesh",
+            "every element has a free edge (it is on the outline), so none is left to find its \
+             equilibrium: use a mesh at least three elements across each way",
         ));
     }
     let k = stiffness_triplets(model);
@@ -159,10 +166,11 @@ pub fn analyse(setup: &Setup) -> Result<EffectiveReport> {
         .collect();
     let kff = SparseColMat::try_new_from_triplets(free.len(), free.len(), &kff)
         .map_err(|e| Error::scene("bodies[0].mesh", format!("K_ff: {e:?}")))?;
-    let llt = kff.sp_cholesky(faer::Side::Lower).map_err(|e| {
+    let llt = kff.sp_cholesky(faer::Side::Lower).map_err(|_| {
         Error::scene(
             "bodies[0].mesh",
-            format!("K_ff of the interior is not positive definite ({e:?})"),
+            "the stiffness of the interior elements is not positive definite: some of them are \
+             not held by their interfaces (a mechanism inside the mesh)",
         )
     })?;
     let times = |u: &[f64]| {
