@@ -174,6 +174,35 @@ fn a_time_step_above_the_limit_exits_with_its_own_code() {
     let (code, stdout, _) = check(&["examples/scenes/cantilever.json", "--dt", &dt]);
     assert_eq!(code, 4);
     assert!(stdout.contains("would diverge"), "{stdout}");
+    // Its warnings speak of the exact Δt_crit it computed: none between the proven-safe step and
+    // the limit (it used to say the run "may be unstable" and to run `rbsm check`), and above
+    // the limit by how much.
+    for (factor, warned) in [(0.92, false), (1.01, true)] {
+        let dt = format!("{:e}", factor * crit);
+        let (_, stdout, _) = check(&["examples/scenes/cantilever.json", "--dt", &dt]);
+        assert!(!stdout.contains("rbsm check"), "{stdout}");
+        assert_eq!(stdout.contains("warning: dt is 1.01"), warned, "{stdout}");
+    }
+    // A `dt_factor` just below 1 lands above the exact limit, the run's Lanczos estimate being
+    // 1.6e-5 above it: exit 4, and a warning that says why.
+    let mut scene: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/examples/scenes/footing_hybrid.json"
+        ))
+        .unwrap(),
+    )
+    .unwrap();
+    scene["time"]["dt_factor"] = 0.99999.into();
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("footing.json");
+    std::fs::write(&path, scene.to_string()).unwrap();
+    let (code, stdout, _) = check(&[path.to_str().unwrap()]);
+    assert_eq!(code, 4, "{stdout}");
+    assert!(
+        stdout.contains("Lanczos settles to 1e-4") && stdout.contains("--exact-dt-crit"),
+        "{stdout}"
+    );
 }
 
 /// Counts of one are singular in every line that counts things, and the run's

@@ -130,8 +130,33 @@ pub fn check(p: &Setup) -> Result<CheckReport> {
         steps: p.steps,
         unstable: p.dt > p.dt_crit() || p.dt > p.limit.dt_ceiling(),
         memory_bytes: p.evaluator.bytes() + mass_bytes + 6 * 8 * m.n_dofs(),
-        warnings: p.warnings(),
+        warnings: dt_warnings(&p),
     })
+}
+
+/// The model's warnings, and the time step's against the exact `Δt_crit` that `check` has
+/// computed (the run's own warning speaks of what a run knows: the proven-safe step, or its
+/// Lanczos estimate).
+fn dt_warnings(p: &Setup) -> Vec<String> {
+    let mut warnings = crate::model::checks::warnings(&p.model);
+    let exact = p.dt_crit();
+    if p.dt > exact {
+        let mut w = format!(
+            "dt is {:.6} × Δt_crit: central difference is unstable above 1; expect the guard to \
+             stop the run",
+            p.dt / exact
+        );
+        if let Some(run) = p.limit.dt_crit().filter(|&run| run > exact && p.dt <= run) {
+            w += &format!(
+                ". The run takes `dt_factor` of its own Δt_crit, {run:.6e} s, which Lanczos \
+                 settles to 1e-4 and which lies {:.1e} above the exact one: so close to 1, lower \
+                 `dt_factor` or pass `--exact-dt-crit`",
+                run / exact - 1.0
+            );
+        }
+        warnings.push(w);
+    }
+    warnings
 }
 
 impl Report for CheckReport {
