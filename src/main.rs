@@ -323,12 +323,6 @@ fn main() -> ExitCode {
     }
     match execute(&cli) {
         Ok(code) => code,
-        // The reader of standard output went away (`| head`): nothing is wrong with the run.
-        Err(rbsm::error::Error::Io { path, source })
-            if path == STDOUT && source.kind() == std::io::ErrorKind::BrokenPipe =>
-        {
-            ExitCode::SUCCESS
-        }
         Err(e) => {
             if cli.json {
                 // Best effort: standard output may be what failed.
@@ -344,14 +338,18 @@ fn main() -> ExitCode {
 /// How errors on standard output are named.
 const STDOUT: &str = "standard output";
 
-/// Writes `text` and a newline on standard output; an error (a closed pipe) is returned, not a
-/// panic as `println!` gives.
+/// Writes `text` and a newline on standard output; an error is returned, not a panic as
+/// `println!` gives. A reader that went away (`| head`) is no error: the command goes on and
+/// ends with its own exit code (4 for an unstable `check`, 3 for a diverged run).
 fn say(text: &str) -> rbsm::error::Result<()> {
     use std::io::Write;
     let mut out = std::io::stdout().lock();
-    writeln!(out, "{text}")
-        .and_then(|_| out.flush())
-        .map_err(|e| rbsm::error::Error::io(STDOUT, e))
+    match writeln!(out, "{text}").and_then(|_| out.flush()) {
+        Err(e) if e.kind() != std::io::ErrorKind::BrokenPipe => {
+            Err(rbsm::error::Error::io(STDOUT, e))
+        }
+        _ => Ok(()),
+    }
 }
 
 /// Writes `text` and a newline on standard error, ignoring a closed stream (`eprintln!` would
