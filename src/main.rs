@@ -313,6 +313,15 @@ fn main() -> ExitCode {
             .exit();
     }
     if let Some(n) = cli.threads {
+        let cores = std::thread::available_parallelism().map_or(1, |c| c.get());
+        if n > MAX_THREADS_PER_CORE * cores {
+            tell(&format!(
+                "error: --threads: at most {} ({MAX_THREADS_PER_CORE} × the {cores} cores of this \
+                 machine; 0 takes all cores), got {n}",
+                MAX_THREADS_PER_CORE * cores
+            ));
+            return ExitCode::from(2);
+        }
         if let Err(e) = rayon::ThreadPoolBuilder::new()
             .num_threads(n)
             .build_global()
@@ -334,6 +343,10 @@ fn main() -> ExitCode {
         }
     }
 }
+
+/// `--threads` may ask for at most this many threads per core: more only share the cores (and
+/// 100,000 took minutes to start before any message).
+const MAX_THREADS_PER_CORE: usize = 8;
 
 /// How errors on standard output are named.
 const STDOUT: &str = "standard output";

@@ -371,3 +371,21 @@ fn draw_and_plot_refuse_files_too_large_or_not_regular() {
     std::fs::write(&history, &saved.1).unwrap();
     assert_eq!((draw().0, plot().0), (Some(0), Some(0)));
 }
+
+/// `--threads` beyond 8 per core is a usage error that says the bound, at once (100,000 used
+/// to spend minutes starting threads before anything was said).
+#[test]
+fn too_many_threads_are_refused_at_once() {
+    let cores = std::thread::available_parallelism().map_or(1, |c| c.get());
+    let too_many = (8 * cores + 1).to_string();
+    let out = Command::new(RBSM)
+        .args(["check", &scene("cantilever"), "--threads", &too_many])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("--threads") && stderr.contains(&format!("at most {}", 8 * cores)),
+        "{stderr}"
+    );
+}
