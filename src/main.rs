@@ -114,7 +114,7 @@ enum Command {
     Eigen {
         /// The scene file (JSON; see docs/scene.md).
         scene: PathBuf,
-        /// Number of lowest modes.
+        /// Number of lowest modes (0: ω_max and Δt_crit alone).
         #[arg(long, default_value_t = 10)]
         modes: usize,
         /// Dense (all modes) or sparse (Krylov–Schur) solver.

@@ -178,10 +178,12 @@ impl Report for CheckReport {
             r.fixed_dofs
         );
         t += &format!(
-            "  {}; gravity ({}, {}) m/s²\n",
+            "  {}; {}\n",
             count(r.loads, "point load", "point loads"),
-            r.gravity[0],
-            r.gravity[1]
+            match r.gravity {
+                [0.0, 0.0] => "no gravity".to_string(),
+                [x, y] => format!("gravity ({x}, {y}) m/s²"),
+            }
         );
         t += &match &r.contact {
             None => "  contact: none declared (no contact search)\n".to_string(),
