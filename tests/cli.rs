@@ -176,7 +176,7 @@ fn static_and_eigen_write_their_outputs() {
     );
     let probes = std::fs::read_to_string(e.join("probes.csv")).unwrap();
     assert_eq!(probes.lines().count(), 4);
-    assert!(probes.starts_with("mode,frequency_hz,tip_v (m)\n1,"));
+    assert!(probes.starts_with("mode,frequency_hz,tip_v (M-normalised)\n1,"));
 }
 
 /// An unknown key is reported by its JSON path, as the key at fault, not by the file;

@@ -472,5 +472,11 @@ pub fn write(dir: &Path, setup: &Setup, report: &EigenReport) -> Result<()> {
             )
         })
         .collect();
-    crate::output::write_probe_rows(dir, &setup.probes()?, &["mode", "frequency_hz"], &rows)
+    crate::output::write_probe_rows(
+        dir,
+        &setup.probes()?,
+        &["mode", "frequency_hz"],
+        &rows,
+        Some("M-normalised"),
+    )
 }

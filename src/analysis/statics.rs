@@ -255,6 +255,7 @@ pub fn write(dir: &Path, setup: &Setup, report: &StaticReport) -> Result<()> {
         &setup.probes()?,
         &["case"],
         &[(vec!["static".to_string()], u)],
+        None,
     )?;
     crate::output::vtk::write_frame(
         &dir.join("static.vtu"),

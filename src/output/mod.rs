@@ -850,8 +850,9 @@ pub fn create_fresh(path: &Path) -> std::io::Result<std::fs::File> {
         .open(path)
 }
 
-/// `probes.csv`: the columns `keys`, then one column per probe (its unit in the
-/// header, `name (m)`), a row per `(key values, displacements)`.
+/// `probes.csv`: the columns `keys`, then one column per probe (in the header its unit,
+/// `name (m)`, or `unit` for all of them: mode shapes are `M`-normalised), a row per
+/// `(key values, displacements)`.
 ///
 /// # Errors
 /// `dir/probes.csv` cannot be written; never when `probes` is empty.
@@ -860,13 +861,14 @@ pub fn write_probe_rows(
     probes: &[Probe],
     keys: &[&str],
     rows: &[(Vec<String>, &[f64])],
+    unit: Option<&str>,
 ) -> Result<()> {
     if probes.is_empty() {
         return Ok(());
     }
     let mut text = keys.join(",");
     for p in probes {
-        text.push_str(&format!(",{} ({})", p.name, p.unit()));
+        text.push_str(&format!(",{} ({})", p.name, unit.unwrap_or(p.unit())));
     }
     text.push('\n');
     for (key, u) in rows {
