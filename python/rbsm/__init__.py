@@ -455,7 +455,8 @@ class EigenResult:
     omega_max: float
     """The largest circular frequency (rad/s)."""
     dt_crit: float
-    """``2 / ω_max`` (s): the stability limit of central difference."""
+    """The stability limit of central difference (s): ``2 / ω_max``, over ``√(1 + α)`` with the
+    scene's local damping ``α`` (``report["local_damping_factor"]``), as a run takes it."""
     shapes: np.ndarray
     """``M``-normalised mode shapes, ``(modes, elements, dofs)`` (zero on fixed DOFs)."""
     centroids: np.ndarray
