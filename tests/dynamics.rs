@@ -212,6 +212,14 @@ fn outputs_follow_the_contract() {
         1 + 3,
         "rows at steps 0, 100 and 200"
     );
+    // No `-0e0`: the hopping block's potential at the start was written so.
+    let hop = tempfile::tempdir().unwrap();
+    common::run_into(&scene("hopping_block"), Some(10), hop.path());
+    let history = std::fs::read_to_string(hop.path().join("history.csv")).unwrap();
+    assert!(
+        history.split([',', '\n']).all(|x| x != "-0e0"),
+        "{history}"
+    );
     let state: serde_json::Value = serde_json::from_str(
         &std::fs::read_to_string(dir.path().join("final_state.json")).unwrap(),
     )

@@ -519,6 +519,8 @@ impl History {
             row.extend([p.velocity.norm() * p.travel(s.t), *r]);
         }
         row.extend(c.probes.iter().map(|p| p.value(s.u)));
+        // −0 (the potential of a body at rest where it started) is written and kept as 0.
+        row.iter_mut().for_each(|x| *x += 0.0);
         if self.file.is_some() {
             let line: Vec<String> = row.iter().map(|x| format!("{x:e}")).collect();
             self.append(line.join(","))?;
