@@ -216,10 +216,7 @@ fn outputs_follow_the_contract() {
     let hop = tempfile::tempdir().unwrap();
     common::run_into(&scene("hopping_block"), Some(10), hop.path());
     let history = std::fs::read_to_string(hop.path().join("history.csv")).unwrap();
-    assert!(
-        history.split([',', '\n']).all(|x| x != "-0e0"),
-        "{history}"
-    );
+    assert!(history.split([',', '\n']).all(|x| x != "-0e0"), "{history}");
     let state: serde_json::Value = serde_json::from_str(
         &std::fs::read_to_string(dir.path().join("final_state.json")).unwrap(),
     )

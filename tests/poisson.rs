@@ -137,7 +137,7 @@ fn the_outline_is_every_element_with_a_free_edge() {
     json["bodies"][0]["mesh"]["cells"] = serde_json::json!([80, 1]);
     let one_row = Scene::from_json(&json.to_string()).unwrap();
     for scene in [one_row, bundled("column_step"), bundled("hopping_block")] {
-        let e = of(&scene).err().expect("nothing inside").to_string();
+        let e = of(&scene).expect_err("nothing inside").to_string();
         assert!(
             e.contains("bodies[0].mesh") && e.contains("free edge") && !e.contains("Numeric"),
             "{}: {e}",

@@ -130,7 +130,7 @@ pub fn check(p: &Setup) -> Result<CheckReport> {
         steps: p.steps,
         unstable: p.dt > p.dt_crit() || p.dt > p.limit.dt_ceiling(),
         memory_bytes: p.evaluator.bytes() + mass_bytes + 6 * 8 * m.n_dofs(),
-        warnings: dt_warnings(&p),
+        warnings: dt_warnings(p),
     })
 }
 
