@@ -2,7 +2,7 @@
 //! formulations, evaluators and contact models. Each point reports its error against a
 //! reference, its wall time, steps, peak memory and `Δt_crit`; the points that no other point
 //! beats in both error and time form the Pareto front, where a time within another's spread
-//! of runs is no better and no worse than it ([`mark_pareto`]).
+//! of runs is no better and no worse than it ([`Point::pareto`]).
 //!
 //! The reference is the scene's closed form or theory ([`ReferenceSpec`]) when it has one,
 //! otherwise the finest run of the sweep (highest refinement, then smallest time step), named in
