@@ -111,8 +111,9 @@ fn compute() -> Outcome {
             let before = resultant.clone();
             f.add_point_force(&mut resultant, x - xe, traction * (t * w));
             trace.push(format!(
-                "edge to {:>6}, x = ({:.3}, {:.3}) m: δ_n = {:+.4e} m, δ_s = {:+.4e} m, τ = \
-                    ({:+.4e}, {:+.4e}) Pa, adds ({:+.4e} N, {:+.4e} N, {:+.4e} N·m)",
+                "edge to {:>6}, x = ({:.3}, {:.3}) m: δ_n = {:+.4e} m, δ_s = {:+.4e} m (on the \
+                    edge's outward normal and tangent), τ = ({:+.4e}, {:+.4e}) Pa (x, y), adds \
+                    ({:+.4e} N, {:+.4e} N, {:+.4e} N·m)",
                 if other == GROUND {
                     "ground".to_string()
                 } else {
