@@ -964,3 +964,20 @@ fn bad_voronoi_domains_are_named() {
         &["bodies[0].mesh.domain", "covers less than 1/1000"],
     );
 }
+
+/// A list where the scene wants an object is refused by that key: the reader took a list for a
+/// struct's fields in order, so a contact block in brackets was "unknown variant `model`" at
+/// `contact[0]`, and a `time` of `[dt, dt_factor, steps]` passed. Lists of numbers and of
+/// bodies stay lists.
+#[test]
+fn a_list_for_an_object_is_refused_by_its_key() {
+    let e = with(|v| v["contact"] = serde_json::json!([{"model": "point"}]));
+    expect(&e, &["`contact`", "must be an object", "not a list"]);
+    let e = with(|v| v["time"] = serde_json::json!([1e-6, null, 10]));
+    expect(&e, &["`time`", "not a list"]);
+    let e = with(|v| v["bodies"][0]["mesh"] = serde_json::json!(["grid", [0, 0]]));
+    expect(&e, &["`bodies[0].mesh`", "not a list"]);
+    let e = with(|v| v["materials"]["m"] = serde_json::json!([2e10, 0.2, 2400]));
+    expect(&e, &["`materials.m`", "not a list"]);
+    Scene::from_json(&base().to_string()).unwrap();
+}

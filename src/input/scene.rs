@@ -1391,6 +1391,90 @@ pub(crate) fn from_json_text<T: serde::de::DeserializeOwned>(text: &str) -> Resu
     })
 }
 
+/// Refuses a list where the scene's schema wants an object, naming it: the reader takes a list
+/// for a struct's fields in order, so `"contact": [{"model": "point"}]` was "unknown variant
+/// `model`" at `contact[0]`, and `"time": [1e-6, null, 100]` passed as `dt`, `dt_factor`,
+/// `steps`.
+fn refuse_lists_for_objects(text: &str) -> Result<()> {
+    use serde_json::Value;
+    /// A schema with its `$ref`s followed.
+    fn resolve<'a>(defs: &'a Value, mut s: &'a Value) -> &'a Value {
+        while let Some(name) = s["$ref"].as_str().and_then(|r| r.strip_prefix("#/$defs/")) {
+            s = &defs[name];
+        }
+        s
+    }
+    /// A schema and its options (`anyOf`, `oneOf`), each resolved.
+    fn options<'a>(defs: &'a Value, s: &'a Value) -> Vec<&'a Value> {
+        let s = resolve(defs, s);
+        let mut all = vec![s];
+        for key in ["anyOf", "oneOf"] {
+            all.extend(
+                s[key]
+                    .as_array()
+                    .into_iter()
+                    .flatten()
+                    .map(|o| resolve(defs, o)),
+            );
+        }
+        all
+    }
+    /// The first list under `path` in `value` that `schema` does not take.
+    fn walk(defs: &Value, schema: &Value, value: &Value, path: &str) -> Option<String> {
+        let schemas = options(defs, schema);
+        let takes = |t: &str| {
+            schemas.iter().any(|s| match &s["type"] {
+                Value::String(x) => x == t,
+                Value::Array(x) => x.iter().any(|x| x == t),
+                _ => false,
+            })
+        };
+        match value {
+            // A root that is no object is the reader's to place by line and column.
+            Value::Array(_) if !path.is_empty() && !takes("array") && takes("object") => {
+                Some(path.to_string())
+            }
+            Value::Array(items) => {
+                let item = schemas.iter().map(|s| &s["items"]).find(|i| !i.is_null())?;
+                items
+                    .iter()
+                    .enumerate()
+                    .find_map(|(k, v)| walk(defs, item, v, &format!("{path}[{k}]")))
+            }
+            Value::Object(map) => map.iter().find_map(|(key, v)| {
+                let inner = schemas
+                    .iter()
+                    .map(|s| &s["properties"][key])
+                    .find(|p| !p.is_null())
+                    .or_else(|| {
+                        schemas
+                            .iter()
+                            .map(|s| &s["additionalProperties"])
+                            .find(|p| p.is_object())
+                    })?;
+                let path = if path.is_empty() {
+                    key.clone()
+                } else {
+                    format!("{path}.{key}")
+                };
+                walk(defs, inner, v, &path)
+            }),
+            _ => None,
+        }
+    }
+    let Ok(value) = serde_json::from_str::<Value>(text) else {
+        return Ok(()); // the reader says where the text is not JSON
+    };
+    let root = schema();
+    match walk(&root["$defs"], &root, &value, "") {
+        Some(path) => Err(Error::scene(
+            path,
+            "must be an object of keys and values (`{…}`, docs/scene.md), not a list",
+        )),
+        None => Ok(()),
+    }
+}
+
 /// `message` of the JSON reader with the Rust types it expects said as a scene's author knows
 /// them: `expected f64` as a number, `expected usize` as a whole number ≥ 0.
 fn plain_types(message: &str) -> String {
@@ -1443,6 +1527,7 @@ impl Scene {
     /// Parses a scene whose relative mesh paths start at `dir`, then validates it.
     fn parse(text: &str, dir: Option<&Path>) -> Result<Scene> {
         refuse_duplicate_keys(text)?;
+        refuse_lists_for_objects(text)?;
         let mut scene: Scene = from_json_text(text)?;
         if let Some(dir) = dir {
             for body in &mut scene.bodies {
