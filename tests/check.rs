@@ -84,8 +84,8 @@ fn a_good_scene_is_described() {
 
 #[test]
 fn a_bad_scene_is_refused_with_its_field() {
-    let dir = std::env::temp_dir().join(format!("rbsm-check-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().to_path_buf();
     let text = std::fs::read_to_string(concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/examples/scenes/cantilever_gmsh.json"

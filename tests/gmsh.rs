@@ -108,9 +108,7 @@ fn the_shipped_msh_gives_the_model_of_the_built_in_grid() {
     }
 }
 
-fn write(name: &str, text: &str) -> std::path::PathBuf {
-    let dir = std::env::temp_dir().join(format!("rbsm-gmsh-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+fn write(dir: &std::path::Path, name: &str, text: &str) -> std::path::PathBuf {
     let path = dir.join(name);
     std::fs::write(&path, text).unwrap();
     path
@@ -135,18 +133,23 @@ const TRI6: &str = "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Nodes\n1 6 1 6\n2 1 0
 
 #[test]
 fn unsupported_files_and_names_are_refused_clearly() {
-    let old = write("old.msh", "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n");
+    let tmp = tempfile::tempdir().unwrap();
+    let old = write(
+        tmp.path(),
+        "old.msh",
+        "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n",
+    );
     let e = error_for(&old, "left");
     assert!(
         e.contains("MSH version 2.2 is not supported") && e.contains("4.1"),
         "{e}"
     );
-    let e = error_for(&write("tri6.msh", TRI6), "left");
+    let e = error_for(&write(tmp.path(), "tri6.msh", TRI6), "left");
     assert!(
         e.contains("Tri6") && e.contains("not supported") && e.contains("element 1"),
         "{e}"
     );
-    let e = error_for(&write("junk.msh", "hello"), "left");
+    let e = error_for(&write(tmp.path(), "junk.msh", "hello"), "left");
     assert!(
         e.contains("not a gmsh MSH file") && e.contains("`bodies[0].mesh.path`: "),
         "{e}"
@@ -154,6 +157,7 @@ fn unsupported_files_and_names_are_refused_clearly() {
     // A data size the MSH reader panicked on (found by fuzzing), and a header cut short.
     let e = error_for(
         &write(
+            tmp.path(),
             "size.msh",
             "$MeshFormat\n4.1 0 4294967296\n$EndMeshFormat\n",
         ),
@@ -164,7 +168,11 @@ fn unsupported_files_and_names_are_refused_clearly() {
         "{e}"
     );
     let e = error_for(
-        &write("short.msh", "$MeshFormat\n4.1\n$EndMeshFormat\n"),
+        &write(
+            tmp.path(),
+            "short.msh",
+            "$MeshFormat\n4.1\n$EndMeshFormat\n",
+        ),
         "left",
     );
     assert!(e.contains("file type 0"), "{e}");
