@@ -140,12 +140,7 @@ pub fn check(p: &Setup) -> Result<CheckReport> {
 fn dt_warnings(p: &Setup) -> Vec<String> {
     let mut warnings = crate::model::checks::warnings(&p.model);
     let exact = p.dt_crit();
-    if p.dt > exact {
-        let mut w = format!(
-            "dt is {:.6} × Δt_crit: central difference is unstable above 1; expect the guard to \
-             stop the run",
-            p.dt / exact
-        );
+    if let Some(mut w) = crate::analysis::limit::above_limit(p.dt, exact, 6) {
         if let Some(run) = p.limit.dt_crit().filter(|&run| run > exact && p.dt <= run) {
             w += &format!(
                 ". The run takes `dt_factor` of its own Δt_crit, {run:.6e} s, which Lanczos \

@@ -809,12 +809,7 @@ impl Limit {
     /// The warning for a run stepped at `dt`, if any.
     pub fn warning(&self, dt: f64) -> Option<String> {
         match self.dt_crit() {
-            Some(crit) if dt > crit => Some(format!(
-                "dt is {:.4} × Δt_crit: central difference is unstable above 1; expect the guard \
-                 to stop the run",
-                dt / crit
-            )),
-            Some(_) => None,
+            Some(crit) => above_limit(dt, crit, 4),
             None if dt > self.dt_ceiling() => Some(format!(
                 "dt is {:.4} × an upper bound of Δt_crit (2/ω of the stiffest element alone, \
                  {:.6e} s): central difference is unstable; expect the guard to stop the run",
@@ -832,6 +827,18 @@ impl Limit {
             None => None,
         }
     }
+}
+
+/// The warning for a step `dt` above the stability limit `crit`, if it is, the ratio with
+/// `digits` decimals.
+pub fn above_limit(dt: f64, crit: f64, digits: usize) -> Option<String> {
+    (dt > crit).then(|| {
+        format!(
+            "dt is {:.digits$} × Δt_crit: central difference is unstable above 1; expect the \
+             guard to stop the run",
+            dt / crit
+        )
+    })
 }
 
 #[cfg(test)]

@@ -1140,8 +1140,10 @@ impl<'a> CentralDifference<'a> {
                 self.ledger.energy_in_max
             ));
         }
-        let drift = (e.total - self.ledger.initial_total.unwrap_or(e.total)).abs();
-        if self.ledger.energy_in_max > 0.0 && drift > BALANCE_LIMIT * self.ledger.energy_in_max {
+        // The largest movement so far, which `energy` has just raised to this step's: the first
+        // check it exceeds the bound at is the first whose own movement does.
+        let drift = self.ledger.max_drift;
+        if self.max_relative_drift() > BALANCE_LIMIT {
             return Some(format!(
                 "energy balance: the total energy moved by {drift:.6e} J, more than \
                  {BALANCE_LIMIT} × the energy put in ({:.6e} J); the time step is likely above \
